@@ -1,0 +1,1 @@
+//! ucc-client: the UAV Control Center framework. (Overview to be written.)

@@ -1,0 +1,2 @@
+//! The `ucc` program.
+fn main() {}

@@ -1,0 +1,1 @@
+//! The three number formatters of UDK-USARSim (protocol.md §1.4).

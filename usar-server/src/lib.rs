@@ -1,0 +1,4 @@
+//! usar-server: a USARSim stand-in. (Overview to be written.)
+
+pub mod net;
+pub mod sim;

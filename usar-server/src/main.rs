@@ -1,0 +1,2 @@
+//! The `usar-server` program.
+fn main() {}
