@@ -2,3 +2,5 @@
 
 pub mod net;
 pub mod sim;
+
+pub use net::{ServerConfig, ServerError, TimeScale, run};
