@@ -1,6 +1,8 @@
 //! The USARSim (UDK Gamebots) text protocol: message model, tolerant parser, byte-exact
 //! printer and line codec. (Module overview and example: to be written.)
 
+#[cfg(feature = "codec")]
+pub mod codec;
 pub mod error;
 pub mod format;
 pub mod message;

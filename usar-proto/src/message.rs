@@ -67,3 +67,9 @@ impl Message {
             .map(|p| p.value.as_str())
     }
 }
+
+impl std::fmt::Display for Deviation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{self:?}")
+    }
+}

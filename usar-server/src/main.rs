@@ -1,2 +1,155 @@
-//! The `usar-server` program.
-fn main() {}
+//! The `usar-server` program: a USARSim stand-in on TCP port 3000.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::Parser;
+use tokio_util::sync::CancellationToken;
+use usar_server::sim::SimConfig;
+use usar_server::sim::map::Map;
+use usar_server::sim::robots::RobotCatalog;
+use usar_server::{ServerConfig, TimeScale};
+
+/// A USARSim (UDK) stand-in: speaks the Gamebots text protocol and flies simulated
+/// quadrotors (USARBot.stsAirRobot, USARBot.AirRobot) headless, with rapier3d.
+///
+/// When ready it prints one line on stdout: `usar-server listening on ADDRESS:PORT map LEVEL`.
+/// Ctrl-C or SIGTERM shut it down cleanly. Log level: RUST_LOG (default `info`), on stderr.
+#[derive(Debug, Parser)]
+#[command(version, about, long_about = None)]
+struct Args {
+    /// Address to listen on.
+    #[arg(long, default_value = "127.0.0.1")]
+    bind: String,
+    /// TCP port (0 picks a free one).
+    #[arg(long, default_value_t = 3000)]
+    port: u16,
+    /// Map: an embedded map name (see --list-maps) or a map file (TOML, see docs/maps.md).
+    #[arg(long, value_name = "NAME|FILE")]
+    map: Option<String>,
+    /// Robot configurations (TOML, see docs/robots.md); default: the embedded catalog.
+    #[arg(long, value_name = "FILE")]
+    robots: Option<PathBuf>,
+    /// Seed of every noise source; the same seed and commands give the same run.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Simulated seconds per wall second (e.g. 1, 10, 0.5), or `max` for as fast as possible.
+    #[arg(long, default_value = "1", value_name = "K|max")]
+    time_scale: TimeScale,
+    /// Connections served at once; more are closed on accept.
+    #[arg(long, default_value_t = 64)]
+    max_connections: usize,
+    /// List the embedded maps and exit.
+    #[arg(long)]
+    list_maps: bool,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    if args.list_maps {
+        for name in Map::embedded_names() {
+            println!("{name}");
+        }
+        return ExitCode::SUCCESS;
+    }
+    let config = match build_config(&args) {
+        Ok(config) => config,
+        Err(error) => {
+            eprintln!("usar-server: {error:#}");
+            return ExitCode::from(2);
+        }
+    };
+    match serve(args, config) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("usar-server: {error:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
+    let map = match &args.map {
+        None => Map::default_map(),
+        Some(name) => match Map::embedded(name) {
+            Some(map) => map,
+            None => {
+                let path = PathBuf::from(name);
+                if !path.exists() {
+                    anyhow::bail!(
+                        "--map {name}: no embedded map of that name ({}) and no such file",
+                        Map::embedded_names().join(", ")
+                    );
+                }
+                Map::from_file(&path)?
+            }
+        },
+    };
+    let robots = match &args.robots {
+        None => RobotCatalog::embedded(),
+        Some(path) => RobotCatalog::from_file(path)?,
+    };
+    Ok(ServerConfig {
+        map,
+        robots,
+        sim: SimConfig {
+            seed: args.seed,
+            ..SimConfig::default()
+        },
+        time_scale: args.time_scale,
+        max_connections: args.max_connections,
+        ..ServerConfig::default()
+    })
+}
+
+fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
+    let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind((args.bind.as_str(), args.port))
+            .await
+            .with_context(|| format!("cannot listen on {}:{}", args.bind, args.port))?;
+        let address = listener.local_addr()?;
+        let level = config.map.level().to_owned();
+        let shutdown = CancellationToken::new();
+        tokio::spawn(cancel_on_signal(shutdown.clone()));
+        let mut stdout = std::io::stdout().lock();
+        writeln!(stdout, "usar-server listening on {address} map {level}")?;
+        stdout.flush()?;
+        drop(stdout);
+        usar_server::run(listener, config, shutdown).await?;
+        Ok(())
+    })
+}
+
+/// Cancels `shutdown` on Ctrl-C or SIGTERM.
+async fn cancel_on_signal(shutdown: CancellationToken) {
+    let ctrl_c = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = ctrl_c => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = ctrl_c.await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = ctrl_c.await;
+    tracing::info!("shutting down");
+    shutdown.cancel();
+}

@@ -13,6 +13,9 @@
 //! world.step(&mut Vec<(ClientId, ServerMessage)>)          // one tick; appends this tick's output
 //! ```
 
+pub mod map;
+pub mod robots;
+
 use usar_proto::{Command, ServerMessage};
 
 /// A connection as the simulation knows it.
@@ -47,7 +50,7 @@ pub struct World {
 
 impl World {
     /// A world from settings (map and robot catalog still to come).
-    pub fn new(config: SimConfig) -> Self {
+    pub fn new(_map: map::Map, _robots: robots::RobotCatalog, config: SimConfig) -> Self {
         Self {
             tick: 0,
             dt: config.dt,
@@ -57,6 +60,14 @@ impl World {
     /// The map's level name.
     pub fn level(&self) -> &str {
         "EmptyRoom"
+    }
+    /// NFO time limit.
+    pub fn time_limit(&self) -> i64 {
+        20
+    }
+    /// Robots in the world.
+    pub fn robot_count(&self) -> usize {
+        0
     }
     /// Simulated seconds.
     pub fn time(&self) -> f64 {

@@ -1,0 +1,175 @@
+//! Test harness: a real server on port 0 and raw-line clients.
+#![allow(dead_code, unreachable_pub)]
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+use tokio::net::TcpStream;
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio_util::sync::CancellationToken;
+use usar_proto::{SenData, ServerMessage, Vec3};
+use usar_server::{ServerConfig, TimeScale};
+
+/// Wall-clock limit for any single wait in a test (a hang fails instead of blocking CI).
+pub const PATIENCE: Duration = Duration::from_secs(60);
+
+pub struct TestServer {
+    pub addr: SocketAddr,
+    pub shutdown: CancellationToken,
+    pub task: tokio::task::JoinHandle<Result<(), usar_server::ServerError>>,
+}
+
+impl TestServer {
+    /// The embedded defaults, simulated 10× faster than real time.
+    pub async fn start() -> Self {
+        Self::with(ServerConfig {
+            time_scale: TimeScale::Factor(10.0),
+            ..ServerConfig::default()
+        })
+        .await
+    }
+
+    pub async fn with(config: ServerConfig) -> Self {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap();
+        let shutdown = CancellationToken::new();
+        let task = tokio::spawn(usar_server::run(listener, config, shutdown.clone()));
+        Self {
+            addr,
+            shutdown,
+            task,
+        }
+    }
+
+    pub async fn client(&self) -> Client {
+        Client::connect(self.addr).await
+    }
+
+    pub async fn stop(self) {
+        self.shutdown.cancel();
+        tokio::time::timeout(PATIENCE, self.task)
+            .await
+            .expect("server did not stop")
+            .unwrap()
+            .unwrap();
+    }
+}
+
+pub struct Client {
+    pub reader: BufReader<OwnedReadHalf>,
+    pub writer: OwnedWriteHalf,
+}
+
+impl Client {
+    pub async fn connect(addr: SocketAddr) -> Self {
+        let stream = TcpStream::connect(addr).await.unwrap();
+        let (r, w) = stream.into_split();
+        Self {
+            reader: BufReader::new(r),
+            writer: w,
+        }
+    }
+
+    pub async fn send(&mut self, line: &str) {
+        self.writer.write_all(line.as_bytes()).await.unwrap();
+        self.writer.write_all(b"\r\n").await.unwrap();
+    }
+
+    /// The next raw line with its terminator, or `None` at EOF.
+    pub async fn raw_line(&mut self) -> Option<String> {
+        let mut line = String::new();
+        let n = tokio::time::timeout(PATIENCE, self.reader.read_line(&mut line))
+            .await
+            .expect("no line from the server in time")
+            .unwrap();
+        (n > 0).then_some(line)
+    }
+
+    /// The next line, checked to end with CR LF, and parsed.
+    pub async fn message(&mut self) -> (String, ServerMessage) {
+        let line = self.raw_line().await.expect("unexpected EOF");
+        assert!(line.ends_with("\r\n"), "line not terminated by CR LF: {line:?}");
+        let text = line.trim_end_matches("\r\n").to_owned();
+        let parsed = ServerMessage::parse(&text)
+            .unwrap_or_else(|e| panic!("server sent an unreadable line {text:?}: {e}"));
+        (text, parsed.message)
+    }
+
+    /// Reads until `pick` returns `Some`, skipping everything else.
+    pub async fn until<T>(&mut self, mut pick: impl FnMut(&ServerMessage) -> Option<T>) -> T {
+        loop {
+            let (_, m) = self.message().await;
+            if let Some(t) = pick(&m) {
+                return t;
+            }
+        }
+    }
+
+    /// The next Position reading: (time, location).
+    pub async fn position(&mut self) -> (f64, Vec3) {
+        self.until(|m| match m {
+            ServerMessage::Sen(s) => match &s.data {
+                SenData::Position { location, .. } => Some((s.time.unwrap().seconds, *location)),
+                _ => None,
+            },
+            _ => None,
+        })
+        .await
+    }
+
+    /// The next IMU reading: (time, rotation).
+    pub async fn rotation(&mut self) -> (f64, Vec3) {
+        self.until(|m| match m {
+            ServerMessage::Sen(s) => match &s.data {
+                SenData::Imu { rotation, .. } => Some((s.time.unwrap().seconds, *rotation)),
+                _ => None,
+            },
+            _ => None,
+        })
+        .await
+    }
+
+    /// The next reading of the sonar called `name`: (time, range).
+    pub async fn sonar(&mut self, name: &str) -> (f64, f64) {
+        self.until(|m| match m {
+            ServerMessage::Sen(s) => match &s.data {
+                SenData::Sonar { readings, .. } => readings
+                    .iter()
+                    .find(|r| r.name == name)
+                    .map(|r| (s.time.unwrap().seconds, r.range)),
+                _ => None,
+            },
+            _ => None,
+        })
+        .await
+    }
+
+    /// The next laser scan's ranges.
+    pub async fn scan(&mut self) -> Vec<f64> {
+        self.until(|m| match m {
+            ServerMessage::Sen(s) => match &s.data {
+                SenData::RangeScanner(scan) => Some(scan.ranges.clone()),
+                _ => None,
+            },
+            _ => None,
+        })
+        .await
+    }
+
+    /// Reads the NFO, sends INIT for an stsAirRobot at `location` (yaw `yaw`) and waits for
+    /// the first STA.
+    pub async fn spawn_at(&mut self, location: [f64; 3], yaw: f64) {
+        let [x, y, z] = location;
+        self.send(&format!(
+            "INIT {{ClassName USARBot.stsAirRobot}} {{Name UAV}} {{Location {x},{y},{z}}} {{Rotation 0,0,{yaw}}}"
+        ))
+        .await;
+        self.until(|m| matches!(m, ServerMessage::Sta(_)).then_some(()))
+            .await;
+    }
+}
+
+pub fn distance(a: Vec3, b: Vec3) -> f64 {
+    ((a.x - b.x).powi(2) + (a.y - b.y).powi(2) + (a.z - b.z).powi(2)).sqrt()
+}

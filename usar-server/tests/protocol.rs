@@ -1,0 +1,297 @@
+//! The server over real TCP: what a USARSim client sees.
+
+mod common;
+
+use common::{Client, TestServer, distance};
+use usar_proto::{Nfo, SenData, ServerMessage, StartPose};
+
+/// The default map's first start pose, asked over the protocol.
+async fn first_start(client: &mut Client) -> StartPose {
+    client.send("GETSTARTPOSES").await;
+    client
+        .until(|m| match m {
+            ServerMessage::Nfo(Nfo::StartPoses { poses, .. }) => Some(poses[0].clone()),
+            _ => None,
+        })
+        .await
+}
+
+#[tokio::test]
+async fn greets_with_game_info_and_lists_start_poses() {
+    let server = TestServer::start().await;
+    let mut c = server.client().await;
+    let first = c.raw_line().await.unwrap();
+    let level = usar_server::sim::map::Map::default_map().level().to_owned();
+    assert_eq!(
+        first,
+        format!("NFO {{Gametype BotDeathMatch}} {{Level {level}}} {{TimeLimit 20}}\r\n")
+    );
+    c.send("GETSTARTPOSES").await;
+    let (line, msg) = c.message().await;
+    let ServerMessage::Nfo(Nfo::StartPoses { poses, .. }) = msg else {
+        panic!("expected start poses, got {line}");
+    };
+    assert!(!poses.is_empty(), "the default map has start poses: {line}");
+    assert!(line.starts_with(&format!("NFO {{StartPoses {}}} {{", poses.len())));
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn init_at_location_and_at_start_tag() {
+    let server = TestServer::start().await;
+    let mut c = server.client().await;
+    let start = first_start(&mut c).await;
+
+    c.spawn_at([start.location.x + 1.0, start.location.y, start.location.z], 0.0)
+        .await;
+    let (_, p) = c.position().await;
+    assert!(
+        (p.x - start.location.x - 1.0).abs() < 0.01
+            && (p.y - start.location.y).abs() < 0.01
+            && (p.z - start.location.z).abs() < 0.01,
+        "spawned at {p:?}"
+    );
+
+    let mut d = server.client().await;
+    d.send(&format!(
+        "INIT {{ClassName USARBot.stsAirRobot}} {{Name B}} {{Start {}}}",
+        start.name.to_uppercase()
+    ))
+    .await;
+    let (_, q) = d.position().await;
+    assert!(distance(q, start.location) < 0.01, "spawned at {q:?}, start {start:?}");
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn unknown_class_spawns_nothing_and_keeps_the_connection() {
+    let server = TestServer::start().await;
+    let mut c = server.client().await;
+    c.raw_line().await.unwrap();
+    c.send("INIT {ClassName USARBot.NoSuchRobot} {Location 0,0,0}").await;
+    c.send("FLY {To Moon}").await;
+    // Still served: GETSTARTPOSES answers, and nothing else came before it.
+    c.send("GETSTARTPOSES").await;
+    let (line, _) = c.message().await;
+    assert!(line.starts_with("NFO {StartPoses"), "got {line}");
+    server.stop().await;
+}
+
+/// Drives with `command` from a fresh spawn and returns the rate of change (per simulated
+/// second) measured by `probe` over two simulated seconds of motion.
+async fn rate_during(command: &str, probe: fn(&ServerMessage) -> Option<(f64, f64)>) -> f64 {
+    let server = TestServer::start().await;
+    let mut c = server.client().await;
+    let start = first_start(&mut c).await;
+    c.spawn_at([start.location.x, start.location.y, start.location.z], 0.0)
+        .await;
+    c.send(command).await;
+    // Skip a little so the command is surely applied, then measure over 2 s.
+    let (t0, _) = c.until(probe).await;
+    let (t1, v1) = c.until(|m| probe(m).filter(|(t, _)| *t >= t0 + 0.25)).await;
+    let (t2, v2) = c.until(|m| probe(m).filter(|(t, _)| *t >= t1 + 2.0)).await;
+    server.stop().await;
+    (v2 - v1) / (t2 - t1)
+}
+
+fn x_position(m: &ServerMessage) -> Option<(f64, f64)> {
+    match m {
+        ServerMessage::Sen(s) => match &s.data {
+            SenData::Position { location, .. } => Some((s.time?.seconds, location.x)),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+fn z_position(m: &ServerMessage) -> Option<(f64, f64)> {
+    match m {
+        ServerMessage::Sen(s) => match &s.data {
+            SenData::Position { location, .. } => Some((s.time?.seconds, location.z)),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+fn yaw(m: &ServerMessage) -> Option<(f64, f64)> {
+    match m {
+        ServerMessage::Sen(s) => match &s.data {
+            SenData::Imu { rotation, .. } => Some((s.time?.seconds, rotation.z)),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+#[tokio::test]
+async fn linear_velocity_moves_along_the_heading() {
+    let v = rate_during("DRIVE {LinearVelocity 1}", x_position).await;
+    assert!((v - 1.0).abs() <= 0.05, "moved at {v} m/s");
+}
+
+#[tokio::test]
+async fn rotational_velocity_is_whole_degrees_per_second() {
+    let w = rate_during("DRIVE {RotationalVelocity 45}", yaw).await;
+    assert!(
+        (w.to_degrees() - 45.0).abs() <= 45.0 * 0.05,
+        "turned at {} deg/s",
+        w.to_degrees()
+    );
+    let w = rate_during("DRIVE {RotationalVelocity 0.5}", yaw).await;
+    assert_eq!(w, 0.0, "0.5 deg/s truncates to no rotation");
+}
+
+#[tokio::test]
+async fn normalized_altitude_velocity_climbs_at_two_metres_per_second() {
+    // z is down in the protocol frame: climbing makes z smaller.
+    let v = rate_during("DRIVE {AltitudeVelocity 100} {Normalized true}", z_position).await;
+    assert!((v + 2.0).abs() <= 0.1, "climbed at {} m/s", -v);
+}
+
+#[tokio::test]
+async fn two_robots_see_each_other_in_their_sonars() {
+    let server = TestServer::start().await;
+    let mut a = server.client().await;
+    let start = first_start(&mut a).await;
+    let (x, y, z) = (start.location.x, start.location.y, start.location.z);
+    a.spawn_at([x, y, z], 0.0).await;
+    let mut b = server.client().await;
+    b.raw_line().await.unwrap();
+    // b 2 m in front of a, facing it.
+    b.spawn_at([x + 2.0, y, z], std::f64::consts::PI).await;
+    let (_, ra) = a.sonar("Sonar0").await;
+    let (_, rb) = b.sonar("Sonar0").await;
+    assert!(ra < 2.0 && ra > 1.0, "a's front sonar reads {ra}");
+    assert!(rb < 2.0 && rb > 1.0, "b's front sonar reads {rb}");
+    let (_, back) = a.sonar("Sonar4").await;
+    assert!(back > 2.0, "a's back sonar sees free space: {back}");
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn garbage_from_one_client_leaves_another_undisturbed() {
+    let server = TestServer::start().await;
+    let mut good = server.client().await;
+    let start = first_start(&mut good).await;
+    good.spawn_at([start.location.x, start.location.y, start.location.z], 0.0)
+        .await;
+
+    let mut bad = server.client().await;
+    use tokio::io::AsyncWriteExt;
+    let long = vec![b'x'; 200_000];
+    bad.writer.write_all(&long).await.unwrap();
+    bad.writer.write_all(b"\r\n\0\xff\xfe{{{}}}\n").await.unwrap();
+    bad.writer.write_all(b"DRIVE {LinearVelocity").await.unwrap();
+    drop(bad);
+
+    // The good client's STA keeps coming every 0.1 s of simulated time.
+    let mut times = Vec::new();
+    while times.len() < 20 {
+        let (_, m) = good.message().await;
+        if let ServerMessage::Sta(sta) = m {
+            times.push(sta.time.seconds);
+        }
+    }
+    for w in times.windows(2) {
+        assert!((w[1] - w[0] - 0.1).abs() < 0.011, "STA gap {w:?}");
+    }
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn shutdown_closes_connections_with_eof() {
+    let server = TestServer::start().await;
+    let mut c = server.client().await;
+    c.raw_line().await.unwrap();
+    server.stop().await;
+    // Drain whatever is left; then EOF.
+    while c.raw_line().await.is_some() {}
+}
+
+/// The number of decimals of each number in `text` (numbers separated by commas).
+fn decimals(text: &str) -> Vec<usize> {
+    text.split(',')
+        .map(|n| n.split_once('.').map_or(0, |(_, d)| d.len()))
+        .collect()
+}
+
+#[tokio::test]
+async fn every_sensor_reports_at_its_interval_in_its_exact_format() {
+    use std::collections::BTreeMap;
+    let server = TestServer::start().await;
+    let mut c = server.client().await;
+    let start = first_start(&mut c).await;
+    c.spawn_at([start.location.x, start.location.y, start.location.z], 0.0)
+        .await;
+    let mut counts: BTreeMap<String, usize> = BTreeMap::new();
+    let mut first_time = None;
+    loop {
+        let (line, m) = c.message().await;
+        // The printer is the exact inverse of the parser: what we sent is canonical.
+        assert_eq!(m.to_string(), line, "non-canonical line");
+        let (time, key) = match &m {
+            ServerMessage::Sta(sta) => {
+                assert!(line.starts_with("STA {Time ") && line.contains("} {Battery "), "{line}");
+                (sta.time.seconds, "STA".to_owned())
+            }
+            ServerMessage::Sen(sen) => {
+                let t = sen.time.expect("stsAirRobot sensors are time-stamped").seconds;
+                let key = match &sen.data {
+                    SenData::Position { name, location } => {
+                        assert_eq!(name, "Position");
+                        let _ = location;
+                        let text = line.split("{Location ").nth(1).unwrap().trim_end_matches('}');
+                        assert_eq!(decimals(text), [4, 4, 4], "{line}");
+                        "Position".to_owned()
+                    }
+                    SenData::Velocity { name, .. } => {
+                        assert_eq!(name, "Velocity");
+                        "Velocity".to_owned()
+                    }
+                    SenData::Imu { .. } => "IMU".to_owned(),
+                    SenData::Sonar { readings, grouped } => {
+                        assert!(!grouped && readings.len() == 1, "{line}");
+                        let r = &readings[0];
+                        assert!((0.1..=5.0).contains(&r.range), "{line}");
+                        r.name.clone()
+                    }
+                    SenData::RangeScanner(scan) => {
+                        assert_eq!(scan.ranges.len(), 228, "{line}");
+                        assert!(line.contains("{Resolution 0.0184} {FOV 4.1889} {Range "), "{line}");
+                        let text = line.split("{Range ").nth(1).unwrap().trim_end_matches('}');
+                        assert!(decimals(text).iter().all(|&d| d == 2), "{line}");
+                        scan.name.clone()
+                    }
+                    other => panic!("unexpected sensor {other:?}"),
+                };
+                (t, key)
+            }
+            _ => continue,
+        };
+        let t0 = *first_time.get_or_insert(time);
+        if time >= t0 + 5.0 {
+            break;
+        }
+        *counts.entry(key).or_default() += 1;
+    }
+    let mut expected: BTreeMap<String, f64> = BTreeMap::new();
+    for name in ["STA", "Position", "Velocity", "IMU"] {
+        expected.insert(name.into(), 5.0 / 0.1);
+    }
+    for i in 0..8 {
+        expected.insert(format!("Sonar{i}"), 5.0 / 0.2);
+    }
+    expected.insert("SonarTop".into(), 5.0 / 0.2);
+    expected.insert("SonarBottom".into(), 5.0 / 0.2);
+    expected.insert("Scanner".into(), 5.0 / 0.3);
+    for (name, want) in &expected {
+        let got = *counts.get(name).unwrap_or(&0) as f64;
+        assert!(
+            (got - want).abs() <= want * 0.1,
+            "{name}: {got} readings in 5 s, expected {want}"
+        );
+    }
+    assert_eq!(counts.len(), expected.len(), "unexpected parts: {counts:?}");
+    server.stop().await;
+}
