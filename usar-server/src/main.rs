@@ -41,6 +41,10 @@ struct Args {
     /// Connections served at once; more are closed on accept.
     #[arg(long, default_value_t = 64)]
     max_connections: usize,
+    /// Record every connection (both directions, stamped with simulated time) into DIR,
+    /// one file per connection (docs/recording.md).
+    #[arg(long, value_name = "DIR")]
+    record: Option<PathBuf>,
     /// List the embedded maps and exit.
     #[arg(long)]
     list_maps: bool,
@@ -107,6 +111,7 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         },
         time_scale: args.time_scale,
         max_connections: args.max_connections,
+        record: args.record.clone(),
         ..ServerConfig::default()
     })
 }

@@ -42,8 +42,11 @@ async fn init_at_location_and_at_start_tag() {
     let mut c = server.client().await;
     let start = first_start(&mut c).await;
 
-    c.spawn_at([start.location.x + 1.0, start.location.y, start.location.z], 0.0)
-        .await;
+    c.spawn_at(
+        [start.location.x + 1.0, start.location.y, start.location.z],
+        0.0,
+    )
+    .await;
     let (_, p) = c.position().await;
     assert!(
         (p.x - start.location.x - 1.0).abs() < 0.01
@@ -59,7 +62,10 @@ async fn init_at_location_and_at_start_tag() {
     ))
     .await;
     let (_, q) = d.position().await;
-    assert!(distance(q, start.location) < 0.01, "spawned at {q:?}, start {start:?}");
+    assert!(
+        distance(q, start.location) < 0.01,
+        "spawned at {q:?}, start {start:?}"
+    );
     server.stop().await;
 }
 
@@ -68,7 +74,8 @@ async fn unknown_class_spawns_nothing_and_keeps_the_connection() {
     let server = TestServer::start().await;
     let mut c = server.client().await;
     c.raw_line().await.unwrap();
-    c.send("INIT {ClassName USARBot.NoSuchRobot} {Location 0,0,0}").await;
+    c.send("INIT {ClassName USARBot.NoSuchRobot} {Location 0,0,0}")
+        .await;
     c.send("FLY {To Moon}").await;
     // Still served: GETSTARTPOSES answers, and nothing else came before it.
     c.send("GETSTARTPOSES").await;
@@ -181,8 +188,14 @@ async fn garbage_from_one_client_leaves_another_undisturbed() {
     use tokio::io::AsyncWriteExt;
     let long = vec![b'x'; 200_000];
     bad.writer.write_all(&long).await.unwrap();
-    bad.writer.write_all(b"\r\n\0\xff\xfe{{{}}}\n").await.unwrap();
-    bad.writer.write_all(b"DRIVE {LinearVelocity").await.unwrap();
+    bad.writer
+        .write_all(b"\r\n\0\xff\xfe{{{}}}\n")
+        .await
+        .unwrap();
+    bad.writer
+        .write_all(b"DRIVE {LinearVelocity")
+        .await
+        .unwrap();
     drop(bad);
 
     // The good client's STA keeps coming every 0.1 s of simulated time.
@@ -232,16 +245,26 @@ async fn every_sensor_reports_at_its_interval_in_its_exact_format() {
         assert_eq!(m.to_string(), line, "non-canonical line");
         let (time, key) = match &m {
             ServerMessage::Sta(sta) => {
-                assert!(line.starts_with("STA {Time ") && line.contains("} {Battery "), "{line}");
+                assert!(
+                    line.starts_with("STA {Time ") && line.contains("} {Battery "),
+                    "{line}"
+                );
                 (sta.time.seconds, "STA".to_owned())
             }
             ServerMessage::Sen(sen) => {
-                let t = sen.time.expect("stsAirRobot sensors are time-stamped").seconds;
+                let t = sen
+                    .time
+                    .expect("stsAirRobot sensors are time-stamped")
+                    .seconds;
                 let key = match &sen.data {
                     SenData::Position { name, location } => {
                         assert_eq!(name, "Position");
                         let _ = location;
-                        let text = line.split("{Location ").nth(1).unwrap().trim_end_matches('}');
+                        let text = line
+                            .split("{Location ")
+                            .nth(1)
+                            .unwrap()
+                            .trim_end_matches('}');
                         assert_eq!(decimals(text), [4, 4, 4], "{line}");
                         "Position".to_owned()
                     }
@@ -258,7 +281,10 @@ async fn every_sensor_reports_at_its_interval_in_its_exact_format() {
                     }
                     SenData::RangeScanner(scan) => {
                         assert_eq!(scan.ranges.len(), 228, "{line}");
-                        assert!(line.contains("{Resolution 0.0184} {FOV 4.1889} {Range "), "{line}");
+                        assert!(
+                            line.contains("{Resolution 0.0184} {FOV 4.1889} {Range "),
+                            "{line}"
+                        );
                         let text = line.split("{Range ").nth(1).unwrap().trim_end_matches('}');
                         assert!(decimals(text).iter().all(|&d| d == 2), "{line}");
                         scan.name.clone()

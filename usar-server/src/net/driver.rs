@@ -5,25 +5,37 @@
 //! A full queue drops that chunk for that client only (the rule for clients that do not read):
 //! the world never waits for a socket.
 //!
-//! Pacing: at `TimeScale::Factor(k)` tick `n` is due at `anchor + n·dt/k`. When the thread
+//! Time: simulated time runs only while the world holds at least one robot (an empty world
+//! has nothing to show, and a run that starts from an empty server starts from the same
+//! time). At `TimeScale::Factor(k)` tick `n` is due at `anchor + n·dt/k`; when the thread
 //! falls more than [`MAX_LAG`] behind (an overloaded machine) it re-anchors instead of
 //! bursting to catch up, like tokio's `MissedTickBehavior::Delay`: simulated time then runs
 //! slower than requested, but steps are never skipped, so results do not depend on load.
+//!
+//! Lockstep (docs/lockstep.md): a client that sends `SYNC {Time t}` joins the barrier; the
+//! world does not step past `t` until that client syncs again, and the client is answered
+//! `SYNC {Time now}` once the world has reached `t`. Clients that never sync are never
+//! waited for.
 
 use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
-use usar_proto::{Command, Nfo, ServerMessage};
+use usar_proto::{Command, Group, Message, Nfo, Pair, ServerMessage, format};
 
 use super::TimeScale;
 use crate::sim::{ClientId, World};
 
 /// How far behind schedule the driver may fall before it re-anchors its clock.
 const MAX_LAG: Duration = Duration::from_millis(250);
+
+/// Slack when comparing simulated times (ticks are multiples of dt, barriers are decimals).
+const TIME_EPSILON: f64 = 1e-6;
 
 /// What sessions ask of the simulation.
 #[derive(Debug)]
@@ -34,10 +46,24 @@ pub(super) enum Request {
         queue: mpsc::Sender<Bytes>,
         reply: oneshot::Sender<ClientId>,
     },
-    /// A command read from a connection.
-    Command { client: ClientId, command: Command },
+    /// A command read from a connection, with its text when recording.
+    Command {
+        client: ClientId,
+        command: Command,
+        line: Option<String>,
+    },
+    /// A lockstep barrier: `SYNC {Time t}`.
+    Sync {
+        client: ClientId,
+        time: f64,
+        line: Option<String>,
+    },
+    /// A line that was read but could not be understood (recorded only).
+    Unreadable { client: ClientId, line: String },
     /// The connection ended.
     Disconnect { client: ClientId },
+    /// Wakes the driver so that it notices the shutdown.
+    Wake,
 }
 
 /// The `NFO` game-info line sent on accept.
@@ -52,6 +78,21 @@ pub(super) fn game_info(world: &World) -> Bytes {
     Bytes::from(line)
 }
 
+/// The lockstep reply `SYNC {Time t}`.
+fn sync_reply(time: f64) -> ServerMessage {
+    let mut value = String::new();
+    format::ue_float(time, &mut value);
+    ServerMessage::Other(Message {
+        kind: "SYNC".into(),
+        groups: vec![Group {
+            pairs: vec![Pair {
+                key: "Time".into(),
+                value,
+            }],
+        }],
+    })
+}
+
 /// One connected client's outbound side.
 struct Client {
     peer: String,
@@ -59,11 +100,21 @@ struct Client {
     /// Text of this tick not yet handed to the queue.
     pending: String,
     dropped: u64,
+    /// Lockstep target time, once the client has joined the barrier.
+    barrier: Option<f64>,
+    /// Whether the client has been told that the world reached its barrier.
+    answered: bool,
+    record: Option<std::io::BufWriter<std::fs::File>>,
 }
 
 impl Client {
-    fn push(&mut self, message: &ServerMessage) {
+    fn push(&mut self, message: &ServerMessage, time: f64) {
+        let start = self.pending.len();
         message.write_to(&mut self.pending);
+        if let Some(file) = &mut self.record {
+            let line = &self.pending[start..];
+            let _ = record_line(file, time, 'S', line);
+        }
         self.pending.push_str("\r\n");
     }
 
@@ -85,87 +136,220 @@ impl Client {
             Err(mpsc::error::TrySendError::Closed(_)) => {}
         }
     }
-}
 
-/// Runs the world until `shutdown` is cancelled or every session and the server are gone.
-pub(super) fn drive(
-    mut world: World,
-    mut inbox: mpsc::Receiver<Request>,
-    scale: TimeScale,
-    shutdown: CancellationToken,
-) {
-    let mut clients: BTreeMap<ClientId, Client> = BTreeMap::new();
-    let mut out = Vec::new();
-    let mut anchor = Instant::now();
-    let mut ticks_since_anchor: u64 = 0;
-    while !shutdown.is_cancelled() {
-        loop {
-            match inbox.try_recv() {
-                Ok(request) => handle(&mut world, &mut clients, request),
-                Err(mpsc::error::TryRecvError::Empty) => break,
-                Err(mpsc::error::TryRecvError::Disconnected) => return,
-            }
-        }
-        world.step(&mut out);
-        for (client, message) in out.drain(..) {
-            if let Some(c) = clients.get_mut(&client) {
-                c.push(&message);
-            }
-        }
-        for c in clients.values_mut() {
-            c.flush();
-        }
-        trace!(time = world.time(), "tick");
-
-        // Nothing to simulate for anyone: run at real time rather than spinning the CPU.
-        let factor = match scale {
-            TimeScale::Max if world.robot_count() > 0 => continue,
-            TimeScale::Max => 1.0,
-            TimeScale::Factor(k) => k,
-        };
-        ticks_since_anchor += 1;
-        let due = anchor + Duration::from_secs_f64(ticks_since_anchor as f64 * world.dt() / factor);
-        let now = Instant::now();
-        if due > now {
-            std::thread::sleep(due - now);
-        } else if now - due > MAX_LAG {
-            debug!(lag_ms = (now - due).as_millis() as u64, "simulation behind schedule");
-            anchor = now;
-            ticks_since_anchor = 0;
-        }
+    /// Whether the next tick would take the world past this client's barrier.
+    fn holds_at(&self, time: f64, dt: f64) -> bool {
+        self.barrier.is_some_and(|b| time + dt > b + TIME_EPSILON)
     }
 }
 
-fn handle(world: &mut World, clients: &mut BTreeMap<ClientId, Client>, request: Request) {
-    match request {
-        Request::Connect { peer, queue, reply } => {
-            let id = world.connect();
-            clients.insert(
-                id,
-                Client {
-                    peer,
-                    queue,
-                    pending: String::new(),
-                    dropped: 0,
-                },
-            );
-            // The session may already be gone; then its Disconnect never comes, so undo.
-            if reply.send(id).is_err() {
-                world.disconnect(id);
-                clients.remove(&id);
-            }
+/// Writes one record line: `<time> <C|S> <line>`.
+fn record_line(
+    file: &mut impl Write,
+    time: f64,
+    direction: char,
+    line: &str,
+) -> std::io::Result<()> {
+    writeln!(file, "{time:.4} {direction} {line}")
+}
+
+/// The driver's state: the world and the clients' outbound sides.
+pub(super) struct Driver {
+    world: World,
+    clients: BTreeMap<ClientId, Client>,
+    record_dir: Option<PathBuf>,
+    connections: u64,
+}
+
+impl Driver {
+    pub(super) fn new(world: World, record_dir: Option<PathBuf>) -> Self {
+        Self {
+            world,
+            clients: BTreeMap::new(),
+            record_dir,
+            connections: 0,
         }
-        Request::Command { client, command } => {
-            let replies = world.command(client, command);
-            if let Some(c) = clients.get_mut(&client) {
-                for reply in &replies {
-                    c.push(reply);
+    }
+
+    /// Runs the world until `shutdown` is cancelled or every request sender is gone.
+    pub(super) fn run(
+        mut self,
+        mut inbox: mpsc::Receiver<Request>,
+        scale: TimeScale,
+        shutdown: CancellationToken,
+    ) {
+        let mut out = Vec::new();
+        let mut anchor = Instant::now();
+        let mut ticks_since_anchor: u64 = 0;
+        loop {
+            // Apply what is queued; wait for requests while the world may not step.
+            loop {
+                let request = match inbox.try_recv() {
+                    Ok(request) => request,
+                    Err(mpsc::error::TryRecvError::Empty) if self.may_step() => break,
+                    Err(mpsc::error::TryRecvError::Empty) => {
+                        self.flush_all();
+                        match inbox.blocking_recv() {
+                            Some(request) => {
+                                // Time stood still: do not burst to catch up afterwards.
+                                anchor = Instant::now();
+                                ticks_since_anchor = 0;
+                                request
+                            }
+                            None => return,
+                        }
+                    }
+                    Err(mpsc::error::TryRecvError::Disconnected) => return,
+                };
+                if shutdown.is_cancelled() {
+                    return;
+                }
+                self.handle(request);
+            }
+            if shutdown.is_cancelled() {
+                return;
+            }
+
+            self.world.step(&mut out);
+            let time = self.world.time();
+            for (client, message) in out.drain(..) {
+                if let Some(c) = self.clients.get_mut(&client) {
+                    c.push(&message, time);
                 }
             }
+            self.answer_barriers();
+            self.flush_all();
+            trace!(time, "tick");
+
+            let factor = match scale {
+                TimeScale::Max => continue,
+                TimeScale::Factor(k) => k,
+            };
+            ticks_since_anchor += 1;
+            let due = anchor
+                + Duration::from_secs_f64(ticks_since_anchor as f64 * self.world.dt() / factor);
+            let now = Instant::now();
+            if due > now {
+                std::thread::sleep(due - now);
+            } else if now - due > MAX_LAG {
+                debug!(
+                    lag_ms = (now - due).as_millis() as u64,
+                    "simulation behind schedule"
+                );
+                anchor = now;
+                ticks_since_anchor = 0;
+            }
         }
-        Request::Disconnect { client } => {
-            world.disconnect(client);
-            clients.remove(&client);
+    }
+
+    /// The world steps only when it holds a robot and no lockstep client holds it back.
+    fn may_step(&self) -> bool {
+        let (time, dt) = (self.world.time(), self.world.dt());
+        self.world.robot_count() > 0 && !self.clients.values().any(|c| c.holds_at(time, dt))
+    }
+
+    fn flush_all(&mut self) {
+        for c in self.clients.values_mut() {
+            c.flush();
+        }
+    }
+
+    /// Tells each lockstep client whose barrier the world has reached.
+    fn answer_barriers(&mut self) {
+        let (time, dt) = (self.world.time(), self.world.dt());
+        for c in self.clients.values_mut() {
+            if !c.answered && c.holds_at(time, dt) {
+                c.answered = true;
+                c.push(&sync_reply(time), time);
+            }
+        }
+    }
+
+    fn open_record(&mut self) -> Option<std::io::BufWriter<std::fs::File>> {
+        let dir = self.record_dir.as_ref()?;
+        let path = dir.join(format!("connection-{:04}.usarlog", self.connections));
+        match std::fs::File::create(&path) {
+            Ok(file) => {
+                let mut file = std::io::BufWriter::new(file);
+                let _ = writeln!(file, "# usar-record 1");
+                Some(file)
+            }
+            Err(error) => {
+                warn!(path = %path.display(), %error, "cannot record this connection");
+                None
+            }
+        }
+    }
+
+    fn record_client_line(&mut self, client: ClientId, line: Option<&str>) {
+        let time = self.world.time();
+        if let (Some(c), Some(line)) = (self.clients.get_mut(&client), line)
+            && let Some(file) = &mut c.record
+        {
+            let _ = record_line(file, time, 'C', line);
+        }
+    }
+
+    fn handle(&mut self, request: Request) {
+        match request {
+            Request::Connect { peer, queue, reply } => {
+                self.connections += 1;
+                let record = self.open_record();
+                let id = self.world.connect();
+                self.clients.insert(
+                    id,
+                    Client {
+                        peer,
+                        queue,
+                        pending: String::new(),
+                        dropped: 0,
+                        barrier: None,
+                        answered: false,
+                        record,
+                    },
+                );
+                // The session may already be gone; then its Disconnect never comes, so undo.
+                if reply.send(id).is_err() {
+                    self.world.disconnect(id);
+                    self.clients.remove(&id);
+                }
+            }
+            Request::Command {
+                client,
+                command,
+                line,
+            } => {
+                self.record_client_line(client, line.as_deref());
+                let replies = self.world.command(client, command);
+                let time = self.world.time();
+                if let Some(c) = self.clients.get_mut(&client) {
+                    for reply in &replies {
+                        c.push(reply, time);
+                    }
+                }
+            }
+            Request::Sync { client, time, line } => {
+                self.record_client_line(client, line.as_deref());
+                let (now, dt) = (self.world.time(), self.world.dt());
+                if let Some(c) = self.clients.get_mut(&client) {
+                    c.barrier = Some(time);
+                    c.answered = false;
+                    if c.holds_at(now, dt) {
+                        c.answered = true;
+                        c.push(&sync_reply(now), now);
+                    }
+                }
+            }
+            Request::Unreadable { client, line } => self.record_client_line(client, Some(&line)),
+            Request::Disconnect { client } => {
+                self.world.disconnect(client);
+                if let Some(mut c) = self.clients.remove(&client)
+                    && let Some(file) = &mut c.record
+                {
+                    let _ = file.flush();
+                }
+            }
+            Request::Wake => {}
         }
     }
 }

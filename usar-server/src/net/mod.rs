@@ -66,6 +66,8 @@ pub struct ServerConfig {
     /// Ticks of output buffered per client; when a client does not read and its queue is
     /// full, whole ticks of its output are dropped (counted and logged), never the others'.
     pub client_queue: usize,
+    /// Record every connection's lines, both directions, into this folder (docs/recording.md).
+    pub record: Option<std::path::PathBuf>,
 }
 
 impl Default for ServerConfig {
@@ -78,6 +80,7 @@ impl Default for ServerConfig {
             max_connections: 64,
             max_line_length: 64 * 1024,
             client_queue: 256,
+            record: None,
         }
     }
 }
@@ -100,6 +103,9 @@ pub async fn run(
     config: ServerConfig,
     shutdown: CancellationToken,
 ) -> Result<(), ServerError> {
+    if let Some(dir) = &config.record {
+        std::fs::create_dir_all(dir)?;
+    }
     let world = World::new(config.map, config.robots, config.sim);
     let game_info = driver::game_info(&world);
     let (requests, inbox) = mpsc::channel(4096);
@@ -107,9 +113,10 @@ pub async fn run(
     let sim = {
         let token = sim_shutdown.clone();
         let scale = config.time_scale;
+        let driver = driver::Driver::new(world, config.record.clone());
         std::thread::Builder::new()
             .name("usar-sim".into())
-            .spawn(move || driver::drive(world, inbox, scale, token))?
+            .spawn(move || driver.run(inbox, scale, token))?
     };
 
     let tracker = TaskTracker::new();
@@ -117,6 +124,7 @@ pub async fn run(
     let limits = session::Limits {
         max_line_length: config.max_line_length,
         client_queue: config.client_queue.max(1),
+        record: config.record.is_some(),
     };
     let result = loop {
         tokio::select! {
@@ -153,6 +161,7 @@ pub async fn run(
     shutdown.cancel();
     tracker.wait().await;
     sim_shutdown.cancel();
+    let _ = requests.send(driver::Request::Wake).await;
     drop(requests);
     tokio::task::spawn_blocking(move || sim.join())
         .await

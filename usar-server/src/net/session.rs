@@ -13,15 +13,18 @@ use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
 use usar_proto::Command;
-use usar_proto::codec::CommandCodec;
+use usar_proto::codec::LineCodec;
 
 use super::driver::Request;
+use crate::sim::ClientId;
 
 /// Per-connection limits.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Limits {
     pub(super) max_line_length: usize,
     pub(super) client_queue: usize,
+    /// Pass the text of client lines to the driver for the recording.
+    pub(super) record: bool,
 }
 
 /// Serves one connection until the client leaves, the socket fails or the server shuts down.
@@ -52,30 +55,22 @@ pub(super) async fn serve(
     }
     let Ok(client) = id.await else { return };
 
-    let mut lines = FramedRead::new(read, CommandCodec::new(limits.max_line_length));
+    let mut lines = FramedRead::new(read, LineCodec::new(limits.max_line_length));
     let reader = async {
         while let Some(item) = lines.next().await {
-            match item {
-                Ok(Ok(parsed)) => {
-                    for deviation in &parsed.deviations {
-                        warn!(%peer, %deviation, "tolerated deviation");
-                    }
-                    if let Command::Other(message) = &parsed.message {
-                        warn!(%peer, command = %message.kind, "unknown command ignored");
-                    }
-                    let command = Request::Command {
-                        client,
-                        command: parsed.message,
-                    };
-                    if requests.send(command).await.is_err() {
-                        break;
-                    }
+            let request = match item {
+                Ok(Ok(line)) => read_request(client, line, peer, limits.record),
+                Ok(Err(error)) => {
+                    warn!(%peer, %error, "unreadable line ignored");
+                    continue;
                 }
-                Ok(Err(error)) => warn!(%peer, %error, "unreadable line ignored"),
                 Err(error) => {
                     debug!(%peer, %error, "read failed");
                     break;
                 }
+            };
+            if requests.send(request).await.is_err() {
+                break;
             }
         }
     };
@@ -99,4 +94,48 @@ async fn write_output(
         socket.write_all(&chunk).await?;
     }
     Ok(())
+}
+
+/// Turns one client line into a request for the driver, logging what a stock server would
+/// have silently tolerated or ignored.
+fn read_request(client: ClientId, line: String, peer: SocketAddr, record: bool) -> Request {
+    let parsed = match Command::parse(&line) {
+        Ok(parsed) => parsed,
+        Err(error) => {
+            warn!(%peer, %error, %line, "unreadable line ignored");
+            return Request::Unreadable { client, line };
+        }
+    };
+    for deviation in &parsed.deviations {
+        warn!(%peer, %deviation, %line, "tolerated deviation");
+    }
+    let text = record.then_some(line);
+    match parsed.message {
+        Command::Other(message) if message.kind.eq_ignore_ascii_case("SYNC") => {
+            match message.get("Time").map(str::trim).map(str::parse::<f64>) {
+                Some(Ok(time)) if time.is_finite() => Request::Sync {
+                    client,
+                    time,
+                    line: text,
+                },
+                _ => {
+                    warn!(%peer, "SYNC without a valid {{Time t}} ignored");
+                    Request::Unreadable {
+                        client,
+                        line: text.unwrap_or_default(),
+                    }
+                }
+            }
+        }
+        command => {
+            if let Command::Other(message) = &command {
+                warn!(%peer, command = %message.kind, "unknown command ignored");
+            }
+            Request::Command {
+                client,
+                command,
+                line: text,
+            }
+        }
+    }
 }

@@ -9,13 +9,23 @@ pub struct Map;
 pub struct MapError;
 impl Map {
     /// Load.
-    pub fn from_file(_path: &Path) -> Result<Self, MapError> { Ok(Self) }
+    pub fn from_file(_path: &Path) -> Result<Self, MapError> {
+        Ok(Self)
+    }
     /// Embedded.
-    pub fn embedded(_name: &str) -> Option<Self> { None }
+    pub fn embedded(_name: &str) -> Option<Self> {
+        None
+    }
     /// Names.
-    pub fn embedded_names() -> &'static [&'static str] { &[] }
+    pub fn embedded_names() -> &'static [&'static str] {
+        &[]
+    }
     /// Default.
-    pub fn default_map() -> Self { Self }
+    pub fn default_map() -> Self {
+        Self
+    }
     /// Level.
-    pub fn level(&self) -> &str { "EmptyRoom" }
+    pub fn level(&self) -> &str {
+        "EmptyRoom"
+    }
 }

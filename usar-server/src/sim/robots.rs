@@ -9,7 +9,11 @@ pub struct RobotCatalog;
 pub struct RobotConfigError;
 impl RobotCatalog {
     /// Load.
-    pub fn from_file(_path: &Path) -> Result<Self, RobotConfigError> { Ok(Self) }
+    pub fn from_file(_path: &Path) -> Result<Self, RobotConfigError> {
+        Ok(Self)
+    }
     /// Embedded.
-    pub fn embedded() -> Self { Self }
+    pub fn embedded() -> Self {
+        Self
+    }
 }

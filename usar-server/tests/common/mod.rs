@@ -89,7 +89,10 @@ impl Client {
     /// The next line, checked to end with CR LF, and parsed.
     pub async fn message(&mut self) -> (String, ServerMessage) {
         let line = self.raw_line().await.expect("unexpected EOF");
-        assert!(line.ends_with("\r\n"), "line not terminated by CR LF: {line:?}");
+        assert!(
+            line.ends_with("\r\n"),
+            "line not terminated by CR LF: {line:?}"
+        );
         let text = line.trim_end_matches("\r\n").to_owned();
         let parsed = ServerMessage::parse(&text)
             .unwrap_or_else(|e| panic!("server sent an unreadable line {text:?}: {e}"));
