@@ -294,7 +294,12 @@ impl Driver {
         match request {
             Request::Connect { peer, queue, reply } => {
                 self.connections += 1;
-                let record = self.open_record();
+                let mut record = self.open_record();
+                if let Some(file) = &mut record {
+                    let nfo = game_info(&self.world);
+                    let text = String::from_utf8_lossy(&nfo);
+                    let _ = record_line(file, self.world.time(), 'S', text.trim_end());
+                }
                 let id = self.world.connect();
                 self.clients.insert(
                     id,
