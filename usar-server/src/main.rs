@@ -1,7 +1,7 @@
 //! The `usar-server` program: a USARSim stand-in on TCP port 3000.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
@@ -18,8 +18,10 @@ use usar_server::{ServerConfig, TimeScale};
 /// When ready it prints one line on stdout: `usar-server listening on ADDRESS:PORT map LEVEL`.
 /// Ctrl-C or SIGTERM shut it down cleanly. Log level: RUST_LOG (default `info`), on stderr.
 #[derive(Debug, Parser)]
-#[command(version, about, long_about = None)]
+#[command(version, about, args_conflicts_with_subcommands = true)]
 struct Args {
+    #[command(subcommand)]
+    command: Option<Sub>,
     /// Address to listen on.
     #[arg(long, default_value = "127.0.0.1")]
     bind: String,
@@ -50,6 +52,29 @@ struct Args {
     list_maps: bool,
 }
 
+#[derive(Debug, clap::Subcommand)]
+enum Sub {
+    /// Serve a recorded stream (a `--record` file or a plain capture of server lines, such as
+    /// real USARSim output) to every client that connects; client lines are logged, never
+    /// answered.
+    Replay {
+        /// The recording or capture.
+        file: PathBuf,
+        /// Address to listen on.
+        #[arg(long, default_value = "127.0.0.1")]
+        bind: String,
+        /// TCP port (0 picks a free one).
+        #[arg(long, default_value_t = 3000)]
+        port: u16,
+        /// Send as fast as the client reads instead of following the time stamps.
+        #[arg(long)]
+        fast: bool,
+        /// Speed-up of the time-stamp pacing (2 = twice as fast).
+        #[arg(long, default_value_t = 1.0)]
+        speed: f64,
+    },
+}
+
 fn main() -> ExitCode {
     let args = Args::parse();
     tracing_subscriber::fmt()
@@ -59,6 +84,22 @@ fn main() -> ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
+    if let Some(Sub::Replay {
+        file,
+        bind,
+        port,
+        fast,
+        speed,
+    }) = &args.command
+    {
+        return match replay(file, bind, *port, *fast, *speed) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(error) => {
+                eprintln!("usar-server replay: {error:#}");
+                ExitCode::from(2)
+            }
+        };
+    }
     if args.list_maps {
         for name in Map::embedded_names() {
             println!("{name}");
@@ -131,6 +172,39 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
         stdout.flush()?;
         drop(stdout);
         usar_server::run(listener, config, shutdown).await?;
+        Ok(())
+    })
+}
+
+fn replay(file: &Path, bind: &str, port: u16, fast: bool, speed: f64) -> anyhow::Result<()> {
+    use usar_server::replay::{self, Pace};
+    if !(speed.is_finite() && speed > 0.0) {
+        anyhow::bail!("--speed must be a positive number, not {speed}");
+    }
+    let lines = replay::load(file)?;
+    let pace = if fast {
+        Pace::Fast
+    } else {
+        Pace::Timestamps(speed)
+    };
+    let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind((bind, port))
+            .await
+            .with_context(|| format!("cannot listen on {bind}:{port}"))?;
+        let shutdown = CancellationToken::new();
+        tokio::spawn(cancel_on_signal(shutdown.clone()));
+        let mut stdout = std::io::stdout().lock();
+        writeln!(
+            stdout,
+            "usar-server replaying {} ({} lines) on {}",
+            file.display(),
+            lines.len(),
+            listener.local_addr()?
+        )?;
+        stdout.flush()?;
+        drop(stdout);
+        replay::serve(listener, lines, pace, shutdown).await?;
         Ok(())
     })
 }
