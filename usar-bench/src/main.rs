@@ -1,0 +1,420 @@
+//! `usar-bench`: the scale benchmark. Starts a usar-server (or targets one), connects N
+//! clients that each fly an stsAirRobot and send a DRIVE every 0.1 s of simulated time, and
+//! prints what was delivered, how fast, and at what cost.
+
+use std::collections::BTreeMap;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use clap::Parser;
+use serde::Serialize;
+use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+use tokio::net::TcpStream;
+
+/// Scale benchmark for usar-server: N stsAirRobots, each on its own TCP connection.
+#[derive(Debug, Clone, Parser)]
+#[command(version, about)]
+struct Args {
+    /// Number of UAVs (one connection each).
+    #[arg(long, default_value_t = 10)]
+    uavs: usize,
+    /// Simulated seconds to fly (measured on each robot's STA time stamps).
+    #[arg(long, default_value_t = 10.0)]
+    seconds: f64,
+    /// Map for the started server (embedded name or file).
+    #[arg(long)]
+    map: Option<String>,
+    /// Target a running server instead of starting one.
+    #[arg(long)]
+    host: Option<String>,
+    /// Port of the running server (with --host).
+    #[arg(long, default_value_t = 3000)]
+    port: u16,
+    /// --time-scale of the started server (a number or `max`).
+    #[arg(long, default_value = "1")]
+    time_scale: String,
+    /// The usar-server program to start (default: next to this program).
+    #[arg(long)]
+    server_bin: Option<PathBuf>,
+    /// Distance between neighbouring UAVs on the spawn grid, metres.
+    #[arg(long, default_value_t = 1.0)]
+    spacing: f64,
+    /// Print one JSON object per run instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Find the largest N that holds real time (real-time factor ≥ 0.98, every message
+    /// delivered), doubling from --uavs and then bisecting.
+    #[arg(long)]
+    sweep: bool,
+}
+
+/// Nominal rates of the stsAirRobot's parts (Hz), protocol.md §9.
+const NOMINAL: &[(&str, f64)] = &[
+    ("STA", 10.0),
+    ("Position", 10.0),
+    ("Velocity", 10.0),
+    ("IMU", 10.0),
+    ("Sonar0", 5.0),
+    ("Sonar1", 5.0),
+    ("Sonar2", 5.0),
+    ("Sonar3", 5.0),
+    ("Sonar4", 5.0),
+    ("Sonar5", 5.0),
+    ("Sonar6", 5.0),
+    ("Sonar7", 5.0),
+    ("SonarTop", 5.0),
+    ("SonarBottom", 5.0),
+    ("Scanner", 1.0 / 0.3),
+];
+
+/// What one run measured.
+#[derive(Debug, Serialize)]
+struct Report {
+    uavs: usize,
+    simulated_seconds: f64,
+    wall_seconds: f64,
+    real_time_factor: f64,
+    messages_per_second: f64,
+    bytes_per_second: f64,
+    /// Delivered rate per part and robot, as a fraction of the nominal rate.
+    delivered: BTreeMap<String, f64>,
+    latency_ms_p50: Option<f64>,
+    latency_ms_p90: Option<f64>,
+    latency_ms_p99: Option<f64>,
+    server_cpu_seconds: Option<f64>,
+    server_peak_rss_mib: Option<f64>,
+}
+
+impl Report {
+    fn holds_real_time(&self) -> bool {
+        self.real_time_factor >= 0.98 && self.delivered.values().all(|&d| d >= 0.97)
+    }
+}
+
+/// What one client saw.
+#[derive(Debug, Default)]
+struct ClientStats {
+    counts: BTreeMap<String, u64>,
+    messages: u64,
+    bytes: u64,
+    span: f64,
+    latencies: Vec<Duration>,
+}
+
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
+    let runtime = tokio::runtime::Runtime::new()?;
+    if !args.sweep {
+        let report = runtime.block_on(run_once(&args, args.uavs))?;
+        print(&args, &report);
+        return Ok(());
+    }
+    let (mut good, mut bad) = (0, None);
+    let mut n = args.uavs.max(1);
+    while bad.is_none() || bad.is_some_and(|b: usize| b - good > (good / 10).max(1)) {
+        let report = runtime.block_on(run_once(&args, n))?;
+        print(&args, &report);
+        if report.holds_real_time() {
+            good = n;
+        } else {
+            bad = Some(n);
+        }
+        n = match bad {
+            None => n * 2,
+            Some(b) => (good + b) / 2,
+        };
+        if n == good || Some(n) == bad {
+            break;
+        }
+    }
+    println!("largest N holding real time: {good}");
+    Ok(())
+}
+
+fn print(args: &Args, r: &Report) {
+    if args.json {
+        println!("{}", serde_json::to_string(r).unwrap_or_default());
+        return;
+    }
+    let ms = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.1}"));
+    println!(
+        "{:>6} {:>8} {:>8} {:>6} {:>10} {:>10} {:>24} {:>8} {:>8}",
+        "N",
+        "sim s",
+        "wall s",
+        "RTF",
+        "msg/s",
+        "MB/s",
+        "DRIVE latency p50/90/99",
+        "CPU s",
+        "peak MiB"
+    );
+    println!(
+        "{:>6} {:>8.1} {:>8.2} {:>6.2} {:>10.0} {:>10.2} {:>24} {:>8} {:>8}",
+        r.uavs,
+        r.simulated_seconds,
+        r.wall_seconds,
+        r.real_time_factor,
+        r.messages_per_second,
+        r.bytes_per_second / 1e6,
+        format!(
+            "{}/{}/{} ms",
+            ms(r.latency_ms_p50),
+            ms(r.latency_ms_p90),
+            ms(r.latency_ms_p99)
+        ),
+        r.server_cpu_seconds
+            .map_or("-".into(), |v| format!("{v:.1}")),
+        r.server_peak_rss_mib
+            .map_or("-".into(), |v| format!("{v:.0}")),
+    );
+    let rates: Vec<String> = r
+        .delivered
+        .iter()
+        .map(|(k, v)| format!("{k} {:.0}%", v * 100.0))
+        .collect();
+    println!("  delivered vs nominal: {}", rates.join(", "));
+}
+
+/// A started server process, killed on drop.
+struct Server {
+    child: Child,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start_server(args: &Args) -> anyhow::Result<(Server, SocketAddr)> {
+    let bin = match &args.server_bin {
+        Some(bin) => bin.clone(),
+        None => std::env::current_exe()?.with_file_name("usar-server"),
+    };
+    let mut command = Command::new(&bin);
+    command
+        .args(["--port", "0", "--time-scale", &args.time_scale])
+        .args(["--max-connections", &(args.uavs * 2 + 16).to_string()])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit());
+    if let Some(map) = &args.map {
+        command.args(["--map", map]);
+    }
+    let mut child = command.spawn().with_context(|| {
+        format!(
+            "cannot start {} (build it with `cargo build --release -p usar-server`, or pass --server-bin or --host)",
+            bin.display()
+        )
+    })?;
+    let stdout = child.stdout.take().context("no stdout")?;
+    let mut line = String::new();
+    std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line)?;
+    let addr = line
+        .split_whitespace()
+        .nth(3)
+        .and_then(|a| a.parse().ok())
+        .with_context(|| format!("unexpected first line from the server: {line:?}"))?;
+    Ok((Server { child }, addr))
+}
+
+/// CPU seconds and peak resident memory (MiB) of a process, from /proc.
+fn process_usage(pid: u32) -> (Option<f64>, Option<f64>) {
+    let cpu = std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| {
+            let fields: Vec<&str> = s.rsplit_once(')')?.1.split_whitespace().collect();
+            let ticks: f64 =
+                fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+            Some(ticks / 100.0) // USER_HZ is 100 on Linux
+        });
+    let rss = std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .ok()
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+            let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+            Some(kib / 1024.0)
+        });
+    (cpu, rss)
+}
+
+async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
+    let (server, addr) = match &args.host {
+        Some(host) => {
+            let addr = tokio::net::lookup_host((host.as_str(), args.port))
+                .await?
+                .next()
+                .context("host not found")?;
+            (None, addr)
+        }
+        None => {
+            let mut args = args.clone();
+            args.uavs = uavs;
+            let (server, addr) = start_server(&args)?;
+            (Some(server), addr)
+        }
+    };
+    let start = first_start(addr).await?;
+    let side = (uavs as f64).sqrt().ceil() as usize;
+    let began = Instant::now();
+    let mut tasks = Vec::new();
+    for i in 0..uavs {
+        let (row, col) = ((i / side) as f64, (i % side) as f64);
+        let offset = (side as f64 - 1.0) / 2.0;
+        let location = [
+            start[0] + (row - offset) * args.spacing,
+            start[1] + (col - offset) * args.spacing,
+            start[2],
+        ];
+        let seconds = args.seconds;
+        tasks.push(tokio::spawn(fly(addr, i, location, seconds)));
+    }
+    let mut all = Vec::new();
+    for task in tasks {
+        all.push(task.await??);
+    }
+    let wall = began.elapsed().as_secs_f64();
+    let (cpu, rss) = server
+        .as_ref()
+        .map_or((None, None), |s| process_usage(s.child.id()));
+    drop(server);
+
+    let span = all.iter().map(|c| c.span).sum::<f64>() / all.len().max(1) as f64;
+    let mut delivered = BTreeMap::new();
+    for (name, hz) in NOMINAL {
+        let total: u64 = all
+            .iter()
+            .map(|c| c.counts.get(*name).copied().unwrap_or(0))
+            .sum();
+        let per_robot = total as f64 / all.len().max(1) as f64;
+        delivered.insert((*name).to_owned(), per_robot / (span * hz));
+    }
+    let mut latencies: Vec<f64> = all
+        .iter()
+        .flat_map(|c| c.latencies.iter().map(|d| d.as_secs_f64() * 1e3))
+        .collect();
+    latencies.sort_by(f64::total_cmp);
+    let pct = |p: f64| {
+        (!latencies.is_empty())
+            .then(|| latencies[((latencies.len() - 1) as f64 * p).round() as usize])
+    };
+    Ok(Report {
+        uavs,
+        simulated_seconds: span,
+        wall_seconds: wall,
+        real_time_factor: span / wall,
+        messages_per_second: all.iter().map(|c| c.messages).sum::<u64>() as f64 / wall,
+        bytes_per_second: all.iter().map(|c| c.bytes).sum::<u64>() as f64 / wall,
+        delivered,
+        latency_ms_p50: pct(0.5),
+        latency_ms_p90: pct(0.9),
+        latency_ms_p99: pct(0.99),
+        server_cpu_seconds: cpu,
+        server_peak_rss_mib: rss,
+    })
+}
+
+/// The map's first start location, asked over the protocol.
+async fn first_start(addr: SocketAddr) -> anyhow::Result<[f64; 3]> {
+    let stream = TcpStream::connect(addr).await?;
+    let (read, mut write) = stream.into_split();
+    let mut lines = BufReader::new(read).lines();
+    write.write_all(b"GETSTARTPOSES\r\n").await?;
+    while let Some(line) = lines.next_line().await? {
+        if let Ok(parsed) = usar_proto::ServerMessage::parse(&line)
+            && let usar_proto::ServerMessage::Nfo(usar_proto::Nfo::StartPoses { poses, .. }) =
+                parsed.message
+        {
+            let p = poses.first().context("the map has no start pose")?;
+            return Ok([p.location.x, p.location.y, p.location.z]);
+        }
+    }
+    bail!("the server closed the connection before answering GETSTARTPOSES")
+}
+
+/// The part a line is about: `STA`, or the `{Name ..}` of a SEN line.
+fn part(line: &str) -> Option<&str> {
+    if line.starts_with("STA ") {
+        return Some("STA");
+    }
+    let rest = line.strip_prefix("SEN ")?;
+    let name = rest.split("{Name ").nth(1)?;
+    name.split('}').next()
+}
+
+/// The `{Time t}` of a line.
+fn time_of(line: &str) -> Option<f64> {
+    line.split("{Time ").nth(1)?.split('}').next()?.parse().ok()
+}
+
+/// One UAV: spawn, fly back and forth, count what arrives.
+async fn fly(
+    addr: SocketAddr,
+    index: usize,
+    [x, y, z]: [f64; 3],
+    seconds: f64,
+) -> anyhow::Result<ClientStats> {
+    let stream = TcpStream::connect(addr)
+        .await
+        .with_context(|| format!("client {index} cannot connect"))?;
+    stream.set_nodelay(true)?;
+    let (read, mut write) = stream.into_split();
+    let mut lines = BufReader::new(read).lines();
+    write
+        .write_all(
+            format!("INIT {{ClassName USARBot.stsAirRobot}} {{Name UAV{index}}} {{Location {x},{y},{z}}}\r\n")
+                .as_bytes(),
+        )
+        .await?;
+    let mut stats = ClientStats::default();
+    let (mut first, mut next_drive, mut sign) = (None::<f64>, 0.0, 1.0);
+    let mut flipped: Option<(Instant, f64)> = None;
+    while let Some(line) = lines.next_line().await? {
+        stats.bytes += line.len() as u64 + 2;
+        let Some(part) = part(&line) else { continue };
+        if part == "STA" {
+            let Some(t) = time_of(&line) else { continue };
+            let t0 = *first.get_or_insert(t);
+            if t >= t0 + seconds {
+                stats.span = t - t0;
+                break;
+            }
+            if t >= next_drive {
+                // Reverse every second; otherwise repeat the set-point (10 Hz of DRIVE).
+                let want = if ((t - t0) as u64).is_multiple_of(2) {
+                    1.0
+                } else {
+                    -1.0
+                };
+                if want != sign {
+                    sign = want;
+                    flipped = Some((Instant::now(), sign));
+                }
+                let drive = format!("DRIVE {{LinearVelocity {}}}\r\n", 0.2 * sign);
+                write.write_all(drive.as_bytes()).await?;
+                next_drive = t + 0.1;
+            }
+        } else if part == "Velocity"
+            && let Some((at, want)) = flipped
+            && let Some(v) = line
+                .split("{RelativeVelocity ")
+                .nth(1)
+                .and_then(|s| s.split(',').next())
+                .and_then(|s| s.parse::<f64>().ok())
+            && v * want > 0.0
+        {
+            stats.latencies.push(at.elapsed());
+            flipped = None;
+        }
+        if first.is_some() {
+            stats.messages += 1;
+            *stats.counts.entry(part.to_owned()).or_default() += 1;
+        }
+    }
+    Ok(stats)
+}
