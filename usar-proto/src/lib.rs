@@ -7,6 +7,7 @@ pub mod error;
 pub mod format;
 pub mod message;
 pub mod messages;
+pub mod record;
 
 pub use error::ParseError;
 pub use message::{Deviation, Group, Message, Pair, Parsed};

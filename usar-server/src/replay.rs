@@ -16,6 +16,7 @@ use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
 use usar_proto::Message;
 use usar_proto::codec::LineCodec;
+use usar_proto::record::{self, Direction};
 
 /// One server line of a recording and the simulated time it was sent at.
 #[derive(Debug, Clone, PartialEq)]
@@ -74,7 +75,7 @@ pub fn load(path: &Path) -> Result<Vec<ReplayLine>, ReplayError> {
         source,
     })?;
     let text = String::from_utf8_lossy(&text);
-    let lines = if text.starts_with("# usar-record") {
+    let lines = if text.starts_with(record::HEADER) {
         parse_record(&text, &name)?
     } else {
         parse_capture(&text)
@@ -88,28 +89,18 @@ pub fn load(path: &Path) -> Result<Vec<ReplayLine>, ReplayError> {
 fn parse_record(text: &str, path: &str) -> Result<Vec<ReplayLine>, ReplayError> {
     let mut lines = Vec::new();
     for (i, raw) in text.lines().enumerate() {
-        if raw.trim().is_empty() || raw.starts_with('#') {
-            continue;
-        }
-        let error = |what: &str| ReplayError::Format {
+        let entry = record::parse_entry(raw).map_err(|e| ReplayError::Format {
             path: path.to_owned(),
             line: i + 1,
-            what: what.to_owned(),
-        };
-        let (time, rest) = raw
-            .split_once(' ')
-            .ok_or_else(|| error("expected `<time> <C|S> <line>`"))?;
-        let time: f64 = time
-            .parse()
-            .map_err(|_| error(&format!("bad time stamp '{time}'")))?;
-        let (direction, line) = rest.split_once(' ').unwrap_or((rest, ""));
-        match direction {
-            "S" => lines.push(ReplayLine {
-                time: Some(time),
-                text: line.to_owned(),
-            }),
-            "C" => {}
-            other => return Err(error(&format!("direction must be C or S, not '{other}'"))),
+            what: e.to_string(),
+        })?;
+        if let Some(entry) = entry
+            && entry.direction == Direction::Server
+        {
+            lines.push(ReplayLine {
+                time: Some(entry.time),
+                text: entry.text.to_owned(),
+            });
         }
     }
     Ok(lines)

@@ -26,6 +26,7 @@ use bytes::Bytes;
 use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
+use usar_proto::record::{self, Direction};
 use usar_proto::{Command, Group, Message, Nfo, Pair, ServerMessage, format};
 
 use super::TimeScale;
@@ -113,7 +114,7 @@ impl Client {
         message.write_to(&mut self.pending);
         if let Some(file) = &mut self.record {
             let line = &self.pending[start..];
-            let _ = record_line(file, time, 'S', line);
+            let _ = record::write_entry(file, time, Direction::Server, line);
         }
         self.pending.push_str("\r\n");
     }
@@ -141,16 +142,6 @@ impl Client {
     fn holds_at(&self, time: f64, dt: f64) -> bool {
         self.barrier.is_some_and(|b| time + dt > b + TIME_EPSILON)
     }
-}
-
-/// Writes one record line: `<time> <C|S> <line>`.
-fn record_line(
-    file: &mut impl Write,
-    time: f64,
-    direction: char,
-    line: &str,
-) -> std::io::Result<()> {
-    writeln!(file, "{time:.4} {direction} {line}")
 }
 
 /// The driver's state: the world and the clients' outbound sides.
@@ -271,7 +262,7 @@ impl Driver {
         match std::fs::File::create(&path) {
             Ok(file) => {
                 let mut file = std::io::BufWriter::new(file);
-                let _ = writeln!(file, "# usar-record 1");
+                let _ = writeln!(file, "{}", record::HEADER);
                 Some(file)
             }
             Err(error) => {
@@ -286,7 +277,7 @@ impl Driver {
         if let (Some(c), Some(line)) = (self.clients.get_mut(&client), line)
             && let Some(file) = &mut c.record
         {
-            let _ = record_line(file, time, 'C', line);
+            let _ = record::write_entry(file, time, Direction::Client, line);
         }
     }
 
@@ -298,7 +289,12 @@ impl Driver {
                 if let Some(file) = &mut record {
                     let nfo = game_info(&self.world);
                     let text = String::from_utf8_lossy(&nfo);
-                    let _ = record_line(file, self.world.time(), 'S', text.trim_end());
+                    let _ = record::write_entry(
+                        file,
+                        self.world.time(),
+                        Direction::Server,
+                        text.trim_end(),
+                    );
                 }
                 let id = self.world.connect();
                 self.clients.insert(
