@@ -1,0 +1,127 @@
+//! Lockstep (docs/lockstep.md): byte-identical runs whatever the time scale.
+
+mod common;
+
+use common::{Client, TestServer};
+use usar_proto::{Nfo, SenData, ServerMessage};
+use usar_server::{ServerConfig, TimeScale};
+
+/// Reads until the `SYNC` answer; returns every line read, in order, and the answer's time.
+async fn until_sync(c: &mut Client) -> (Vec<String>, f64) {
+    let mut lines = Vec::new();
+    loop {
+        let line = c.raw_line().await.expect("EOF before the SYNC answer");
+        lines.push(line.clone());
+        if let Some(rest) = line.strip_prefix("SYNC {Time ") {
+            let time = rest.trim_end().trim_end_matches('}').parse().unwrap();
+            return (lines, time);
+        }
+    }
+}
+
+/// A small closed-loop flight: fly towards x = start + 1.5 while reading Position, in
+/// 0.1 s lockstep intervals. Returns every byte the client received.
+async fn flight(scale: TimeScale, seed: u64) -> Vec<String> {
+    let mut config = ServerConfig {
+        time_scale: scale,
+        ..ServerConfig::default()
+    };
+    config.sim.seed = seed;
+    let server = TestServer::with(config).await;
+    let mut c = server.client().await;
+    let mut seen = vec![c.raw_line().await.unwrap()];
+    c.send("GETSTARTPOSES").await;
+    let (line, start) = c.message().await;
+    seen.push(line);
+    let ServerMessage::Nfo(Nfo::StartPoses { poses, .. }) = start else {
+        panic!("no start poses")
+    };
+    let s = poses[0].location;
+
+    c.send("SYNC {Time 0}").await;
+    let (lines, t) = until_sync(&mut c).await;
+    seen.extend(lines);
+    c.send(&format!(
+        "INIT {{ClassName USARBot.stsAirRobot}} {{Location {},{},{}}}",
+        s.x, s.y, s.z
+    ))
+    .await;
+    let mut time = t;
+    for _ in 0..30 {
+        time += 0.1;
+        c.send(&format!("SYNC {{Time {time:.1}}}")).await;
+        let (lines, _) = until_sync(&mut c).await;
+        let x = lines.iter().rev().find_map(|l| {
+            match ServerMessage::parse(l.trim_end()).ok()?.message {
+                ServerMessage::Sen(sen) => match sen.data {
+                    SenData::Position { location, .. } => Some(location.x),
+                    _ => None,
+                },
+                _ => None,
+            }
+        });
+        seen.extend(lines);
+        if let Some(x) = x {
+            let v = (s.x + 1.5 - x).clamp(-1.0, 1.0);
+            c.send(&format!("DRIVE {{LinearVelocity {v:.3}}}")).await;
+        }
+    }
+    server.stop().await;
+    seen
+}
+
+#[tokio::test]
+async fn lockstep_runs_are_byte_identical_at_any_time_scale() {
+    let fast = flight(TimeScale::Max, 3).await;
+    let again = flight(TimeScale::Max, 3).await;
+    let paced = flight(TimeScale::Factor(4.0), 3).await;
+    assert!(
+        fast.len() > 100,
+        "the flight produced traffic: {} lines",
+        fast.len()
+    );
+    assert!(
+        fast.iter().any(|l| l.contains("{Type Position}")),
+        "position readings arrived"
+    );
+    assert_eq!(fast, again, "two runs differ");
+    assert_eq!(fast, paced, "the time scale changed the run");
+}
+
+#[tokio::test]
+async fn a_client_that_never_syncs_is_never_waited_for() {
+    let server = TestServer::start().await;
+    let mut lockstep = server.client().await;
+    lockstep.raw_line().await.unwrap();
+    lockstep.send("GETSTARTPOSES").await;
+    let (_, start) = lockstep.message().await;
+    let ServerMessage::Nfo(Nfo::StartPoses { poses, .. }) = start else {
+        panic!("no start poses")
+    };
+    let s = poses[0].location;
+    lockstep.send("SYNC {Time 0}").await;
+    until_sync(&mut lockstep).await;
+
+    let mut free = server.client().await;
+    free.raw_line().await.unwrap();
+    free.send(&format!(
+        "INIT {{ClassName USARBot.stsAirRobot}} {{Location {},{},{}}}",
+        s.x, s.y, s.z
+    ))
+    .await;
+    // The free client never syncs: the world still reaches the lockstep client's barrier.
+    lockstep.send("SYNC {Time 1.0}").await;
+    let (_, t) = until_sync(&mut lockstep).await;
+    assert!((t - 1.0).abs() < 0.006, "answered at {t}");
+    // The free client saw the world run up to the barrier.
+    let mut last = 0.0;
+    while last < 0.95 {
+        last = free
+            .until(|m| match m {
+                ServerMessage::Sta(s) => Some(s.time.seconds),
+                _ => None,
+            })
+            .await;
+    }
+    server.stop().await;
+}
