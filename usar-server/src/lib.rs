@@ -1,4 +1,35 @@
-//! usar-server: a USARSim stand-in. (Overview to be written.)
+//! A USARSim (UDK) stand-in: speaks the Gamebots text protocol and flies simulated
+//! quadrotors with rapier3d, headless and as fast as asked.
+//!
+//! Layout:
+//! * [`sim`] — the simulation: synchronous and deterministic (world, robots, sensors, maps);
+//!   no tokio, no wall clock, rapier types stay inside.
+//! * [`net`] — TCP sessions and the driver thread that owns the world; [`run`] serves the
+//!   protocol on a bound listener.
+//! * [`replay`] — serves a recording or a real capture to clients.
+//!
+//! ```no_run
+//! # async fn demo() -> Result<(), Box<dyn std::error::Error>> {
+//! use tokio::io::{AsyncBufReadExt, BufReader};
+//! use tokio_util::sync::CancellationToken;
+//!
+//! let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+//! let addr = listener.local_addr()?;
+//! let shutdown = CancellationToken::new();
+//! let server = tokio::spawn(usar_server::run(
+//!     listener,
+//!     usar_server::ServerConfig::default(),
+//!     shutdown.clone(),
+//! ));
+//! let stream = tokio::net::TcpStream::connect(addr).await?;
+//! let mut line = String::new();
+//! BufReader::new(stream).read_line(&mut line).await?;
+//! assert!(line.starts_with("NFO {Gametype BotDeathMatch}"));
+//! shutdown.cancel();
+//! server.await??;
+//! # Ok(())
+//! # }
+//! ```
 
 pub mod net;
 pub mod replay;
