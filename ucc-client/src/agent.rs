@@ -36,7 +36,13 @@ impl SpeedCommand {
 
     /// The same command with every component clamped to -100..=100 (NaN becomes 0).
     pub fn clamped(self) -> Self {
-        let c = |v: f64| if v.is_nan() { 0.0 } else { v.clamp(-100.0, 100.0) };
+        let c = |v: f64| {
+            if v.is_nan() {
+                0.0
+            } else {
+                v.clamp(-100.0, 100.0)
+            }
+        };
         Self {
             forward: c(self.forward),
             right: c(self.right),

@@ -20,12 +20,12 @@ const CHANNEL_CAPACITY: usize = 1024;
 #[derive(Debug, thiserror::Error)]
 pub enum ConnectionError {
     /// Nothing answers at the address.
-    #[error("cannot connect to {addr}: {source} (is the server running?)")]
+    #[error("cannot connect to {addr}: {error} (is the server running?)")]
     Connect {
         /// `host:port`.
         addr: String,
-        /// Why.
-        source: std::io::Error,
+        /// Why (part of the message, so not a `source`).
+        error: std::io::Error,
     },
     /// The connection attempt took too long.
     #[error("cannot connect to {addr}: no answer within {timeout:?}")]
@@ -65,9 +65,9 @@ impl Connection {
                 addr: addr.to_owned(),
                 timeout,
             })?
-            .map_err(|source| ConnectionError::Connect {
+            .map_err(|error| ConnectionError::Connect {
                 addr: addr.to_owned(),
-                source,
+                error,
             })?;
         // Commands are small and latency matters more than packet count.
         let _ = stream.set_nodelay(true);
@@ -128,10 +128,7 @@ impl Connection {
     /// Closes the connection cleanly (the server then removes the robot).
     pub async fn disconnect(mut self) -> Result<(), ConnectionError> {
         use tokio::io::AsyncWriteExt;
-        self.writer
-            .shutdown()
-            .await
-            .map_err(ConnectionError::Write)
+        self.writer.shutdown().await.map_err(ConnectionError::Write)
     }
 }
 
@@ -191,9 +188,14 @@ mod tests {
             let (socket, _) = listener.accept().await.unwrap();
             drop(socket);
         });
-        let mut conn = Connection::connect(&addr, Duration::from_secs(5)).await.unwrap();
+        let mut conn = Connection::connect(&addr, Duration::from_secs(5))
+            .await
+            .unwrap();
         server.await.unwrap();
-        assert!(matches!(conn.next_message().await, Err(ConnectionError::Closed)));
+        assert!(matches!(
+            conn.next_message().await,
+            Err(ConnectionError::Closed)
+        ));
     }
 
     #[tokio::test]
@@ -212,10 +214,20 @@ mod tests {
             BufReader::new(socket).read_line(&mut line).await.unwrap();
             line
         });
-        let mut conn = Connection::connect(&addr, Duration::from_secs(5)).await.unwrap();
-        assert!(matches!(conn.next_message().await.unwrap(), ServerMessage::Nfo(_)));
-        assert!(matches!(conn.next_message().await.unwrap(), ServerMessage::Sta(_)));
-        conn.send_speed_command(50.0, 0.0, 100.0, -10.0).await.unwrap();
+        let mut conn = Connection::connect(&addr, Duration::from_secs(5))
+            .await
+            .unwrap();
+        assert!(matches!(
+            conn.next_message().await.unwrap(),
+            ServerMessage::Nfo(_)
+        ));
+        assert!(matches!(
+            conn.next_message().await.unwrap(),
+            ServerMessage::Sta(_)
+        ));
+        conn.send_speed_command(50.0, 0.0, 100.0, -10.0)
+            .await
+            .unwrap();
         let line = server.await.unwrap();
         assert!(line.starts_with("DRIVE {AltitudeVelocity 100"), "{line}");
         assert!(line.ends_with("{Normalized true}\r\n"), "{line}");

@@ -67,7 +67,10 @@ impl FromStr for Start {
 impl fmt::Display for Start {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::Pose { location: l, rotation: r } => write!(
+            Self::Pose {
+                location: l,
+                rotation: r,
+            } => write!(
                 f,
                 "{:.2},{:.2},{:.2} (roll {:.2}, pitch {:.2}, yaw {:.2})",
                 l.x, l.y, l.z, r.x, r.y, r.z
@@ -230,12 +233,12 @@ pub enum RunError {
         timeout: Duration,
     },
     /// A log or trajectory file could not be written.
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}: {error}")]
     Output {
         /// The file.
         path: PathBuf,
-        /// Why.
-        source: std::io::Error,
+        /// Why (part of the message, so not a `source`).
+        error: std::io::Error,
     },
     /// A picture could not be written.
     #[error(transparent)]
@@ -355,9 +358,9 @@ pub async fn run_missions(
     }
     check_agent(config)?;
     if let Some(dir) = &config.log_dir {
-        std::fs::create_dir_all(dir).map_err(|source| RunError::Output {
+        std::fs::create_dir_all(dir).map_err(|error| RunError::Output {
             path: dir.clone(),
-            source,
+            error,
         })?;
     }
     let mut summary = Summary::default();
@@ -401,10 +404,7 @@ pub async fn run_missions(
 }
 
 /// Asks the server for the map's start poses (`GETSTARTPOSES`) on a connection of its own.
-pub async fn start_poses(
-    addr: &str,
-    timeout: Duration,
-) -> Result<Vec<StartPose>, RunError> {
+pub async fn start_poses(addr: &str, timeout: Duration) -> Result<Vec<StartPose>, RunError> {
     let mut conn = Connection::connect(addr, timeout).await?;
     conn.send(&Command::GetStartPoses).await?;
     let reply = tokio::time::timeout(timeout, async {
@@ -447,6 +447,7 @@ struct Flight {
     missions_done: usize,
     start_time: Option<f64>,
     end_time: Option<f64>,
+    connected: bool,
 }
 
 impl Flight {
@@ -458,6 +459,7 @@ impl Flight {
             missions_done: 0,
             start_time: None,
             end_time: None,
+            connected: false,
         }
     }
 
@@ -478,6 +480,7 @@ impl Flight {
     ) -> Result<(), RunError> {
         let iteration = self.iteration;
         let mut conn = Connection::connect(&config.addr, config.connect_timeout).await?;
+        self.connected = true;
         let mut uav = UavState::new();
 
         // The server greets with NFO; take the map name from it if it comes quickly.
@@ -499,7 +502,11 @@ impl Flight {
         );
 
         conn.send(&config.init()).await?;
-        self.log(format!("sent INIT {} at {}", config.class_name(), config.start));
+        self.log(format!(
+            "sent INIT {} at {}",
+            config.class_name(),
+            config.start
+        ));
         let position = self.wait_for_position(config, &mut conn, &mut uav).await?;
         let time = uav.time.unwrap_or(0.0);
         self.start_time = Some(time);
@@ -566,7 +573,8 @@ impl Flight {
         }
         agent.stop();
         if sent != Some(SpeedCommand::STOP) {
-            conn.send(&Command::Drive(SpeedCommand::STOP.to_drive())).await?;
+            conn.send(&Command::Drive(SpeedCommand::STOP.to_drive()))
+                .await?;
         }
         conn.disconnect().await?;
         Ok(())
@@ -605,7 +613,11 @@ impl Flight {
     /// Adds the latest position to the trajectory when it is new.
     fn record(&mut self, uav: &UavState) {
         if let Some(point) = TrajectoryPoint::of(uav) {
-            if self.trajectory.last().is_none_or(|last| last.time < point.time) {
+            if self
+                .trajectory
+                .last()
+                .is_none_or(|last| last.time < point.time)
+            {
                 self.trajectory.push(point);
             }
         }
@@ -632,14 +644,18 @@ impl Flight {
     /// Writes the log, the trajectory and the map of this iteration (when a log directory is
     /// set); returns the files written.
     fn write(&self, config: &RunConfig) -> Result<Vec<PathBuf>, RunError> {
+        if !self.connected {
+            return Ok(Vec::new()); // nothing happened worth a file
+        }
         let name = |suffix: &str| config.file(&format!("{:02}{suffix}", self.iteration));
-        let (Some(log), Some(csv), Some(map)) = (name(".log"), name("-trajectory.csv"), name("-map"))
+        let (Some(log), Some(csv), Some(map)) =
+            (name(".log"), name("-trajectory.csv"), name("-map"))
         else {
             return Ok(Vec::new());
         };
         let output = |path: &Path| {
             let path = path.to_owned();
-            move |source| RunError::Output { path, source }
+            move |error| RunError::Output { path, error }
         };
         write_log(&log, &self.log).map_err(output(&log))?;
         write_trajectory(&csv, &self.trajectory).map_err(output(&csv))?;
@@ -675,7 +691,10 @@ mod tests {
                 rotation: Coordinates::new(0.0, 0.0, 1.57)
             }
         );
-        assert_eq!("PlayerStart_1".parse::<Start>().unwrap(), Start::Tag("PlayerStart_1".into()));
+        assert_eq!(
+            "PlayerStart_1".parse::<Start>().unwrap(),
+            Start::Tag("PlayerStart_1".into())
+        );
         assert!("1,2".parse::<Start>().unwrap_err().contains("2 numbers"));
         assert!("1,a,2".parse::<Start>().is_err());
         assert!("".parse::<Start>().is_err());
@@ -705,7 +724,10 @@ mod tests {
         assert!(matches!(err, RunError::Refused(_)), "{err}");
         config.agent = "nope".into();
         let err = run_missions(&config, |_| {}).await.unwrap_err();
-        assert_eq!(err.to_string(), "unknown agent \"nope\" (known agents: base, avoid)");
+        assert_eq!(
+            err.to_string(),
+            "unknown agent \"nope\" (known agents: base, avoid)"
+        );
     }
 
     #[tokio::test]
@@ -720,6 +742,9 @@ mod tests {
             ..RunConfig::default()
         };
         let err = run_missions(&config, |_| {}).await.unwrap_err();
-        assert!(matches!(err, RunError::Connection(ConnectionError::Connect { .. })), "{err}");
+        assert!(
+            matches!(err, RunError::Connection(ConnectionError::Connect { .. })),
+            "{err}"
+        );
     }
 }

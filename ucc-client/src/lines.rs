@@ -54,8 +54,14 @@ mod tests {
     async fn crlf_and_lf() {
         let data: &[u8] = b"NFO {Level x}\r\nSTA {Time 1}\nlast";
         let mut reader = LineReader::new(data);
-        assert_eq!(reader.next_line().await.unwrap().as_deref(), Some("NFO {Level x}"));
-        assert_eq!(reader.next_line().await.unwrap().as_deref(), Some("STA {Time 1}"));
+        assert_eq!(
+            reader.next_line().await.unwrap().as_deref(),
+            Some("NFO {Level x}")
+        );
+        assert_eq!(
+            reader.next_line().await.unwrap().as_deref(),
+            Some("STA {Time 1}")
+        );
         assert_eq!(reader.next_line().await.unwrap().as_deref(), Some("last"));
         assert_eq!(reader.next_line().await.unwrap(), None);
     }
@@ -63,7 +69,9 @@ mod tests {
     #[tokio::test]
     async fn writes_crlf() {
         let mut out = Vec::new();
-        write_line(&mut out, "DRIVE {Normalized true}").await.unwrap();
+        write_line(&mut out, "DRIVE {Normalized true}")
+            .await
+            .unwrap();
         assert_eq!(out, b"DRIVE {Normalized true}\r\n");
     }
 }

@@ -94,12 +94,12 @@ impl fmt::Display for Mission {
 #[derive(Debug, thiserror::Error)]
 pub enum MissionError {
     /// The file could not be read.
-    #[error("cannot read mission file {path}: {source}")]
+    #[error("cannot read mission file {path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
-        /// Why.
-        source: std::io::Error,
+        /// Why (part of the message, so not a `source`).
+        error: std::io::Error,
     },
     /// The file is not a valid mission list.
     #[error("{path}:{line}: {message}")]
@@ -130,9 +130,9 @@ struct MissionFile {
 
 /// Reads a mission file.
 pub fn load_missions(path: &Path) -> Result<Vec<Mission>, MissionError> {
-    let text = std::fs::read_to_string(path).map_err(|source| MissionError::Io {
+    let text = std::fs::read_to_string(path).map_err(|error| MissionError::Io {
         path: path.to_owned(),
-        source,
+        error,
     })?;
     parse_missions(&text, path)
 }
@@ -223,7 +223,11 @@ mod tests {
 
     fn error_line(text: &str) -> (usize, String) {
         match parse(text) {
-            Err(MissionError::Invalid { line, message, path }) => {
+            Err(MissionError::Invalid {
+                line,
+                message,
+                path,
+            }) => {
                 assert_eq!(path, Path::new("m.toml"));
                 (line, message)
             }
@@ -233,7 +237,9 @@ mod tests {
 
     #[test]
     fn unknown_type_names_the_line() {
-        let (line, msg) = error_line("[[mission]]\ntype = \"GotoXyz\"\nx = 1\ny = 2\nz = 3\n\n[[mission]]\ntype = \"Land\"\n");
+        let (line, msg) = error_line(
+            "[[mission]]\ntype = \"GotoXyz\"\nx = 1\ny = 2\nz = 3\n\n[[mission]]\ntype = \"Land\"\n",
+        );
         assert_eq!(line, 8, "{msg}"); // the `type = "Land"` line
         assert!(msg.contains("Land"), "{msg}");
     }
@@ -267,7 +273,12 @@ mod tests {
             Coordinates::new(1.0, 2.5, -3.0)
         );
         assert!(parse_point("1,2").is_err());
-        assert!(parse_point("1,x,3").unwrap_err().to_string().contains("\"x\""));
+        assert!(
+            parse_point("1,x,3")
+                .unwrap_err()
+                .to_string()
+                .contains("\"x\"")
+        );
         assert!(parse_point("1,2,inf").is_err());
     }
 }

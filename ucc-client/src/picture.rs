@@ -120,10 +120,15 @@ impl MapPicture {
                 "path".to_owned()
             };
             chart
-                .draw_series(LineSeries::new(path.iter().map(top_view), color.stroke_width(2)))
+                .draw_series(LineSeries::new(
+                    path.iter().map(top_view),
+                    color.stroke_width(2),
+                ))
                 .map_err(err)?
                 .label(label)
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color.stroke_width(2)));
+                .legend(move |(x, y)| {
+                    PathElement::new([(x, y), (x + 20, y)], color.stroke_width(2))
+                });
         }
         chart
             .draw_series(self.waypoints.iter().map(|p| {
@@ -158,9 +163,10 @@ impl MapPicture {
         let length = nice_length(width / 5.0);
         let (x0, y0) = (east.start + width * 0.05, north.start + width * 0.05);
         chart
-            .draw_series([
-                PathElement::new([(x0, y0), (x0 + length, y0)], BLACK.stroke_width(3)),
-            ])
+            .draw_series([PathElement::new(
+                [(x0, y0), (x0 + length, y0)],
+                BLACK.stroke_width(3),
+            )])
             .map_err(err)?;
         chart
             .draw_series([Text::new(
@@ -219,12 +225,18 @@ mod tests {
         let picture = MapPicture {
             title: "test map".into(),
             paths: vec![path.clone(), path.iter().map(|p| p * 0.5).collect()],
-            waypoints: vec![Coordinates::new(2.0, 1.0, -1.0), Coordinates::new(4.0, -1.0, -1.0)],
+            waypoints: vec![
+                Coordinates::new(2.0, 1.0, -1.0),
+                Coordinates::new(4.0, -1.0, -1.0),
+            ],
             start: Some(Coordinates::zeros()),
         };
         let files = picture.write(&dir.join("map")).unwrap();
         for f in &files {
-            assert!(std::fs::metadata(f).unwrap().len() > 1000, "{f:?} is too small");
+            assert!(
+                std::fs::metadata(f).unwrap().len() > 1000,
+                "{f:?} is too small"
+            );
         }
         let svg = std::fs::read_to_string(&files[0]).unwrap();
         assert!(svg.contains("north"));

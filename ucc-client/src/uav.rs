@@ -115,7 +115,9 @@ impl UavState {
 
     /// Whether the battery is known to be empty.
     pub fn battery_empty(&self) -> bool {
-        self.battery.as_ref().is_some_and(|b| b.value.remaining <= 0)
+        self.battery
+            .as_ref()
+            .is_some_and(|b| b.value.remaining <= 0)
     }
 
     /// Updates the state from one message. Returns `true` when it carried sensor data (a SEN
@@ -160,7 +162,9 @@ impl UavState {
 
     fn apply_sensor(&mut self, data: &SenData, time: f64) -> bool {
         match data {
-            SenData::Position { location, .. } => self.set_position(from_wire(*location), Source::Sts, time),
+            SenData::Position { location, .. } => {
+                self.set_position(from_wire(*location), Source::Sts, time)
+            }
             SenData::GroundTruth {
                 location,
                 orientation,
@@ -197,7 +201,12 @@ impl UavState {
                 rotation,
                 ..
             } => {
-                let reading = |v| Some(Reading { value: from_wire(v), time });
+                let reading = |v| {
+                    Some(Reading {
+                        value: from_wire(v),
+                        time,
+                    })
+                };
                 self.acceleration = reading(*acceleration);
                 self.angular_velocity = reading(*angular_vel);
                 self.angular_acceleration = reading(*angular_accel);
@@ -384,8 +393,14 @@ mod tests {
             })
         )));
 
-        assert_eq!(uav.position.clone().unwrap().value, Coordinates::new(1.0, 2.0, -3.0));
-        assert_eq!(uav.velocity.clone().unwrap().value, Coordinates::new(0.0, 2.0, 0.0));
+        assert_eq!(
+            uav.position.clone().unwrap().value,
+            Coordinates::new(1.0, 2.0, -3.0)
+        );
+        assert_eq!(
+            uav.velocity.clone().unwrap().value,
+            Coordinates::new(0.0, 2.0, 0.0)
+        );
         assert_eq!(
             uav.relative_velocity.clone().unwrap().value,
             Coordinates::new(2.0, 0.0, 0.0)

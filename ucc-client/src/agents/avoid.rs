@@ -23,7 +23,12 @@ use crate::uav::{HORIZONTAL_SONARS, UavState};
 pub const INFO: AgentInfo = AgentInfo {
     name: "avoid",
     description: "waypoint flight that sidesteps obstacles seen by the sonars and the laser",
-    create: || Box::new(Avoid::new(WaypointConfig::default(), AvoidConfig::default())),
+    create: || {
+        Box::new(Avoid::new(
+            WaypointConfig::default(),
+            AvoidConfig::default(),
+        ))
+    },
 };
 
 /// Tunables of the avoidance.
@@ -99,7 +104,12 @@ impl Avoid {
         })
     }
 
-    fn adjust(&mut self, mut command: SpeedCommand, uav: &UavState, step: &mut Step) -> SpeedCommand {
+    fn adjust(
+        &mut self,
+        mut command: SpeedCommand,
+        uav: &UavState,
+        step: &mut Step,
+    ) -> SpeedCommand {
         let c = self.config;
         let clear = self.clearances(uav);
         let sector = std::f64::consts::TAU / HORIZONTAL_SONARS as f64;
@@ -134,8 +144,12 @@ impl Avoid {
         command.forward += push_forward;
         command.right += push_right;
 
-        let near = |r: &Option<crate::uav::Reading<f64>>| r.as_ref().is_some_and(|r| r.value < c.vertical_margin);
-        if (command.up > 0.0 && near(&uav.free_above)) || (command.up < 0.0 && near(&uav.free_below)) {
+        let near = |r: &Option<crate::uav::Reading<f64>>| {
+            r.as_ref().is_some_and(|r| r.value < c.vertical_margin)
+        };
+        if (command.up > 0.0 && near(&uav.free_above))
+            || (command.up < 0.0 && near(&uav.free_below))
+        {
             command.up = 0.0;
         }
         command.clamped()
@@ -228,7 +242,11 @@ mod tests {
             step.events
         );
         // Still blocked with the right now freer: keeps the side it chose.
-        let uav = with_sonar(with_sonar(uav_at(Coordinates::zeros(), 0.0), 0, 0.9), 7, 1.1);
+        let uav = with_sonar(
+            with_sonar(uav_at(Coordinates::zeros(), 0.0), 0, 0.9),
+            7,
+            1.1,
+        );
         let c = agent.step(&uav, 0.1).command.unwrap();
         assert!(c.right < 0.0, "{c:?}");
     }

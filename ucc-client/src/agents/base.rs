@@ -201,7 +201,10 @@ pub(crate) mod tests {
             && (c.yaw - yaw).abs() < 1e-6
             && (c.up - up).abs() < 1e-6
             && c.right == 0.0;
-        assert!(ok, "got {c:?}, expected forward {forward} yaw {yaw} up {up}");
+        assert!(
+            ok,
+            "got {c:?}, expected forward {forward} yaw {yaw} up {up}"
+        );
     }
 
     #[test]
