@@ -301,6 +301,45 @@ pub(crate) mod tests {
         assert_eq!(agent.current(), 2);
     }
 
+    /// Flies `agent` in a kinematic AirRobot (2 m/s, 100 deg/s, integer deg/s) sampled at
+    /// 10 Hz; returns the simulated seconds until all missions are done.
+    pub(crate) fn fly(agent: &mut dyn Agent, max_seconds: f64) -> Option<f64> {
+        let (mut p, mut yaw, dt) = (Coordinates::zeros(), 0.0f64, 0.1);
+        let mut command = SpeedCommand::STOP;
+        agent.start(0.0);
+        for tick in 0..(max_seconds / dt) as usize {
+            let t = tick as f64 * dt;
+            let step = agent.step(&uav_at(p, yaw), t);
+            if step.all_done {
+                return Some(t);
+            }
+            command = step.command.unwrap_or(command).clamped();
+            yaw += (command.yaw.trunc()).to_radians() * dt;
+            let (s, c) = yaw.sin_cos();
+            let (f, r) = (command.forward * 0.02, command.right * 0.02);
+            p += Coordinates::new(f * c - r * s, f * s + r * c, -command.up * 0.02) * dt;
+        }
+        None
+    }
+
+    #[test]
+    fn closed_loop_reaches_every_waypoint() {
+        let mut agent = Base::new(WaypointConfig::default());
+        for (x, y, z) in [
+            (0.0, 0.0, -1.5),
+            (2.5, 0.0, -1.5),
+            (2.5, 2.5, -2.0),
+            (0.0, 2.5, -1.5),
+            (-3.0, -1.0, -1.0),
+        ] {
+            agent
+                .add_mission(Mission::goto(Coordinates::new(x, y, z)))
+                .unwrap();
+        }
+        let seconds = fly(&mut agent, 120.0).expect("all waypoints reached");
+        assert!(seconds < 40.0, "took {seconds} s");
+    }
+
     #[test]
     fn waits_for_a_position() {
         let mut agent = Base::new(WaypointConfig::default());
