@@ -261,6 +261,14 @@ mod tests {
     }
 
     #[test]
+    fn example_file() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("missions/example.toml");
+        let missions = load_missions(&path).unwrap();
+        assert_eq!(missions.len(), 4);
+        assert_eq!(missions[2], Mission::Hover { seconds: 3.0 });
+    }
+
+    #[test]
     fn missing_file() {
         let err = load_missions(Path::new("/nonexistent/m.toml")).unwrap_err();
         assert!(err.to_string().contains("/nonexistent/m.toml"));

@@ -295,6 +295,63 @@ mod tests {
         assert_eq!(c.forward, 100.0);
     }
 
+    /// Distance along a horizontal ray from `p` to an axis-aligned box (x0, x1, y0, y1).
+    fn ray_to_box(p: Coordinates, angle: f64, b: (f64, f64, f64, f64)) -> Option<f64> {
+        let (dx, dy) = (angle.cos(), angle.sin());
+        let slab = |o: f64, d: f64, lo: f64, hi: f64| {
+            if d.abs() < 1e-12 {
+                if o >= lo && o <= hi {
+                    Some((f64::MIN, f64::MAX))
+                } else {
+                    None
+                }
+            } else {
+                let (a, b) = ((lo - o) / d, (hi - o) / d);
+                Some((a.min(b), a.max(b)))
+            }
+        };
+        let (ax, bx) = slab(p.x, dx, b.0, b.1)?;
+        let (ay, by) = slab(p.y, dy, b.2, b.3)?;
+        let (near, far) = (ax.max(ay), bx.min(by));
+        (near <= far && far >= 0.0).then_some(near.max(0.0))
+    }
+
+    #[test]
+    fn closed_loop_goes_around_a_pillar() {
+        // A 1 m pillar 3 m north, the target 6 m north; the UAV must not touch it.
+        let pillar = (2.5, 3.5, -0.5, 0.5);
+        let target = Coordinates::new(6.0, 0.0, 0.0);
+        let mut agent = agent_to(target);
+        let (mut p, mut yaw, dt) = (Coordinates::zeros(), 0.0f64, 0.1);
+        let mut closest = f64::MAX;
+        let mut reached = false;
+        for tick in 0..600 {
+            let mut uav = uav_at(p, yaw);
+            for i in 0..HORIZONTAL_SONARS {
+                let range = ray_to_box(p, yaw + i as f64 * std::f64::consts::FRAC_PI_4, pillar)
+                    .unwrap_or(5.0)
+                    .clamp(0.1, 5.0);
+                closest = closest.min(range);
+                uav.sonars[i] = Some(Reading {
+                    value: range,
+                    time: 0.0,
+                });
+            }
+            let step = agent.step(&uav, tick as f64 * dt);
+            if step.all_done {
+                reached = true;
+                break;
+            }
+            let c = step.command.unwrap_or(SpeedCommand::STOP);
+            yaw += c.yaw.trunc().to_radians() * dt;
+            let (s, co) = yaw.sin_cos();
+            let (f, r) = (c.forward * 0.02, c.right * 0.02);
+            p += Coordinates::new(f * co - r * s, f * s + r * co, 0.0) * dt;
+        }
+        assert!(reached, "stuck at {p:?}");
+        assert!(closest > 0.3, "came within {closest} m of the pillar");
+    }
+
     #[test]
     fn refuses_hover() {
         let mut agent = Avoid::new(WaypointConfig::default(), AvoidConfig::default());

@@ -1,6 +1,6 @@
 //! The agents and their registry.
 //!
-//! A new agent is one file in this folder (a type implementing [`Agent`](crate::Agent), unit
+//! A new agent is one file in this folder (a type implementing [`Agent`], unit
 //! tests with synthetic states) and one line in [`AGENTS`].
 
 pub mod avoid;
