@@ -1,0 +1,181 @@
+//! The [`Agent`] trait: a control algorithm that flies missions.
+//!
+//! Agents do no I/O and read no clock: the runner hands them the [`UavState`] and the
+//! simulated time, they answer with a [`Step`] (a speed command, log lines, mission events).
+//! So they behave the same at any simulation speed and are unit-tested with synthetic states.
+
+use std::fmt;
+
+use usar_proto::Drive;
+
+use crate::mission::Mission;
+use crate::uav::UavState;
+
+/// A speed command, each component a percentage of the maximum speed in -100..=100
+/// (the AirRobot's maximum is 2 m/s and 100 deg/s, protocol.md §2.3).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SpeedCommand {
+    /// + = forward along the heading.
+    pub forward: f64,
+    /// + = right of the heading.
+    pub right: f64,
+    /// + = climb.
+    pub up: f64,
+    /// + = turn clockwise seen from above (to the right).
+    pub yaw: f64,
+}
+
+impl SpeedCommand {
+    /// Hover in place.
+    pub const STOP: Self = Self {
+        forward: 0.0,
+        right: 0.0,
+        up: 0.0,
+        yaw: 0.0,
+    };
+
+    /// The same command with every component clamped to -100..=100 (NaN becomes 0).
+    pub fn clamped(self) -> Self {
+        let c = |v: f64| {
+            if v.is_nan() {
+                0.0
+            } else {
+                v.clamp(-100.0, 100.0)
+            }
+        };
+        Self {
+            forward: c(self.forward),
+            right: c(self.right),
+            up: c(self.up),
+            yaw: c(self.yaw),
+        }
+    }
+
+    /// The normalized DRIVE message:
+    /// `DRIVE {AltitudeVelocity up} {LinearVelocity forward} {LateralVelocity right} {RotationalVelocity yaw} {Normalized true}`.
+    pub fn to_drive(self) -> Drive {
+        let c = self.clamped();
+        Drive {
+            altitude_velocity: Some(c.up),
+            linear_velocity: Some(c.forward),
+            lateral_velocity: Some(c.right),
+            rotational_velocity: Some(c.yaw),
+            normalized: Some(true),
+            ..Drive::default()
+        }
+    }
+}
+
+/// Something an agent reports besides its command.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AgentEvent {
+    /// A line for the log.
+    Log(String),
+    /// A mission was started.
+    MissionStarted {
+        /// 0-based index in the agent's mission list.
+        index: usize,
+        /// The mission.
+        mission: Mission,
+        /// Simulated seconds.
+        time: f64,
+    },
+    /// A mission was completed.
+    MissionDone {
+        /// 0-based index in the agent's mission list.
+        index: usize,
+        /// The mission.
+        mission: Mission,
+        /// Simulated seconds.
+        time: f64,
+        /// For GotoXyz, the distance to the target when it counted as reached (metres).
+        distance: Option<f64>,
+    },
+}
+
+impl fmt::Display for AgentEvent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Log(line) => f.write_str(line),
+            Self::MissionStarted {
+                index,
+                mission,
+                time,
+            } => write!(f, "t={time:.2}s mission {} started: {mission}", index + 1),
+            Self::MissionDone {
+                index,
+                mission,
+                time,
+                distance,
+            } => {
+                write!(f, "t={time:.2}s mission {} done: {mission}", index + 1)?;
+                if let Some(d) = distance {
+                    write!(f, " (reached at {d:.2} m)")?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// What an agent answers to one step.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Step {
+    /// The speed command to send; `None` keeps the previous one.
+    pub command: Option<SpeedCommand>,
+    /// What happened during this step.
+    pub events: Vec<AgentEvent>,
+    /// Every mission is done.
+    pub all_done: bool,
+}
+
+/// Why an agent refused a mission.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("agent {agent} cannot fly a {kind} mission: {reason}")]
+pub struct MissionRefused {
+    /// The agent's name.
+    pub agent: &'static str,
+    /// The mission type.
+    pub kind: &'static str,
+    /// Why.
+    pub reason: String,
+}
+
+/// A control algorithm. Implementations are pure: state and time in, command and log out.
+pub trait Agent: Send {
+    /// The name the registry knows it by.
+    fn name(&self) -> &'static str;
+
+    /// Appends a mission, or refuses a type it does not handle.
+    fn add_mission(&mut self, mission: Mission) -> Result<(), MissionRefused>;
+
+    /// Starts flying the missions at simulated time `time`.
+    fn start(&mut self, time: f64);
+
+    /// Stops: later steps return [`SpeedCommand::STOP`].
+    fn stop(&mut self);
+
+    /// Called whenever new sensor data has arrived, with the simulated time.
+    fn step(&mut self, uav: &UavState, time: f64) -> Step;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn drive_is_normalized_and_clamped() {
+        let d = SpeedCommand {
+            forward: 150.0,
+            right: -20.0,
+            up: f64::NAN,
+            yaw: -300.0,
+        }
+        .to_drive();
+        assert_eq!(d.linear_velocity, Some(100.0));
+        assert_eq!(d.lateral_velocity, Some(-20.0));
+        assert_eq!(d.altitude_velocity, Some(0.0));
+        assert_eq!(d.rotational_velocity, Some(-100.0));
+        assert_eq!(d.normalized, Some(true));
+    }
+}

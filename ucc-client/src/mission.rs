@@ -1,0 +1,292 @@
+//! Missions: what a UAV is asked to do, from a TOML file or the command line.
+//!
+//! A mission file is a list of `[[mission]]` tables, flown in order (see `docs/missions.md`):
+//!
+//! ```toml
+//! [[mission]]
+//! type = "GotoXyz"      # fly to a point: world frame, metres, z down (negative = up)
+//! x = 2.0
+//! y = 1.5
+//! z = -2.0
+//!
+//! [[mission]]
+//! type = "Hover"        # hold the current position for a while (simulated seconds)
+//! seconds = 3.0
+//! ```
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::geometry::Coordinates;
+
+/// One mission.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "type", deny_unknown_fields)]
+pub enum Mission {
+    /// Fly to a point (world frame, metres, z down).
+    GotoXyz {
+        /// North, metres.
+        x: f64,
+        /// East, metres.
+        y: f64,
+        /// Down, metres (a negative value is above the origin).
+        z: f64,
+    },
+    /// Hold the position where the mission starts, for this many simulated seconds.
+    Hover {
+        /// Simulated seconds.
+        seconds: f64,
+    },
+}
+
+impl Mission {
+    /// A GotoXyz mission to this point.
+    pub fn goto(target: Coordinates) -> Self {
+        Self::GotoXyz {
+            x: target.x,
+            y: target.y,
+            z: target.z,
+        }
+    }
+
+    /// The mission type's name, as written in a mission file.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::GotoXyz { .. } => "GotoXyz",
+            Self::Hover { .. } => "Hover",
+        }
+    }
+
+    /// The target point of a GotoXyz mission.
+    pub fn target(&self) -> Option<Coordinates> {
+        match self {
+            Self::GotoXyz { x, y, z } => Some(Coordinates::new(*x, *y, *z)),
+            Self::Hover { .. } => None,
+        }
+    }
+
+    /// Checks the numbers: finite coordinates, a non-negative duration.
+    fn validate(&self) -> Result<(), String> {
+        match self {
+            Self::GotoXyz { x, y, z } if ![x, y, z].iter().all(|v| v.is_finite()) => {
+                Err("GotoXyz coordinates must be finite numbers".into())
+            }
+            Self::Hover { seconds } if !(seconds.is_finite() && *seconds >= 0.0) => {
+                Err("Hover seconds must be a number >= 0".into())
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+impl fmt::Display for Mission {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::GotoXyz { x, y, z } => write!(f, "GotoXyz {x:.2},{y:.2},{z:.2}"),
+            Self::Hover { seconds } => write!(f, "Hover {seconds:.1} s"),
+        }
+    }
+}
+
+/// A mission file or a command-line mission that cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum MissionError {
+    /// The file could not be read.
+    #[error("cannot read mission file {path}: {error}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why (part of the message, so not a `source`).
+        error: std::io::Error,
+    },
+    /// The file is not a valid mission list.
+    #[error("{path}:{line}: {message}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the error (1 when unknown).
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A `--goto` argument that is not `x,y,z`.
+    #[error("invalid point {text:?}: {reason} (expected x,y,z in metres, z down, e.g. 2,1.5,-2)")]
+    Point {
+        /// The argument.
+        text: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MissionFile {
+    #[serde(default)]
+    mission: Vec<toml::Spanned<Mission>>,
+}
+
+/// Reads a mission file.
+pub fn load_missions(path: &Path) -> Result<Vec<Mission>, MissionError> {
+    let text = std::fs::read_to_string(path).map_err(|error| MissionError::Io {
+        path: path.to_owned(),
+        error,
+    })?;
+    parse_missions(&text, path)
+}
+
+/// Parses the text of a mission file; `path` names it in errors.
+pub fn parse_missions(text: &str, path: &Path) -> Result<Vec<Mission>, MissionError> {
+    let invalid = |offset: Option<usize>, message: String| MissionError::Invalid {
+        path: path.to_owned(),
+        line: offset.map_or(1, |o| line_of(text, o)),
+        message,
+    };
+    let file: MissionFile = toml::from_str(text)
+        .map_err(|e| invalid(e.span().map(|s| s.start), e.message().trim().to_owned()))?;
+    if file.mission.is_empty() {
+        return Err(invalid(None, "no [[mission]] entries".into()));
+    }
+    file.mission
+        .into_iter()
+        .map(|m| {
+            let offset = m.span().start;
+            let m = m.into_inner();
+            m.validate().map_err(|e| invalid(Some(offset), e))?;
+            Ok(m)
+        })
+        .collect()
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    text.as_bytes()[..offset.min(text.len())]
+        .iter()
+        .filter(|b| **b == b'\n')
+        .count()
+        + 1
+}
+
+/// Parses `x,y,z` (metres, z down) as written after `--goto`.
+pub fn parse_point(text: &str) -> Result<Coordinates, MissionError> {
+    let numbers = parse_numbers(text).map_err(|reason| MissionError::Point {
+        text: text.to_owned(),
+        reason,
+    })?;
+    match numbers[..] {
+        [x, y, z] => Ok(Coordinates::new(x, y, z)),
+        _ => Err(MissionError::Point {
+            text: text.to_owned(),
+            reason: format!("{} numbers instead of 3", numbers.len()),
+        }),
+    }
+}
+
+/// Parses a comma-separated list of finite numbers.
+pub(crate) fn parse_numbers(text: &str) -> Result<Vec<f64>, String> {
+    text.split(',')
+        .map(|part| match part.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(format!("{:?} is not a number", part.trim())),
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Vec<Mission>, MissionError> {
+        parse_missions(text, Path::new("m.toml"))
+    }
+
+    #[test]
+    fn good_file() {
+        let missions = parse(
+            "# a square\n[[mission]]\ntype = \"GotoXyz\"\nx = 1\ny = 2.5\nz = -2\n\n\
+             [[mission]]\ntype = \"Hover\"\nseconds = 3\n",
+        )
+        .unwrap();
+        assert_eq!(
+            missions,
+            vec![
+                Mission::GotoXyz {
+                    x: 1.0,
+                    y: 2.5,
+                    z: -2.0
+                },
+                Mission::Hover { seconds: 3.0 }
+            ]
+        );
+    }
+
+    fn error_line(text: &str) -> (usize, String) {
+        match parse(text) {
+            Err(MissionError::Invalid {
+                line,
+                message,
+                path,
+            }) => {
+                assert_eq!(path, Path::new("m.toml"));
+                (line, message)
+            }
+            other => panic!("expected an invalid-file error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn unknown_type_names_the_line() {
+        let (line, msg) = error_line(
+            "[[mission]]\ntype = \"GotoXyz\"\nx = 1\ny = 2\nz = 3\n\n[[mission]]\ntype = \"Land\"\n",
+        );
+        assert_eq!(line, 8, "{msg}"); // the `type = "Land"` line
+        assert!(msg.contains("Land"), "{msg}");
+    }
+
+    #[test]
+    fn missing_coordinate_and_syntax_error() {
+        let (line, msg) = error_line("[[mission]]\ntype = \"GotoXyz\"\nx = 1\ny = 2\n");
+        assert_eq!(line, 1);
+        assert!(msg.contains('z'), "{msg}");
+        let (line, _) = error_line("[[mission]]\ntype = \"GotoXyz\"\nx = = 1\n");
+        assert_eq!(line, 3);
+        let (line, msg) = error_line("[[mission]]\ntype = \"Hover\"\nseconds = -1\n");
+        assert_eq!(line, 1);
+        assert!(msg.contains(">= 0"), "{msg}");
+        let (_, msg) = error_line("# nothing\n");
+        assert!(msg.contains("no [[mission]]"));
+        let err = parse("[[mission]]\ntype = \"Hover\"\nseconds = 1\nspeed = 2\n").unwrap_err();
+        assert!(err.to_string().starts_with("m.toml:"), "{err}");
+    }
+
+    #[test]
+    fn example_file() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("missions/example.toml");
+        let missions = load_missions(&path).unwrap();
+        assert_eq!(missions.len(), 4);
+        assert_eq!(missions[2], Mission::Hover { seconds: 3.0 });
+    }
+
+    #[test]
+    fn missing_file() {
+        let err = load_missions(Path::new("/nonexistent/m.toml")).unwrap_err();
+        assert!(err.to_string().contains("/nonexistent/m.toml"));
+    }
+
+    #[test]
+    fn points() {
+        assert_eq!(
+            parse_point("1, 2.5,-3").unwrap(),
+            Coordinates::new(1.0, 2.5, -3.0)
+        );
+        assert!(parse_point("1,2").is_err());
+        assert!(
+            parse_point("1,x,3")
+                .unwrap_err()
+                .to_string()
+                .contains("\"x\"")
+        );
+        assert!(parse_point("1,2,inf").is_err());
+    }
+}

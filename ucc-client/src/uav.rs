@@ -1,0 +1,488 @@
+//! The UAV model: the latest value of every reading, updated from typed server messages.
+//!
+//! [`UavState::apply`] consumes one [`ServerMessage`] and tells whether new sensor data
+//! arrived. It works with the `stsAirRobot` (Position, Velocity, IMU, sonars, laser) and with
+//! a stock `AirRobot`: position then comes from GroundTruth or INS, orientation from the IMU,
+//! GroundTruth or INS, and velocity is derived from successive positions when no sensor gives
+//! it. When several sensors give the same quantity, the best one wins (Position over
+//! GroundTruth over INS; GroundTruth over IMU over INS for the orientation).
+
+use usar_proto::{NamedRange, Scan, SenData, ServerMessage};
+
+use crate::geometry::{Coordinates, body_to_world_vector, from_wire, world_to_body_vector};
+
+/// Number of horizontal sonars of the stsAirRobot (`Sonar0` … `Sonar7`).
+pub const HORIZONTAL_SONARS: usize = 8;
+
+/// A value and the simulated time it was measured at.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reading<T> {
+    /// The value.
+    pub value: T,
+    /// Simulated seconds (the server's `{Time}`).
+    pub time: f64,
+}
+
+/// The battery as the STA message reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Battery {
+    /// Remaining seconds as reported (99999 for a robot without a battery part).
+    pub remaining: i64,
+    /// `remaining` as a fraction of the first value seen (1.0 = full), as the original
+    /// control program computed it.
+    pub level: f64,
+}
+
+/// A laser scan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaserScan {
+    /// Metres; index 0 is the rightmost beam.
+    pub ranges: Vec<f64>,
+    /// Radians between two beams.
+    pub resolution: f64,
+    /// Radians, the whole field of view.
+    pub fov: f64,
+}
+
+impl LaserScan {
+    /// The bearing of beam `index` in the body frame: radians, + = right (clockwise), 0 ahead.
+    pub fn bearing(&self, index: usize) -> f64 {
+        self.fov / 2.0 - index as f64 * self.resolution
+    }
+}
+
+/// Which sensor a position or orientation came from, best last.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Source {
+    /// Velocity integrated or derived.
+    Derived,
+    /// An INS (drifts, 2 decimals).
+    Ins,
+    /// The IMU's `Rotation` (orientation only).
+    Imu,
+    /// A GroundTruth sensor.
+    GroundTruth,
+    /// The stsAirRobot's Position or Velocity sensor.
+    Sts,
+}
+
+/// Everything known about the UAV.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct UavState {
+    /// Latest simulated time seen in any message.
+    pub time: Option<f64>,
+    /// World frame, metres, z down.
+    pub position: Option<Reading<Coordinates>>,
+    /// Roll, pitch, yaw in radians.
+    pub orientation: Option<Reading<Coordinates>>,
+    /// World-frame velocity, m/s.
+    pub velocity: Option<Reading<Coordinates>>,
+    /// Body-frame velocity (x forward, y right, z down), m/s.
+    pub relative_velocity: Option<Reading<Coordinates>>,
+    /// IMU linear acceleration, m/s², gravity excluded.
+    pub acceleration: Option<Reading<Coordinates>>,
+    /// IMU angular velocity (roll, pitch, yaw rates), rad/s.
+    pub angular_velocity: Option<Reading<Coordinates>>,
+    /// IMU angular acceleration, rad/s².
+    pub angular_acceleration: Option<Reading<Coordinates>>,
+    /// Battery.
+    pub battery: Option<Reading<Battery>>,
+    /// The laser scan.
+    pub laser: Option<Reading<LaserScan>>,
+    /// Horizontal sonars: index 0 forward, each next 45° clockwise (2 right, 4 back, 6 left).
+    pub sonars: [Option<Reading<f64>>; HORIZONTAL_SONARS],
+    /// Free space above (SonarTop), metres.
+    pub free_above: Option<Reading<f64>>,
+    /// Free space below (SonarBottom), metres.
+    pub free_below: Option<Reading<f64>>,
+    /// The battery value taken as "full".
+    first_battery: Option<i64>,
+    position_source: Option<Source>,
+    orientation_source: Option<Source>,
+    velocity_source: Option<Source>,
+}
+
+impl UavState {
+    /// An empty state.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The yaw in radians (0 when unknown).
+    pub fn yaw(&self) -> f64 {
+        self.orientation.as_ref().map_or(0.0, |o| o.value.z)
+    }
+
+    /// Whether the battery is known to be empty.
+    pub fn battery_empty(&self) -> bool {
+        self.battery
+            .as_ref()
+            .is_some_and(|b| b.value.remaining <= 0)
+    }
+
+    /// Updates the state from one message. Returns `true` when it carried sensor data (a SEN
+    /// line this model uses), which is when an agent should step.
+    pub fn apply(&mut self, message: &ServerMessage) -> bool {
+        match message {
+            ServerMessage::Sta(sta) => {
+                let time = self.stamp(Some(sta.time.seconds));
+                let first = *self.first_battery.get_or_insert(sta.battery);
+                let level = if first > 0 {
+                    sta.battery as f64 / first as f64
+                } else {
+                    0.0
+                };
+                self.battery = Some(Reading {
+                    value: Battery {
+                        remaining: sta.battery,
+                        level,
+                    },
+                    time,
+                });
+                false
+            }
+            ServerMessage::Sen(sen) => {
+                let time = self.stamp(sen.time.map(|t| t.seconds));
+                self.apply_sensor(&sen.data, time)
+            }
+            _ => false,
+        }
+    }
+
+    /// Records a time stamp, or takes the latest known time for lines without one (INS).
+    fn stamp(&mut self, time: Option<f64>) -> f64 {
+        match time {
+            Some(t) => {
+                self.time = Some(self.time.map_or(t, |old| old.max(t)));
+                t
+            }
+            None => self.time.unwrap_or(0.0),
+        }
+    }
+
+    fn apply_sensor(&mut self, data: &SenData, time: f64) -> bool {
+        match data {
+            SenData::Position { location, .. } => {
+                self.set_position(from_wire(*location), Source::Sts, time)
+            }
+            SenData::GroundTruth {
+                location,
+                orientation,
+                ..
+            } => {
+                self.set_orientation(from_wire(*orientation), Source::GroundTruth, time);
+                self.set_position(from_wire(*location), Source::GroundTruth, time);
+            }
+            SenData::Ins {
+                location,
+                orientation,
+                ..
+            } => {
+                self.set_orientation(from_wire(*orientation), Source::Ins, time);
+                self.set_position(from_wire(*location), Source::Ins, time);
+            }
+            SenData::Velocity {
+                absolute, relative, ..
+            } => {
+                self.velocity_source = Some(Source::Sts);
+                self.velocity = Some(Reading {
+                    value: from_wire(*absolute),
+                    time,
+                });
+                self.relative_velocity = Some(Reading {
+                    value: from_wire(*relative),
+                    time,
+                });
+            }
+            SenData::Imu {
+                acceleration,
+                angular_vel,
+                angular_accel,
+                rotation,
+                ..
+            } => {
+                let reading = |v| {
+                    Some(Reading {
+                        value: from_wire(v),
+                        time,
+                    })
+                };
+                self.acceleration = reading(*acceleration);
+                self.angular_velocity = reading(*angular_vel);
+                self.angular_acceleration = reading(*angular_accel);
+                self.set_orientation(from_wire(*rotation), Source::Imu, time);
+            }
+            SenData::Sonar { readings, .. } => {
+                for r in readings {
+                    self.set_sonar(r, time);
+                }
+            }
+            SenData::RangeScanner(Scan {
+                ranges,
+                resolution,
+                fov,
+                ..
+            }) => {
+                self.laser = Some(Reading {
+                    value: LaserScan {
+                        ranges: ranges.clone(),
+                        resolution: *resolution,
+                        fov: *fov,
+                    },
+                    time,
+                });
+            }
+            _ => return false,
+        }
+        true
+    }
+
+    fn set_sonar(&mut self, reading: &NamedRange, time: f64) {
+        let value = Some(Reading {
+            value: reading.range,
+            time,
+        });
+        match reading.name.as_str() {
+            "SonarTop" => self.free_above = value,
+            "SonarBottom" => self.free_below = value,
+            name => {
+                let index = name
+                    .strip_prefix("Sonar")
+                    .and_then(|i| i.parse::<usize>().ok())
+                    .filter(|i| *i < HORIZONTAL_SONARS);
+                match index {
+                    Some(i) => self.sonars[i] = value,
+                    None => tracing::trace!(name, "ignoring an unknown sonar"),
+                }
+            }
+        }
+    }
+
+    fn set_orientation(&mut self, value: Coordinates, source: Source, time: f64) {
+        if self.orientation_source.is_some_and(|best| best > source) {
+            return;
+        }
+        self.orientation_source = Some(source);
+        self.orientation = Some(Reading { value, time });
+        // Keep a sensor-given relative velocity consistent only when it is derived.
+        if self.velocity_source == Some(Source::Derived) {
+            self.derive_relative_velocity();
+        }
+    }
+
+    fn set_position(&mut self, value: Coordinates, source: Source, time: f64) {
+        if self.position_source.is_some_and(|best| best > source) {
+            return;
+        }
+        let previous = self.position.replace(Reading { value, time });
+        self.position_source = Some(source);
+        if self.velocity_source.is_some_and(|s| s > Source::Derived) {
+            return;
+        }
+        if let Some(prev) = previous {
+            let dt = time - prev.time;
+            if dt > 1e-6 {
+                self.velocity_source = Some(Source::Derived);
+                self.velocity = Some(Reading {
+                    value: (value - prev.value) / dt,
+                    time,
+                });
+                self.derive_relative_velocity();
+            }
+        }
+    }
+
+    fn derive_relative_velocity(&mut self) {
+        if let (Some(v), Some(o)) = (&self.velocity, &self.orientation) {
+            self.relative_velocity = Some(Reading {
+                value: world_to_body_vector(&v.value, &o.value),
+                time: v.time,
+            });
+        }
+    }
+
+    /// Where the UAV's velocity would take it in the world frame for a body-frame vector
+    /// (a convenience for agents).
+    pub fn body_to_world(&self, v: &Coordinates) -> Coordinates {
+        match &self.orientation {
+            Some(o) => body_to_world_vector(v, &o.value),
+            None => *v,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use usar_proto::{Sen, Sta, StaLayout, Time, Vec3};
+
+    fn sen(t: Option<f64>, data: SenData) -> ServerMessage {
+        ServerMessage::Sen(Sen {
+            time: t.map(Time::udk),
+            data,
+        })
+    }
+
+    fn sta(t: f64, battery: i64) -> ServerMessage {
+        ServerMessage::Sta(Sta {
+            time: Time::udk(t),
+            battery,
+            vehicle: None,
+            layout: StaLayout::Udk,
+        })
+    }
+
+    fn sonar(name: &str, range: f64) -> SenData {
+        SenData::Sonar {
+            readings: vec![NamedRange {
+                name: name.into(),
+                range,
+            }],
+            grouped: false,
+        }
+    }
+
+    fn imu(yaw: f64) -> SenData {
+        SenData::Imu {
+            name: "IMU".into(),
+            acceleration: Vec3::new(0.1, 0.2, 0.3),
+            angular_vel: Vec3::new(0.0, 0.0, 0.5),
+            angular_accel: Vec3::default(),
+            rotation: Vec3::new(0.0, 0.0, yaw),
+        }
+    }
+
+    #[test]
+    fn sts_air_robot_stream() {
+        let mut uav = UavState::new();
+        assert!(!uav.apply(&sta(1.0, 1200)));
+        assert!(!uav.apply(&sta(1.1, 600)));
+        let battery = uav.battery.clone().unwrap();
+        assert_eq!(battery.value.remaining, 600);
+        assert!((battery.value.level - 0.5).abs() < 1e-12);
+        assert_eq!(battery.time, 1.1);
+
+        assert!(uav.apply(&sen(
+            Some(1.2),
+            SenData::Position {
+                name: "Position".into(),
+                location: Vec3::new(1.0, 2.0, -3.0),
+            }
+        )));
+        assert!(uav.apply(&sen(
+            Some(1.2),
+            SenData::Velocity {
+                name: "Velocity".into(),
+                absolute: Vec3::new(0.0, 2.0, 0.0),
+                relative: Vec3::new(2.0, 0.0, 0.0),
+            }
+        )));
+        assert!(uav.apply(&sen(Some(1.25), imu(1.5))));
+        assert!(uav.apply(&sen(Some(1.3), sonar("Sonar2", 1.5))));
+        assert!(uav.apply(&sen(Some(1.3), sonar("SonarTop", 3.0))));
+        assert!(uav.apply(&sen(Some(1.3), sonar("SonarBottom", 0.4))));
+        assert!(uav.apply(&sen(
+            Some(1.4),
+            SenData::RangeScanner(Scan {
+                kind: "RangeScanner".into(),
+                name: "Scanner".into(),
+                resolution: 0.0184,
+                fov: 4.1889,
+                ranges: vec![4.0; 228],
+                range_decimals: 2,
+            })
+        )));
+
+        assert_eq!(
+            uav.position.clone().unwrap().value,
+            Coordinates::new(1.0, 2.0, -3.0)
+        );
+        assert_eq!(
+            uav.velocity.clone().unwrap().value,
+            Coordinates::new(0.0, 2.0, 0.0)
+        );
+        assert_eq!(
+            uav.relative_velocity.clone().unwrap().value,
+            Coordinates::new(2.0, 0.0, 0.0)
+        );
+        assert_eq!(uav.yaw(), 1.5);
+        assert_eq!(uav.acceleration.clone().unwrap().value.z, 0.3);
+        assert_eq!(uav.angular_velocity.clone().unwrap().value.z, 0.5);
+        assert_eq!(uav.sonars[2].clone().unwrap().value, 1.5);
+        assert!(uav.sonars[0].is_none());
+        assert_eq!(uav.free_above.clone().unwrap().value, 3.0);
+        assert_eq!(uav.free_below.clone().unwrap().value, 0.4);
+        let laser = uav.laser.clone().unwrap();
+        assert_eq!(laser.value.ranges.len(), 228);
+        assert_eq!(laser.time, 1.4);
+        assert!((laser.value.bearing(0) - 2.09445).abs() < 1e-4);
+        assert_eq!(uav.time, Some(1.4));
+    }
+
+    #[test]
+    fn stock_air_robot_with_ground_truth_derives_velocity() {
+        let mut uav = UavState::new();
+        uav.apply(&sta(10.0, 99999));
+        let gt = |t: f64, x: f64| {
+            sen(
+                Some(t),
+                SenData::GroundTruth {
+                    name: "GroundTruth".into(),
+                    location: Vec3::new(x, 0.0, -1.0),
+                    orientation: Vec3::new(0.0, 0.0, std::f64::consts::FRAC_PI_2),
+                    decimals: 3,
+                },
+            )
+        };
+        assert!(uav.apply(&gt(10.0, 1.0)));
+        assert!(uav.velocity.is_none());
+        assert!(uav.apply(&gt(10.5, 2.0)));
+        assert_eq!(uav.position.clone().unwrap().value.x, 2.0);
+        let v = uav.velocity.clone().unwrap().value;
+        assert!((v - Coordinates::new(2.0, 0.0, 0.0)).norm() < 1e-9);
+        // Heading east, moving north: the velocity points to the UAV's left.
+        let rel = uav.relative_velocity.clone().unwrap().value;
+        assert!((rel - Coordinates::new(0.0, -2.0, 0.0)).norm() < 1e-9);
+        assert_eq!(uav.battery.clone().unwrap().value.level, 1.0);
+        // An INS reading does not override the better GroundTruth.
+        uav.apply(&sen(
+            None,
+            SenData::Ins {
+                name: "INS".into(),
+                location: Vec3::new(50.0, 0.0, 0.0),
+                orientation: Vec3::new(0.0, 0.0, 3.0),
+            },
+        ));
+        assert_eq!(uav.position.clone().unwrap().value.x, 2.0);
+        assert_eq!(uav.yaw(), std::f64::consts::FRAC_PI_2);
+    }
+
+    #[test]
+    fn ins_only_uses_latest_time() {
+        let mut uav = UavState::new();
+        uav.apply(&sta(3.0, 99999));
+        uav.apply(&sen(
+            None,
+            SenData::Ins {
+                name: "INS".into(),
+                location: Vec3::new(1.0, 1.0, -2.0),
+                orientation: Vec3::new(0.0, 0.0, 0.5),
+            },
+        ));
+        let p = uav.position.clone().unwrap();
+        assert_eq!(p.time, 3.0);
+        assert_eq!(uav.yaw(), 0.5);
+    }
+
+    #[test]
+    fn ignores_unknown_sonars_and_other_messages() {
+        let mut uav = UavState::new();
+        assert!(uav.apply(&sen(Some(1.0), sonar("F1", 2.0))));
+        assert!(uav.apply(&sen(Some(1.0), sonar("Sonar9", 2.0))));
+        assert!(uav.sonars.iter().all(Option::is_none));
+        assert!(!uav.apply(&sen(Some(1.0), SenData::Camera)));
+        assert!(!uav.battery_empty());
+        uav.apply(&sta(2.0, 0));
+        assert!(uav.battery_empty());
+    }
+}
