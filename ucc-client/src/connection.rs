@@ -1,12 +1,22 @@
 //! A connection to a USARSim server: a reader task that turns every line into a typed
 //! [`ServerMessage`], a writer for [`Command`]s, a clean disconnect.
+//!
+//! Optional extras: a recording of every line in both directions (docs/recording.md), and
+//! lockstep with a server that offers it (docs/lockstep.md): once enabled, the connection
+//! lets the world advance one step at a time, after the caller has seen (and answered) every
+//! message up to the last barrier.
 
+use std::collections::VecDeque;
+use std::io::Write;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::net::TcpStream;
 use tokio::net::tcp::OwnedWriteHalf;
 use tokio::sync::mpsc;
 use tokio_util::task::AbortOnDropHandle;
+use usar_proto::record::{self, Direction};
 use usar_proto::{Command, ServerMessage};
 
 use crate::agent::SpeedCommand;
@@ -44,6 +54,52 @@ pub enum ConnectionError {
     /// Sending to the server failed.
     #[error("cannot send to the server: {0}")]
     Write(std::io::Error),
+    /// The recording file could not be created.
+    #[error("cannot record to {path}: {error}")]
+    Record {
+        /// The file.
+        path: String,
+        /// Why (part of the message, so not a `source`).
+        error: std::io::Error,
+    },
+}
+
+/// A recording of one connection, shared by the reader task and the writer.
+#[derive(Debug)]
+struct Recorder {
+    file: std::io::BufWriter<std::fs::File>,
+    /// The latest simulated time the server sent: the stamp of the next entries.
+    time: f64,
+}
+
+type SharedRecorder = Arc<Mutex<Recorder>>;
+
+fn record(recorder: Option<&SharedRecorder>, direction: Direction, line: &str) {
+    if let Some(r) = recorder
+        && let Ok(mut r) = r.lock()
+    {
+        let time = r.time;
+        let _ = record::write_entry(&mut r.file, time, direction, line);
+    }
+}
+
+/// The lockstep state of a connection.
+#[derive(Debug, Clone, Copy)]
+struct Lockstep {
+    /// Simulated seconds per barrier step.
+    step: f64,
+    /// The last barrier the server reported reaching.
+    reached: f64,
+    /// Whether a `SYNC` is outstanding.
+    waiting: bool,
+}
+
+/// The time of a lockstep answer `SYNC {Time t}`.
+fn sync_time(message: &ServerMessage) -> Option<f64> {
+    match message {
+        ServerMessage::Other(m) if m.kind == "SYNC" => m.get("Time")?.trim().parse().ok(),
+        _ => None,
+    }
 }
 
 /// An open connection.
@@ -54,11 +110,40 @@ pub struct Connection {
     writer: OwnedWriteHalf,
     /// Aborted when the connection is dropped.
     _reader: AbortOnDropHandle<()>,
+    /// Messages read ahead while waiting for a lockstep answer.
+    pending: VecDeque<ServerMessage>,
+    lockstep: Option<Lockstep>,
+    recorder: Option<SharedRecorder>,
 }
 
 impl Connection {
     /// Connects to `addr` (`host:port`) within `timeout` and starts the reader task.
     pub async fn connect(addr: &str, timeout: Duration) -> Result<Self, ConnectionError> {
+        Self::open(addr, timeout, None).await
+    }
+
+    /// Like [`Connection::connect`], recording every line in both directions into `path`.
+    pub async fn connect_recording(
+        addr: &str,
+        timeout: Duration,
+        path: &Path,
+    ) -> Result<Self, ConnectionError> {
+        let mut file = std::fs::File::create(path)
+            .map(std::io::BufWriter::new)
+            .map_err(|error| ConnectionError::Record {
+                path: path.display().to_string(),
+                error,
+            })?;
+        let _ = writeln!(file, "{}", record::HEADER);
+        let recorder = Arc::new(Mutex::new(Recorder { file, time: 0.0 }));
+        Self::open(addr, timeout, Some(recorder)).await
+    }
+
+    async fn open(
+        addr: &str,
+        timeout: Duration,
+        recorder: Option<SharedRecorder>,
+    ) -> Result<Self, ConnectionError> {
         let stream = tokio::time::timeout(timeout, TcpStream::connect(addr))
             .await
             .map_err(|_| ConnectionError::ConnectTimeout {
@@ -73,14 +158,51 @@ impl Connection {
         let _ = stream.set_nodelay(true);
         let (read, writer) = stream.into_split();
         let (tx, messages) = mpsc::channel(CHANNEL_CAPACITY);
-        let reader = tokio::spawn(read_messages(LineReader::new(read), tx));
+        let reader = tokio::spawn(read_messages(LineReader::new(read), tx, recorder.clone()));
         tracing::debug!(addr, "connected");
         Ok(Self {
             addr: addr.to_owned(),
             messages,
             writer,
             _reader: AbortOnDropHandle::new(reader),
+            pending: VecDeque::new(),
+            lockstep: None,
+            recorder,
         })
+    }
+
+    /// Asks the server for lockstep (`SYNC {Time 0}`) and waits up to `wait` for its answer.
+    /// Returns whether the server offers it; a stock USARSim never answers, and then the
+    /// connection goes on as before. With lockstep on, the world advances `step` simulated
+    /// seconds each time the caller has taken every message up to the last barrier.
+    pub async fn request_lockstep(
+        &mut self,
+        step: f64,
+        wait: Duration,
+    ) -> Result<bool, ConnectionError> {
+        self.send_line("SYNC {Time 0}").await?;
+        let deadline = tokio::time::Instant::now() + wait;
+        loop {
+            let message = match tokio::time::timeout_at(deadline, self.messages.recv()).await {
+                Err(_) => return Ok(false),
+                Ok(None) => return Err(ConnectionError::Closed),
+                Ok(Some(message)) => message?,
+            };
+            if let Some(reached) = sync_time(&message) {
+                self.lockstep = Some(Lockstep {
+                    step,
+                    reached,
+                    waiting: false,
+                });
+                return Ok(true);
+            }
+            self.pending.push_back(message);
+        }
+    }
+
+    /// Whether lockstep is on.
+    pub fn is_lockstep(&self) -> bool {
+        self.lockstep.is_some()
     }
 
     /// The address connected to.
@@ -90,19 +212,47 @@ impl Connection {
 
     /// The next message from the server; [`ConnectionError::Closed`] once the server closed
     /// the connection.
+    ///
+    /// With lockstep on, asking for the next message after the last barrier's answer releases
+    /// the world for one more step: everything the caller sent in between is applied first.
     pub async fn next_message(&mut self) -> Result<ServerMessage, ConnectionError> {
-        self.messages
-            .recv()
-            .await
-            .unwrap_or(Err(ConnectionError::Closed))
+        if let Some(message) = self.pending.pop_front() {
+            return Ok(message);
+        }
+        loop {
+            if let Some(lockstep) = &mut self.lockstep
+                && !lockstep.waiting
+            {
+                lockstep.waiting = true;
+                let line = format!("SYNC {{Time {:.4}}}", lockstep.reached + lockstep.step);
+                self.send_line(&line).await?;
+            }
+            let message = self
+                .messages
+                .recv()
+                .await
+                .unwrap_or(Err(ConnectionError::Closed))?;
+            match (sync_time(&message), &mut self.lockstep) {
+                (Some(reached), Some(lockstep)) => {
+                    lockstep.reached = reached;
+                    lockstep.waiting = false;
+                }
+                _ => return Ok(message),
+            }
+        }
     }
 
     /// Sends one command.
     pub async fn send(&mut self, command: &Command) -> Result<(), ConnectionError> {
         let mut line = String::new();
         command.write_to(&mut line);
+        self.send_line(&line).await
+    }
+
+    async fn send_line(&mut self, line: &str) -> Result<(), ConnectionError> {
         tracing::trace!(%line, "send");
-        write_line(&mut self.writer, &line)
+        record(self.recorder.as_ref(), Direction::Client, line);
+        write_line(&mut self.writer, line)
             .await
             .map_err(ConnectionError::Write)
     }
@@ -128,6 +278,11 @@ impl Connection {
     /// Closes the connection cleanly (the server then removes the robot).
     pub async fn disconnect(mut self) -> Result<(), ConnectionError> {
         use tokio::io::AsyncWriteExt;
+        if let Some(r) = &self.recorder
+            && let Ok(mut r) = r.lock()
+        {
+            let _ = r.file.flush();
+        }
         self.writer.shutdown().await.map_err(ConnectionError::Write)
     }
 }
@@ -135,6 +290,7 @@ impl Connection {
 async fn read_messages(
     mut lines: LineReader<tokio::net::tcp::OwnedReadHalf>,
     tx: mpsc::Sender<Result<ServerMessage, ConnectionError>>,
+    recorder: Option<SharedRecorder>,
 ) {
     loop {
         let item = match lines.next_line().await {
@@ -143,12 +299,21 @@ async fn read_messages(
             Ok(Some(line)) if line.trim().is_empty() => continue,
             Ok(Some(line)) => match ServerMessage::parse(&line) {
                 Ok(parsed) => {
+                    if let Some(r) = &recorder {
+                        if let Some(time) = parsed.message.time()
+                            && let Ok(mut r) = r.lock()
+                        {
+                            r.time = time;
+                        }
+                        record(Some(r), Direction::Server, &line);
+                    }
                     if !parsed.deviations.is_empty() {
                         tracing::trace!(%line, deviations = ?parsed.deviations, "tolerated");
                     }
                     Ok(parsed.message)
                 }
                 Err(error) => {
+                    record(recorder.as_ref(), Direction::Server, &line);
                     tracing::warn!(%line, %error, "unreadable server line skipped");
                     continue;
                 }

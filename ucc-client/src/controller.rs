@@ -23,6 +23,9 @@ use crate::picture::{MapPicture, PictureError};
 use crate::record::{TrajectoryPoint, write_log, write_trajectory};
 use crate::uav::UavState;
 
+/// Simulated seconds per lockstep barrier: the rate of the Position and STA streams.
+pub const LOCKSTEP_STEP: f64 = 0.1;
+
 /// Where the UAV is spawned.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Start {
@@ -107,6 +110,11 @@ pub struct RunConfig {
     pub stream_timeout: Duration,
     /// Simulated seconds a single mission may take.
     pub mission_timeout: f64,
+    /// Ask the server for lockstep (docs/lockstep.md); without it, run on sensor time.
+    pub lockstep: bool,
+    /// Record every line of every iteration's connection: this file for the first,
+    /// `NAME-2.EXT`, `NAME-3.EXT`, … for the next (docs/recording.md).
+    pub record: Option<PathBuf>,
 }
 
 impl Default for RunConfig {
@@ -127,6 +135,8 @@ impl Default for RunConfig {
             connect_timeout: Duration::from_secs(5),
             stream_timeout: Duration::from_secs(10),
             mission_timeout: 120.0,
+            lockstep: false,
+            record: None,
         }
     }
 }
@@ -256,6 +266,8 @@ pub enum Progress {
         addr: String,
         /// The map, from the server's NFO.
         map: Option<String>,
+        /// Whether the run is in lockstep with the server.
+        lockstep: bool,
     },
     /// The robot is in the world.
     Spawned {
@@ -294,9 +306,14 @@ impl fmt::Display for Progress {
                 iteration,
                 addr,
                 map,
+                lockstep,
             } => {
                 write!(f, "[{iteration}] connected to {addr}")?;
-                map.iter().try_for_each(|m| write!(f, " (map {m})"))
+                map.iter().try_for_each(|m| write!(f, " (map {m})"))?;
+                if *lockstep {
+                    write!(f, " in lockstep")?;
+                }
+                Ok(())
             }
             Self::Spawned {
                 iteration,
@@ -479,7 +496,13 @@ impl Flight {
         observer: &mut impl FnMut(&Progress),
     ) -> Result<(), RunError> {
         let iteration = self.iteration;
-        let mut conn = Connection::connect(&config.addr, config.connect_timeout).await?;
+        let mut conn = match &config.record {
+            Some(path) => {
+                let path = crate::tap::record_path(path, iteration);
+                Connection::connect_recording(&config.addr, config.connect_timeout, &path).await?
+            }
+            None => Connection::connect(&config.addr, config.connect_timeout).await?,
+        };
         self.connected = true;
         let mut uav = UavState::new();
 
@@ -492,12 +515,20 @@ impl Flight {
                 other => _ = uav.apply(&other),
             }
         }
+        if config.lockstep {
+            let wait = Duration::from_secs(2).min(config.stream_timeout);
+            if !conn.request_lockstep(LOCKSTEP_STEP, wait).await? {
+                tracing::warn!("the server does not offer lockstep; running on sensor time");
+                self.log("the server does not offer lockstep; running on sensor time".into());
+            }
+        }
         self.report(
             observer,
             Progress::Connected {
                 iteration,
                 addr: config.addr.clone(),
                 map,
+                lockstep: conn.is_lockstep(),
             },
         );
 

@@ -49,6 +49,26 @@ enum Cmd {
     },
     /// Read JSON messages on stdin and print their wire lines; exit 1 if any failed.
     Encode,
+    /// A transparent proxy between a client and a USARSim host: forwards every byte, records
+    /// both directions and warns about lines that do not parse.
+    #[command(
+        after_help = "Example:\n  ucc tap --listen 3001 --upstream usarsim-host:3000 --record session.usarlog\n  \
+                      (then point the client at localhost:3001)"
+    )]
+    Tap {
+        /// Local port to accept the client on.
+        #[arg(long, value_name = "PORT")]
+        listen: u16,
+        /// Address to listen on.
+        #[arg(long, default_value = "127.0.0.1")]
+        bind: String,
+        /// The USARSim server, `host:port`.
+        #[arg(long, value_name = "HOST:PORT")]
+        upstream: String,
+        /// Recording of the first connection; later ones get `-2`, `-3`, … before the extension.
+        #[arg(long, value_name = "FILE")]
+        record: PathBuf,
+    },
 }
 
 #[derive(Args)]
@@ -92,6 +112,15 @@ struct RunArgs {
     /// Wall-clock seconds to wait for the sensor stream after spawning (and for any silence).
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
     stream_timeout: f64,
+    /// Run in lockstep with the server when it offers it (docs/lockstep.md): reproducible
+    /// runs at any --time-scale. Without it (or against a stock USARSim) the agent runs on
+    /// sensor time.
+    #[arg(long)]
+    lockstep: bool,
+    /// Record every line of each iteration's connection (docs/recording.md): FILE for the
+    /// first iteration, FILE-2, FILE-3, … (before the extension) for the next.
+    #[arg(long, value_name = "FILE")]
+    record: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -140,6 +169,12 @@ fn main() -> ExitCode {
             std::io::stderr().lock(),
         )),
         Cmd::Run(args) => runtime().and_then(|rt| rt.block_on(run(*args))),
+        Cmd::Tap {
+            listen,
+            bind,
+            upstream,
+            record,
+        } => runtime().and_then(|rt| rt.block_on(tap(&bind, listen, upstream, record))),
         Cmd::Demo(args) => runtime().and_then(|rt| rt.block_on(demo(args))),
     };
     match result {
@@ -206,11 +241,32 @@ async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         prefix: args.prefix,
         stream_timeout: Duration::from_secs_f64(args.stream_timeout),
         mission_timeout: args.mission_timeout,
+        lockstep: args.lockstep,
+        record: args.record,
         ..RunConfig::default()
     };
     let summary =
         until_interrupted(async { Ok(run_missions(&config, print_progress).await?) }).await?;
     print_summary(&summary, &config);
+    Ok(ExitCode::SUCCESS)
+}
+
+async fn tap(bind: &str, port: u16, upstream: String, record: PathBuf) -> anyhow::Result<ExitCode> {
+    let listener = tokio::net::TcpListener::bind((bind, port))
+        .await
+        .with_context(|| format!("cannot listen on {bind}:{port}"))?;
+    println!(
+        "ucc tap: listening on {}, forwarding to {upstream}, recording to {}",
+        listener.local_addr()?,
+        record.display()
+    );
+    let shutdown = CancellationToken::new();
+    let token = shutdown.clone();
+    tokio::spawn(async move {
+        let _ = tokio::signal::ctrl_c().await;
+        token.cancel();
+    });
+    ucc_client::tap::run(listener, upstream, record, shutdown).await?;
     Ok(ExitCode::SUCCESS)
 }
 

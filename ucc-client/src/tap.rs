@@ -167,7 +167,7 @@ fn observe(line: &str, direction: Direction, recording: &Mutex<Recording>) {
         },
         Direction::Server => match ServerMessage::parse(line) {
             Ok(p) => {
-                if let Some(t) = message_time(&p.message)
+                if let Some(t) = p.message.time()
                     && let Ok(mut r) = recording.lock()
                 {
                     r.time = t;
@@ -183,17 +183,6 @@ fn observe(line: &str, direction: Direction, recording: &Mutex<Recording>) {
     if let Ok(mut r) = recording.lock() {
         let time = r.time;
         let _ = record::write_entry(&mut r.file, time, direction, line);
-    }
-}
-
-/// The `{Time}` of a server message, if it has one.
-fn message_time(message: &ServerMessage) -> Option<f64> {
-    match message {
-        ServerMessage::Sta(s) => Some(s.time.seconds),
-        ServerMessage::Sen(s) => s.time.map(|t| t.seconds),
-        ServerMessage::Asta(a) => Some(a.time.seconds),
-        ServerMessage::Eff(e) => Some(e.time.seconds),
-        _ => None,
     }
 }
 

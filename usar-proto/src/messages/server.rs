@@ -562,3 +562,16 @@ pub struct Die {
     /// How.
     pub damage_type: String,
 }
+
+impl ServerMessage {
+    /// The simulated time the message carries (`{Time t}`), if any.
+    pub fn time(&self) -> Option<f64> {
+        match self {
+            Self::Sta(s) => Some(s.time.seconds),
+            Self::Sen(s) => s.time.map(|t| t.seconds),
+            Self::Asta(a) => Some(a.time.seconds),
+            Self::Eff(e) => Some(e.time.seconds),
+            Self::Nfo(_) | Self::Conf(_) | Self::Geo(_) | Self::Die(_) | Self::Other(_) => None,
+        }
+    }
+}
