@@ -17,7 +17,11 @@ const EMBEDDED: &[(&str, &str, &str)] = &[
         "empty_room.toml",
         include_str!("../../../maps/empty_room.toml"),
     ),
-    ("arena", "arena.toml", include_str!("../../../maps/arena.toml")),
+    (
+        "arena",
+        "arena.toml",
+        include_str!("../../../maps/arena.toml"),
+    ),
     ("city", "city.toml", include_str!("../../../maps/city.toml")),
 ];
 
@@ -66,9 +70,20 @@ pub struct PlayerStart {
 /// One static solid of the map, in world coordinates.
 #[derive(Debug, Clone)]
 enum Solid {
-    Box { center: V3, size: V3, yaw: f64 },
-    Cylinder { center: V3, radius: f64, height: f64 },
-    Mesh { vertices: Vec<V3>, triangles: Vec<[u32; 3]> },
+    Box {
+        center: V3,
+        size: V3,
+        yaw: f64,
+    },
+    Cylinder {
+        center: V3,
+        radius: f64,
+        height: f64,
+    },
+    Mesh {
+        vertices: Vec<V3>,
+        triangles: Vec<[u32; 3]>,
+    },
 }
 
 /// A loaded map: level name, time limit, player starts and static geometry.
@@ -146,7 +161,11 @@ fn one() -> f64 {
 /// The 1-based line of byte `offset` in `text`.
 pub(crate) fn line_of(text: &str, offset: usize) -> usize {
     let end = offset.min(text.len());
-    text.as_bytes()[..end].iter().filter(|&&b| b == b'\n').count() + 1
+    text.as_bytes()[..end]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
 }
 
 /// A mesh loader: relative file name → (path for messages, text).
@@ -249,12 +268,16 @@ impl Map {
             let s = entry.get_ref();
             finite(&[&s.location, &s.rotation]).map_err(|m| invalid(at, m))?;
             let name = s.name.clone().unwrap_or_else(|| format!("PlayerStart_{i}"));
-            if let Some(dup) = starts.iter().find(|o| {
-                o.tag.eq_ignore_ascii_case(&s.tag) || o.name.eq_ignore_ascii_case(&name)
-            }) {
+            if let Some(dup) = starts
+                .iter()
+                .find(|o| o.tag.eq_ignore_ascii_case(&s.tag) || o.name.eq_ignore_ascii_case(&name))
+            {
                 return Err(invalid(
                     at,
-                    format!("duplicate start `{}` (already used by `{}`)", s.tag, dup.tag),
+                    format!(
+                        "duplicate start `{}` (already used by `{}`)",
+                        s.tag, dup.tag
+                    ),
                 ));
             }
             starts.push(PlayerStart {
@@ -270,7 +293,10 @@ impl Map {
             let at = entry.span().start;
             finite(&[&b.center, &b.size, &[b.yaw; 3]]).map_err(|m| invalid(at, m))?;
             if b.size.iter().any(|&s| s <= 0.0) {
-                return Err(invalid(at, format!("box size must be positive, got {:?}", b.size)));
+                return Err(invalid(
+                    at,
+                    format!("box size must be positive, got {:?}", b.size),
+                ));
             }
             solids.push(Solid::Box {
                 center: b.center,
@@ -283,7 +309,10 @@ impl Map {
             let at = entry.span().start;
             finite(&[&c.center, &[c.radius, c.height, 0.0]]).map_err(|m| invalid(at, m))?;
             if c.radius <= 0.0 || c.height <= 0.0 {
-                return Err(invalid(at, "cylinder radius and height must be positive".into()));
+                return Err(invalid(
+                    at,
+                    "cylinder radius and height must be positive".into(),
+                ));
             }
             solids.push(Solid::Cylinder {
                 center: c.center,
@@ -329,14 +358,12 @@ impl Map {
     pub(crate) fn build(&self, scene: &mut Scene) {
         for solid in &self.solids {
             let collider = match solid {
-                Solid::Box { center, size, yaw } => {
-                    ColliderBuilder::cuboid(
-                        (size[0] / 2.0) as f32,
-                        (size[1] / 2.0) as f32,
-                        (size[2] / 2.0) as f32,
-                    )
-                    .position(Pose::new(vec(*center), Vector::new(0.0, 0.0, *yaw as f32)))
-                }
+                Solid::Box { center, size, yaw } => ColliderBuilder::cuboid(
+                    (size[0] / 2.0) as f32,
+                    (size[1] / 2.0) as f32,
+                    (size[2] / 2.0) as f32,
+                )
+                .position(Pose::new(vec(*center), Vector::new(0.0, 0.0, *yaw as f32))),
                 Solid::Cylinder {
                     center,
                     radius,
@@ -415,7 +442,10 @@ mod tests {
         let e = parse("level = \"x\"\n[[start]]\ntag = \"a\"\nlocation = [0,0,0]\n[[start]]\ntag = \"A\"\nlocation = [1,0,0]\n")
             .unwrap_err()
             .to_string();
-        assert!(e.starts_with("test.toml:5:") && e.contains("duplicate"), "{e}");
+        assert!(
+            e.starts_with("test.toml:5:") && e.contains("duplicate"),
+            "{e}"
+        );
         let e = parse("level = \"x\"\nfoo = 1\n").unwrap_err().to_string();
         assert!(e.starts_with("test.toml:2:") && e.contains("foo"), "{e}");
         let e = parse("level = \"x\"\n[[mesh]]\nfile = \"missing.obj\"\n")
@@ -426,8 +456,8 @@ mod tests {
 
     #[test]
     fn start_names_default_to_playerstart_index() {
-        let map = parse("level = \"x\"\n[[start]]\ntag = \"PlayerStart\"\nlocation = [1,2,3]\n")
-            .unwrap();
+        let map =
+            parse("level = \"x\"\n[[start]]\ntag = \"PlayerStart\"\nlocation = [1,2,3]\n").unwrap();
         assert_eq!(map.starts()[0].name, "PlayerStart_0");
         assert!(map.find_start("playerstart_0").is_some());
     }

@@ -32,13 +32,22 @@ pub(crate) fn parse(text: &str) -> Result<ObjMesh, (usize, String)> {
             Some("f") => {
                 let count = mesh.vertices.len();
                 let indices = words
-                    .map(|w| vertex_index(w, count).ok_or((line_no, format!("bad face index `{w}` ({count} vertices so far)"))))
+                    .map(|w| {
+                        vertex_index(w, count).ok_or((
+                            line_no,
+                            format!("bad face index `{w}` ({count} vertices so far)"),
+                        ))
+                    })
                     .collect::<Result<Vec<u32>, _>>()?;
                 if indices.len() < 3 {
-                    return Err((line_no, format!("face needs 3 vertices, got {}", indices.len())));
+                    return Err((
+                        line_no,
+                        format!("face needs 3 vertices, got {}", indices.len()),
+                    ));
                 }
                 for i in 1..indices.len() - 1 {
-                    mesh.triangles.push([indices[0], indices[i], indices[i + 1]]);
+                    mesh.triangles
+                        .push([indices[0], indices[i], indices[i + 1]]);
                 }
             }
             _ => {}
@@ -56,7 +65,9 @@ fn vertex_index(word: &str, count: usize) -> Option<u32> {
     let i: i64 = first.parse().ok()?;
     let count = i64::try_from(count).ok()?;
     let zero_based = if i > 0 { i - 1 } else { count + i };
-    (0..count).contains(&zero_based).then(|| u32::try_from(zero_based).ok())?
+    (0..count)
+        .contains(&zero_based)
+        .then(|| u32::try_from(zero_based).ok())?
 }
 
 #[cfg(test)]

@@ -178,7 +178,11 @@ impl Robot {
             .actuators
             .iter()
             .map(|a| Actuator {
-                values: a.joints.iter().map(|j| 0.0f64.clamp(j.min, j.max)).collect(),
+                values: a
+                    .joints
+                    .iter()
+                    .map(|j| 0.0f64.clamp(j.min, j.max))
+                    .collect(),
                 timer: Timer::new(a.interval, spawn.tick, spawn.dt),
                 config: a.clone(),
             })
@@ -243,7 +247,11 @@ impl Robot {
             }
         };
         // The tilt that comes with a translation: ±max_tilt, scaled again when normalized.
-        let tilt = |v: f64| (-v.signum() * scaled(f.max_tilt, f.max_tilt)).trunc().to_radians();
+        let tilt = |v: f64| {
+            (-v.signum() * scaled(f.max_tilt, f.max_tilt))
+                .trunc()
+                .to_radians()
+        };
         if let Some(v) = d.linear_velocity {
             let v = finite(v, "LinearVelocity");
             self.set.linear = scaled(v, f.max_linear_speed);
@@ -262,10 +270,14 @@ impl Robot {
             self.set.yaw_rate = degrees.trunc().to_radians();
         }
         if let Some(v) = d.pitch_angle {
-            self.set.pitch = scaled(finite(v, "PitchAngle"), f.max_tilt).trunc().to_radians();
+            self.set.pitch = scaled(finite(v, "PitchAngle"), f.max_tilt)
+                .trunc()
+                .to_radians();
         }
         if let Some(v) = d.roll_angle {
-            self.set.roll = scaled(finite(v, "RollAngle"), f.max_tilt).trunc().to_radians();
+            self.set.roll = scaled(finite(v, "RollAngle"), f.max_tilt)
+                .trunc()
+                .to_radians();
         }
     }
 
@@ -365,18 +377,20 @@ impl Robot {
             .matching_parts(kind, name)
             .map(|p| p.sensor.conf(&p.name, p.interval))
             .collect();
-        items.extend(self.matching_actuators(kind, name).map(|a| ConfItem::Actuator {
-            name: a.config.name.clone(),
-            joints: (1..)
-                .zip(&a.config.joints)
-                .map(|(link, j)| ActuatorJoint {
-                    link,
-                    joint_type: j.joint_type.clone(),
-                    max_torque: f64::from(j.max_torque as f32),
-                    min_value: f64::from(j.min as f32),
-                    max_value: f64::from(j.max as f32),
-                })
-                .collect(),
+        items.extend(self.matching_actuators(kind, name).map(|a| {
+            ConfItem::Actuator {
+                name: a.config.name.clone(),
+                joints: (1..)
+                    .zip(&a.config.joints)
+                    .map(|(link, j)| ActuatorJoint {
+                        link,
+                        joint_type: j.joint_type.clone(),
+                        max_torque: f64::from(j.max_torque as f32),
+                        min_value: f64::from(j.min as f32),
+                        max_value: f64::from(j.max as f32),
+                    })
+                    .collect(),
+            }
         }));
         items
     }

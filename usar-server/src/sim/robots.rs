@@ -266,10 +266,16 @@ impl RobotCatalog {
             if !r.class.contains('.') || r.class.ends_with('.') {
                 return Err(invalid(
                     at,
-                    format!("class `{}` needs a package, e.g. `USARBot.{}`", r.class, r.class),
+                    format!(
+                        "class `{}` needs a package, e.g. `USARBot.{}`",
+                        r.class, r.class
+                    ),
                 ));
             }
-            if robots.iter().any(|o| o.class.eq_ignore_ascii_case(&r.class)) {
+            if robots
+                .iter()
+                .any(|o| o.class.eq_ignore_ascii_case(&r.class))
+            {
                 return Err(invalid(at, format!("duplicate class `{}`", r.class)));
             }
             check_flight(&r).map_err(|m| invalid(at, m))?;
@@ -329,7 +335,10 @@ fn check_flight(r: &RawRobot) -> Result<(), String> {
     ] {
         positive(what, v)?;
     }
-    all_finite("flight.max_tilt and flight.tilt_margin", &[f.max_tilt, f.tilt_margin])?;
+    all_finite(
+        "flight.max_tilt and flight.tilt_margin",
+        &[f.max_tilt, f.tilt_margin],
+    )?;
     if let Some(b) = r.battery {
         positive("battery", b)?;
     }
@@ -345,10 +354,16 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
             known.join(", ")
         )
     })?;
-    if before.iter().any(|p| p.name.eq_ignore_ascii_case(&part.name)) {
+    if before
+        .iter()
+        .any(|p| p.name.eq_ignore_ascii_case(&part.name))
+    {
         return Err(format!("duplicate part name `{}`", part.name));
     }
-    all_finite("position and direction", &[part.position, part.direction].concat())?;
+    all_finite(
+        "position and direction",
+        &[part.position, part.direction].concat(),
+    )?;
     if let Some(interval) = part.interval {
         positive("interval", interval)?;
     }
@@ -360,7 +375,10 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
 
 fn check_actuator(a: &ActuatorConfig) -> Result<(), String> {
     positive("interval", a.interval)?;
-    all_finite("position and direction", &[a.position, a.direction].concat())?;
+    all_finite(
+        "position and direction",
+        &[a.position, a.direction].concat(),
+    )?;
     if a.joints.is_empty() {
         return Err(format!("actuator `{}` needs at least one joint", a.name));
     }
@@ -384,7 +402,16 @@ mod tests {
         assert_eq!(sts.short_name(), "stsAirRobot");
         assert_eq!(sts.battery, Some(1200.0));
         let names: Vec<&str> = sts.parts.iter().map(|p| p.name.as_str()).collect();
-        for n in ["Position", "Velocity", "IMU", "Sonar0", "Sonar7", "SonarTop", "SonarBottom", "Scanner"] {
+        for n in [
+            "Position",
+            "Velocity",
+            "IMU",
+            "Sonar0",
+            "Sonar7",
+            "SonarTop",
+            "SonarBottom",
+            "Scanner",
+        ] {
             assert!(names.contains(&n), "{n} missing");
         }
         let air = catalog.get("USARBot.AirRobot").expect("AirRobot");
@@ -394,14 +421,23 @@ mod tests {
     }
 
     fn parse(text: &str) -> String {
-        RobotCatalog::parse(text, Path::new("r.toml")).unwrap_err().to_string()
+        RobotCatalog::parse(text, Path::new("r.toml"))
+            .unwrap_err()
+            .to_string()
     }
 
     #[test]
     fn errors_name_file_line_and_problem() {
-        let e = parse("[[robot]]\nclass = \"USARBot.X\"\n[[robot.part]]\ntype = \"Laser\"\nname = \"L\"\n");
-        assert!(e.starts_with("r.toml:3:") && e.contains("unknown part type `Laser`"), "{e}");
-        let e = parse("[[robot]]\nclass = \"USARBot.X\"\n\n[[robot.part]]\ntype = \"Sonar\"\nname = \"S\"\nmax_range = -1.0\n");
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\n[[robot.part]]\ntype = \"Laser\"\nname = \"L\"\n",
+        );
+        assert!(
+            e.starts_with("r.toml:3:") && e.contains("unknown part type `Laser`"),
+            "{e}"
+        );
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\n\n[[robot.part]]\ntype = \"Sonar\"\nname = \"S\"\nmax_range = -1.0\n",
+        );
         assert!(e.starts_with("r.toml:4:") && e.contains("min_range"), "{e}");
         let e = parse("[[robot]]\nclass = \"USARBot.X\"\n[robot.collision]\nradius = \"big\"\n");
         assert!(e.starts_with("r.toml:4:"), "{e}");

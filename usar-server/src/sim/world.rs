@@ -32,15 +32,13 @@ pub struct World {
     next_serial: u64,
 }
 
-/// A finite vector, or zeros (logged).
+/// The vector with non-finite components replaced by 0 (logged).
 fn finite_or_zero(v: usar_proto::Vec3, key: &str) -> V3 {
     let a: V3 = v.into();
-    if a.iter().all(|x| x.is_finite()) {
-        a
-    } else {
-        warn!(key, value = ?a, "non-finite INIT vector treated as 0,0,0");
-        [0.0; 3]
+    if !a.iter().all(|x| x.is_finite()) {
+        warn!(key, value = ?a, "non-finite INIT component treated as 0");
     }
+    a.map(|x| if x.is_finite() { x } else { 0.0 })
 }
 
 impl World {
@@ -177,13 +175,19 @@ impl World {
             Some(tag) => match self.map.find_start(tag) {
                 Some(start) => (start.location, start.rotation),
                 None => {
-                    warn!(?client, start = tag, "no such PlayerStart, spawning at 0,0,0");
+                    warn!(
+                        ?client,
+                        start = tag,
+                        "no such PlayerStart, spawning at 0,0,0"
+                    );
                     ([0.0; 3], [0.0; 3])
                 }
             },
             None => (
-                init.location.map_or([0.0; 3], |v| finite_or_zero(v, "Location")),
-                init.rotation.map_or([0.0; 3], |v| finite_or_zero(v, "Rotation")),
+                init.location
+                    .map_or([0.0; 3], |v| finite_or_zero(v, "Location")),
+                init.rotation
+                    .map_or([0.0; 3], |v| finite_or_zero(v, "Rotation")),
             ),
         };
         let spawn = Spawn {
@@ -208,7 +212,10 @@ impl World {
     }
 
     fn robot_mut(&mut self, serial: u64) -> Option<&mut Robot> {
-        let index = self.robots.binary_search_by_key(&serial, |r| r.serial).ok()?;
+        let index = self
+            .robots
+            .binary_search_by_key(&serial, |r| r.serial)
+            .ok()?;
         self.robots.get_mut(index)
     }
 
@@ -240,6 +247,11 @@ impl World {
             _ => {}
         }
         Vec::new()
+    }
+
+    #[cfg(test)]
+    pub(crate) fn scene_ray(&self, origin: V3, dir: V3, max: f64) -> Option<f64> {
+        self.scene.cast_ray(origin, dir, max, None)
     }
 
     #[cfg(test)]

@@ -48,13 +48,22 @@ mod tests {
     fn up_is_positive() {
         let (scene, me) = scene_with_wall(2.0);
         let mut sensor = make("AltitudeSensor", "");
-        let at = Reading { position: [0.0, 0.0, -3.5], spawn_z: -1.0, ..reading(&scene, me, 1.0) };
-        let SenData::AltitudeSensor { relative, absolute, .. } = sensor.read(&at, &mut quiet())
+        let at = Reading {
+            position: [0.0, 0.0, -3.5],
+            spawn_z: -1.0,
+            ..reading(&scene, me, 1.0)
+        };
+        let SenData::AltitudeSensor {
+            relative, absolute, ..
+        } = sensor.read(&at, &mut quiet())
         else {
             panic!()
         };
         assert_eq!((relative, absolute), (2.5, 113.5));
-        let deep = Reading { position: [0.0, 0.0, 200.0], ..reading(&scene, me, 1.0) };
+        let deep = Reading {
+            position: [0.0, 0.0, 200.0],
+            ..reading(&scene, me, 1.0)
+        };
         let SenData::AltitudeSensor { absolute, .. } = sensor.read(&deep, &mut quiet()) else {
             panic!()
         };

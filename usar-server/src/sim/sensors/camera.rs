@@ -72,8 +72,16 @@ mod tests {
     fn empty_reading_and_conf() {
         let (scene, me) = scene_with_wall(2.0);
         let mut camera = make("Camera", "");
-        assert_eq!(camera.read(&reading(&scene, me, 0.1), &mut quiet()), SenData::Camera);
-        let ConfItem::Camera { texture_resolution_x, fov, .. } = camera.conf("cams", 0.1) else {
+        assert_eq!(
+            camera.read(&reading(&scene, me, 0.1), &mut quiet()),
+            SenData::Camera
+        );
+        let ConfItem::Camera {
+            texture_resolution_x,
+            fov,
+            ..
+        } = camera.conf("cams", 0.1)
+        else {
             panic!()
         };
         assert_eq!((texture_resolution_x, fov), (320, 80.0));

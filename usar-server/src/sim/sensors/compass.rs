@@ -19,7 +19,9 @@ pub struct CompassConfig {
 
 impl Default for CompassConfig {
     fn default() -> Self {
-        Self { usarsim_quirk: true }
+        Self {
+            usarsim_quirk: true,
+        }
     }
 }
 
@@ -52,7 +54,10 @@ mod tests {
 
     fn angle(sensor: &mut Box<dyn Sensor>, yaw: f64) -> f64 {
         let (scene, me) = scene_with_wall(2.0);
-        let at = Reading { rotation: [0.0, 0.0, yaw], ..reading(&scene, me, 0.1) };
+        let at = Reading {
+            rotation: [0.0, 0.0, yaw],
+            ..reading(&scene, me, 0.1)
+        };
         match sensor.read(&at, &mut quiet()) {
             SenData::MagneticCompass { angle, .. } => angle,
             other => panic!("{other:?}"),

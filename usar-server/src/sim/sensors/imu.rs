@@ -70,7 +70,9 @@ mod tests {
         let (scene, me) = scene_with_wall(2.0);
         let mut imu = make("IMU", "");
         let first = imu.read(&reading(&scene, me, 0.1), &mut quiet());
-        let SenData::Imu { acceleration, .. } = first else { panic!() };
+        let SenData::Imu { acceleration, .. } = first else {
+            panic!()
+        };
         assert_eq!(acceleration, Vec3::default());
         // 0.1 s later: climbing at 1 m/s (z down → -1) and yawed by 0.1 rad.
         let at = Reading {
@@ -78,7 +80,12 @@ mod tests {
             rotation: [0.0, 0.0, 0.1],
             ..reading(&scene, me, 0.2)
         };
-        let SenData::Imu { acceleration, angular_vel, rotation, .. } = imu.read(&at, &mut quiet())
+        let SenData::Imu {
+            acceleration,
+            angular_vel,
+            rotation,
+            ..
+        } = imu.read(&at, &mut quiet())
         else {
             panic!()
         };

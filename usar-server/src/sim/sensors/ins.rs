@@ -22,7 +22,10 @@ impl Sensor for Ins {
         SenData::Ins {
             name: at.name.to_string(),
             location: at.position.map(|v| noise.apply(v)).into(),
-            orientation: at.rotation.map(|a| a.rem_euclid(std::f64::consts::TAU)).into(),
+            orientation: at
+                .rotation
+                .map(|a| a.rem_euclid(std::f64::consts::TAU))
+                .into(),
         }
     }
 
@@ -46,10 +49,15 @@ mod tests {
     #[test]
     fn orientation_is_normalised() {
         let (scene, me) = scene_with_wall(2.0);
-        let at = Reading { rotation: [0.0, -0.5, 7.0], ..reading(&scene, me, 0.2) };
+        let at = Reading {
+            rotation: [0.0, -0.5, 7.0],
+            ..reading(&scene, me, 0.2)
+        };
         let mut ins = make("INS", "");
         assert!(!ins.timestamped());
-        let SenData::Ins { orientation, .. } = ins.read(&at, &mut quiet()) else { panic!() };
+        let SenData::Ins { orientation, .. } = ins.read(&at, &mut quiet()) else {
+            panic!()
+        };
         assert!((orientation.y - (std::f64::consts::TAU - 0.5)).abs() < 1e-12);
         assert!((orientation.z - (7.0 - std::f64::consts::TAU)).abs() < 1e-12);
     }

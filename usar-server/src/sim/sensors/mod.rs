@@ -169,8 +169,11 @@ pub(crate) mod testing {
     pub(crate) fn scene_with_wall(distance: f64) -> (Scene, ColliderHandle) {
         let mut scene = Scene::new();
         scene.insert(
-            ColliderBuilder::cuboid(0.5, 50.0, 50.0)
-                .position(Pose::translation(distance as f32 + 0.5, 0.0, 0.0)),
+            ColliderBuilder::cuboid(0.5, 50.0, 50.0).position(Pose::translation(
+                distance as f32 + 0.5,
+                0.0,
+                0.0,
+            )),
         );
         scene.insert(
             ColliderBuilder::cuboid(50.0, 50.0, 0.5).position(Pose::translation(0.0, 0.0, 2.5)),

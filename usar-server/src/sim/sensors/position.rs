@@ -41,11 +41,17 @@ mod tests {
     #[test]
     fn reports_the_world_location() {
         let (scene, me) = scene_with_wall(2.0);
-        let at = Reading { position: [1.0, 2.0, -3.0], ..reading(&scene, me, 0.1) };
+        let at = Reading {
+            position: [1.0, 2.0, -3.0],
+            ..reading(&scene, me, 0.1)
+        };
         let data = make("Position", "").read(&at, &mut quiet());
         assert_eq!(
             data,
-            SenData::Position { name: "S".into(), location: [1.0, 2.0, -3.0].into() }
+            SenData::Position {
+                name: "S".into(),
+                location: [1.0, 2.0, -3.0].into()
+            }
         );
     }
 }

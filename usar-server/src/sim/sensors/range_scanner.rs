@@ -3,7 +3,7 @@
 //! the rightmost.
 
 use serde::Deserialize;
-use usar_proto::{ConfItem, SenData, Scan};
+use usar_proto::{ConfItem, Scan, SenData};
 
 use super::{Reading, Sensor, f32ish, settings};
 use crate::sim::noise::Noise;
@@ -52,7 +52,10 @@ struct RangeScanner {
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
     let config: RangeScannerConfig = settings(part)?;
     if !(config.min_range >= 0.0 && config.max_range > config.min_range) {
-        return Err(format!("part `{}`: need 0 <= min_range < max_range", part.name));
+        return Err(format!(
+            "part `{}`: need 0 <= min_range < max_range",
+            part.name
+        ));
     }
     let fov_uu = (config.fov as f32 * URU_PER_RAD) as i32;
     let res_uu = (config.resolution as f32 * URU_PER_RAD) as i32;
@@ -82,7 +85,9 @@ impl Sensor for RangeScanner {
             .beams
             .iter()
             .map(|&offset| {
-                let hit = at.trace(direction(at.pitch, at.yaw + offset), max).unwrap_or(max);
+                let hit = at
+                    .trace(direction(at.pitch, at.yaw + offset), max)
+                    .unwrap_or(max);
                 noise.apply(hit).clamp(min, max)
             })
             .collect();
@@ -149,7 +154,10 @@ mod tests {
         // +120°..+90°) do not reach it but the beam at +90° (index 11 or so) does.
         let (scene, me) = scene_with_wall(1.0);
         let mut hokuyo = make("RangeScanner", HOKUYO);
-        let west = Reading { yaw: -std::f64::consts::FRAC_PI_2, ..reading(&scene, me, 0.3) };
+        let west = Reading {
+            yaw: -std::f64::consts::FRAC_PI_2,
+            ..reading(&scene, me, 0.3)
+        };
         let s = scan(hokuyo.read(&west, &mut quiet()));
         let first_hit = s.ranges.iter().position(|&r| r < 4.0).unwrap();
         assert!(first_hit < 20, "first hit at {first_hit}");

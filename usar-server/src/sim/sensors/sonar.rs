@@ -135,10 +135,16 @@ mod tests {
         let at = reading(&scene, me, 0.2);
         assert!((range(sonar.read(&at, &mut quiet())) - 2.0).abs() < 1e-4);
         // Pointing away: nothing within 5 m → MaxRange.
-        let away = Reading { yaw: std::f64::consts::PI, ..reading(&scene, me, 0.2) };
+        let away = Reading {
+            yaw: std::f64::consts::PI,
+            ..reading(&scene, me, 0.2)
+        };
         assert_eq!(range(sonar.read(&away, &mut quiet())), 5.0);
         // Pointing down: the floor at 2 m.
-        let down = Reading { pitch: -std::f64::consts::FRAC_PI_2, ..reading(&scene, me, 0.2) };
+        let down = Reading {
+            pitch: -std::f64::consts::FRAC_PI_2,
+            ..reading(&scene, me, 0.2)
+        };
         assert!((range(sonar.read(&down, &mut quiet())) - 2.0).abs() < 1e-4);
     }
 
@@ -146,11 +152,17 @@ mod tests {
     fn clamped_to_min_range_and_cone_sees_the_edge() {
         let (scene, me) = scene_with_wall(0.05);
         let mut sonar = make("Sonar", "");
-        assert_eq!(range(sonar.read(&reading(&scene, me, 0.2), &mut quiet())), 0.1);
+        assert_eq!(
+            range(sonar.read(&reading(&scene, me, 0.2), &mut quiet())),
+            0.1
+        );
         // A wall almost parallel to the axis: the central ray reaches it only after 20 m,
         // the cone's edge (0.22 rad off the wall) after 4.5 m.
         let (scene, me) = scene_with_wall(1.0);
-        let skew = Reading { yaw: 0.5 * std::f64::consts::PI - 0.05, ..reading(&scene, me, 0.2) };
+        let skew = Reading {
+            yaw: 0.5 * std::f64::consts::PI - 0.05,
+            ..reading(&scene, me, 0.2)
+        };
         let mut central = make("Sonar", "");
         let mut cone = make("Sonar", "model = \"cone\"");
         assert_eq!(range(central.read(&skew, &mut quiet())), 5.0);
@@ -160,7 +172,12 @@ mod tests {
     #[test]
     fn conf_uses_engine_floats() {
         let sonar = make("Sonar", "");
-        let ConfItem::Sonar { beam_angle, scan_interval, .. } = sonar.conf("S", 0.2) else {
+        let ConfItem::Sonar {
+            beam_angle,
+            scan_interval,
+            ..
+        } = sonar.conf("S", 0.2)
+        else {
             panic!("not a sonar conf");
         };
         assert_eq!(beam_angle, f64::from(0.349f32));
@@ -170,6 +187,10 @@ mod tests {
     #[test]
     fn bad_settings_are_errors() {
         let part = part("Sonar", "max_rang = 3.0");
-        assert!((super::super::find("sonar").unwrap().build)(&part).unwrap_err().contains("max_rang"));
+        assert!(
+            (super::super::find("sonar").unwrap().build)(&part)
+                .unwrap_err()
+                .contains("max_rang")
+        );
     }
 }

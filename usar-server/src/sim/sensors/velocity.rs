@@ -50,8 +50,9 @@ mod tests {
             rotation: [0.0, 0.0, std::f64::consts::FRAC_PI_2],
             ..reading(&scene, me, 0.1)
         };
-        let SenData::Velocity { absolute, relative, .. } =
-            make("Velocity", "").read(&at, &mut quiet())
+        let SenData::Velocity {
+            absolute, relative, ..
+        } = make("Velocity", "").read(&at, &mut quiet())
         else {
             panic!()
         };
