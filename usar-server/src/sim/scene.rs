@@ -157,8 +157,10 @@ impl Scene {
     }
 
     fn query(&self, exclude: Option<ColliderHandle>) -> QueryPipeline<'_> {
-        let mut filter = QueryFilter::default();
-        filter.exclude_collider = exclude;
+        let filter = QueryFilter {
+            exclude_collider: exclude,
+            ..QueryFilter::default()
+        };
         QueryPipeline {
             dispatcher: &DefaultQueryDispatcher,
             bvh: &self.bvh,

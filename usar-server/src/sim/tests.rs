@@ -1,5 +1,8 @@
 //! World-level tests: flight, collisions, output timing, commands, determinism.
 
+// Angles are written as they appear in the robot catalog (1.5708), not as π/2.
+#![allow(clippy::approx_constant)]
+
 use usar_proto::{
     Act, Command, Conf, ConfItem, Drive, Geo, Init, ItemQuery, Nfo, SenData, ServerMessage, Set,
     Vec3,
@@ -630,7 +633,7 @@ fn getconf_and_getgeo() {
             min_range: f64::from(0.1f32),
             scan_interval: f64::from(0.2f32),
             beam_angle: f64::from(0.349f32),
-            max_angle_of_incidence: f64::from(0.174_532_925_2f32),
+            max_angle_of_incidence: f64::from(0.174_532_925_2_f64 as f32),
             traces_per_cone: 16,
             number_of_cones: 10,
         }

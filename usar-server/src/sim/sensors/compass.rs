@@ -65,6 +65,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::approx_constant)] // a yaw as the engine would hold it
     fn quirk_and_plain() {
         let mut quirky = make("MagneticCompass", "");
         assert_eq!(format!("{:.4}", angle(&mut quirky, 1.5707)), "0.0001");

@@ -28,6 +28,8 @@ pub struct RangeScannerConfig {
     pub fov: f64,
 }
 
+// 3.14 is the ini's `ScanFov`, not π.
+#[allow(clippy::approx_constant)]
 impl Default for RangeScannerConfig {
     fn default() -> Self {
         Self {
