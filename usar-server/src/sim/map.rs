@@ -1,31 +1,464 @@
-//! Maps (stub until the simulation lands).
-use std::path::Path;
-/// A map.
-#[derive(Debug, Clone)]
-pub struct Map;
-/// Map error.
+//! Maps: a TOML file in the protocol frame (see `docs/maps.md`), with optional OBJ meshes.
+
+use std::path::{Path, PathBuf};
+
+use rapier3d::math::{Pose, Vector};
+use rapier3d::prelude::ColliderBuilder;
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::obj;
+use super::scene::{Scene, V3, upright_pose, yaw_rotate};
+
+/// The maps built into the binary: short name, file name, text.
+const EMBEDDED: &[(&str, &str, &str)] = &[
+    (
+        "empty_room",
+        "empty_room.toml",
+        include_str!("../../../maps/empty_room.toml"),
+    ),
+    (
+        "arena",
+        "arena.toml",
+        include_str!("../../../maps/arena.toml"),
+    ),
+    ("city", "city.toml", include_str!("../../../maps/city.toml")),
+];
+
+/// OBJ files referenced by the embedded maps.
+const EMBEDDED_OBJ: &[(&str, &str)] = &[("tower.obj", include_str!("../../../maps/tower.obj"))];
+
+/// The short name of the default map.
+const DEFAULT_MAP: &str = "empty_room";
+
+/// Errors reading a map; each names the file, the line and what is wrong.
 #[derive(Debug, thiserror::Error)]
-#[error("map error")]
-pub struct MapError;
+pub enum MapError {
+    /// The file could not be read.
+    #[error("cannot read map file {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The file is not a valid map.
+    #[error("{path}:{line}: {message}")]
+    Invalid {
+        /// The file (the map, or the OBJ file it references).
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// A PlayerStart: where `INIT {Start tag}` spawns a robot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlayerStart {
+    /// The tag (`{Start ..}` matches it, and the object name, case-insensitively).
+    pub tag: String,
+    /// The object name (`PlayerStart_<index>` unless given).
+    pub name: String,
+    /// Metres, protocol frame (z down).
+    pub location: [f64; 3],
+    /// Radians: roll, pitch, yaw.
+    pub rotation: [f64; 3],
+}
+
+/// One static solid of the map, in world coordinates.
+#[derive(Debug, Clone)]
+enum Solid {
+    Box {
+        center: V3,
+        size: V3,
+        yaw: f64,
+    },
+    Cylinder {
+        center: V3,
+        radius: f64,
+        height: f64,
+    },
+    Mesh {
+        vertices: Vec<V3>,
+        triangles: Vec<[u32; 3]>,
+    },
+}
+
+/// A loaded map: level name, time limit, player starts and static geometry.
+#[derive(Debug, Clone)]
+pub struct Map {
+    level: String,
+    time_limit: i64,
+    starts: Vec<PlayerStart>,
+    solids: Vec<Solid>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMap {
+    level: String,
+    #[serde(default = "default_time_limit")]
+    time_limit: i64,
+    #[serde(default)]
+    start: Vec<Spanned<RawStart>>,
+    #[serde(default, rename = "box")]
+    boxes: Vec<Spanned<RawBox>>,
+    #[serde(default)]
+    cylinder: Vec<Spanned<RawCylinder>>,
+    #[serde(default)]
+    mesh: Vec<Spanned<RawMesh>>,
+}
+
+fn default_time_limit() -> i64 {
+    20
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawStart {
+    tag: String,
+    name: Option<String>,
+    location: V3,
+    #[serde(default)]
+    rotation: V3,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBox {
+    center: V3,
+    size: V3,
+    #[serde(default)]
+    yaw: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCylinder {
+    center: V3,
+    radius: f64,
+    height: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMesh {
+    file: String,
+    #[serde(default)]
+    offset: V3,
+    #[serde(default)]
+    yaw: f64,
+    #[serde(default = "one")]
+    scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// The 1-based line of byte `offset` in `text`.
+pub(crate) fn line_of(text: &str, offset: usize) -> usize {
+    let end = offset.min(text.len());
+    text.as_bytes()[..end]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
+}
+
+/// A mesh loader: relative file name → (path for messages, text).
+type ObjSource<'a> = &'a dyn Fn(&str) -> Result<(PathBuf, String), MapError>;
+
 impl Map {
-    /// Load.
-    pub fn from_file(_path: &Path) -> Result<Self, MapError> {
-        Ok(Self)
+    /// Reads a map file; OBJ files are looked up relative to it.
+    pub fn from_file(path: &Path) -> Result<Self, MapError> {
+        let text = read(path)?;
+        let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        let load = move |file: &str| {
+            let obj_path = dir.join(file);
+            let text = read(&obj_path)?;
+            Ok((obj_path, text))
+        };
+        Self::parse(&text, path, &load)
     }
-    /// Embedded.
-    pub fn embedded(_name: &str) -> Option<Self> {
-        None
+
+    /// An embedded map by short name (see [`Map::embedded_names`]).
+    pub fn embedded(name: &str) -> Option<Self> {
+        let (_, file, text) = EMBEDDED.iter().find(|(short, ..)| *short == name)?;
+        let load = |file: &str| {
+            EMBEDDED_OBJ
+                .iter()
+                .find(|(f, _)| *f == file)
+                .map(|(f, text)| (Path::new("maps").join(f), (*text).to_string()))
+                .ok_or_else(|| MapError::Io {
+                    path: Path::new("maps").join(file),
+                    source: std::io::ErrorKind::NotFound.into(),
+                })
+        };
+        match Self::parse(text, &Path::new("maps").join(file), &load) {
+            Ok(map) => Some(map),
+            Err(e) => {
+                // Guarded by a unit test; never happens in a released binary.
+                tracing::error!(error = %e, "embedded map is invalid");
+                None
+            }
+        }
     }
-    /// Names.
+
+    /// Short names of the embedded maps.
     pub fn embedded_names() -> &'static [&'static str] {
-        &[]
+        &["empty_room", "arena", "city"]
     }
-    /// Default.
+
+    /// The default map (`empty_room`, level `EmptyRoom`).
     pub fn default_map() -> Self {
-        Self
+        Self::embedded(DEFAULT_MAP).unwrap_or_else(|| Self {
+            level: "EmptyRoom".to_string(),
+            time_limit: 20,
+            starts: Vec::new(),
+            solids: Vec::new(),
+        })
     }
-    /// Level.
+
+    /// The level name for the NFO line.
     pub fn level(&self) -> &str {
-        "EmptyRoom"
+        &self.level
+    }
+
+    /// The NFO `TimeLimit` (minutes).
+    pub fn time_limit(&self) -> i64 {
+        self.time_limit
+    }
+
+    /// The player starts, in file order.
+    pub fn starts(&self) -> &[PlayerStart] {
+        &self.starts
+    }
+
+    /// The first start whose tag or name equals `key` (case-insensitive).
+    pub fn find_start(&self, key: &str) -> Option<&PlayerStart> {
+        self.starts
+            .iter()
+            .find(|s| s.tag.eq_ignore_ascii_case(key) || s.name.eq_ignore_ascii_case(key))
+    }
+
+    fn parse(text: &str, path: &Path, load_obj: ObjSource<'_>) -> Result<Self, MapError> {
+        let invalid = |offset: usize, message: String| MapError::Invalid {
+            path: path.to_path_buf(),
+            line: line_of(text, offset),
+            message,
+        };
+        let raw: RawMap = toml::from_str(text).map_err(|e| {
+            invalid(
+                e.span().map_or(0, |s| s.start),
+                e.message().trim_end().to_string(),
+            )
+        })?;
+        if raw.level.trim().is_empty() {
+            return Err(invalid(0, "`level` must not be empty".into()));
+        }
+        if raw.time_limit < 0 {
+            return Err(invalid(0, "`time_limit` must not be negative".into()));
+        }
+        let mut starts: Vec<PlayerStart> = Vec::new();
+        for (i, entry) in raw.start.iter().enumerate() {
+            let at = entry.span().start;
+            let s = entry.get_ref();
+            finite(&[&s.location, &s.rotation]).map_err(|m| invalid(at, m))?;
+            let name = s.name.clone().unwrap_or_else(|| format!("PlayerStart_{i}"));
+            if let Some(dup) = starts
+                .iter()
+                .find(|o| o.tag.eq_ignore_ascii_case(&s.tag) || o.name.eq_ignore_ascii_case(&name))
+            {
+                return Err(invalid(
+                    at,
+                    format!(
+                        "duplicate start `{}` (already used by `{}`)",
+                        s.tag, dup.tag
+                    ),
+                ));
+            }
+            starts.push(PlayerStart {
+                tag: s.tag.clone(),
+                name,
+                location: s.location,
+                rotation: s.rotation,
+            });
+        }
+        let mut solids = Vec::new();
+        for entry in &raw.boxes {
+            let b = entry.get_ref();
+            let at = entry.span().start;
+            finite(&[&b.center, &b.size, &[b.yaw; 3]]).map_err(|m| invalid(at, m))?;
+            if b.size.iter().any(|&s| s <= 0.0) {
+                return Err(invalid(
+                    at,
+                    format!("box size must be positive, got {:?}", b.size),
+                ));
+            }
+            solids.push(Solid::Box {
+                center: b.center,
+                size: b.size,
+                yaw: b.yaw,
+            });
+        }
+        for entry in &raw.cylinder {
+            let c = entry.get_ref();
+            let at = entry.span().start;
+            finite(&[&c.center, &[c.radius, c.height, 0.0]]).map_err(|m| invalid(at, m))?;
+            if c.radius <= 0.0 || c.height <= 0.0 {
+                return Err(invalid(
+                    at,
+                    "cylinder radius and height must be positive".into(),
+                ));
+            }
+            solids.push(Solid::Cylinder {
+                center: c.center,
+                radius: c.radius,
+                height: c.height,
+            });
+        }
+        for entry in &raw.mesh {
+            let m = entry.get_ref();
+            let at = entry.span().start;
+            finite(&[&m.offset, &[m.yaw, m.scale, 0.0]]).map_err(|e| invalid(at, e))?;
+            if m.scale <= 0.0 {
+                return Err(invalid(at, "mesh scale must be positive".into()));
+            }
+            let (obj_path, obj_text) = load_obj(&m.file)?;
+            let mesh = obj::parse(&obj_text).map_err(|(line, message)| MapError::Invalid {
+                path: obj_path,
+                line,
+                message,
+            })?;
+            let vertices = mesh
+                .vertices
+                .iter()
+                .map(|&v| {
+                    let r = yaw_rotate(m.yaw, [v[0] * m.scale, v[1] * m.scale, v[2] * m.scale]);
+                    [r[0] + m.offset[0], r[1] + m.offset[1], r[2] + m.offset[2]]
+                })
+                .collect();
+            solids.push(Solid::Mesh {
+                vertices,
+                triangles: mesh.triangles,
+            });
+        }
+        Ok(Self {
+            level: raw.level,
+            time_limit: raw.time_limit,
+            starts,
+            solids,
+        })
+    }
+
+    /// Adds the map's solids to the scene.
+    pub(crate) fn build(&self, scene: &mut Scene) {
+        for solid in &self.solids {
+            let collider = match solid {
+                Solid::Box { center, size, yaw } => ColliderBuilder::cuboid(
+                    (size[0] / 2.0) as f32,
+                    (size[1] / 2.0) as f32,
+                    (size[2] / 2.0) as f32,
+                )
+                .position(Pose::new(vec(*center), Vector::new(0.0, 0.0, *yaw as f32))),
+                Solid::Cylinder {
+                    center,
+                    radius,
+                    height,
+                } => ColliderBuilder::cylinder((height / 2.0) as f32, *radius as f32)
+                    .position(upright_pose(*center)),
+                Solid::Mesh {
+                    vertices,
+                    triangles,
+                } => {
+                    let vertices = vertices.iter().map(|v| vec(*v)).collect();
+                    match ColliderBuilder::trimesh(vertices, triangles.clone()) {
+                        Ok(builder) => builder,
+                        Err(e) => {
+                            tracing::warn!(error = ?e, "mesh skipped");
+                            continue;
+                        }
+                    }
+                }
+            };
+            scene.insert(collider);
+        }
+    }
+}
+
+fn vec(v: V3) -> Vector {
+    Vector::new(v[0] as f32, v[1] as f32, v[2] as f32)
+}
+
+fn finite(values: &[&[f64; 3]]) -> Result<(), String> {
+    if values.iter().all(|v| v.iter().all(|x| x.is_finite())) {
+        Ok(())
+    } else {
+        Err("numbers must be finite".to_string())
+    }
+}
+
+fn read(path: &Path) -> Result<String, MapError> {
+    std::fs::read_to_string(path).map_err(|source| MapError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Map, MapError> {
+        let no_obj = |f: &str| {
+            Err(MapError::Io {
+                path: f.into(),
+                source: std::io::ErrorKind::NotFound.into(),
+            })
+        };
+        Map::parse(text, Path::new("test.toml"), &no_obj)
+    }
+
+    #[test]
+    fn embedded_maps_load() {
+        for name in Map::embedded_names() {
+            let map = Map::embedded(name).unwrap_or_else(|| panic!("{name} does not load"));
+            assert!(!map.starts().is_empty(), "{name} has no start");
+        }
+        assert_eq!(Map::default_map().level(), "EmptyRoom");
+        assert!(Map::embedded("nope").is_none());
+    }
+
+    #[test]
+    fn errors_name_file_line_and_problem() {
+        let e = parse("level = \"x\"\n\n[[box]]\ncenter = [0, 0, 0]\nsize = [1, -1, 1]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("test.toml:3:"), "{e}");
+        assert!(e.contains("positive"), "{e}");
+        let e = parse("level = \"x\"\n[[start]]\ntag = \"a\"\nlocation = [0,0,0]\n[[start]]\ntag = \"A\"\nlocation = [1,0,0]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("test.toml:5:") && e.contains("duplicate"),
+            "{e}"
+        );
+        let e = parse("level = \"x\"\nfoo = 1\n").unwrap_err().to_string();
+        assert!(e.starts_with("test.toml:2:") && e.contains("foo"), "{e}");
+        let e = parse("level = \"x\"\n[[mesh]]\nfile = \"missing.obj\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("missing.obj"), "{e}");
+    }
+
+    #[test]
+    fn start_names_default_to_playerstart_index() {
+        let map =
+            parse("level = \"x\"\n[[start]]\ntag = \"PlayerStart\"\nlocation = [1,2,3]\n").unwrap();
+        assert_eq!(map.starts()[0].name, "PlayerStart_0");
+        assert!(map.find_start("playerstart_0").is_some());
     }
 }

@@ -1,22 +1,47 @@
 //! The simulation: synchronous, deterministic, no tokio, no wall clock. Time is `tick × dt`.
 //!
-//! API contract used by `net` (the implementation lives in this folder):
+//! * [`World`] — map geometry, robots and their sensors; driven by [`World::command`] and
+//!   [`World::step`].
+//! * [`map`] — the map format (`docs/maps.md`) and the embedded maps.
+//! * [`robots`] — the robot catalog format (`docs/robots.md`) and the embedded robots.
+//! * [`sensors`] — one file per sensor type and the registry that maps part types to them.
 //!
-//! ```text
-//! World::new(map: Map, robots: RobotCatalog, config: SimConfig) -> World
-//! world.level() -> &str                       // map level name for the NFO
-//! world.time() -> f64                         // simulated seconds
-//! world.dt() -> f64                           // seconds per tick (1/200)
-//! world.connect() -> ClientId                 // a new connection (no robot yet)
-//! world.command(ClientId, Command) -> Vec<ServerMessage>   // immediate replies
-//! world.disconnect(ClientId)                  // removes the connection's robot(s)
-//! world.step(&mut Vec<(ClientId, ServerMessage)>)          // one tick; appends this tick's output
+//! Rapier types stay inside this module. Frame everywhere: the protocol frame (x forward /
+//! north, y right / east, z down; yaw + = clockwise seen from above).
+//!
+//! ```
+//! use usar_server::sim::{map::Map, robots::RobotCatalog, SimConfig, World};
+//! use usar_proto::{Command, Init};
+//!
+//! let mut world = World::new(Map::default_map(), RobotCatalog::embedded(), SimConfig::default());
+//! let client = world.connect();
+//! world.command(client, Command::Init(Init {
+//!     class_name: "USARBot.AirRobot".into(),
+//!     start: Some("Start1".into()),
+//!     ..Init::default()
+//! }));
+//! let mut out = Vec::new();
+//! for _ in 0..20 {
+//!     world.step(&mut out); // 0.1 s
+//! }
+//! assert!(!out.is_empty());
 //! ```
 
 pub mod map;
+mod noise;
+mod obj;
+mod robot;
 pub mod robots;
+mod scene;
+pub mod sensors;
+mod world;
 
-use usar_proto::{Command, ServerMessage};
+#[cfg(test)]
+mod tests;
+
+pub use map::{Map, MapError, PlayerStart};
+pub use robots::{RobotCatalog, RobotClass, RobotConfigError};
+pub use world::World;
 
 /// A connection as the simulation knows it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -37,63 +62,5 @@ impl Default for SimConfig {
             seed: 0,
             dt: 1.0 / 200.0,
         }
-    }
-}
-
-/// The world: map, robots, sensors.
-#[derive(Debug, Default)]
-pub struct World {
-    tick: u64,
-    dt: f64,
-    next_client: u64,
-}
-
-impl World {
-    /// A world from settings (map and robot catalog still to come).
-    pub fn new(_map: map::Map, _robots: robots::RobotCatalog, config: SimConfig) -> Self {
-        Self {
-            tick: 0,
-            dt: config.dt,
-            next_client: 0,
-        }
-    }
-    /// The map's level name.
-    pub fn level(&self) -> &str {
-        "EmptyRoom"
-    }
-    /// NFO time limit.
-    pub fn time_limit(&self) -> i64 {
-        20
-    }
-    /// Robots in the world.
-    pub fn robot_count(&self) -> usize {
-        0
-    }
-    /// Simulated seconds.
-    pub fn time(&self) -> f64 {
-        self.tick as f64 * self.dt
-    }
-    /// Seconds per tick.
-    pub fn dt(&self) -> f64 {
-        self.dt
-    }
-    /// Registers a connection.
-    pub fn connect(&mut self) -> ClientId {
-        self.next_client += 1;
-        ClientId(self.next_client)
-    }
-    /// Applies one command; returns the immediate replies.
-    pub fn command(&mut self, client: ClientId, command: Command) -> Vec<ServerMessage> {
-        let _ = (client, command);
-        Vec::new()
-    }
-    /// Removes a connection and its robots.
-    pub fn disconnect(&mut self, client: ClientId) {
-        let _ = client;
-    }
-    /// Advances one tick and appends the output of this tick.
-    pub fn step(&mut self, out: &mut Vec<(ClientId, ServerMessage)>) {
-        let _ = out;
-        self.tick += 1;
     }
 }

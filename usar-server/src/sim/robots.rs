@@ -1,19 +1,449 @@
-//! Robots (stub until the simulation lands).
-use std::path::Path;
-/// Catalog.
-#[derive(Debug, Clone)]
-pub struct RobotCatalog;
-/// Error.
+//! Robot classes: a TOML catalog in the spirit of USARSim's ini sections (see
+//! `docs/robots.md`). A new robot is a configuration entry, not code.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::map::line_of;
+use super::sensors;
+
+/// The embedded catalog (`usar-server/robots.toml`).
+const EMBEDDED: &str = include_str!("../../robots.toml");
+
+/// Errors reading a robot catalog; each names the file, the line and what is wrong.
 #[derive(Debug, thiserror::Error)]
-#[error("robot config error")]
-pub struct RobotConfigError;
-impl RobotCatalog {
-    /// Load.
-    pub fn from_file(_path: &Path) -> Result<Self, RobotConfigError> {
-        Ok(Self)
+pub enum RobotConfigError {
+    /// The file could not be read.
+    #[error("cannot read robot file {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The file is not a valid catalog.
+    #[error("{path}:{line}: {message}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// Flight limits and behaviour (AerialVehicle / AirRobot defaults).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FlightConfig {
+    /// m/s reached by `{LinearVelocity 100} {Normalized true}`.
+    pub max_linear_speed: f64,
+    /// m/s reached by `{LateralVelocity 100} {Normalized true}`.
+    pub max_lateral_speed: f64,
+    /// m/s reached by `{AltitudeVelocity 100} {Normalized true}`.
+    pub max_altitude_speed: f64,
+    /// deg/s reached by `{RotationalVelocity 100} {Normalized true}`.
+    pub max_rotation_speed: f64,
+    /// Pitch/roll target when moving, degrees.
+    pub max_tilt: f64,
+    /// Pitch/roll slew rate, rad/s (7000 UU/s).
+    pub tilt_rate: f64,
+    /// Pitch/roll dead band, rad (200 UU).
+    pub tilt_margin: f64,
+}
+
+impl Default for FlightConfig {
+    fn default() -> Self {
+        Self {
+            max_linear_speed: 2.0,
+            max_lateral_speed: 2.0,
+            max_altitude_speed: 2.0,
+            max_rotation_speed: 100.0,
+            max_tilt: 25.0,
+            tilt_rate: 7000.0 / 10_430.378,
+            tilt_margin: 200.0 / 10_430.378,
+        }
     }
-    /// Embedded.
+}
+
+/// The collision shape: an upright cylinder around the robot centre.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CollisionConfig {
+    /// m.
+    pub radius: f64,
+    /// m, full height.
+    pub height: f64,
+}
+
+impl Default for CollisionConfig {
+    fn default() -> Self {
+        Self {
+            radius: 0.45,
+            height: 0.2,
+        }
+    }
+}
+
+/// A sensor part: where it is and what it is; type-specific settings stay in `settings` and
+/// are checked against the sensor's `XxxConfig` when the catalog is read.
+#[derive(Debug, Clone, Deserialize)]
+pub struct PartConfig {
+    /// The sensor type (`Sonar`, `RangeScanner`, `IMU`, ...; case-insensitive).
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// The part name (`{Name ..}`).
+    pub name: String,
+    /// Mount position, body frame (x forward, y right, z down), m.
+    #[serde(default)]
+    pub position: [f64; 3],
+    /// Mount direction: roll, pitch (+ = up), yaw (+ = right), rad.
+    #[serde(default)]
+    pub direction: [f64; 3],
+    /// Seconds between readings; the type's default when absent.
+    #[serde(default)]
+    pub interval: Option<f64>,
+    /// Gaussian noise standard deviation (0 = off), in the reading's unit.
+    #[serde(default)]
+    pub noise: f64,
+    /// The type-specific settings (the sensor's `XxxConfig` fields).
+    #[serde(flatten)]
+    pub settings: toml::Table,
+}
+
+/// One joint of an actuator.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointConfig {
+    /// `Revolute`, `Prismatic` or `Unknown`.
+    #[serde(rename = "type", default = "revolute")]
+    pub joint_type: String,
+    /// Lower limit (rad or m).
+    pub min: f64,
+    /// Upper limit.
+    pub max: f64,
+    /// Torque limit (reported only).
+    #[serde(default)]
+    pub max_torque: f64,
+}
+
+fn revolute() -> String {
+    "Revolute".to_string()
+}
+
+/// An actuator (e.g. the AirRobot camera tilt `cam`), reported by ASTA.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorConfig {
+    /// The actuator name (`ACT {Name ..}`).
+    pub name: String,
+    /// Mount position, body frame, m.
+    #[serde(default)]
+    pub position: [f64; 3],
+    /// Mount direction: roll, pitch, yaw, rad.
+    #[serde(default)]
+    pub direction: [f64; 3],
+    /// Seconds between ASTA lines.
+    #[serde(default = "tenth")]
+    pub interval: f64,
+    /// The joints, link 1 first.
+    pub joints: Vec<JointConfig>,
+}
+
+fn tenth() -> f64 {
+    0.1
+}
+
+/// A robot class.
+#[derive(Debug, Clone)]
+pub struct RobotClass {
+    /// `Package.Class` as INIT names it (`USARBot.stsAirRobot`); matched case-insensitively.
+    pub class: String,
+    /// Flight limits.
+    pub flight: FlightConfig,
+    /// Collision shape.
+    pub collision: CollisionConfig,
+    /// Battery life in simulated seconds; `None` = no battery part (`Battery 99999`).
+    pub battery: Option<f64>,
+    /// Sensor parts, in output order.
+    pub parts: Vec<PartConfig>,
+    /// Actuators.
+    pub actuators: Vec<ActuatorConfig>,
+}
+
+impl RobotClass {
+    /// The class name without package (`stsAirRobot`), as CONF/GEO/Mount print it.
+    pub fn short_name(&self) -> &str {
+        self.class.rsplit('.').next().unwrap_or(&self.class)
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCatalog {
+    robot: Vec<Spanned<RawRobot>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRobot {
+    class: String,
+    #[serde(default)]
+    flight: FlightConfig,
+    #[serde(default)]
+    collision: CollisionConfig,
+    #[serde(default)]
+    battery: Option<f64>,
+    #[serde(default)]
+    part: Vec<Spanned<PartConfig>>,
+    #[serde(default)]
+    actuator: Vec<Spanned<ActuatorConfig>>,
+}
+
+/// The robot classes INIT can spawn.
+#[derive(Debug, Clone)]
+pub struct RobotCatalog {
+    robots: Vec<RobotClass>,
+}
+
+impl RobotCatalog {
+    /// Reads a catalog file.
+    pub fn from_file(path: &Path) -> Result<Self, RobotConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| RobotConfigError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// The built-in catalog: `USARBot.stsAirRobot` and `USARBot.AirRobot`.
     pub fn embedded() -> Self {
-        Self
+        Self::parse(EMBEDDED, Path::new("usar-server/robots.toml")).unwrap_or_else(|e| {
+            // Guarded by a unit test; never happens in a released binary.
+            tracing::error!(error = %e, "embedded robot catalog is invalid");
+            Self { robots: Vec::new() }
+        })
+    }
+
+    /// All classes.
+    pub fn classes(&self) -> &[RobotClass] {
+        &self.robots
+    }
+
+    /// The class INIT names `class` (`Package.Class`, case-insensitive).
+    pub fn get(&self, class: &str) -> Option<&RobotClass> {
+        self.robots
+            .iter()
+            .find(|r| r.class.eq_ignore_ascii_case(class))
+    }
+
+    /// The class, for changing it (tests, programs that tune robots).
+    pub fn get_mut(&mut self, class: &str) -> Option<&mut RobotClass> {
+        self.robots
+            .iter_mut()
+            .find(|r| r.class.eq_ignore_ascii_case(class))
+    }
+
+    fn parse(text: &str, path: &Path) -> Result<Self, RobotConfigError> {
+        let invalid = |offset: usize, message: String| RobotConfigError::Invalid {
+            path: path.to_path_buf(),
+            line: line_of(text, offset),
+            message,
+        };
+        let raw: RawCatalog = toml::from_str(text).map_err(|e| {
+            invalid(
+                e.span().map_or(0, |s| s.start),
+                e.message().trim_end().to_string(),
+            )
+        })?;
+        let mut robots: Vec<RobotClass> = Vec::new();
+        for entry in raw.robot {
+            let at = entry.span().start;
+            let r = entry.into_inner();
+            if !r.class.contains('.') || r.class.ends_with('.') {
+                return Err(invalid(
+                    at,
+                    format!(
+                        "class `{}` needs a package, e.g. `USARBot.{}`",
+                        r.class, r.class
+                    ),
+                ));
+            }
+            if robots
+                .iter()
+                .any(|o| o.class.eq_ignore_ascii_case(&r.class))
+            {
+                return Err(invalid(at, format!("duplicate class `{}`", r.class)));
+            }
+            check_flight(&r).map_err(|m| invalid(at, m))?;
+            let mut parts: Vec<PartConfig> = Vec::new();
+            for part in r.part {
+                let at = part.span().start;
+                let part = part.into_inner();
+                check_part(&part, &parts).map_err(|m| invalid(at, m))?;
+                parts.push(part);
+            }
+            let mut actuators: Vec<ActuatorConfig> = Vec::new();
+            for actuator in r.actuator {
+                let at = actuator.span().start;
+                let a = actuator.into_inner();
+                check_actuator(&a).map_err(|m| invalid(at, m))?;
+                actuators.push(a);
+            }
+            robots.push(RobotClass {
+                class: r.class,
+                flight: r.flight,
+                collision: r.collision,
+                battery: r.battery,
+                parts,
+                actuators,
+            });
+        }
+        Ok(Self { robots })
+    }
+}
+
+fn positive(what: &str, v: f64) -> Result<(), String> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{what} must be a positive number, got {v}"))
+    }
+}
+
+fn all_finite(what: &str, v: &[f64]) -> Result<(), String> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(format!("{what} must be finite"))
+    }
+}
+
+fn check_flight(r: &RawRobot) -> Result<(), String> {
+    let f = &r.flight;
+    for (what, v) in [
+        ("flight.max_linear_speed", f.max_linear_speed),
+        ("flight.max_lateral_speed", f.max_lateral_speed),
+        ("flight.max_altitude_speed", f.max_altitude_speed),
+        ("flight.max_rotation_speed", f.max_rotation_speed),
+        ("flight.tilt_rate", f.tilt_rate),
+        ("collision.radius", r.collision.radius),
+        ("collision.height", r.collision.height),
+    ] {
+        positive(what, v)?;
+    }
+    all_finite(
+        "flight.max_tilt and flight.tilt_margin",
+        &[f.max_tilt, f.tilt_margin],
+    )?;
+    if let Some(b) = r.battery {
+        positive("battery", b)?;
+    }
+    Ok(())
+}
+
+fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
+    let kind = sensors::find(&part.kind).ok_or_else(|| {
+        let known: Vec<&str> = sensors::REGISTRY.iter().map(|k| k.item_type).collect();
+        format!(
+            "unknown part type `{}` (known: {})",
+            part.kind,
+            known.join(", ")
+        )
+    })?;
+    if before
+        .iter()
+        .any(|p| p.name.eq_ignore_ascii_case(&part.name))
+    {
+        return Err(format!("duplicate part name `{}`", part.name));
+    }
+    all_finite(
+        "position and direction",
+        &[part.position, part.direction].concat(),
+    )?;
+    if let Some(interval) = part.interval {
+        positive("interval", interval)?;
+    }
+    if !(part.noise.is_finite() && part.noise >= 0.0) {
+        return Err(format!("noise must be >= 0, got {}", part.noise));
+    }
+    (kind.build)(part).map(drop)
+}
+
+fn check_actuator(a: &ActuatorConfig) -> Result<(), String> {
+    positive("interval", a.interval)?;
+    all_finite(
+        "position and direction",
+        &[a.position, a.direction].concat(),
+    )?;
+    if a.joints.is_empty() {
+        return Err(format!("actuator `{}` needs at least one joint", a.name));
+    }
+    for j in &a.joints {
+        all_finite("joint limits", &[j.min, j.max, j.max_torque])?;
+        if j.min > j.max {
+            return Err(format!("actuator `{}`: joint min > max", a.name));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embedded_catalog() {
+        let catalog = RobotCatalog::embedded();
+        let sts = catalog.get("usarbot.STSAIRROBOT").expect("stsAirRobot");
+        assert_eq!(sts.short_name(), "stsAirRobot");
+        assert_eq!(sts.battery, Some(1200.0));
+        let names: Vec<&str> = sts.parts.iter().map(|p| p.name.as_str()).collect();
+        for n in [
+            "Position",
+            "Velocity",
+            "IMU",
+            "Sonar0",
+            "Sonar7",
+            "SonarTop",
+            "SonarBottom",
+            "Scanner",
+        ] {
+            assert!(names.contains(&n), "{n} missing");
+        }
+        let air = catalog.get("USARBot.AirRobot").expect("AirRobot");
+        assert_eq!(air.battery, None);
+        assert_eq!(air.actuators[0].name, "cam");
+        assert!(catalog.get("AirRobot").is_none(), "the package is required");
+    }
+
+    fn parse(text: &str) -> String {
+        RobotCatalog::parse(text, Path::new("r.toml"))
+            .unwrap_err()
+            .to_string()
+    }
+
+    #[test]
+    fn errors_name_file_line_and_problem() {
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\n[[robot.part]]\ntype = \"Laser\"\nname = \"L\"\n",
+        );
+        assert!(
+            e.starts_with("r.toml:3:") && e.contains("unknown part type `Laser`"),
+            "{e}"
+        );
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\n\n[[robot.part]]\ntype = \"Sonar\"\nname = \"S\"\nmax_range = -1.0\n",
+        );
+        assert!(e.starts_with("r.toml:4:") && e.contains("min_range"), "{e}");
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\n[robot.collision]\nradius = \"big\"\n");
+        assert!(e.starts_with("r.toml:4:"), "{e}");
+        let e = parse("[[robot]]\nclass = \"X\"\n");
+        assert!(e.contains("package"), "{e}");
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\nbattery = -3.0\n");
+        assert!(e.starts_with("r.toml:1:") && e.contains("battery"), "{e}");
     }
 }

@@ -1,0 +1,476 @@
+//! A spawned robot: AerialVehicle flight, parts with their timers, battery, actuators.
+
+use rapier3d::prelude::ColliderHandle;
+use tracing::warn;
+use usar_proto::{
+    ActuatorJoint, Asta, ConfItem, Drive, GeoItem, LinkValue, Sen, ServerMessage, Sta, StaLayout,
+    Time,
+};
+
+use super::ClientId;
+use super::noise::Noise;
+use super::robots::{ActuatorConfig, FlightConfig, RobotClass};
+use super::scene::{BodyShape, Scene, V3, add, scale, yaw_rotate};
+use super::sensors::{self, Reading, Sensor};
+
+/// STA period, s (`StatusTimer`).
+const STATUS_INTERVAL: f64 = 0.1;
+/// Every stream starts at most this long after spawn, s.
+const FIRST_OUTPUT: f64 = 0.1;
+/// `Battery` without a battery part.
+const NO_BATTERY: i64 = 99_999;
+
+/// Ticks in `seconds` (at least one).
+fn ticks(seconds: f64, dt: f64) -> u64 {
+    ((seconds / dt).round() as u64).max(1)
+}
+
+/// A finite number, or 0 (logged) for NaN and infinities.
+fn finite(value: f64, key: &str) -> f64 {
+    if value.is_finite() {
+        value
+    } else {
+        warn!(key, value, "non-finite DRIVE value treated as 0");
+        0.0
+    }
+}
+
+/// A periodic output: interval and next due tick.
+#[derive(Debug, Clone, Copy)]
+struct Timer {
+    every: u64,
+    due: u64,
+}
+
+impl Timer {
+    /// First due within `FIRST_OUTPUT` of `spawn`, then every `interval`.
+    fn new(interval: f64, spawn: u64, dt: f64) -> Self {
+        let every = ticks(interval, dt);
+        Self {
+            every,
+            due: spawn + every.min(ticks(FIRST_OUTPUT, dt)),
+        }
+    }
+
+    /// Whether it fires at `tick` (and if so, schedules the next time).
+    fn fire(&mut self, tick: u64) -> bool {
+        if tick < self.due {
+            return false;
+        }
+        self.due += self.every * ((tick - self.due) / self.every + 1);
+        true
+    }
+}
+
+/// A sensor part on a robot.
+#[derive(Debug)]
+struct Part {
+    name: String,
+    item_type: &'static str,
+    position: V3,
+    direction: V3,
+    interval: f64,
+    timer: Timer,
+    /// SET asked for an extra reading on the next tick.
+    forced: bool,
+    noise: Noise,
+    sensor: Box<dyn Sensor>,
+}
+
+/// An actuator: joint values move to their targets at once.
+#[derive(Debug)]
+struct Actuator {
+    config: ActuatorConfig,
+    values: Vec<f64>,
+    timer: Timer,
+}
+
+/// The flight set-points of §2.3 (sticky).
+#[derive(Debug, Default, Clone, Copy)]
+struct SetPoints {
+    /// m/s forward, right, up.
+    linear: f64,
+    lateral: f64,
+    altitude: f64,
+    /// rad/s, + = clockwise from above.
+    yaw_rate: f64,
+    /// rad.
+    pitch: f64,
+    roll: f64,
+}
+
+/// Where and how a robot spawns.
+pub(crate) struct Spawn<'a> {
+    pub(crate) class: &'a RobotClass,
+    pub(crate) serial: u64,
+    pub(crate) owner: ClientId,
+    pub(crate) position: V3,
+    pub(crate) rotation: V3,
+    pub(crate) tick: u64,
+    pub(crate) dt: f64,
+    pub(crate) seed: u64,
+}
+
+/// A robot in the world.
+#[derive(Debug)]
+pub(crate) struct Robot {
+    pub(crate) serial: u64,
+    /// The connection that receives its output (`None` after a rebinding INIT).
+    pub(crate) owner: Option<ClientId>,
+    /// The connection that spawned it (removes it on disconnect).
+    pub(crate) spawned_by: ClientId,
+    class_name: String,
+    flight: FlightConfig,
+    body: ColliderHandle,
+    shape: BodyShape,
+    position: V3,
+    velocity: V3,
+    /// roll, pitch, yaw, rad.
+    rotation: V3,
+    set: SetPoints,
+    spawn_tick: u64,
+    spawn_z: f64,
+    battery: Option<f64>,
+    status: Timer,
+    parts: Vec<Part>,
+    actuators: Vec<Actuator>,
+}
+
+impl Robot {
+    /// Spawns into `scene`; `None` (logged) when the place is taken.
+    pub(crate) fn spawn(spawn: Spawn<'_>, scene: &mut Scene) -> Option<Self> {
+        let class = spawn.class;
+        let shape = BodyShape {
+            radius: class.collision.radius,
+            half_height: class.collision.height / 2.0,
+        };
+        if scene.overlaps(shape, spawn.position, None) {
+            warn!(class = %class.class, position = ?spawn.position, "spawn failed: place is occupied");
+            return None;
+        }
+        let mut parts = Vec::new();
+        for (index, p) in class.parts.iter().enumerate() {
+            let Some(kind) = sensors::find(&p.kind) else {
+                warn!(part = %p.name, kind = %p.kind, "unknown part type, part skipped");
+                continue;
+            };
+            let sensor = match (kind.build)(p) {
+                Ok(sensor) => sensor,
+                Err(e) => {
+                    warn!(part = %p.name, error = %e, "invalid part, part skipped");
+                    continue;
+                }
+            };
+            let interval = p.interval.unwrap_or(kind.default_interval);
+            parts.push(Part {
+                name: p.name.clone(),
+                item_type: kind.item_type,
+                position: p.position,
+                direction: p.direction,
+                interval,
+                timer: Timer::new(interval, spawn.tick, spawn.dt),
+                forced: false,
+                noise: Noise::new(spawn.seed, spawn.serial, index as u64, p.noise),
+                sensor,
+            });
+        }
+        let actuators = class
+            .actuators
+            .iter()
+            .map(|a| Actuator {
+                values: a
+                    .joints
+                    .iter()
+                    .map(|j| 0.0f64.clamp(j.min, j.max))
+                    .collect(),
+                timer: Timer::new(a.interval, spawn.tick, spawn.dt),
+                config: a.clone(),
+            })
+            .collect();
+        let body = scene.insert_body(shape, spawn.position);
+        Some(Self {
+            serial: spawn.serial,
+            owner: Some(spawn.owner),
+            spawned_by: spawn.owner,
+            class_name: class.short_name().to_string(),
+            flight: class.flight.clone(),
+            body,
+            shape,
+            position: spawn.position,
+            velocity: [0.0; 3],
+            rotation: spawn.rotation,
+            set: SetPoints::default(),
+            spawn_tick: spawn.tick,
+            spawn_z: spawn.position[2],
+            battery: class.battery,
+            status: Timer::new(STATUS_INTERVAL, spawn.tick, spawn.dt),
+            parts,
+            actuators,
+        })
+    }
+
+    /// Removes its body from the scene.
+    pub(crate) fn despawn(self, scene: &mut Scene) {
+        scene.remove(self.body);
+    }
+
+    /// The class name without package.
+    pub(crate) fn class_name(&self) -> &str {
+        &self.class_name
+    }
+
+    /// Remaining battery seconds as STA reports them (rounded up, so 0 means empty).
+    fn battery_left(&self, tick: u64, dt: f64) -> i64 {
+        match self.battery {
+            None => NO_BATTERY,
+            Some(capacity) => {
+                let used = (tick - self.spawn_tick) as f64 * dt;
+                (capacity - used).ceil().max(0.0) as i64
+            }
+        }
+    }
+
+    /// Whether the battery is empty (commands ignored, sensors silent, robot stopped).
+    pub(crate) fn is_dead(&self, tick: u64, dt: f64) -> bool {
+        self.battery_left(tick, dt) == 0
+    }
+
+    /// Applies a DRIVE (§2.3).
+    pub(crate) fn drive(&mut self, d: &Drive) {
+        let f = &self.flight;
+        let normalized = d.normalized == Some(true);
+        let scaled = |v: f64, max: f64| {
+            if normalized {
+                v.clamp(-100.0, 100.0) * 0.01 * max
+            } else {
+                v
+            }
+        };
+        // The tilt that comes with a translation: ±max_tilt, scaled again when normalized.
+        let tilt = |v: f64| {
+            (-v.signum() * scaled(f.max_tilt, f.max_tilt))
+                .trunc()
+                .to_radians()
+        };
+        if let Some(v) = d.linear_velocity {
+            let v = finite(v, "LinearVelocity");
+            self.set.linear = scaled(v, f.max_linear_speed);
+            self.set.pitch = if v == 0.0 { 0.0 } else { tilt(v) };
+        }
+        if let Some(v) = d.lateral_velocity {
+            let v = finite(v, "LateralVelocity");
+            self.set.lateral = scaled(v, f.max_lateral_speed);
+            self.set.roll = if v == 0.0 { 0.0 } else { -tilt(v) };
+        }
+        if let Some(v) = d.altitude_velocity {
+            self.set.altitude = scaled(finite(v, "AltitudeVelocity"), f.max_altitude_speed);
+        }
+        if let Some(v) = d.rotational_velocity {
+            let degrees = scaled(finite(v, "RotationalVelocity"), f.max_rotation_speed);
+            self.set.yaw_rate = degrees.trunc().to_radians();
+        }
+        if let Some(v) = d.pitch_angle {
+            self.set.pitch = scaled(finite(v, "PitchAngle"), f.max_tilt)
+                .trunc()
+                .to_radians();
+        }
+        if let Some(v) = d.roll_angle {
+            self.set.roll = scaled(finite(v, "RollAngle"), f.max_tilt)
+                .trunc()
+                .to_radians();
+        }
+    }
+
+    /// One tick of flight: sweep the body along the commanded velocity, turn, tilt.
+    pub(crate) fn fly(&mut self, scene: &mut Scene, tick: u64, dt: f64) {
+        if self.is_dead(tick, dt) {
+            self.set = SetPoints::default();
+        }
+        let s = self.set;
+        let horizontal = yaw_rotate(self.rotation[2], [s.linear, s.lateral, 0.0]);
+        let motion = scale(add(horizontal, [0.0, 0.0, -s.altitude]), dt);
+        let start = self.position;
+        if motion != [0.0; 3] {
+            self.position = scene.sweep(self.body, self.shape, start, motion);
+        }
+        self.velocity = std::array::from_fn(|i| (self.position[i] - start[i]) / dt);
+        self.rotation[2] += s.yaw_rate * dt;
+        let step = self.flight.tilt_rate * dt;
+        for (angle, target) in [(0, s.roll), (1, s.pitch)] {
+            let error = target - self.rotation[angle];
+            if error.abs() > self.flight.tilt_margin {
+                self.rotation[angle] += error.clamp(-step, step);
+            }
+        }
+    }
+
+    /// Appends the output due at `tick` (STA, then sensors in part order, then ASTA).
+    pub(crate) fn emit(
+        &mut self,
+        scene: &Scene,
+        tick: u64,
+        dt: f64,
+        out: &mut Vec<(ClientId, ServerMessage)>,
+    ) {
+        let Some(owner) = self.owner else {
+            return;
+        };
+        let time = tick as f64 * dt;
+        if self.status.fire(tick) {
+            out.push((
+                owner,
+                ServerMessage::Sta(Sta {
+                    time: Time::udk(time),
+                    battery: self.battery_left(tick, dt),
+                    vehicle: None,
+                    layout: StaLayout::Udk,
+                }),
+            ));
+        }
+        if !self.is_dead(tick, dt) {
+            let yaw = self.rotation[2];
+            for part in &mut self.parts {
+                let due = part.timer.fire(tick);
+                if !(due || std::mem::take(&mut part.forced)) {
+                    continue;
+                }
+                let reading = Reading {
+                    name: &part.name,
+                    scene,
+                    me: self.body,
+                    time,
+                    since_spawn: (tick - self.spawn_tick) as f64 * dt,
+                    position: self.position,
+                    velocity: self.velocity,
+                    rotation: self.rotation,
+                    spawn_z: self.spawn_z,
+                    origin: add(self.position, yaw_rotate(yaw, part.position)),
+                    yaw: yaw + part.direction[2],
+                    pitch: part.direction[1],
+                };
+                let data = part.sensor.read(&reading, &mut part.noise);
+                let time = part.sensor.timestamped().then_some(Time::udk(time));
+                out.push((owner, ServerMessage::Sen(Sen { time, data })));
+            }
+        }
+        for actuator in &mut self.actuators {
+            if actuator.timer.fire(tick) {
+                let links = (1..)
+                    .zip(&actuator.values)
+                    .map(|(link, &value)| LinkValue { link, value })
+                    .collect();
+                out.push((
+                    owner,
+                    ServerMessage::Asta(Asta {
+                        time: Time::udk(time),
+                        name: actuator.config.name.clone(),
+                        links,
+                    }),
+                ));
+            }
+        }
+    }
+
+    /// CONF items of the parts of type `kind` (and name `name`).
+    pub(crate) fn conf(&self, kind: &str, name: Option<&str>) -> Vec<ConfItem> {
+        let mut items: Vec<ConfItem> = self
+            .matching_parts(kind, name)
+            .map(|p| p.sensor.conf(&p.name, p.interval))
+            .collect();
+        items.extend(self.matching_actuators(kind, name).map(|a| {
+            ConfItem::Actuator {
+                name: a.config.name.clone(),
+                joints: (1..)
+                    .zip(&a.config.joints)
+                    .map(|(link, j)| ActuatorJoint {
+                        link,
+                        joint_type: j.joint_type.clone(),
+                        max_torque: f64::from(j.max_torque as f32),
+                        min_value: f64::from(j.min as f32),
+                        max_value: f64::from(j.max as f32),
+                    })
+                    .collect(),
+            }
+        }));
+        items
+    }
+
+    /// GEO items: mount offset in the world frame (yaw-rotated), mount direction.
+    pub(crate) fn geo(&self, kind: &str, name: Option<&str>) -> Vec<GeoItem> {
+        let yaw = self.rotation[2];
+        let item = |name: &str, position: V3, direction: V3| GeoItem {
+            name: name.to_string(),
+            location: yaw_rotate(yaw, position).into(),
+            orientation: direction.into(),
+            mount: self.class_name.clone(),
+            mount_link: None,
+        };
+        let mut items: Vec<GeoItem> = self
+            .matching_parts(kind, name)
+            .map(|p| item(&p.name, p.position, p.direction))
+            .collect();
+        items.extend(
+            self.matching_actuators(kind, name)
+                .map(|a| item(&a.config.name, a.config.position, a.config.direction)),
+        );
+        items
+    }
+
+    /// SET: passes the opcode to the matching parts.
+    pub(crate) fn set(&mut self, kind: &str, name: Option<&str>, opcode: &str) {
+        for part in &mut self.parts {
+            if matches(part.item_type, &part.name, kind, name) && part.sensor.set(opcode) {
+                part.forced = true;
+            }
+        }
+    }
+
+    /// ACT/MISPKG: sets joint `index` (0-based) of actuator `name`.
+    pub(crate) fn actuate(&mut self, name: &str, index: i64, value: f64) {
+        if !value.is_finite() {
+            warn!(actuator = name, value, "non-finite ACT value ignored");
+            return;
+        }
+        let actuator = self
+            .actuators
+            .iter_mut()
+            .find(|a| a.config.name.eq_ignore_ascii_case(name));
+        let Some(actuator) = actuator else { return };
+        let joint = usize::try_from(index)
+            .ok()
+            .and_then(|i| Some((actuator.values.get_mut(i)?, actuator.config.joints.get(i)?)));
+        if let Some((slot, joint)) = joint {
+            *slot = value.clamp(joint.min, joint.max);
+        }
+    }
+
+    fn matching_parts<'a>(
+        &'a self,
+        kind: &'a str,
+        name: Option<&'a str>,
+    ) -> impl Iterator<Item = &'a Part> + 'a {
+        self.parts
+            .iter()
+            .filter(move |p| matches(p.item_type, &p.name, kind, name))
+    }
+
+    fn matching_actuators<'a>(
+        &'a self,
+        kind: &'a str,
+        name: Option<&'a str>,
+    ) -> impl Iterator<Item = &'a Actuator> + 'a {
+        self.actuators
+            .iter()
+            .filter(move |a| matches("Actuator", &a.config.name, kind, name))
+    }
+
+    #[cfg(test)]
+    pub(crate) fn pose(&self) -> (V3, V3) {
+        (self.position, self.rotation)
+    }
+}
+
+/// GETCONF/GETGEO/SET matching: type and (optional) name, case-insensitive.
+fn matches(item_type: &str, item_name: &str, kind: &str, name: Option<&str>) -> bool {
+    item_type.eq_ignore_ascii_case(kind) && name.is_none_or(|n| item_name.eq_ignore_ascii_case(n))
+}

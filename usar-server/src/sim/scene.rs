@@ -1,0 +1,302 @@
+//! The collision geometry: map solids and robot bodies in rapier's collider set, indexed by a
+//! BVH that is updated the moment a robot moves, so every query sees the current positions.
+//!
+//! Frame: the protocol frame everywhere (x forward/north, y right/east, z down, metres).
+//!
+//! Why no `PhysicsPipeline::step`: nothing in this world is dynamic (robots are kinematic,
+//! gravity is off, UDK imposes their velocity directly), so a physics step would only update
+//! the broad phase once per tick — after all robots moved, letting two robots step into each
+//! other within one tick. Instead each robot is swept with a shape cast and its BVH leaf is
+//! refreshed immediately; queries run through rapier's `QueryPipeline` over that BVH.
+
+use rapier3d::math::{Pose, Rotation, Vector};
+use rapier3d::parry::partitioning::{Bvh, BvhWorkspace};
+use rapier3d::parry::query::{DefaultQueryDispatcher, ShapeCastOptions};
+use rapier3d::parry::shape::Cylinder;
+use rapier3d::prelude::{
+    Collider, ColliderHandle, ColliderSet, IslandManager, QueryFilter, QueryPipeline, Ray,
+    RigidBodySet, SoftBodySet,
+};
+
+/// A plain f64 vector in the protocol frame.
+pub(crate) type V3 = [f64; 3];
+
+/// Extra room (m) around each BVH leaf so small moves do not touch the tree.
+const LEAF_MARGIN: f32 = 0.05;
+/// Gap (m) kept between a swept robot and what it hits.
+const SKIN: f32 = 0.01;
+/// Longest sweep per tick (m): keeps f32 times of impact precise at absurd speeds.
+const MAX_STEP: f64 = 100.0;
+/// A slide shorter than this fraction of the blocked motion is numerical noise of the
+/// contact normal, not a real glancing contact: dropped so a robot pushing straight into a
+/// wall does not creep sideways.
+const MIN_SLIDE: f64 = 0.05;
+
+/// Rotates `v` by `yaw` about the vertical axis (positive = clockwise seen from above).
+pub(crate) fn yaw_rotate(yaw: f64, v: V3) -> V3 {
+    let (s, c) = yaw.sin_cos();
+    [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]]
+}
+
+/// The unit vector of a (pitch, yaw) direction; positive pitch points up (−z).
+pub(crate) fn direction(pitch: f64, yaw: f64) -> V3 {
+    let (sp, cp) = pitch.sin_cos();
+    let (sy, cy) = yaw.sin_cos();
+    [cp * cy, cp * sy, -sp]
+}
+
+pub(crate) fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+pub(crate) fn scale(a: V3, k: f64) -> V3 {
+    [a[0] * k, a[1] * k, a[2] * k]
+}
+
+fn norm(a: V3) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+fn to_vector(v: V3) -> Vector {
+    Vector::new(v[0] as f32, v[1] as f32, v[2] as f32)
+}
+
+/// A robot's collision shape: a vertical cylinder, so that turning never makes it overlap.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct BodyShape {
+    pub(crate) radius: f64,
+    pub(crate) half_height: f64,
+}
+
+impl BodyShape {
+    fn cylinder(self) -> Cylinder {
+        Cylinder::new(self.half_height as f32, self.radius as f32)
+    }
+}
+
+/// parry cylinders stand along y; this turns them upright along z.
+fn upright() -> Rotation {
+    Rotation::from_rotation_x(std::f32::consts::FRAC_PI_2)
+}
+
+/// The pose of an upright cylinder centred at `centre`.
+pub(crate) fn upright_pose(centre: V3) -> Pose {
+    Pose::from_parts(to_vector(centre), upright())
+}
+
+/// The world geometry and the robots' bodies.
+pub(crate) struct Scene {
+    colliders: ColliderSet,
+    bodies: RigidBodySet,
+    islands: IslandManager,
+    soft_bodies: SoftBodySet,
+    bvh: Bvh,
+    workspace: BvhWorkspace,
+}
+
+impl std::fmt::Debug for Scene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scene")
+            .field("colliders", &self.colliders.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Scene {
+    pub(crate) fn new() -> Self {
+        Self {
+            colliders: ColliderSet::new(),
+            bodies: RigidBodySet::new(),
+            islands: IslandManager::new(),
+            soft_bodies: SoftBodySet::new(),
+            bvh: Bvh::new(),
+            workspace: BvhWorkspace::default(),
+        }
+    }
+
+    /// Adds a collider (static solid or robot body) and indexes it.
+    pub(crate) fn insert(&mut self, collider: impl Into<Collider>) -> ColliderHandle {
+        let handle = self.colliders.insert(collider);
+        self.reindex(handle);
+        handle
+    }
+
+    /// Adds a robot body at `centre`.
+    pub(crate) fn insert_body(&mut self, shape: BodyShape, centre: V3) -> ColliderHandle {
+        let collider = rapier3d::prelude::ColliderBuilder::new(
+            rapier3d::prelude::SharedShape::new(shape.cylinder()),
+        )
+        .position(upright_pose(centre))
+        .build();
+        self.insert(collider)
+    }
+
+    /// Removes a collider.
+    pub(crate) fn remove(&mut self, handle: ColliderHandle) {
+        self.bvh.remove(handle.into_raw_parts().0);
+        self.colliders.remove(
+            handle,
+            &mut self.islands,
+            &mut self.bodies,
+            &mut self.soft_bodies,
+            false,
+        );
+    }
+
+    fn reindex(&mut self, handle: ColliderHandle) {
+        if let Some(collider) = self.colliders.get(handle) {
+            let aabb = collider.compute_aabb();
+            self.bvh
+                .insert_with_change_detection(aabb, handle.into_raw_parts().0, LEAF_MARGIN);
+        }
+    }
+
+    /// Tightens the BVH (leaf updates only ever grow their ancestors). Call now and then.
+    pub(crate) fn refit(&mut self) {
+        self.bvh.refit(&mut self.workspace);
+    }
+
+    fn query(&self, exclude: Option<ColliderHandle>) -> QueryPipeline<'_> {
+        let filter = QueryFilter {
+            exclude_collider: exclude,
+            ..QueryFilter::default()
+        };
+        QueryPipeline {
+            dispatcher: &DefaultQueryDispatcher,
+            bvh: &self.bvh,
+            bodies: &self.bodies,
+            colliders: &self.colliders,
+            filter,
+        }
+    }
+
+    /// Distance along the unit vector `dir` from `origin` to the first surface within
+    /// `max`, ignoring the collider `exclude` (the sensor's own robot).
+    pub(crate) fn cast_ray(
+        &self,
+        origin: V3,
+        dir: V3,
+        max: f64,
+        exclude: Option<ColliderHandle>,
+    ) -> Option<f64> {
+        let ray = Ray::new(to_vector(origin), to_vector(dir));
+        self.query(exclude)
+            .cast_ray(&ray, max as f32, true)
+            .map(|(_, toi)| f64::from(toi))
+    }
+
+    /// Whether a body of `shape` at `centre` would overlap anything but `exclude`.
+    pub(crate) fn overlaps(
+        &self,
+        shape: BodyShape,
+        centre: V3,
+        exclude: Option<ColliderHandle>,
+    ) -> bool {
+        let cylinder = shape.cylinder();
+        self.query(exclude)
+            .intersect_shape(upright_pose(centre), &cylinder)
+            .next()
+            .is_some()
+    }
+
+    /// Moves the body `handle` from `centre` by `motion`, stopping in front of the first
+    /// obstacle and sliding along it (up to three contacts). Returns the new centre.
+    pub(crate) fn sweep(
+        &mut self,
+        handle: ColliderHandle,
+        shape: BodyShape,
+        centre: V3,
+        motion: V3,
+    ) -> V3 {
+        let cylinder = shape.cylinder();
+        let mut pos = centre;
+        let length = norm(motion);
+        let mut rest = if length > MAX_STEP {
+            scale(motion, MAX_STEP / length)
+        } else {
+            motion
+        };
+        for _ in 0..3 {
+            if norm(rest) < 1e-9 {
+                break;
+            }
+            let options = ShapeCastOptions {
+                max_time_of_impact: 1.0,
+                target_distance: SKIN,
+                stop_at_penetration: false,
+                compute_impact_geometry_on_penetration: true,
+            };
+            let hit = self.query(Some(handle)).cast_shape(
+                &upright_pose(pos),
+                to_vector(rest),
+                &cylinder,
+                options,
+            );
+            let Some((_, hit)) = hit else {
+                pos = add(pos, rest);
+                break;
+            };
+            let toi = f64::from(hit.time_of_impact).clamp(0.0, 1.0);
+            pos = add(pos, scale(rest, toi));
+            // Slide: keep the part of the remaining motion that is tangent to the surface.
+            let n = hit.normal1;
+            let n = [f64::from(n.x), f64::from(n.y), f64::from(n.z)];
+            let left = scale(rest, 1.0 - toi);
+            let into = left[0] * n[0] + left[1] * n[1] + left[2] * n[2];
+            rest = if into < 0.0 {
+                add(left, scale(n, -into))
+            } else {
+                left
+            };
+            if norm(rest) < MIN_SLIDE * norm(left) {
+                break;
+            }
+        }
+        if let Some(collider) = self.colliders.get_mut(handle) {
+            collider.set_position(upright_pose(pos));
+        }
+        self.reindex(handle);
+        pos
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rapier3d::prelude::ColliderBuilder;
+
+    #[test]
+    fn ray_hits_box_and_ignores_excluded() {
+        let mut scene = Scene::new();
+        scene.insert(
+            ColliderBuilder::cuboid(0.5, 5.0, 5.0).position(Pose::translation(5.5, 0.0, 0.0)),
+        );
+        let me = scene.insert_body(
+            BodyShape {
+                radius: 0.3,
+                half_height: 0.1,
+            },
+            [0.0, 0.0, 0.0],
+        );
+        let d = scene.cast_ray([0.0; 3], [1.0, 0.0, 0.0], 10.0, Some(me));
+        assert!((d.unwrap() - 5.0).abs() < 1e-4);
+        // Without the exclusion the ray starts inside the body (solid: hit at 0).
+        assert_eq!(
+            scene.cast_ray([0.0; 3], [1.0, 0.0, 0.0], 10.0, None),
+            Some(0.0)
+        );
+        assert!(
+            scene
+                .cast_ray([0.0; 3], [-1.0, 0.0, 0.0], 10.0, Some(me))
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn yaw_is_clockwise_from_above() {
+        let v = yaw_rotate(std::f64::consts::FRAC_PI_2, [1.0, 0.0, 0.0]);
+        assert!(v[0].abs() < 1e-12 && (v[1] - 1.0).abs() < 1e-12);
+        let up = direction(std::f64::consts::FRAC_PI_2, 0.0);
+        assert!((up[2] + 1.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,76 @@
+//! `MagneticCompass`. The engine converts the yaw to radians twice and keeps an `int` in
+//! between, so it reports `int(yaw_rad) / 10430.378` (always within ±0.0003 for yaws in
+//! (-π, π]); `usarsim_quirk = false` reports the plain heading in [0, 2π) instead.
+
+use serde::Deserialize;
+use usar_proto::SenData;
+
+use super::{Reading, Sensor, settings};
+use crate::sim::noise::Noise;
+use crate::sim::robots::PartConfig;
+
+/// Compass settings.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CompassConfig {
+    /// Reproduce the engine's double conversion (default `true`).
+    pub usarsim_quirk: bool,
+}
+
+impl Default for CompassConfig {
+    fn default() -> Self {
+        Self {
+            usarsim_quirk: true,
+        }
+    }
+}
+
+#[derive(Debug)]
+struct Compass(CompassConfig);
+
+pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
+    Ok(Box::new(Compass(settings(part)?)))
+}
+
+impl Sensor for Compass {
+    fn read(&mut self, at: &Reading<'_>, _noise: &mut Noise) -> SenData {
+        let yaw = at.rotation[2];
+        let angle = if self.0.usarsim_quirk {
+            f64::from(yaw.trunc() as f32 / 10_430.378)
+        } else {
+            yaw.rem_euclid(std::f64::consts::TAU)
+        };
+        SenData::MagneticCompass {
+            name: at.name.to_string(),
+            angle,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::*;
+    use super::*;
+
+    fn angle(sensor: &mut Box<dyn Sensor>, yaw: f64) -> f64 {
+        let (scene, me) = scene_with_wall(2.0);
+        let at = Reading {
+            rotation: [0.0, 0.0, yaw],
+            ..reading(&scene, me, 0.1)
+        };
+        match sensor.read(&at, &mut quiet()) {
+            SenData::MagneticCompass { angle, .. } => angle,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    #[allow(clippy::approx_constant)] // a yaw as the engine would hold it
+    fn quirk_and_plain() {
+        let mut quirky = make("MagneticCompass", "");
+        assert_eq!(format!("{:.4}", angle(&mut quirky, 1.5707)), "0.0001");
+        assert_eq!(angle(&mut quirky, 0.5), 0.0);
+        let mut plain = make("MagneticCompass", "usarsim_quirk = false");
+        assert!((angle(&mut plain, -1.0) - (std::f64::consts::TAU - 1.0)).abs() < 1e-12);
+    }
+}

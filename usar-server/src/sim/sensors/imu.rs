@@ -1,0 +1,101 @@
+//! `IMU`: finite differences over the scan interval (USARSim `IMU.uc`); gravity excluded.
+
+use usar_proto::{SenData, Vec3};
+
+use super::{NoSettings, Reading, Sensor, settings};
+use crate::sim::noise::Noise;
+use crate::sim::robots::PartConfig;
+use crate::sim::scene::{V3, yaw_rotate};
+
+/// IMU settings: none (the engine adds no noise to the IMU either).
+pub type ImuConfig = NoSettings;
+
+#[derive(Debug, Default)]
+struct Imu {
+    /// The previous reading: time, world velocity, attitude, angular rates.
+    last: Option<(f64, V3, V3, V3)>,
+}
+
+pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
+    let _: ImuConfig = settings(part)?;
+    Ok(Box::<Imu>::default())
+}
+
+/// `a - b` wrapped to [-π, π].
+fn angle_diff(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(std::f64::consts::TAU);
+    if d > std::f64::consts::PI {
+        d - std::f64::consts::TAU
+    } else {
+        d
+    }
+}
+
+impl Sensor for Imu {
+    fn read(&mut self, at: &Reading<'_>, _noise: &mut Noise) -> SenData {
+        let (accel, rates, rate_accel) = match self.last {
+            Some((t, v, r, w)) if at.time > t => {
+                let dt = at.time - t;
+                let dv = [
+                    (at.velocity[0] - v[0]) / dt,
+                    (at.velocity[1] - v[1]) / dt,
+                    (at.velocity[2] - v[2]) / dt,
+                ];
+                // Into the body frame (yaw only), then z negated as the engine does (+ = up).
+                let b = yaw_rotate(-at.rotation[2], dv);
+                let rates: V3 = std::array::from_fn(|i| angle_diff(at.rotation[i], r[i]) / dt);
+                let rate_accel: V3 = std::array::from_fn(|i| (rates[i] - w[i]) / dt);
+                ([b[0], b[1], -b[2]], rates, rate_accel)
+            }
+            _ => ([0.0; 3], [0.0; 3], [0.0; 3]),
+        };
+        self.last = Some((at.time, at.velocity, at.rotation, rates));
+        SenData::Imu {
+            name: at.name.to_string(),
+            acceleration: accel.into(),
+            angular_vel: rates.into(),
+            angular_accel: rate_accel.into(),
+            rotation: Vec3::from(at.rotation),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::*;
+    use super::*;
+
+    #[test]
+    fn differences_over_the_interval() {
+        let (scene, me) = scene_with_wall(2.0);
+        let mut imu = make("IMU", "");
+        let first = imu.read(&reading(&scene, me, 0.1), &mut quiet());
+        let SenData::Imu { acceleration, .. } = first else {
+            panic!()
+        };
+        assert_eq!(acceleration, Vec3::default());
+        // 0.1 s later: climbing at 1 m/s (z down → -1) and yawed by 0.1 rad.
+        let at = Reading {
+            velocity: [0.0, 0.0, -1.0],
+            rotation: [0.0, 0.0, 0.1],
+            ..reading(&scene, me, 0.2)
+        };
+        let SenData::Imu {
+            acceleration,
+            angular_vel,
+            rotation,
+            ..
+        } = imu.read(&at, &mut quiet())
+        else {
+            panic!()
+        };
+        assert!((acceleration.z - 10.0).abs() < 1e-9, "{acceleration:?}");
+        assert!((angular_vel.z - 1.0).abs() < 1e-9);
+        assert_eq!(rotation, Vec3::new(0.0, 0.0, 0.1));
+    }
+
+    #[test]
+    fn yaw_rate_wraps() {
+        assert!((angle_diff(-3.1, 3.1) - (std::f64::consts::TAU - 6.2)).abs() < 1e-12);
+    }
+}

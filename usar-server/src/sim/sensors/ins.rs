@@ -1,0 +1,64 @@
+//! `INS`: location and orientation (normalised to [0, 2π)), without a time stamp.
+
+use usar_proto::{ConfItem, SenData};
+
+use super::{NoSettings, Reading, Sensor, f32ish, settings};
+use crate::sim::noise::Noise;
+use crate::sim::robots::PartConfig;
+
+/// INS settings: none (drift is modelled by the part's `noise`).
+pub type InsConfig = NoSettings;
+
+#[derive(Debug)]
+struct Ins;
+
+pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
+    let _: InsConfig = settings(part)?;
+    Ok(Box::new(Ins))
+}
+
+impl Sensor for Ins {
+    fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
+        SenData::Ins {
+            name: at.name.to_string(),
+            location: at.position.map(|v| noise.apply(v)).into(),
+            orientation: at
+                .rotation
+                .map(|a| a.rem_euclid(std::f64::consts::TAU))
+                .into(),
+        }
+    }
+
+    fn conf(&self, name: &str, interval: f64) -> ConfItem {
+        ConfItem::Interval {
+            name: name.to_string(),
+            scan_interval: f32ish(interval),
+        }
+    }
+
+    fn timestamped(&self) -> bool {
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::*;
+    use super::*;
+
+    #[test]
+    fn orientation_is_normalised() {
+        let (scene, me) = scene_with_wall(2.0);
+        let at = Reading {
+            rotation: [0.0, -0.5, 7.0],
+            ..reading(&scene, me, 0.2)
+        };
+        let mut ins = make("INS", "");
+        assert!(!ins.timestamped());
+        let SenData::Ins { orientation, .. } = ins.read(&at, &mut quiet()) else {
+            panic!()
+        };
+        assert!((orientation.y - (std::f64::consts::TAU - 0.5)).abs() < 1e-12);
+        assert!((orientation.z - (7.0 - std::f64::consts::TAU)).abs() < 1e-12);
+    }
+}

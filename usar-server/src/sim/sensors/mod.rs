@@ -1,0 +1,231 @@
+//! Sensors: one file per sensor type, each with its `XxxConfig` (pub fields + `Default`) and
+//! a type implementing [`Sensor`]; [`REGISTRY`] maps a part `type` of the robot
+//! configuration to it.
+//!
+//! Adding a sensor: write `sensors/foo.rs` (config, sensor, `build`, a test), add one line
+//! to `REGISTRY`.
+
+mod altitude;
+mod camera;
+mod compass;
+mod ground_truth;
+mod imu;
+mod ins;
+mod mission_time;
+mod position;
+mod range_scanner;
+mod sonar;
+mod velocity;
+
+pub use altitude::AltitudeConfig;
+pub use camera::CameraConfig;
+pub use compass::CompassConfig;
+pub use ground_truth::GroundTruthConfig;
+pub use imu::ImuConfig;
+pub use ins::InsConfig;
+pub use mission_time::MissionTimeConfig;
+pub use position::PositionConfig;
+pub use range_scanner::RangeScannerConfig;
+pub use sonar::{SonarConfig, SonarModel};
+pub use velocity::VelocityConfig;
+
+use rapier3d::prelude::ColliderHandle;
+use serde::de::DeserializeOwned;
+use usar_proto::{ConfItem, SenData};
+
+use super::noise::Noise;
+use super::robots::PartConfig;
+use super::scene::{Scene, V3};
+
+/// What a sensor sees when it takes a reading.
+pub(crate) struct Reading<'a> {
+    /// The part name.
+    pub(crate) name: &'a str,
+    /// The geometry; queries must exclude `me`.
+    pub(crate) scene: &'a Scene,
+    /// The sensor's own robot body (never seen by its sensors).
+    pub(crate) me: ColliderHandle,
+    /// World time, s.
+    pub(crate) time: f64,
+    /// Seconds since the robot spawned.
+    pub(crate) since_spawn: f64,
+    /// Robot centre, world frame (z down).
+    pub(crate) position: V3,
+    /// Robot velocity, world frame, m/s.
+    pub(crate) velocity: V3,
+    /// Robot attitude: roll, pitch, yaw (rad, not normalised).
+    pub(crate) rotation: V3,
+    /// z of the robot centre at spawn.
+    pub(crate) spawn_z: f64,
+    /// The sensor's position, world frame.
+    pub(crate) origin: V3,
+    /// The sensor's heading in the world (robot yaw + mount yaw), rad. Robot pitch and roll
+    /// are visual only and do not tilt the sensors.
+    pub(crate) yaw: f64,
+    /// The mount's pitch (+ = up), rad.
+    pub(crate) pitch: f64,
+}
+
+impl Reading<'_> {
+    /// Distance to the first surface along a direction, or `None` within `max`.
+    pub(crate) fn trace(&self, dir: V3, max: f64) -> Option<f64> {
+        self.scene.cast_ray(self.origin, dir, max, Some(self.me))
+    }
+}
+
+/// A sensor instance on a robot.
+pub(crate) trait Sensor: std::fmt::Debug + Send {
+    /// Takes one reading (the data after `{Type ..}`).
+    fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData;
+    /// The GETCONF item.
+    fn conf(&self, name: &str, interval: f64) -> ConfItem {
+        let _ = interval;
+        ConfItem::Plain {
+            name: name.to_string(),
+        }
+    }
+    /// Whether the SEN line carries `{Time ..}`.
+    fn timestamped(&self) -> bool {
+        true
+    }
+    /// A SET opcode; `true` asks for an immediate extra reading.
+    fn set(&mut self, opcode: &str) -> bool {
+        let _ = opcode;
+        false
+    }
+}
+
+/// How to build a sensor type.
+pub(crate) struct SensorKind {
+    /// The `{Type ..}` of its SEN/CONF/GEO lines and the `type` in the robot configuration.
+    pub(crate) item_type: &'static str,
+    /// Seconds between readings when the part sets no `interval` (DefaultUSAR.ini).
+    pub(crate) default_interval: f64,
+    /// Builds the sensor from its part (settings validated here).
+    pub(crate) build: fn(&PartConfig) -> Result<Box<dyn Sensor>, String>,
+}
+
+/// Part type → sensor.
+pub(crate) const REGISTRY: &[SensorKind] = &[
+    kind("IMU", 0.1, imu::build),
+    kind("Sonar", 0.2, sonar::build),
+    kind("RangeScanner", 0.2, range_scanner::build),
+    kind("Position", 0.1, position::build),
+    kind("Velocity", 0.1, velocity::build),
+    kind("AltitudeSensor", 0.1, altitude::build),
+    kind("MagneticCompass", 0.1, compass::build),
+    kind("MissionTime", 0.1, mission_time::build),
+    kind("Camera", 0.1, camera::build),
+    kind("GroundTruth", 0.1, ground_truth::build),
+    kind("INS", 0.2, ins::build),
+];
+
+const fn kind(
+    item_type: &'static str,
+    default_interval: f64,
+    build: fn(&PartConfig) -> Result<Box<dyn Sensor>, String>,
+) -> SensorKind {
+    SensorKind {
+        item_type,
+        default_interval,
+        build,
+    }
+}
+
+/// The sensor type named `name` (case-insensitive).
+pub(crate) fn find(name: &str) -> Option<&'static SensorKind> {
+    REGISTRY
+        .iter()
+        .find(|k| k.item_type.eq_ignore_ascii_case(name))
+}
+
+/// The part's type-specific settings as `T` (unknown keys are errors).
+pub(crate) fn settings<T: DeserializeOwned>(part: &PartConfig) -> Result<T, String> {
+    toml::Value::Table(part.settings.clone())
+        .try_into()
+        .map_err(|e: toml::de::Error| format!("part `{}`: {}", part.name, e.message().trim_end()))
+}
+
+/// Settings of a sensor that has none (any key is an error).
+#[derive(Debug, Clone, Default, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoSettings {}
+
+/// A value as the engine's 32-bit float (CONF constants reproduce its f32 quirks).
+pub(crate) fn f32ish(v: f64) -> f64 {
+    f64::from(v as f32)
+}
+
+#[cfg(test)]
+pub(crate) mod testing {
+    //! A box at a known distance, and a reading next to it.
+    use super::*;
+    use crate::sim::scene::BodyShape;
+    use rapier3d::math::Pose;
+    use rapier3d::prelude::ColliderBuilder;
+
+    /// A scene with a robot body at the origin and a 1 m thick wall whose near face is at
+    /// `x = distance`, plus a floor 2 m below and nothing above.
+    pub(crate) fn scene_with_wall(distance: f64) -> (Scene, ColliderHandle) {
+        let mut scene = Scene::new();
+        scene.insert(
+            ColliderBuilder::cuboid(0.5, 50.0, 50.0).position(Pose::translation(
+                distance as f32 + 0.5,
+                0.0,
+                0.0,
+            )),
+        );
+        scene.insert(
+            ColliderBuilder::cuboid(50.0, 50.0, 0.5).position(Pose::translation(0.0, 0.0, 2.5)),
+        );
+        let me = scene.insert_body(
+            BodyShape {
+                radius: 0.4,
+                half_height: 0.1,
+            },
+            [0.0; 3],
+        );
+        (scene, me)
+    }
+
+    /// A reading at the origin, facing north, at `time`.
+    pub(crate) fn reading<'a>(scene: &'a Scene, me: ColliderHandle, time: f64) -> Reading<'a> {
+        Reading {
+            name: "S",
+            scene,
+            me,
+            time,
+            since_spawn: time,
+            position: [0.0; 3],
+            velocity: [0.0; 3],
+            rotation: [0.0; 3],
+            spawn_z: 0.0,
+            origin: [0.0; 3],
+            yaw: 0.0,
+            pitch: 0.0,
+        }
+    }
+
+    /// A part of type `kind` with TOML settings.
+    pub(crate) fn part(kind: &str, settings: &str) -> PartConfig {
+        PartConfig {
+            kind: kind.to_string(),
+            name: "S".to_string(),
+            position: [0.0; 3],
+            direction: [0.0; 3],
+            interval: None,
+            noise: 0.0,
+            settings: toml::from_str(settings).expect("test settings"),
+        }
+    }
+
+    /// Builds the registered sensor for `kind`.
+    pub(crate) fn make(kind: &str, settings: &str) -> Box<dyn Sensor> {
+        (find(kind).expect("registered").build)(&part(kind, settings)).expect("valid settings")
+    }
+
+    /// No noise.
+    pub(crate) fn quiet() -> Noise {
+        Noise::new(0, 0, 0, 0.0)
+    }
+}

@@ -1,0 +1,57 @@
+//! `Position` (stsPositionSensor, §9): the robot's world location, z down.
+
+use usar_proto::{ConfItem, SenData};
+
+use super::{NoSettings, Reading, Sensor, f32ish, settings};
+use crate::sim::noise::Noise;
+use crate::sim::robots::PartConfig;
+
+/// Position settings: none.
+pub type PositionConfig = NoSettings;
+
+#[derive(Debug)]
+struct Position;
+
+pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
+    let _: PositionConfig = settings(part)?;
+    Ok(Box::new(Position))
+}
+
+impl Sensor for Position {
+    fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
+        SenData::Position {
+            name: at.name.to_string(),
+            location: at.position.map(|v| noise.apply(v)).into(),
+        }
+    }
+
+    fn conf(&self, name: &str, interval: f64) -> ConfItem {
+        ConfItem::Interval {
+            name: name.to_string(),
+            scan_interval: f32ish(interval),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::*;
+    use super::*;
+
+    #[test]
+    fn reports_the_world_location() {
+        let (scene, me) = scene_with_wall(2.0);
+        let at = Reading {
+            position: [1.0, 2.0, -3.0],
+            ..reading(&scene, me, 0.1)
+        };
+        let data = make("Position", "").read(&at, &mut quiet());
+        assert_eq!(
+            data,
+            SenData::Position {
+                name: "S".into(),
+                location: [1.0, 2.0, -3.0].into()
+            }
+        );
+    }
+}

@@ -1,0 +1,779 @@
+//! World-level tests: flight, collisions, output timing, commands, determinism.
+
+// Angles are written as they appear in the robot catalog (1.5708), not as π/2.
+#![allow(clippy::approx_constant)]
+
+use usar_proto::{
+    Act, Command, Conf, ConfItem, Drive, Geo, Init, ItemQuery, Nfo, SenData, ServerMessage, Set,
+    Vec3,
+};
+
+use super::scene::direction;
+use super::*;
+
+const STS: &str = "USARBot.stsAirRobot";
+const AIR: &str = "USARBot.AirRobot";
+
+fn world() -> World {
+    World::new(
+        Map::default_map(),
+        RobotCatalog::embedded(),
+        SimConfig::default(),
+    )
+}
+
+fn init(class: &str, location: [f64; 3], yaw: f64) -> Command {
+    Command::Init(Init {
+        class_name: class.to_string(),
+        name: Some("UAV".to_string()),
+        location: Some(location.into()),
+        rotation: Some([0.0, 0.0, yaw].into()),
+        start: None,
+    })
+}
+
+fn spawn(world: &mut World, class: &str, location: [f64; 3], yaw: f64) -> ClientId {
+    let client = world.connect();
+    assert!(world.command(client, init(class, location, yaw)).is_empty());
+    client
+}
+
+fn run(world: &mut World, seconds: f64) -> Vec<(ClientId, ServerMessage)> {
+    let mut out = Vec::new();
+    for _ in 0..(seconds / world.dt()).round() as u64 {
+        world.step(&mut out);
+    }
+    out
+}
+
+fn drive(world: &mut World, client: ClientId, drive: Drive) {
+    assert!(world.command(client, Command::Drive(drive)).is_empty());
+}
+
+fn pose(world: &World, client: ClientId) -> ([f64; 3], [f64; 3]) {
+    world.robot(client).expect("robot").pose()
+}
+
+fn close(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol
+}
+
+/// Sonar readings of `name` sent to `client`.
+fn sonar(out: &[(ClientId, ServerMessage)], client: ClientId, name: &str) -> Vec<f64> {
+    out.iter()
+        .filter(|(c, _)| *c == client)
+        .filter_map(|(_, m)| match m {
+            ServerMessage::Sen(sen) => match &sen.data {
+                SenData::Sonar { readings, .. } if readings[0].name == name => {
+                    Some(readings[0].range)
+                }
+                _ => None,
+            },
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn linear_velocity_moves_along_the_heading() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], std::f64::consts::FRAC_PI_2);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 2.0);
+    let (p, _) = pose(&w, c);
+    assert!(
+        close(p[0], 0.0, 1e-6) && close(p[1], 2.0, 1e-3) && close(p[2], -1.0, 1e-9),
+        "{p:?}"
+    );
+    // Sticky: an unrelated key keeps the speed; LateralVelocity goes right.
+    drive(
+        &mut w,
+        c,
+        Drive {
+            lateral_velocity: Some(1.0),
+            linear_velocity: Some(0.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 1.0);
+    let (p, _) = pose(&w, c);
+    assert!(close(p[0], -1.0, 1e-3) && close(p[1], 2.0, 1e-3), "{p:?}");
+}
+
+#[test]
+fn rotational_velocity_is_whole_degrees_per_second() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            rotational_velocity: Some(45.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 2.0);
+    assert!(close(pose(&w, c).1[2], std::f64::consts::FRAC_PI_2, 1e-9));
+    drive(
+        &mut w,
+        c,
+        Drive {
+            rotational_velocity: Some(0.5),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 2.0);
+    assert!(close(pose(&w, c).1[2], std::f64::consts::FRAC_PI_2, 1e-9));
+    drive(
+        &mut w,
+        c,
+        Drive {
+            rotational_velocity: Some(-1.5),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 1.0);
+    assert!(close(
+        pose(&w, c).1[2],
+        std::f64::consts::FRAC_PI_2 - 1f64.to_radians(),
+        1e-9
+    ));
+}
+
+#[test]
+fn normalized_altitude_velocity_climbs_two_metres_per_second() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    let up = Drive {
+        altitude_velocity: Some(100.0),
+        normalized: Some(true),
+        ..Drive::default()
+    };
+    drive(&mut w, c, up);
+    run(&mut w, 1.0);
+    assert!(close(pose(&w, c).0[2], -3.0, 1e-6), "{:?}", pose(&w, c));
+    // Clamped at ±100; without Normalized no clamping (3 m/s down).
+    drive(
+        &mut w,
+        c,
+        Drive {
+            altitude_velocity: Some(-500.0),
+            normalized: Some(true),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 0.5);
+    assert!(close(pose(&w, c).0[2], -2.0, 1e-6));
+    drive(
+        &mut w,
+        c,
+        Drive {
+            altitude_velocity: Some(-3.0),
+            normalized: Some(false),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 0.5);
+    assert!(close(pose(&w, c).0[2], -0.5, 1e-6));
+}
+
+#[test]
+fn forward_flight_tilts_the_nose_down_visibly_in_the_imu() {
+    let mut w = world();
+    let c = spawn(&mut w, AIR, [0.0, 0.0, -1.0], 0.0);
+    // Forward: nose down (pitch −25°); left: roll −25° (right would be +25°).
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1.0),
+            lateral_velocity: Some(-1.0),
+            ..Drive::default()
+        },
+    );
+    let out = run(&mut w, 1.0);
+    let (_, r) = pose(&w, c);
+    assert!(
+        close(r[1], -25f64.to_radians(), 0.02) && close(r[0], -25f64.to_radians(), 0.02),
+        "{r:?}"
+    );
+    let last_imu = out.iter().rev().find_map(|(_, m)| match m {
+        ServerMessage::Sen(s) => match &s.data {
+            SenData::Imu { rotation, .. } => Some(*rotation),
+            _ => None,
+        },
+        _ => None,
+    });
+    assert!(last_imu.expect("IMU").y < -0.4);
+    // Normalized: 25° scaled again → −6°.
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(50.0),
+            normalized: Some(true),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 2.0);
+    assert!(close(pose(&w, c).1[1], -6f64.to_radians(), 0.02));
+}
+
+fn fly_into_north_wall(speed: f64) -> f64 {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(speed),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 12.0);
+    let (p, _) = pose(&w, c);
+    // Nothing else moved it.
+    assert!(
+        close(p[1], 0.0, 1e-3) && close(p[2], -1.0, 1e-3),
+        "speed {speed}: {p:?}"
+    );
+    p[0]
+}
+
+#[test]
+fn flying_into_a_wall_stops_in_front_of_it_at_any_speed() {
+    // North wall's inner face at x = 10, body radius 0.45.
+    for speed in [2.0, 1000.0, 1e9] {
+        let x = fly_into_north_wall(speed);
+        assert!((9.5..=9.55).contains(&x), "speed {speed}: x = {x}");
+    }
+}
+
+#[test]
+fn cannot_leave_through_floor_or_ceiling_and_slides_along_walls() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            altitude_velocity: Some(-1000.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 1.0);
+    let z = pose(&w, c).0[2];
+    assert!((-0.115..=-0.1).contains(&z), "floor: {z}");
+    drive(
+        &mut w,
+        c,
+        Drive {
+            altitude_velocity: Some(1000.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 1.0);
+    let z = pose(&w, c).0[2];
+    assert!((-4.9..=-4.885).contains(&z), "ceiling: {z}");
+    // Diagonal into the north wall: slides east.
+    let c2 = spawn(&mut w, STS, [0.0, -5.0, -1.0], std::f64::consts::FRAC_PI_4);
+    drive(
+        &mut w,
+        c2,
+        Drive {
+            linear_velocity: Some(2.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 10.0);
+    let p = pose(&w, c2).0;
+    assert!(p[0] > 9.4 && p[0] <= 9.55 && p[1] > 3.0, "{p:?}");
+}
+
+#[test]
+fn robots_see_each_other_and_do_not_pass_through_each_other() {
+    let mut w = world();
+    let a = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    let b = spawn(&mut w, STS, [3.0, 0.0, -1.0], std::f64::consts::PI);
+    let out = run(&mut w, 0.5);
+    // Sonar0 sits 0.4 m ahead of each centre; the other body's near side is 0.45 from its.
+    let expected = 3.0 - 0.4 - 0.45;
+    for c in [a, b] {
+        let ranges = sonar(&out, c, "Sonar0");
+        assert!(
+            !ranges.is_empty() && ranges.iter().all(|&r| close(r, expected, 1e-3)),
+            "{ranges:?}"
+        );
+        // Its own body never shows: Sonar4 looks back through it to the wall.
+        assert!(sonar(&out, c, "Sonar4").iter().all(|&r| r == 5.0));
+    }
+    drive(
+        &mut w,
+        a,
+        Drive {
+            linear_velocity: Some(1000.0),
+            ..Drive::default()
+        },
+    );
+    drive(
+        &mut w,
+        b,
+        Drive {
+            linear_velocity: Some(1000.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 1.0);
+    let (pa, pb) = (pose(&w, a).0, pose(&w, b).0);
+    assert!(pb[0] - pa[0] >= 0.9, "{pa:?} {pb:?}");
+}
+
+#[test]
+fn spawn_failures_are_silent() {
+    let mut w = world();
+    let unknown = spawn(&mut w, "USARBot.Nope", [0.0, 0.0, -1.0], 0.0);
+    let no_package = spawn(&mut w, "stsAirRobot", [0.0, 0.0, -1.0], 0.0);
+    let in_wall = spawn(&mut w, STS, [10.0, 0.0, -1.0], 0.0);
+    let ok = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    let on_top = spawn(&mut w, STS, [0.2, 0.0, -1.0], 0.0);
+    assert_eq!(w.robot_count(), 1);
+    let out = run(&mut w, 1.0);
+    assert!(out.iter().all(|(c, _)| *c == ok));
+    for c in [unknown, no_package, in_wall, on_top] {
+        assert!(
+            w.command(
+                c,
+                Command::GetConf(ItemQuery {
+                    kind: "Robot".into(),
+                    name: None
+                })
+            )
+            .is_empty()
+        );
+    }
+}
+
+#[test]
+fn non_finite_numbers_do_not_poison_the_world() {
+    let mut w = world();
+    let c = w.connect();
+    w.command(c, init(STS, [f64::NAN, f64::INFINITY, -1.0], f64::NAN));
+    assert_eq!(pose(&w, c), ([0.0, 0.0, -1.0], [0.0; 3]));
+    let bad = Drive {
+        linear_velocity: Some(f64::INFINITY),
+        altitude_velocity: Some(f64::NAN),
+        rotational_velocity: Some(f64::NEG_INFINITY),
+        pitch_angle: Some(f64::NAN),
+        ..Drive::default()
+    };
+    drive(&mut w, c, bad);
+    w.command(
+        c,
+        Command::Act(Act {
+            name: "cam".into(),
+            links: vec![usar_proto::LinkValue {
+                link: 0,
+                value: f64::NAN,
+            }],
+            ..Act::default()
+        }),
+    );
+    let out = run(&mut w, 1.0);
+    assert_eq!(pose(&w, c), ([0.0, 0.0, -1.0], [0.0; 3]));
+    assert!(!out.is_empty());
+}
+
+#[test]
+fn start_tags_and_start_poses() {
+    let mut w = world();
+    let c = w.connect();
+    let replies = w.command(c, Command::GetStartPoses);
+    let [ServerMessage::Nfo(Nfo::StartPoses { poses, .. })] = replies.as_slice() else {
+        panic!("{replies:?}")
+    };
+    assert_eq!(poses[0].name, "Start1");
+    assert_eq!(poses[0].location, Vec3::new(0.0, 0.0, -1.0));
+    let by_tag = Init {
+        class_name: STS.into(),
+        start: Some("start3".into()),
+        ..Init::default()
+    };
+    w.command(c, Command::Init(by_tag));
+    assert_eq!(pose(&w, c).0, [5.0, 5.0, -1.0]);
+    let d = w.connect();
+    let unknown = Init {
+        class_name: STS.into(),
+        start: Some("Nowhere".into()),
+        location: Some([1.0, 1.0, -1.0].into()),
+        ..Init::default()
+    };
+    // No such start: UU (0,0,0), which is the floor's top here, so the spawn fails.
+    w.command(d, Command::Init(unknown));
+    assert!(w.robot(d).is_none());
+    assert_eq!(w.robot_count(), 1);
+}
+
+#[test]
+fn default_map_start_has_room_to_fly() {
+    let w = world();
+    let start = Map::default_map().starts()[0].location;
+    for k in 0..16 {
+        let yaw = f64::from(k) * std::f64::consts::TAU / 16.0;
+        let d = w.scene_ray(start, direction(0.0, yaw), 100.0);
+        assert!(d.is_some_and(|d| d >= 5.0), "yaw {yaw}: {d:?}");
+    }
+    let up = w.scene_ray(start, direction(std::f64::consts::FRAC_PI_2, 0.0), 100.0);
+    assert!(up.is_some_and(|d| d >= 3.0), "{up:?}");
+}
+
+#[test]
+fn second_init_rebinds_and_disconnect_removes_all() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    let other = spawn(&mut w, AIR, [-5.0, -5.0, -1.0], 0.0);
+    w.command(c, init(AIR, [5.0, 0.0, -1.0], 0.0));
+    assert_eq!(w.robot_count(), 3);
+    assert_eq!(pose(&w, c).0, [5.0, 0.0, -1.0]);
+    let out = run(&mut w, 1.0);
+    // Only the new robot's output (an AirRobot: no sonar) reaches the connection.
+    assert!(sonar(&out, c, "Sonar0").is_empty());
+    assert!(
+        out.iter()
+            .any(|(k, m)| *k == c && matches!(m, ServerMessage::Asta(_)))
+    );
+    w.disconnect(c);
+    assert_eq!(w.robot_count(), 1);
+    assert!(run(&mut w, 0.5).iter().all(|(k, _)| *k == other));
+    // The place is free again.
+    spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    assert_eq!(w.robot_count(), 2);
+}
+
+fn count(
+    out: &[(ClientId, ServerMessage)],
+    pick: impl Fn(&ServerMessage) -> Option<String>,
+) -> std::collections::BTreeMap<String, usize> {
+    let mut counts = std::collections::BTreeMap::new();
+    for (_, m) in out {
+        if let Some(key) = pick(m) {
+            *counts.entry(key).or_insert(0) += 1;
+        }
+    }
+    counts
+}
+
+fn kind_of(m: &ServerMessage) -> Option<String> {
+    Some(match m {
+        ServerMessage::Sta(_) => "STA".to_string(),
+        ServerMessage::Asta(a) => format!("ASTA {}", a.name),
+        ServerMessage::Sen(s) => match &s.data {
+            SenData::Sonar { readings, .. } => readings[0].name.clone(),
+            SenData::RangeScanner(scan) => scan.name.clone(),
+            SenData::Imu { name, .. }
+            | SenData::Position { name, .. }
+            | SenData::Velocity { name, .. }
+            | SenData::AltitudeSensor { name, .. }
+            | SenData::MagneticCompass { name, .. }
+            | SenData::MissionTime { name, .. } => name.clone(),
+            SenData::Camera => "Camera".to_string(),
+            other => format!("{other:?}"),
+        },
+        _ => return None,
+    })
+}
+
+#[test]
+fn output_intervals_over_five_seconds() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    let mut first = Vec::new();
+    w.step(&mut first);
+    for _ in 1..20 {
+        w.step(&mut first);
+    }
+    // Everything has spoken within 0.1 s of the spawn.
+    let early = count(&first, kind_of);
+    assert_eq!(early.len(), 1 + 3 + 10 + 1, "{early:?}");
+    let out = run(&mut w, 4.9);
+    let all = count(&[first, out].concat(), kind_of);
+    assert_eq!(all["STA"], 50);
+    assert_eq!(all["IMU"], 50);
+    assert_eq!(all["Position"], 50);
+    assert_eq!(all["Sonar0"], 25);
+    assert_eq!(all["SonarBottom"], 25);
+    assert_eq!(all["Scanner"], 17); // 0.1 s, then every 0.3 s up to 4.9 s
+    let air = spawn(&mut w, AIR, [5.0, 5.0, -1.0], 0.0);
+    let out = run(&mut w, 5.0);
+    let mine: Vec<_> = out.into_iter().filter(|(k, _)| *k == air).collect();
+    let all = count(&mine, kind_of);
+    for key in ["STA", "IMU", "GPS", "Compass", "Time", "Camera", "ASTA cam"] {
+        assert_eq!(all[key], 50, "{key}: {all:?}");
+    }
+    let _ = c;
+}
+
+#[test]
+fn time_stamps_are_world_time() {
+    let mut w = world();
+    run(&mut w, 1.0);
+    spawn(&mut w, AIR, [0.0, 0.0, -1.0], 0.0);
+    let out = run(&mut w, 0.1);
+    let ServerMessage::Sta(sta) = &out[0].1 else {
+        panic!("{out:?}")
+    };
+    assert!(close(sta.time.seconds, 1.1, 1e-9));
+    assert_eq!(sta.battery, 99_999);
+}
+
+#[test]
+fn battery_empty_silences_sensors_but_not_sta() {
+    let mut catalog = RobotCatalog::embedded();
+    catalog.get_mut(STS).expect("sts").battery = Some(1.0);
+    let mut w = World::new(Map::default_map(), catalog, SimConfig::default());
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1.0),
+            ..Drive::default()
+        },
+    );
+    let before = run(&mut w, 0.95);
+    let batteries: Vec<i64> = before
+        .iter()
+        .filter_map(|(_, m)| match m {
+            ServerMessage::Sta(s) => Some(s.battery),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(batteries.first(), Some(&1));
+    assert!(
+        before
+            .iter()
+            .any(|(_, m)| matches!(m, ServerMessage::Sen(_)))
+    );
+    let after = run(&mut w, 2.0);
+    assert!(
+        after
+            .iter()
+            .all(|(_, m)| matches!(m, ServerMessage::Sta(s) if s.battery == 0))
+    );
+    assert_eq!(after.len(), 20);
+    // Stopped, and commands are ignored.
+    let x = pose(&w, c).0[0];
+    assert!(close(x, 1.0, 0.01), "{x}");
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 1.0);
+    assert_eq!(pose(&w, c).0[0], x);
+    assert!(
+        w.command(
+            c,
+            Command::GetConf(ItemQuery {
+                kind: "Robot".into(),
+                name: None
+            })
+        )
+        .is_empty()
+    );
+}
+
+fn query(kind: &str, name: Option<&str>) -> ItemQuery {
+    ItemQuery {
+        kind: kind.to_string(),
+        name: name.map(str::to_string),
+    }
+}
+
+#[test]
+fn getconf_and_getgeo() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], std::f64::consts::FRAC_PI_2);
+    assert_eq!(
+        w.command(c, Command::GetConf(query("Robot", None))),
+        vec![ServerMessage::Conf(Conf::Robot {
+            name: "stsAirRobot".into()
+        })]
+    );
+    assert_eq!(
+        w.command(c, Command::GetGeo(query("Robot", None))),
+        vec![ServerMessage::Geo(Geo::Robot {
+            name: "stsAirRobot".into()
+        })]
+    );
+    // `robot` is not `Robot`: no part has that type → no reply.
+    assert!(
+        w.command(c, Command::GetConf(query("robot", None)))
+            .is_empty()
+    );
+    let replies = w.command(c, Command::GetConf(query("sonar", None)));
+    let [ServerMessage::Conf(Conf::Items { kind, items })] = replies.as_slice() else {
+        panic!()
+    };
+    assert_eq!((kind.as_str(), items.len()), ("sonar", 10));
+    assert_eq!(
+        items[0],
+        ConfItem::Sonar {
+            name: "Sonar0".into(),
+            max_range: 5.0,
+            min_range: f64::from(0.1f32),
+            scan_interval: f64::from(0.2f32),
+            beam_angle: f64::from(0.349f32),
+            max_angle_of_incidence: f64::from(0.174_532_925_2_f64 as f32),
+            traces_per_cone: 16,
+            number_of_cones: 10,
+        }
+    );
+    let replies = w.command(c, Command::GetConf(query("Position", None)));
+    assert_eq!(
+        replies,
+        vec![ServerMessage::Conf(Conf::Items {
+            kind: "Position".into(),
+            items: vec![ConfItem::Interval {
+                name: "Position".into(),
+                scan_interval: f64::from(0.1f32)
+            }],
+        })]
+    );
+    let replies = w.command(c, Command::GetGeo(query("Sonar", Some("sonar2"))));
+    let [ServerMessage::Geo(Geo::Items { items, .. })] = replies.as_slice() else {
+        panic!()
+    };
+    assert_eq!(items.len(), 1);
+    // Sonar2 points right; the robot faces east, so it sits 0.4 m south of the centre.
+    let g = &items[0];
+    assert!(
+        close(g.location.x, -0.4, 1e-4) && close(g.location.y, 0.0, 1e-4),
+        "{g:?}"
+    );
+    assert_eq!((g.orientation.z, g.mount.as_str()), (1.5708, "stsAirRobot"));
+    assert!(
+        w.command(c, Command::GetGeo(query("Sonar", Some("nope"))))
+            .is_empty()
+    );
+    assert!(
+        w.command(c, Command::GetConf(query("Laser", None)))
+            .is_empty()
+    );
+    let replies = w.command(c, Command::GetConf(query("RangeScanner", None)));
+    assert!(
+        matches!(&replies[0], ServerMessage::Conf(Conf::Items { items, .. }) if matches!(items[0], ConfItem::Scanner { .. }))
+    );
+}
+
+#[test]
+fn act_moves_the_camera_joint_and_set_scan_forces_a_scan() {
+    let mut w = world();
+    let air = spawn(&mut w, AIR, [0.0, 0.0, -1.0], 0.0);
+    let act = Act {
+        name: "CAM".into(),
+        links: vec![usar_proto::LinkValue {
+            link: 0,
+            value: -0.5,
+        }],
+        ..Act::default()
+    };
+    w.command(air, Command::Act(act));
+    let out = run(&mut w, 0.1);
+    let asta = out.iter().find_map(|(_, m)| match m {
+        ServerMessage::Asta(a) => Some(a.clone()),
+        _ => None,
+    });
+    let asta = asta.expect("ASTA");
+    assert_eq!(
+        (asta.name.as_str(), asta.links[0].link, asta.links[0].value),
+        ("cam", 1, -0.5)
+    );
+    let conf = w.command(air, Command::GetConf(query("Actuator", None)));
+    assert!(
+        matches!(&conf[0], ServerMessage::Conf(Conf::Items { items, .. }) if matches!(&items[0], ConfItem::Actuator { joints, .. } if joints.len() == 1))
+    );
+
+    let sts = spawn(&mut w, STS, [5.0, 5.0, -1.0], 0.0);
+    run(&mut w, 0.15); // after the first scan (0.1 s), before the second (0.4 s)
+    let set = Set {
+        kind: "RangeScanner".into(),
+        name: None,
+        opcode: "SCAN".into(),
+        params: None,
+    };
+    assert!(w.command(sts, Command::Set(set)).is_empty());
+    let mut out = Vec::new();
+    w.step(&mut out);
+    assert!(out.iter().any(
+        |(_, m)| matches!(m, ServerMessage::Sen(s) if matches!(s.data, SenData::RangeScanner(_)))
+    ));
+}
+
+#[test]
+fn deterministic_with_noise() {
+    let run_once = || {
+        let mut catalog = RobotCatalog::embedded();
+        for part in &mut catalog.get_mut(STS).expect("sts").parts {
+            part.noise = 0.05;
+        }
+        let mut w = World::new(
+            Map::embedded("arena").expect("arena"),
+            catalog,
+            SimConfig {
+                seed: 42,
+                ..SimConfig::default()
+            },
+        );
+        let a = w.connect();
+        let b = w.connect();
+        w.command(
+            a,
+            Command::Init(Init {
+                class_name: STS.into(),
+                start: Some("Start1".into()),
+                ..Init::default()
+            }),
+        );
+        w.command(
+            b,
+            Command::Init(Init {
+                class_name: STS.into(),
+                start: Some("Start2".into()),
+                ..Init::default()
+            }),
+        );
+        w.command(
+            a,
+            Command::Drive(Drive {
+                linear_velocity: Some(3.0),
+                rotational_velocity: Some(20.0),
+                ..Drive::default()
+            }),
+        );
+        w.command(
+            b,
+            Command::Drive(Drive {
+                linear_velocity: Some(2.0),
+                altitude_velocity: Some(0.5),
+                ..Drive::default()
+            }),
+        );
+        let out = run(&mut w, 3.0);
+        format!("{out:?}")
+    };
+    let (x, y) = (run_once(), run_once());
+    assert!(x.len() > 10_000);
+    assert!(x == y, "two runs differ");
+    // The noise is really on: two sonar readings of the same still wall differ.
+    assert!(x.contains("Sonar"));
+}

@@ -1,0 +1,292 @@
+//! The world: map geometry, robots, connections; one `step` per tick.
+
+use std::collections::BTreeMap;
+
+use tracing::{debug, warn};
+use usar_proto::{Command, Conf, Geo, Init, ItemQuery, Nfo, ServerMessage, StartPose};
+
+use super::map::Map;
+use super::robot::{Robot, Spawn};
+use super::robots::RobotCatalog;
+use super::scene::{Scene, V3};
+use super::{ClientId, SimConfig};
+
+/// Ticks between BVH refits (leaf updates only ever grow the tree's inner boxes).
+const REFIT_EVERY: u64 = 200;
+
+/// The world: map, robots, sensors. Synchronous and deterministic: the same seed and the
+/// same calls give the same output, bit for bit.
+#[derive(Debug)]
+pub struct World {
+    tick: u64,
+    dt: f64,
+    seed: u64,
+    map: Map,
+    catalog: RobotCatalog,
+    scene: Scene,
+    /// Ordered by serial (spawn order): the order of movement and of output.
+    robots: Vec<Robot>,
+    /// Connection → serial of the robot it controls.
+    clients: BTreeMap<ClientId, Option<u64>>,
+    next_client: u64,
+    next_serial: u64,
+}
+
+/// The vector with non-finite components replaced by 0 (logged).
+fn finite_or_zero(v: usar_proto::Vec3, key: &str) -> V3 {
+    let a: V3 = v.into();
+    if !a.iter().all(|x| x.is_finite()) {
+        warn!(key, value = ?a, "non-finite INIT component treated as 0");
+    }
+    a.map(|x| if x.is_finite() { x } else { 0.0 })
+}
+
+impl World {
+    /// A world with `map` and the robot classes of `robots`.
+    pub fn new(map: Map, robots: RobotCatalog, config: SimConfig) -> Self {
+        let dt = if config.dt.is_finite() && config.dt > 0.0 {
+            config.dt
+        } else {
+            warn!(dt = config.dt, "invalid dt, using 1/200 s");
+            SimConfig::default().dt
+        };
+        let mut scene = Scene::new();
+        map.build(&mut scene);
+        scene.refit();
+        Self {
+            tick: 0,
+            dt,
+            seed: config.seed,
+            map,
+            catalog: robots,
+            scene,
+            robots: Vec::new(),
+            clients: BTreeMap::new(),
+            next_client: 0,
+            next_serial: 0,
+        }
+    }
+
+    /// The map's level name for the NFO line.
+    pub fn level(&self) -> &str {
+        self.map.level()
+    }
+
+    /// The NFO `TimeLimit`.
+    pub fn time_limit(&self) -> i64 {
+        self.map.time_limit()
+    }
+
+    /// Simulated seconds (tick × dt).
+    pub fn time(&self) -> f64 {
+        self.tick as f64 * self.dt
+    }
+
+    /// Seconds per tick.
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Robots in the world (including those no connection controls any more).
+    pub fn robot_count(&self) -> usize {
+        self.robots.len()
+    }
+
+    /// Registers a connection (no robot yet).
+    pub fn connect(&mut self) -> ClientId {
+        self.next_client += 1;
+        let id = ClientId(self.next_client);
+        self.clients.insert(id, None);
+        id
+    }
+
+    /// Removes a connection and every robot it spawned.
+    pub fn disconnect(&mut self, client: ClientId) {
+        self.clients.remove(&client);
+        let (gone, kept) = std::mem::take(&mut self.robots)
+            .into_iter()
+            .partition(|r| r.spawned_by == client);
+        self.robots = kept;
+        for robot in gone {
+            robot.despawn(&mut self.scene);
+        }
+    }
+
+    /// Applies one command; returns the immediate replies (NFO StartPoses, CONF, GEO).
+    /// INIT, DRIVE, SET, ACT and MISPKG apply silently; anything else is ignored.
+    pub fn command(&mut self, client: ClientId, command: Command) -> Vec<ServerMessage> {
+        if !self.clients.contains_key(&client) {
+            debug!(?client, "command from an unknown connection ignored");
+            return Vec::new();
+        }
+        match command {
+            Command::Init(init) => {
+                self.init(client, &init);
+                Vec::new()
+            }
+            Command::GetStartPoses => vec![self.start_poses()],
+            command => self.robot_command(client, command),
+        }
+    }
+
+    /// Advances one tick; appends this tick's STA/SEN/ASTA per connection, robots in spawn
+    /// order, each robot's lines as STA, sensors in part order, ASTA.
+    pub fn step(&mut self, out: &mut Vec<(ClientId, ServerMessage)>) {
+        self.tick += 1;
+        let (tick, dt) = (self.tick, self.dt);
+        for robot in &mut self.robots {
+            robot.fly(&mut self.scene, tick, dt);
+        }
+        if tick % REFIT_EVERY == 0 {
+            self.scene.refit();
+        }
+        for robot in &mut self.robots {
+            robot.emit(&self.scene, tick, dt, out);
+        }
+    }
+
+    fn start_poses(&self) -> ServerMessage {
+        let poses = self
+            .map
+            .starts()
+            .iter()
+            .map(|s| StartPose {
+                name: if s.tag.eq_ignore_ascii_case("PlayerStart") {
+                    s.name.clone()
+                } else {
+                    s.tag.clone()
+                },
+                location: s.location.into(),
+                rotation: s.rotation.into(),
+            })
+            .collect();
+        ServerMessage::Nfo(Nfo::StartPoses {
+            poses,
+            old_layout: false,
+        })
+    }
+
+    fn init(&mut self, client: ClientId, init: &Init) {
+        let Some(class) = self.catalog.get(&init.class_name) else {
+            warn!(?client, class = %init.class_name, "spawn failed: unknown robot class");
+            return;
+        };
+        let (position, rotation) = match init.start.as_deref().filter(|s| !s.is_empty()) {
+            Some(tag) => match self.map.find_start(tag) {
+                Some(start) => (start.location, start.rotation),
+                None => {
+                    warn!(
+                        ?client,
+                        start = tag,
+                        "no such PlayerStart, spawning at 0,0,0"
+                    );
+                    ([0.0; 3], [0.0; 3])
+                }
+            },
+            None => (
+                init.location
+                    .map_or([0.0; 3], |v| finite_or_zero(v, "Location")),
+                init.rotation
+                    .map_or([0.0; 3], |v| finite_or_zero(v, "Rotation")),
+            ),
+        };
+        let spawn = Spawn {
+            class,
+            serial: self.next_serial,
+            owner: client,
+            position,
+            rotation,
+            tick: self.tick,
+            dt: self.dt,
+            seed: self.seed,
+        };
+        let Some(robot) = Robot::spawn(spawn, &mut self.scene) else {
+            return;
+        };
+        self.next_serial += 1;
+        let previous = self.clients.insert(client, Some(robot.serial)).flatten();
+        if let Some(old) = previous.and_then(|s| self.robot_mut(s)) {
+            old.owner = None;
+        }
+        self.robots.push(robot);
+    }
+
+    fn robot_mut(&mut self, serial: u64) -> Option<&mut Robot> {
+        let index = self
+            .robots
+            .binary_search_by_key(&serial, |r| r.serial)
+            .ok()?;
+        self.robots.get_mut(index)
+    }
+
+    /// DRIVE/GETCONF/GETGEO/SET/ACT/MISPKG: only with a robot whose battery is not empty.
+    fn robot_command(&mut self, client: ClientId, command: Command) -> Vec<ServerMessage> {
+        let (tick, dt) = (self.tick, self.dt);
+        let serial = self.clients.get(&client).copied().flatten();
+        let Some(robot) = serial.and_then(|s| self.robot_mut(s)) else {
+            return Vec::new();
+        };
+        if robot.is_dead(tick, dt) {
+            return Vec::new();
+        }
+        match command {
+            Command::Drive(drive) => robot.drive(&drive),
+            Command::GetConf(query) => return conf(robot, &query).into_iter().collect(),
+            Command::GetGeo(query) => return geo(robot, &query).into_iter().collect(),
+            Command::Set(set) => robot.set(&set.kind, set.name.as_deref(), &set.opcode),
+            Command::Act(act) => {
+                for link in &act.links {
+                    robot.actuate(&act.name, link.link, link.value);
+                }
+            }
+            Command::MisPkg(pkg) if pkg.order.unwrap_or(0) == 0 => {
+                for link in &pkg.links {
+                    robot.actuate(&pkg.name, link.link.saturating_sub(1), link.value);
+                }
+            }
+            _ => {}
+        }
+        Vec::new()
+    }
+
+    #[cfg(test)]
+    pub(crate) fn scene_ray(&self, origin: V3, dir: V3, max: f64) -> Option<f64> {
+        self.scene.cast_ray(origin, dir, max, None)
+    }
+
+    #[cfg(test)]
+    pub(crate) fn robot(&self, client: ClientId) -> Option<&Robot> {
+        let serial = self.clients.get(&client).copied().flatten()?;
+        self.robots.iter().find(|r| r.serial == serial)
+    }
+}
+
+fn conf(robot: &Robot, query: &ItemQuery) -> Option<ServerMessage> {
+    if query.kind == "Robot" {
+        return Some(ServerMessage::Conf(Conf::Robot {
+            name: robot.class_name().to_string(),
+        }));
+    }
+    let items = robot.conf(&query.kind, query.name.as_deref());
+    (!items.is_empty()).then(|| {
+        ServerMessage::Conf(Conf::Items {
+            kind: query.kind.clone(),
+            items,
+        })
+    })
+}
+
+fn geo(robot: &Robot, query: &ItemQuery) -> Option<ServerMessage> {
+    if query.kind == "Robot" {
+        return Some(ServerMessage::Geo(Geo::Robot {
+            name: robot.class_name().to_string(),
+        }));
+    }
+    let items = robot.geo(&query.kind, query.name.as_deref());
+    (!items.is_empty()).then(|| {
+        ServerMessage::Geo(Geo::Items {
+            kind: query.kind.clone(),
+            items,
+        })
+    })
+}
