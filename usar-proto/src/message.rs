@@ -222,6 +222,12 @@ impl Message {
         })
     }
 
+    /// The message word of a line: the text before the first `{`, trimmed (`SEN`).
+    pub fn word(line: &str) -> &str {
+        let end = line.find('{').unwrap_or(line.len());
+        trim_ws(&line[..end])
+    }
+
     /// The value of the first pair whose key equals `key` case-insensitively.
     pub fn get(&self, key: &str) -> Option<&str> {
         self.groups

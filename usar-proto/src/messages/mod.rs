@@ -34,7 +34,19 @@ use crate::format::WireBuf;
 use crate::message::{Deviation, Parsed, Raw};
 use crate::value::Reader;
 
+/// The words of server → client messages (typed or not): `NFO`, `STA`, `SEN`, `CONF`,
+/// `GEO`, `ASTA`, `EFF`, `DIE`, and the older or rarer `MISSTA`, `BSTA`, `RES`.
+pub const SERVER_WORDS: [&str; 11] = [
+    "NFO", "STA", "SEN", "CONF", "GEO", "ASTA", "EFF", "DIE", "MISSTA", "BSTA", "RES",
+];
+
 impl ServerMessage {
+    /// Whether a line with this message word comes from a server ([`SERVER_WORDS`],
+    /// case-insensitive); every other word is a client command (known or not).
+    pub fn is_server_word(word: &str) -> bool {
+        SERVER_WORDS.iter().any(|w| w.eq_ignore_ascii_case(word))
+    }
+
     /// Parses a server line (any generation's layout).
     ///
     /// The only deviation reported is [`Deviation::GroupedPairs`] (a UT2004-era layout).
