@@ -1,5 +1,28 @@
 //! The USARSim (UDK Gamebots) text protocol: message model, tolerant parser, byte-exact
-//! printer and line codec. (Module overview and example: to be written.)
+//! printer and line codec.
+//!
+//! Layout:
+//!
+//! * [`message`]: the generic model ([`Message`], [`Group`], [`Pair`]) and the tolerant
+//!   line parser of protocol.md §1.3/§10, with [`Deviation`]s for logging;
+//! * [`messages`]: typed client commands ([`Command`]) and server messages
+//!   ([`ServerMessage`]), each read from and printed to its exact wire form;
+//! * [`format`]: the engine's number formatters (implicit float, implicit vector,
+//!   `FloatString`) writing into any [`format::WireBuf`];
+//! * [`codec`] (feature `codec`): the tokio-util line codecs shared by server and client;
+//! * [`error`]: [`ParseError`].
+//!
+//! ```
+//! use usar_proto::{SenData, ServerMessage};
+//!
+//! let line = "SEN {Time 57.1234} {Type Sonar} {Name Sonar0} {Range 2.3456}";
+//! let parsed = ServerMessage::parse(line)?;
+//! let ServerMessage::Sen(sen) = &parsed.message else { unreachable!() };
+//! let SenData::Sonar { readings, .. } = &sen.data else { unreachable!() };
+//! assert_eq!(readings[0].range, 2.3456);
+//! assert_eq!(parsed.message.to_string(), line);
+//! # Ok::<(), usar_proto::ParseError>(())
+//! ```
 
 #[cfg(feature = "codec")]
 pub mod codec;
@@ -8,6 +31,7 @@ pub mod format;
 pub mod message;
 pub mod messages;
 pub mod record;
+mod value;
 
 pub use error::ParseError;
 pub use message::{Deviation, Group, Message, Pair, Parsed};

@@ -2,8 +2,33 @@
 //!
 //! The parser follows the real server's `MessageParser.uc` (protocol.md §1.3) and accepts the
 //! dialects of §10. Typed messages (`crate::messages`) are built on top of it.
+//!
+//! # Reading rules
+//!
+//! * The line is trimmed (spaces, tabs, stray CR/LF). The message word is everything before
+//!   the first `{`, trimmed; a line without `{` is all word (`GETSTARTPOSES`).
+//! * A group is the text between a `{` and the next `}` (no nesting); a `{` without `}` runs to
+//!   the end of the line ([`Deviation::UnclosedGroup`]). Text between groups is ignored
+//!   ([`Deviation::TextOutsideGroups`]). No space is needed before or between groups.
+//! * A group's content is trimmed and split at its first space into key and value (the UDK
+//!   rule; the value keeps inner spaces, `{Location 0, 0, 0}`). `{On}` is key `On` with an
+//!   empty value. (UDK gives such a group an empty key and stops looking up keys after it; we
+//!   do not emulate that.)
+//! * [`Message::parse`] (used for server lines) additionally reads a group as **several
+//!   pairs** when it has an even number (≥ 4) of whitespace-separated tokens and every token
+//!   in key position is a word (a letter, then letters, digits or `_`): `{Name F1 Range 4.4690}`
+//!   is two pairs, `{Location 0.0 0.0 1.0}` and `{Name My Robot}` one. [`Message::parse_udk`]
+//!   (used for client commands) never does, exactly like the UDK server.
+//! * Keys and message words keep their spelling; lookups ([`Message::get`]) are
+//!   case-insensitive and the first occurrence of a key wins.
+//!
+//! Number and vector rules are in the typed layer (`crate::messages::command`).
 
 use crate::error::ParseError;
+use nom::{
+    IResult, Parser, bytes::complete::take_till, character::complete::char, combinator::opt,
+    sequence::preceded,
+};
 
 /// One protocol line: `KIND {Key Value} {Key Value} ...`.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -44,18 +69,163 @@ pub struct Parsed<T> {
 }
 
 /// A tolerated deviation from the canonical protocol form (protocol.md §10).
+///
+/// Client commands report every kind; server messages report only the value-level ones
+/// (their spacing is whatever the engine's string concatenation produced, so it is not a
+/// deviation).
 #[derive(Debug, Clone, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum Deviation {
-    /// Placeholder until the parser is complete.
-    Other(String),
+    /// Leading, trailing or repeated spaces, or spaces just inside braces.
+    ExtraWhitespace,
+    /// No space between the message word and the first `{`, or between `}` and `{`.
+    MissingSpace,
+    /// Text outside braces after the message word (ignored).
+    TextOutsideGroups(String),
+    /// A `{` without a `}`: the group runs to the end of the line.
+    UnclosedGroup,
+    /// The command word is not written in upper case.
+    CommandCase(String),
+    /// A command word UDK does not know (it ignores the line).
+    UnknownCommand(String),
+    /// A key written in another case than the canonical spelling.
+    KeyCase {
+        /// As written.
+        found: String,
+        /// The canonical spelling.
+        expected: String,
+    },
+    /// A key the command does not use (ignored, as UDK does).
+    UnknownKey(String),
+    /// A number written with a decimal comma (`1,00`).
+    DecimalComma {
+        /// The key.
+        key: String,
+        /// The value as written.
+        value: String,
+    },
+    /// A number written with a leading `+`.
+    LeadingPlus {
+        /// The key.
+        key: String,
+        /// The value as written.
+        value: String,
+    },
+    /// A number that could not be read; it reads as 0 (UDK's `float("") = 0`).
+    BadNumber {
+        /// The key.
+        key: String,
+        /// The value as written.
+        value: String,
+    },
+    /// Vector components separated by spaces instead of commas.
+    SpaceSeparatedVector {
+        /// The key.
+        key: String,
+        /// The value as written.
+        value: String,
+    },
+    /// A vector whose commas are both decimal commas and separators
+    /// (`0,0000, 0,0000, 0,0000`); read by the documented rule, UDK would read it otherwise.
+    AmbiguousVector {
+        /// The key.
+        key: String,
+        /// The value as written.
+        value: String,
+        /// What UDK's own parser (split at the first two commas, `atof` each) reads.
+        udk_reads: String,
+    },
+    /// A vector without exactly three components (missing ones read as 0, extra ones are
+    /// ignored).
+    BadVector {
+        /// The key.
+        key: String,
+        /// The value as written.
+        value: String,
+    },
+    /// A boolean not spelled exactly `true` (`{Normalized True}`): UDK compares
+    /// case-sensitively, so it reads as false.
+    BoolCase {
+        /// The key.
+        key: String,
+        /// The value as written.
+        value: String,
+    },
+    /// Several key/value pairs in one group (UT2004 layout).
+    GroupedPairs,
+}
+
+impl std::fmt::Display for Deviation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::ExtraWhitespace => f.write_str("extra whitespace"),
+            Self::MissingSpace => f.write_str("missing space before a brace"),
+            Self::TextOutsideGroups(t) => write!(f, "text outside braces ignored: {t:?}"),
+            Self::UnclosedGroup => f.write_str("unclosed brace"),
+            Self::CommandCase(w) => write!(f, "command word {w:?} not in upper case"),
+            Self::UnknownCommand(w) => write!(f, "unknown command {w:?} (ignored by udk)"),
+            Self::KeyCase { found, expected } => {
+                write!(f, "key {found:?} spelled differently from {expected:?}")
+            }
+            Self::UnknownKey(k) => write!(f, "unknown key {k:?} ignored"),
+            Self::DecimalComma { key, value } => {
+                write!(f, "decimal comma in {{{key} {value}}}")
+            }
+            Self::LeadingPlus { key, value } => write!(f, "leading plus in {{{key} {value}}}"),
+            Self::BadNumber { key, value } => {
+                write!(f, "bad number in {{{key} {value}}} read as 0")
+            }
+            Self::SpaceSeparatedVector { key, value } => {
+                write!(f, "space-separated vector in {{{key} {value}}}")
+            }
+            Self::AmbiguousVector {
+                key,
+                value,
+                udk_reads,
+            } => write!(
+                f,
+                "ambiguous vector {{{key} {value}}} read with decimal commas (udk reads {udk_reads})"
+            ),
+            Self::BadVector { key, value } => {
+                write!(f, "vector {{{key} {value}}} does not have 3 components")
+            }
+            Self::BoolCase { key, value } => {
+                write!(
+                    f,
+                    "{{{key} {value}}} is not exactly lower-case true: read as false"
+                )
+            }
+            Self::GroupedPairs => f.write_str("several pairs in one group"),
+        }
+    }
 }
 
 impl Message {
-    /// Parses one line (without its terminator) with the real server's tolerance.
+    /// Parses one line (without its terminator) with the real server's tolerance; groups may
+    /// hold several pairs (module docs). Fails only on an empty line.
     pub fn parse(line: &str) -> Result<Parsed<Self>, ParseError> {
-        let _ = line;
-        todo!("generic parser")
+        Self::parse_with(line, true)
+    }
+
+    /// Like [`Message::parse`], but every group is exactly one pair, split at its first
+    /// space: how the UDK server reads client commands.
+    pub fn parse_udk(line: &str) -> Result<Parsed<Self>, ParseError> {
+        Self::parse_with(line, false)
+    }
+
+    fn parse_with(line: &str, multi: bool) -> Result<Parsed<Self>, ParseError> {
+        let mut deviations = Vec::new();
+        let raw = Raw::parse(line, multi, &mut deviations)?;
+        Ok(Parsed {
+            message: raw.to_message(),
+            deviations,
+        })
+    }
+
+    /// The message word of a line: the text before the first `{`, trimmed (`SEN`).
+    pub fn word(line: &str) -> &str {
+        let end = line.find('{').unwrap_or(line.len());
+        trim_ws(&line[..end])
     }
 
     /// The value of the first pair whose key equals `key` case-insensitively.
@@ -66,10 +236,274 @@ impl Message {
             .find(|p| p.key.eq_ignore_ascii_case(key))
             .map(|p| p.value.as_str())
     }
+
+    /// Appends the canonical form: `KIND {k v} {k v k v}` (no terminator).
+    pub fn write_to(&self, out: &mut impl crate::format::WireBuf) {
+        out.push_text(&self.kind);
+        write_groups(out, &self.groups);
+    }
 }
 
-impl std::fmt::Display for Deviation {
+impl std::fmt::Display for Message {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{self:?}")
+        let mut s = String::new();
+        self.write_to(&mut s);
+        f.write_str(&s)
+    }
+}
+
+/// Appends ` {k v}` for every group (pairs of one group separated by spaces).
+pub(crate) fn write_groups(out: &mut impl crate::format::WireBuf, groups: &[Group]) {
+    for g in groups {
+        out.push_text(" {");
+        for (i, p) in g.pairs.iter().enumerate() {
+            if i > 0 {
+                out.push_text(" ");
+            }
+            out.push_text(&p.key);
+            if !p.value.is_empty() {
+                out.push_text(" ");
+                out.push_text(&p.value);
+            }
+        }
+        out.push_text("}");
+    }
+}
+
+/// One key/value pair borrowed from the line, with the index of its group.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RawPair<'a> {
+    pub(crate) key: &'a str,
+    pub(crate) value: &'a str,
+    pub(crate) group: usize,
+}
+
+/// A line split into its word and pairs, borrowing from the line (no allocation per pair).
+#[derive(Debug, Default)]
+pub(crate) struct Raw<'a> {
+    pub(crate) kind: &'a str,
+    pub(crate) pairs: Vec<RawPair<'a>>,
+}
+
+fn is_ws(c: char) -> bool {
+    matches!(c, ' ' | '\t' | '\r' | '\n')
+}
+
+fn trim_ws(s: &str) -> &str {
+    s.trim_matches(is_ws)
+}
+
+/// `is a word`: a letter, then letters, digits or `_`.
+fn is_word(s: &str) -> bool {
+    let mut chars = s.chars();
+    chars.next().is_some_and(|c| c.is_ascii_alphabetic())
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+/// Text up to the next `{` (or the end).
+fn till_brace(i: &str) -> IResult<&str, &str> {
+    take_till(|c| c == '{').parse(i)
+}
+
+/// `{content}` or an unclosed `{content`; returns the content and whether it was closed.
+fn group(i: &str) -> IResult<&str, (&str, bool)> {
+    preceded(char('{'), (take_till(|c| c == '}'), opt(char('}'))))
+        .map(|(body, close)| (body, close.is_some()))
+        .parse(i)
+}
+
+fn push_once(devs: &mut Vec<Deviation>, d: Deviation) {
+    if !devs.contains(&d) {
+        devs.push(d);
+    }
+}
+
+impl<'a> Raw<'a> {
+    /// Splits a line (see the module docs), recording whitespace-level deviations.
+    pub(crate) fn parse(
+        line: &'a str,
+        multi: bool,
+        devs: &mut Vec<Deviation>,
+    ) -> Result<Self, ParseError> {
+        let text = trim_ws(line);
+        if text.is_empty() {
+            return Err(ParseError::new("empty line"));
+        }
+        if text.len() != line.len() || text.contains("  ") {
+            push_once(devs, Deviation::ExtraWhitespace);
+        }
+        let (mut rest, kind) = till_brace(text).unwrap_or(("", text));
+        let mut raw = Self {
+            kind: trim_ws(kind),
+            pairs: Vec::with_capacity(8),
+        };
+        if !rest.is_empty() && !kind.ends_with(is_ws) {
+            push_once(devs, Deviation::MissingSpace);
+        }
+        let mut index = 0;
+        while let Ok((after, (body, closed))) = group(rest) {
+            if !closed {
+                push_once(devs, Deviation::UnclosedGroup);
+            }
+            raw.push_group(body, index, multi, devs);
+            index += 1;
+            let (next, between) = till_brace(after).unwrap_or(("", after));
+            let junk = trim_ws(between);
+            if !junk.is_empty() {
+                push_once(devs, Deviation::TextOutsideGroups(junk.to_owned()));
+            } else if between.is_empty() && !next.is_empty() {
+                push_once(devs, Deviation::MissingSpace);
+            }
+            rest = next;
+        }
+        Ok(raw)
+    }
+
+    fn push_group(&mut self, body: &'a str, group: usize, multi: bool, devs: &mut Vec<Deviation>) {
+        let content = trim_ws(body);
+        if content.len() != body.len() {
+            push_once(devs, Deviation::ExtraWhitespace);
+        }
+        if multi {
+            let mut tokens = content.split(is_ws).filter(|t| !t.is_empty());
+            let count = tokens.clone().count();
+            if count >= 4 && count % 2 == 0 && tokens.clone().step_by(2).all(is_word) {
+                push_once(devs, Deviation::GroupedPairs);
+                while let (Some(key), Some(value)) = (tokens.next(), tokens.next()) {
+                    self.pairs.push(RawPair { key, value, group });
+                }
+                return;
+            }
+        }
+        let (key, value) = content.split_once(is_ws).unwrap_or((content, ""));
+        self.pairs.push(RawPair {
+            key,
+            value: trim_ws(value),
+            group,
+        });
+    }
+
+    /// The owned model of the whole line.
+    pub(crate) fn to_message(&self) -> Message {
+        Message {
+            kind: self.kind.to_owned(),
+            groups: groups_of(&self.pairs),
+        }
+    }
+}
+
+/// Owned groups of a run of pairs (pairs with the same group index share a group).
+pub(crate) fn groups_of(pairs: &[RawPair<'_>]) -> Vec<Group> {
+    let mut groups: Vec<Group> = Vec::new();
+    let mut last = None;
+    for p in pairs {
+        let pair = Pair {
+            key: p.key.to_owned(),
+            value: p.value.to_owned(),
+        };
+        match groups.last_mut() {
+            Some(g) if last == Some(p.group) => g.pairs.push(pair),
+            _ => groups.push(Group { pairs: vec![pair] }),
+        }
+        last = Some(p.group);
+    }
+    groups
+}
+
+/// The one key lookup: the first pair whose key matches case-insensitively.
+pub(crate) fn find<'r, 'a>(pairs: &'r [RawPair<'a>], key: &str) -> Option<&'r RawPair<'a>> {
+    pairs.iter().find(|p| p.key.eq_ignore_ascii_case(key))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pairs(line: &str) -> (String, Vec<(String, String)>, Vec<Deviation>) {
+        let p = Message::parse(line).unwrap();
+        let kv = p
+            .message
+            .groups
+            .iter()
+            .flat_map(|g| g.pairs.iter())
+            .map(|p| (p.key.clone(), p.value.clone()))
+            .collect();
+        (p.message.kind, kv, p.deviations)
+    }
+
+    fn kv(items: &[(&str, &str)]) -> Vec<(String, String)> {
+        items
+            .iter()
+            .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
+            .collect()
+    }
+
+    #[test]
+    fn reads_the_dialects() {
+        let (kind, p, d) = pairs("Com1{BasMan Rulez} {Hello 2}");
+        assert_eq!(kind, "Com1");
+        assert_eq!(p, kv(&[("BasMan", "Rulez"), ("Hello", "2")]));
+        assert_eq!(d, vec![Deviation::MissingSpace]);
+
+        let (kind, p, d) =
+            pairs("Com2     {  WithWhitespaces      88     } {        More  whitespaces }    ");
+        assert_eq!(kind, "Com2");
+        assert_eq!(p, kv(&[("WithWhitespaces", "88"), ("More", "whitespaces")]));
+        assert_eq!(d, vec![Deviation::ExtraWhitespace]);
+
+        let (_, p, _) = pairs("GETSTARTPOSES");
+        assert!(p.is_empty());
+        let (_, p, _) = pairs("INIT {Location 0, 0, 0}{Name a b}");
+        assert_eq!(p, kv(&[("Location", "0, 0, 0"), ("Name", "a b")]));
+        let (_, p, d) = pairs("X {a 1} junk {b");
+        assert_eq!(p, kv(&[("a", "1"), ("b", "")]));
+        assert_eq!(
+            d,
+            vec![
+                Deviation::TextOutsideGroups("junk".into()),
+                Deviation::UnclosedGroup
+            ]
+        );
+    }
+
+    #[test]
+    fn splits_grouped_pairs_only_when_unambiguous() {
+        let (_, p, d) = pairs("SEN {Type Sonar} {Name F1 Range 4.4690} {Name F2 Range 1.9387}");
+        assert_eq!(
+            p,
+            kv(&[
+                ("Type", "Sonar"),
+                ("Name", "F1"),
+                ("Range", "4.4690"),
+                ("Name", "F2"),
+                ("Range", "1.9387")
+            ])
+        );
+        assert_eq!(d, vec![Deviation::GroupedPairs]);
+        let (_, p, _) = pairs("INIT {Location 0.0 0.0 1.0}");
+        assert_eq!(p, kv(&[("Location", "0.0 0.0 1.0")]));
+        let m = Message::parse_udk("SEN {Name F1 Range 4.4690}")
+            .unwrap()
+            .message;
+        assert_eq!(m.get("name"), Some("F1 Range 4.4690"));
+    }
+
+    #[test]
+    fn empty_line_is_an_error() {
+        assert_eq!(
+            Message::parse("  \r").unwrap_err().to_string(),
+            "empty line"
+        );
+    }
+
+    #[test]
+    fn prints_canonically() {
+        let m = Message::parse("Com1{BasMan Rulez}{On} {Name F1 Range 4.4690}")
+            .unwrap()
+            .message;
+        assert_eq!(
+            m.to_string(),
+            "Com1 {BasMan Rulez} {On} {Name F1 Range 4.4690}"
+        );
     }
 }

@@ -144,3 +144,437 @@ pub struct MisPkg {
     /// `{Order n}`.
     pub order: Option<i64>,
 }
+
+use super::line::Line;
+use crate::error::ParseError;
+use crate::format::WireBuf;
+use crate::message::{Deviation, Parsed, Raw, RawPair};
+use crate::value::{Lenient, lenient_f64, lenient_i64};
+
+/// The numeric DRIVE keys, in printing order (the order of the `Drive` fields).
+const DRIVE_NUMBERS: [&str; 13] = [
+    "AltitudeVelocity",
+    "LinearVelocity",
+    "LateralVelocity",
+    "RotationalVelocity",
+    "PitchAngle",
+    "RollAngle",
+    "Spin1",
+    "Spin2",
+    "Left",
+    "Right",
+    "Speed",
+    "FrontSteer",
+    "RearSteer",
+];
+
+impl Drive {
+    fn numbers(&self) -> [Option<f64>; 13] {
+        [
+            self.altitude_velocity,
+            self.linear_velocity,
+            self.lateral_velocity,
+            self.rotational_velocity,
+            self.pitch_angle,
+            self.roll_angle,
+            self.spin1,
+            self.spin2,
+            self.left,
+            self.right,
+            self.speed,
+            self.front_steer,
+            self.rear_steer,
+        ]
+    }
+
+    fn read(l: &mut Lenient<'_, '_>) -> Self {
+        let [
+            altitude_velocity,
+            linear_velocity,
+            lateral_velocity,
+            rotational_velocity,
+            pitch_angle,
+            roll_angle,
+            spin1,
+            spin2,
+            left,
+            right,
+            speed,
+            front_steer,
+            rear_steer,
+        ] = DRIVE_NUMBERS.map(|k| l.f64(k));
+        Self {
+            altitude_velocity,
+            linear_velocity,
+            lateral_velocity,
+            rotational_velocity,
+            pitch_angle,
+            roll_angle,
+            spin1,
+            spin2,
+            normalized: l.flag("Normalized"),
+            left,
+            right,
+            speed,
+            front_steer,
+            rear_steer,
+            light: l.flag("Light"),
+        }
+    }
+}
+
+/// `{Link i} {Value f}` pairs in line order (a `Value` before any `Link` gets link 0).
+fn read_links(pairs: &[RawPair<'_>], devs: &mut Vec<Deviation>) -> Vec<LinkValue> {
+    let mut links = Vec::new();
+    let mut link = 0;
+    for p in pairs {
+        if p.key.eq_ignore_ascii_case("Link") {
+            link = lenient_i64("Link", p.value, devs);
+        } else if p.key.eq_ignore_ascii_case("Value") {
+            let value = lenient_f64("Value", p.value, devs);
+            links.push(LinkValue { link, value });
+        }
+    }
+    links
+}
+
+fn write_links<B: WireBuf>(w: &mut Line<'_, B>, links: &[LinkValue]) {
+    for l in links {
+        w.int("Link", l.link).num("Value", l.value);
+    }
+}
+
+impl Command {
+    /// Parses a client line leniently, as the UDK server would read it: never fails except
+    /// on an empty line; what was tolerated is in [`Parsed::deviations`]. Unknown command
+    /// words give [`Command::Other`].
+    ///
+    /// ```
+    /// use usar_proto::{Command, Deviation};
+    /// let p = Command::parse("drive {LinearVelocity +1,5}").unwrap();
+    /// let Command::Drive(d) = &p.message else { panic!() };
+    /// assert_eq!(d.linear_velocity, Some(1.5));
+    /// assert_eq!(p.deviations[0], Deviation::CommandCase("drive".into()));
+    /// assert_eq!(p.message.to_string(), "DRIVE {LinearVelocity 1.5}");
+    /// ```
+    pub fn parse(line: &str) -> Result<Parsed<Self>, ParseError> {
+        let mut devs = Vec::new();
+        let raw = Raw::parse(line, false, &mut devs)?;
+        let word = raw.kind;
+        if word.bytes().any(|b| b.is_ascii_lowercase()) {
+            devs.push(Deviation::CommandCase(word.to_owned()));
+        }
+        let mut l = Lenient {
+            pairs: &raw.pairs,
+            devs,
+        };
+        let is = |w: &str| word.eq_ignore_ascii_case(w);
+        let (message, known): (Self, &[&str]) = if is("INIT") {
+            let init = Init {
+                class_name: l.string("ClassName").unwrap_or_default(),
+                name: l.string("Name"),
+                location: l.vec3("Location"),
+                rotation: l.vec3("Rotation"),
+                start: l.string("Start"),
+            };
+            let known = &["ClassName", "Name", "Location", "Rotation", "Start"];
+            (Self::Init(init), known)
+        } else if is("DRIVE") {
+            let drive = Drive::read(&mut l);
+            const KNOWN: [&str; 15] = [
+                "AltitudeVelocity",
+                "LinearVelocity",
+                "LateralVelocity",
+                "RotationalVelocity",
+                "PitchAngle",
+                "RollAngle",
+                "Spin1",
+                "Spin2",
+                "Left",
+                "Right",
+                "Speed",
+                "FrontSteer",
+                "RearSteer",
+                "Normalized",
+                "Light",
+            ];
+            (Self::Drive(drive), &KNOWN)
+        } else if is("GETSTARTPOSES") {
+            (Self::GetStartPoses, &[])
+        } else if is("GETCONF") || is("GETGEO") {
+            let q = ItemQuery {
+                kind: l.string("Type").unwrap_or_default(),
+                name: l.string("Name"),
+            };
+            let m = if is("GETCONF") {
+                Self::GetConf(q)
+            } else {
+                Self::GetGeo(q)
+            };
+            (m, &["Type", "Name"])
+        } else if is("SET") {
+            let set = Set {
+                kind: l.string("Type").unwrap_or_default(),
+                name: l.string("Name"),
+                opcode: l.string("Opcode").unwrap_or_default(),
+                params: l.string("Params"),
+            };
+            (Self::Set(set), &["Type", "Name", "Opcode", "Params"])
+        } else if is("ACT") {
+            let act = Act {
+                name: l.string("Name").unwrap_or_default(),
+                links: read_links(l.pairs, &mut l.devs),
+                gripper: l.i64("Gripper"),
+                sequence: l.i64("Sequence"),
+            };
+            (
+                Self::Act(act),
+                &["Name", "Link", "Value", "Gripper", "Sequence"],
+            )
+        } else if is("MISPKG") {
+            let mis = MisPkg {
+                name: l.string("Name").unwrap_or_default(),
+                links: read_links(l.pairs, &mut l.devs),
+                order: l.i64("Order"),
+            };
+            (Self::MisPkg(mis), &["Name", "Link", "Value", "Order"])
+        } else {
+            l.devs.push(Deviation::UnknownCommand(word.to_owned()));
+            (Self::Other(raw.to_message()), &[])
+        };
+        let mut deviations = if matches!(message, Self::Other(_)) {
+            l.devs
+        } else {
+            l.finish(known)
+        };
+        let mut seen = Vec::with_capacity(deviations.len());
+        deviations.retain(|d| {
+            let new = !seen.contains(d);
+            seen.push(d.clone());
+            new
+        });
+        Ok(Parsed {
+            message,
+            deviations,
+        })
+    }
+
+    /// Appends the canonical wire form, without the line terminator. Numbers use Rust's
+    /// shortest round-trip form, so `Command::parse` gives the same command back.
+    pub fn write_to(&self, out: &mut impl WireBuf) {
+        match self {
+            Self::Init(i) => {
+                let mut w = Line::new(out, "INIT");
+                w.text("ClassName", &i.class_name);
+                if let Some(n) = &i.name {
+                    w.text("Name", n);
+                }
+                if let Some(v) = i.location {
+                    w.vec("Location", v);
+                }
+                if let Some(v) = i.rotation {
+                    w.vec("Rotation", v);
+                }
+                if let Some(s) = &i.start {
+                    w.text("Start", s);
+                }
+            }
+            Self::Drive(d) => {
+                let mut w = Line::new(out, "DRIVE");
+                for (key, v) in DRIVE_NUMBERS.iter().zip(d.numbers()) {
+                    if let Some(v) = v {
+                        w.num(key, v);
+                    }
+                }
+                if let Some(b) = d.light {
+                    w.text("Light", if b { "true" } else { "false" });
+                }
+                if let Some(b) = d.normalized {
+                    w.text("Normalized", if b { "true" } else { "false" });
+                }
+            }
+            Self::GetStartPoses => out.push_text("GETSTARTPOSES"),
+            Self::GetConf(q) | Self::GetGeo(q) => {
+                let word = if matches!(self, Self::GetConf(_)) {
+                    "GETCONF"
+                } else {
+                    "GETGEO"
+                };
+                let mut w = Line::new(out, word);
+                w.text("Type", &q.kind);
+                if let Some(n) = &q.name {
+                    w.text("Name", n);
+                }
+            }
+            Self::Set(s) => {
+                let mut w = Line::new(out, "SET");
+                w.text("Type", &s.kind);
+                if let Some(n) = &s.name {
+                    w.text("Name", n);
+                }
+                w.text("Opcode", &s.opcode);
+                if let Some(p) = &s.params {
+                    w.text("Params", p);
+                }
+            }
+            Self::Act(a) => {
+                let mut w = Line::new(out, "ACT");
+                w.text("Name", &a.name);
+                write_links(&mut w, &a.links);
+                if let Some(g) = a.gripper {
+                    w.int("Gripper", g);
+                }
+                if let Some(s) = a.sequence {
+                    w.int("Sequence", s);
+                }
+            }
+            Self::MisPkg(m) => {
+                let mut w = Line::new(out, "MISPKG");
+                w.text("Name", &m.name);
+                write_links(&mut w, &m.links);
+                if let Some(o) = m.order {
+                    w.int("Order", o);
+                }
+            }
+            Self::Other(m) => m.write_to(out),
+        }
+    }
+
+    /// Appends the wire form and `\r\n` (for batching several lines into one write).
+    pub fn write_line(&self, out: &mut impl WireBuf) {
+        self.write_to(out);
+        out.push_text("\r\n");
+    }
+}
+
+impl std::fmt::Display for Command {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut s = String::new();
+        self.write_to(&mut s);
+        f.write_str(&s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cmd(line: &str) -> (Command, Vec<Deviation>) {
+        let p = Command::parse(line).unwrap();
+        (p.message, p.deviations)
+    }
+
+    #[test]
+    fn init_with_location_and_start() {
+        let (c, d) = cmd(
+            "INIT {ClassName USARBot.pioneer3at_with_sensors}{Name p3}{Location 1,-1,0}{Rotation 0,0,0}{Battery 3600}",
+        );
+        assert_eq!(
+            c,
+            Command::Init(Init {
+                class_name: "USARBot.pioneer3at_with_sensors".into(),
+                name: Some("p3".into()),
+                location: Some(Vec3::new(1.0, -1.0, 0.0)),
+                rotation: Some(Vec3::new(0.0, 0.0, 0.0)),
+                start: None,
+            })
+        );
+        assert_eq!(
+            d,
+            vec![
+                Deviation::MissingSpace,
+                Deviation::UnknownKey("Battery".into())
+            ]
+        );
+        assert_eq!(
+            c.to_string(),
+            "INIT {ClassName USARBot.pioneer3at_with_sensors} {Name p3} {Location 1,-1,0} {Rotation 0,0,0}"
+        );
+        let (c, _) = cmd("INIT {ClassName USARBot.stsAirRobot} {Name UAV1} {Start Point1}");
+        assert_eq!(
+            c.to_string(),
+            "INIT {ClassName USARBot.stsAirRobot} {Name UAV1} {Start Point1}"
+        );
+    }
+
+    #[test]
+    fn drive_keys_any_case_and_normalized() {
+        let (c, d) = cmd("DRIVE {RIGHT 1.0} {LEFT 1.0}");
+        let Command::Drive(drive) = &c else {
+            panic!("{c:?}")
+        };
+        assert_eq!((drive.left, drive.right), (Some(1.0), Some(1.0)));
+        assert_eq!(
+            d[0],
+            Deviation::KeyCase {
+                found: "LEFT".into(),
+                expected: "Left".into()
+            }
+        );
+        let (c, d) = cmd(
+            "DRIVE {AltitudeVelocity 1} {LinearVelocity 0} {LateralVelocity 0} {RotationalVelocity 56} {PitchAngle 5} {RollAngle -5} {Spin1 7} {Spin2 7} {Normalized True}",
+        );
+        let Command::Drive(drive) = &c else {
+            panic!("{c:?}")
+        };
+        assert_eq!(drive.normalized, Some(false));
+        assert_eq!(drive.rotational_velocity, Some(56.0));
+        assert_eq!(drive.pitch_angle, Some(5.0));
+        assert_eq!(drive.spin2, Some(7.0));
+        assert_eq!(
+            d,
+            vec![Deviation::BoolCase {
+                key: "Normalized".into(),
+                value: "True".into()
+            }]
+        );
+        assert_eq!(
+            c.to_string(),
+            "DRIVE {AltitudeVelocity 1} {LinearVelocity 0} {LateralVelocity 0} {RotationalVelocity 56} {PitchAngle 5} {RollAngle -5} {Spin1 7} {Spin2 7} {Normalized false}"
+        );
+    }
+
+    #[test]
+    fn other_commands() {
+        assert_eq!(cmd("GETSTARTPOSES").0, Command::GetStartPoses);
+        assert_eq!(
+            cmd("GETGEO {Type Camera} ").0,
+            Command::GetGeo(ItemQuery {
+                kind: "Camera".into(),
+                name: None
+            })
+        );
+        let (c, _) = cmd("SET {Type Camera} {Name cams} {Opcode Zoom} {Params 0.5}");
+        assert_eq!(
+            c.to_string(),
+            "SET {Type Camera} {Name cams} {Opcode Zoom} {Params 0.5}"
+        );
+        let (c, _) = cmd("ACT {Name cam} {Link 0} {Value 0.5} {Link 1} {Value -1}");
+        assert_eq!(
+            c,
+            Command::Act(Act {
+                name: "cam".into(),
+                links: vec![
+                    LinkValue {
+                        link: 0,
+                        value: 0.5
+                    },
+                    LinkValue {
+                        link: 1,
+                        value: -1.0
+                    }
+                ],
+                gripper: None,
+                sequence: None
+            })
+        );
+        let (c, _) = cmd("MISPKG {Name cam} {Link 1} {Value 0.2} {Order 0}");
+        assert_eq!(
+            c.to_string(),
+            "MISPKG {Name cam} {Link 1} {Value 0.2} {Order 0}"
+        );
+        let (c, d) = cmd("MULTIDRIVE {FRFlipper 1.5}{FLflipper 1.5}");
+        assert_eq!(c.to_string(), "MULTIDRIVE {FRFlipper 1.5} {FLflipper 1.5}");
+        assert!(d.contains(&Deviation::UnknownCommand("MULTIDRIVE".into())));
+    }
+}

@@ -82,7 +82,7 @@ pub(super) fn game_info(world: &World) -> Bytes {
 /// The lockstep reply `SYNC {Time t}`.
 fn sync_reply(time: f64) -> ServerMessage {
     let mut value = String::new();
-    format::ue_float(time, &mut value);
+    format::push_fixed(&mut value, time, 4);
     ServerMessage::Other(Message {
         kind: "SYNC".into(),
         groups: vec![Group {
