@@ -86,17 +86,23 @@ async fn unknown_class_spawns_nothing_and_keeps_the_connection() {
 
 /// Drives with `command` from a fresh spawn and returns the rate of change (per simulated
 /// second) measured by `probe` over two simulated seconds of motion.
-async fn rate_during(command: &str, probe: fn(&ServerMessage) -> Option<(f64, f64)>) -> f64 {
+async fn rate_during(
+    command: &str,
+    window: f64,
+    probe: fn(&ServerMessage) -> Option<(f64, f64)>,
+) -> f64 {
     let server = TestServer::start().await;
     let mut c = server.client().await;
     let start = first_start(&mut c).await;
     c.spawn_at([start.location.x, start.location.y, start.location.z], 0.0)
         .await;
     c.send(command).await;
-    // Skip a little so the command is surely applied, then measure over 2 s.
+    // Skip a little so the command is surely applied, then measure over `window` seconds.
     let (t0, _) = c.until(probe).await;
     let (t1, v1) = c.until(|m| probe(m).filter(|(t, _)| *t >= t0 + 0.25)).await;
-    let (t2, v2) = c.until(|m| probe(m).filter(|(t, _)| *t >= t1 + 2.0)).await;
+    let (t2, v2) = c
+        .until(|m| probe(m).filter(|(t, _)| *t >= t1 + window))
+        .await;
     server.stop().await;
     (v2 - v1) / (t2 - t1)
 }
@@ -133,27 +139,45 @@ fn yaw(m: &ServerMessage) -> Option<(f64, f64)> {
 
 #[tokio::test]
 async fn linear_velocity_moves_along_the_heading() {
-    let v = rate_during("DRIVE {LinearVelocity 1}", x_position).await;
+    let v = rate_during("DRIVE {LinearVelocity 1}", 2.0, x_position).await;
     assert!((v - 1.0).abs() <= 0.05, "moved at {v} m/s");
 }
 
 #[tokio::test]
 async fn rotational_velocity_is_whole_degrees_per_second() {
-    let w = rate_during("DRIVE {RotationalVelocity 45}", yaw).await;
+    let w = rate_during("DRIVE {RotationalVelocity 45}", 2.0, yaw).await;
     assert!(
         (w.to_degrees() - 45.0).abs() <= 45.0 * 0.05,
         "turned at {} deg/s",
         w.to_degrees()
     );
-    let w = rate_during("DRIVE {RotationalVelocity 0.5}", yaw).await;
+    let w = rate_during("DRIVE {RotationalVelocity 0.5}", 2.0, yaw).await;
     assert_eq!(w, 0.0, "0.5 deg/s truncates to no rotation");
 }
 
 #[tokio::test]
 async fn normalized_altitude_velocity_climbs_at_two_metres_per_second() {
-    // z is down in the protocol frame: climbing makes z smaller.
-    let v = rate_during("DRIVE {AltitudeVelocity 100} {Normalized true}", z_position).await;
+    // z is down in the protocol frame: climbing makes z smaller. One second keeps the UAV
+    // below the ceiling (the default start has at least 3 m above it).
+    let v = rate_during(
+        "DRIVE {AltitudeVelocity 100} {Normalized true}",
+        1.0,
+        z_position,
+    )
+    .await;
     assert!((v + 2.0).abs() <= 0.1, "climbed at {} m/s", -v);
+}
+
+/// The range of sonar `name` in `m`, if `m` is such a reading taken after `since`.
+fn sonar_after(m: &ServerMessage, name: &str, since: f64) -> Option<f64> {
+    let ServerMessage::Sen(s) = m else {
+        return None;
+    };
+    let SenData::Sonar { readings, .. } = &s.data else {
+        return None;
+    };
+    let r = readings.iter().find(|r| r.name == name)?;
+    (s.time?.seconds > since).then_some(r.range)
 }
 
 #[tokio::test]
@@ -167,11 +191,12 @@ async fn two_robots_see_each_other_in_their_sonars() {
     b.raw_line().await.unwrap();
     // b 2 m in front of a, facing it.
     b.spawn_at([x + 2.0, y, z], std::f64::consts::PI).await;
-    let (_, ra) = a.sonar("Sonar0").await;
-    let (_, rb) = b.sonar("Sonar0").await;
+    let (since, _) = b.position().await;
+    let ra = a.until(|m| sonar_after(m, "Sonar0", since)).await;
+    let rb = b.until(|m| sonar_after(m, "Sonar0", since)).await;
     assert!(ra < 2.0 && ra > 1.0, "a's front sonar reads {ra}");
     assert!(rb < 2.0 && rb > 1.0, "b's front sonar reads {rb}");
-    let (_, back) = a.sonar("Sonar4").await;
+    let back = a.until(|m| sonar_after(m, "Sonar4", since)).await;
     assert!(back > 2.0, "a's back sonar sees free space: {back}");
     server.stop().await;
 }
@@ -319,5 +344,115 @@ async fn every_sensor_reports_at_its_interval_in_its_exact_format() {
         );
     }
     assert_eq!(counts.len(), expected.len(), "unexpected parts: {counts:?}");
+    server.stop().await;
+}
+
+/// A server on the empty room (20 m square, inner wall faces at x, y = ±10, floor z = 0,
+/// ceiling z = -5), 10× real time.
+async fn empty_room() -> TestServer {
+    TestServer::with(usar_server::ServerConfig {
+        map: usar_server::sim::map::Map::embedded("empty_room").unwrap(),
+        time_scale: usar_server::TimeScale::Factor(10.0),
+        ..usar_server::ServerConfig::default()
+    })
+    .await
+}
+
+#[tokio::test]
+async fn a_sonar_facing_a_wall_reads_its_distance() {
+    let server = empty_room().await;
+    let mut c = server.client().await;
+    c.raw_line().await.unwrap();
+    // Facing north, 3 m from the wall; Sonar0 sits 0.4 m forward of the centre.
+    c.spawn_at([7.0, 0.0, -1.0], 0.0).await;
+    let (_, range) = c.sonar("Sonar0").await;
+    assert!((range - 2.6).abs() <= 0.01, "Sonar0 reads {range}");
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn the_first_laser_beam_looks_right() {
+    let server = empty_room().await;
+    let mut c = server.client().await;
+    c.raw_line().await.unwrap();
+    // Facing north, the east wall 2 m to the right, the west wall 18 m to the left.
+    c.spawn_at([0.0, 8.0, -1.0], 0.0).await;
+    let ranges = c.scan().await;
+    // Beam 0 points 120° clockwise from the heading: it meets the east wall after
+    // 2 / sin(120°) = 2.309 m. The last beam looks left, where nothing is within 4 m.
+    let expected = 2.0 / (2.0945f64).sin();
+    assert!(
+        (ranges[0] - expected).abs() <= 0.02,
+        "beam 0 reads {}",
+        ranges[0]
+    );
+    assert_eq!(*ranges.last().unwrap(), 4.0, "the last beam sees nothing");
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn a_uav_driven_into_a_wall_stops_in_front_of_it() {
+    let server = empty_room().await;
+    let mut c = server.client().await;
+    c.raw_line().await.unwrap();
+    c.spawn_at([7.0, 0.0, -1.0], 0.0).await;
+    c.send("DRIVE {LinearVelocity 2}").await;
+    let (t0, _) = c.position().await;
+    // 3 m to the wall at 2 m/s: after 3 s it has long arrived, and stays.
+    let (_, p) = c
+        .until(|m| match m {
+            ServerMessage::Sen(s) => match &s.data {
+                SenData::Position { location, .. } if s.time?.seconds >= t0 + 3.0 => {
+                    Some((0.0, *location))
+                }
+                _ => None,
+            },
+            _ => None,
+        })
+        .await;
+    // The UAV's collision radius is 0.45 m: it stops with its edge at the wall.
+    assert!(
+        p.x < 10.0 - 0.45 && p.x > 10.0 - 0.5,
+        "stopped at x = {}",
+        p.x
+    );
+    assert!(p.y.abs() < 0.01, "drifted sideways to y = {}", p.y);
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn an_empty_battery_leaves_only_sta() {
+    let mut robots = usar_server::sim::robots::RobotCatalog::embedded();
+    robots.get_mut("USARBot.stsAirRobot").unwrap().battery = Some(2.0);
+    let server = TestServer::with(usar_server::ServerConfig {
+        robots,
+        time_scale: usar_server::TimeScale::Factor(10.0),
+        ..usar_server::ServerConfig::default()
+    })
+    .await;
+    let mut c = server.client().await;
+    let start = first_start(&mut c).await;
+    c.spawn_at([start.location.x, start.location.y, start.location.z], 0.0)
+        .await;
+    let empty_at = c
+        .until(|m| match m {
+            ServerMessage::Sta(s) if s.battery == 0 => Some(s.time.seconds),
+            _ => None,
+        })
+        .await;
+    assert!((empty_at - 2.0).abs() < 0.15, "battery empty at {empty_at}");
+    c.send("GETCONF {Type Robot}").await;
+    c.send("DRIVE {LinearVelocity 1}").await;
+    let mut stas = 0;
+    while stas < 10 {
+        let (line, m) = c.message().await;
+        match m {
+            ServerMessage::Sta(s) => {
+                assert_eq!(s.battery, 0, "{line}");
+                stas += 1;
+            }
+            _ => panic!("only STA after the battery is empty, got {line}"),
+        }
+    }
     server.stop().await;
 }
