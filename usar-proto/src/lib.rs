@@ -10,7 +10,7 @@
 //! * [`format`]: the engine's number formatters (implicit float, implicit vector,
 //!   `FloatString`) writing into any [`format::WireBuf`];
 //! * [`codec`] (feature `codec`): the tokio-util line codecs shared by server and client;
-//! * [`error`]: [`ParseError`].
+//! * [`error`]: the crate-edge error, [`ParseError`].
 //!
 //! ```
 //! use usar_proto::{SenData, ServerMessage};

@@ -446,7 +446,7 @@ mod tests {
     #[test]
     fn imu_and_sts_sensors() {
         let (t, d) = data(
-            "SEN {Time 3843.9387} {Type IMU} {Name IMU} {XYZAcceleration 0.0000,0.0000,-0.0000} {AngularVel 0.0000,0.0000,0.0000} {AngularAccel 0.0000,0.0000,0.0000} {Rotation 0.0000,0.0000,1.5707}",
+            "SEN {Time 3843.9387} {Type IMU} {Name IMU} {XYZAcceleration 0.0000,0.0000,-0.0000} {AngularVel 0.0000,0.0000,0.0000} {AngularAccel 0.0000,0.0000,0.0000} {Rotation 0.0000,0.0000,1.2500}",
         );
         assert_eq!(t, Some(Time::udk(3843.9387)));
         let SenData::Imu {
@@ -458,7 +458,7 @@ mod tests {
             panic!()
         };
         assert!(acceleration.z.is_sign_negative());
-        assert_eq!(rotation, Vec3::new(0.0, 0.0, 1.5707));
+        assert_eq!(rotation, Vec3::new(0.0, 0.0, 1.25));
         let (_, d) = data(
             "SEN {Time 12.3456} {Type Position} {Name Position} {Location 1.5000,-2.0000,-3.2500}",
         );
