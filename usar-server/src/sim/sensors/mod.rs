@@ -156,6 +156,20 @@ pub(crate) fn f32ish(v: f64) -> f64 {
     f64::from(v as f32)
 }
 
+/// Unreal rotation units per radian (`C_AngleToURot`).
+pub(crate) const URU_PER_RAD: f32 = 10_430.378;
+
+/// An angle the engine stores in whole rotation units: `int(rad · 10430.378)`, in f32.
+pub(crate) fn to_uu(rad: f64) -> i32 {
+    (rad as f32 * URU_PER_RAD) as i32
+}
+
+/// An angle as the engine reports it after storing it in whole rotation units
+/// (`{beamAngle 0.3489}` for 0.349, `{Resolution 0.0184}` for the Hokuyo).
+pub(crate) fn from_uu(uu: i32) -> f64 {
+    f64::from(uu as f32 / URU_PER_RAD)
+}
+
 #[cfg(test)]
 pub(crate) mod testing {
     //! A box at a known distance, and a reading next to it.

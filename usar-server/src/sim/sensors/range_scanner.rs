@@ -5,13 +5,12 @@
 use serde::Deserialize;
 use usar_proto::{ConfItem, Scan, SenData};
 
-use super::{Reading, Sensor, f32ish, settings};
+use super::{Reading, Sensor, f32ish, from_uu, settings, to_uu};
 use crate::sim::noise::Noise;
 use crate::sim::robots::PartConfig;
 use crate::sim::scene::direction;
 
 /// Unreal rotation units per radian (`C_AngleToURot`).
-const URU_PER_RAD: f32 = 10_430.378;
 
 /// Scanner settings (defaults: `[USARSensor.RangeScanner]`; the Hokuyo sets fov 4.189,
 /// resolution 0.0184086914, interval 0.3).
@@ -59,8 +58,8 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
             part.name
         ));
     }
-    let fov_uu = (config.fov as f32 * URU_PER_RAD) as i32;
-    let res_uu = (config.resolution as f32 * URU_PER_RAD) as i32;
+    let fov_uu = to_uu(config.fov);
+    let res_uu = to_uu(config.resolution);
     if !(1..=65_536).contains(&fov_uu) || !(1..=fov_uu).contains(&res_uu) {
         return Err(format!(
             "part `{}`: need 0 < resolution <= fov <= 2π",
@@ -70,11 +69,11 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
     let beams = (0..)
         .map(|k| fov_uu / 2 - k * res_uu)
         .take_while(|&uu| uu >= -fov_uu / 2)
-        .map(|uu| f64::from(uu as f32 / URU_PER_RAD))
+        .map(from_uu)
         .collect();
     Ok(Box::new(RangeScanner {
-        resolution: f64::from(res_uu as f32 / URU_PER_RAD),
-        fov: f64::from(fov_uu as f32 / URU_PER_RAD),
+        resolution: from_uu(res_uu),
+        fov: from_uu(fov_uu),
         config,
         beams,
     }))

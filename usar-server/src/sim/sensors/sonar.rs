@@ -3,7 +3,7 @@
 use serde::Deserialize;
 use usar_proto::{ConfItem, NamedRange, SenData};
 
-use super::{Reading, Sensor, f32ish, settings};
+use super::{Reading, Sensor, f32ish, from_uu, settings, to_uu};
 use crate::sim::noise::Noise;
 use crate::sim::robots::PartConfig;
 use crate::sim::scene::direction;
@@ -108,7 +108,9 @@ impl Sensor for Sonar {
             max_range: f32ish(self.config.max_range),
             min_range: f32ish(self.config.min_range),
             scan_interval: f32ish(interval),
-            beam_angle: f32ish(self.config.beam_angle),
+            // The engine keeps the cone angle in rotation units (→ `0.3489`), the incidence
+            // limit as a float (→ `0.1745`).
+            beam_angle: from_uu(to_uu(self.config.beam_angle)),
             max_angle_of_incidence: f32ish(self.config.max_angle_of_incidence),
             traces_per_cone: i64::from(self.config.traces_per_cone),
             number_of_cones: i64::from(self.config.number_of_cones),
@@ -170,18 +172,18 @@ mod tests {
     }
 
     #[test]
-    fn conf_uses_engine_floats() {
+    fn conf_prints_what_the_engine_printed() {
         let sonar = make("Sonar", "");
-        let ConfItem::Sonar {
-            beam_angle,
-            scan_interval,
-            ..
-        } = sonar.conf("S", 0.2)
-        else {
-            panic!("not a sonar conf");
-        };
-        assert_eq!(beam_angle, f64::from(0.349f32));
-        assert_eq!(scan_interval, f64::from(0.2f32));
+        let conf = usar_proto::ServerMessage::Conf(usar_proto::Conf::Items {
+            kind: "Sonar".into(),
+            items: vec![sonar.conf("S", 0.2)],
+        });
+        // protocol.md §3.4: the default sonar's CONF.
+        assert_eq!(
+            conf.to_string(),
+            "CONF {Type Sonar} {Name S} {MaxRange 5.0000} {MinRange 0.1000} {ScanInterval 0.2000} \
+             {beamAngle 0.3489} {maxAngleOfIncidence 0.1745} {tracesPerCone 16} {numberOfCones 10}"
+        );
     }
 
     #[test]
