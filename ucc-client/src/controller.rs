@@ -643,14 +643,13 @@ impl Flight {
 
     /// Adds the latest position to the trajectory when it is new.
     fn record(&mut self, uav: &UavState) {
-        if let Some(point) = TrajectoryPoint::of(uav) {
-            if self
+        if let Some(point) = TrajectoryPoint::of(uav)
+            && self
                 .trajectory
                 .last()
                 .is_none_or(|last| last.time < point.time)
-            {
-                self.trajectory.push(point);
-            }
+        {
+            self.trajectory.push(point);
         }
     }
 

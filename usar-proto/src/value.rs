@@ -70,11 +70,11 @@ pub(crate) fn lenient_f64(key: &str, value: &str, devs: &mut Vec<Deviation>) -> 
     if let Some(v) = number(t) {
         return v;
     }
-    if t.matches(',').count() == 1 {
-        if let Some(v) = number(&t.replacen(',', ".", 1)) {
-            devs.push(dev(|key, value| Deviation::DecimalComma { key, value }));
-            return v;
-        }
+    if t.matches(',').count() == 1
+        && let Some(v) = number(&t.replacen(',', ".", 1))
+    {
+        devs.push(dev(|key, value| Deviation::DecimalComma { key, value }));
+        return v;
     }
     devs.push(dev(|key, value| Deviation::BadNumber { key, value }));
     0.0

@@ -183,10 +183,10 @@ impl Agent for Avoid {
 
     fn step(&mut self, uav: &UavState, time: f64) -> Step {
         let mut step = self.base.step(uav, time);
-        if let Some(command) = step.command.filter(|_| !step.all_done) {
-            if command != SpeedCommand::STOP {
-                step.command = Some(self.adjust(command, uav, &mut step));
-            }
+        if let Some(command) = step.command.filter(|_| !step.all_done)
+            && command != SpeedCommand::STOP
+        {
+            step.command = Some(self.adjust(command, uav, &mut step));
         }
         step
     }

@@ -140,7 +140,7 @@ impl ConfItem {
     fn read(r: &Reader<'_, '_>) -> Result<Self, ParseError> {
         let name = || r.string("Name");
         let joints = r.pairs.len() > 1
-            && (r.pairs.len() - 1) % JOINT.len() == 0
+            && (r.pairs.len() - 1).is_multiple_of(JOINT.len())
             && r.pairs[1..]
                 .chunks(JOINT.len())
                 .all(|c| r.sub("", c).keys_are(JOINT));

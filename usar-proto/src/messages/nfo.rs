@@ -51,7 +51,7 @@ impl Nfo {
             .flat_map(|p| std::iter::once(p.key).chain(p.value.split_whitespace()))
             .filter(|t| !t.is_empty())
             .collect();
-        if tokens.len() % 3 != 0 {
+        if !tokens.len().is_multiple_of(3) {
             return Err(rest.error("expected name, location and rotation for each pose"));
         }
         let poses = tokens

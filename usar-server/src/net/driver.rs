@@ -50,7 +50,7 @@ pub(super) enum Request {
     /// A command read from a connection, with its text when recording.
     Command {
         client: ClientId,
-        command: Command,
+        command: Box<Command>,
         line: Option<String>,
     },
     /// A lockstep barrier: `SYNC {Time t}`.
@@ -321,7 +321,7 @@ impl Driver {
                 line,
             } => {
                 self.record_client_line(client, line.as_deref());
-                let replies = self.world.command(client, command);
+                let replies = self.world.command(client, *command);
                 let time = self.world.time();
                 if let Some(c) = self.clients.get_mut(&client) {
                     for reply in &replies {

@@ -133,7 +133,7 @@ fn read_request(client: ClientId, line: String, peer: SocketAddr, record: bool) 
             }
             Request::Command {
                 client,
-                command,
+                command: Box::new(command),
                 line: text,
             }
         }

@@ -10,8 +10,6 @@ use crate::sim::noise::Noise;
 use crate::sim::robots::PartConfig;
 use crate::sim::scene::direction;
 
-/// Unreal rotation units per radian (`C_AngleToURot`).
-
 /// Scanner settings (defaults: `[USARSensor.RangeScanner]`; the Hokuyo sets fov 4.189,
 /// resolution 0.0184086914, interval 0.3).
 #[derive(Debug, Clone, Deserialize)]
