@@ -632,7 +632,8 @@ fn getconf_and_getgeo() {
             max_range: 5.0,
             min_range: f64::from(0.1f32),
             scan_interval: f64::from(0.2f32),
-            beam_angle: f64::from(0.349f32),
+            // Through whole rotation units, as the engine: 3640 / 10430.378.
+            beam_angle: f64::from(3640f32 / 10_430.378),
             max_angle_of_incidence: f64::from(0.174_532_925_2_f64 as f32),
             traces_per_cone: 16,
             number_of_cones: 10,
