@@ -364,7 +364,6 @@ mod tests {
     }
 
     #[tokio::test]
-    #[ignore = "needs usar-proto parser and printer"]
     async fn reads_messages_and_sends_commands() {
         use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
