@@ -52,14 +52,17 @@ impl SpeedCommand {
     }
 
     /// The normalized DRIVE message:
-    /// `DRIVE {AltitudeVelocity up} {LinearVelocity forward} {LateralVelocity right} {RotationalVelocity yaw} {Normalized true}`.
+    /// `DRIVE {AltitudeVelocity up} {LinearVelocity forward} {LateralVelocity right} {RotationalVelocity yaw} {Normalized true}`,
+    /// each percentage rounded to 0.01 (a readable line; finer steps are below what the
+    /// server resolves).
     pub fn to_drive(self) -> Drive {
         let c = self.clamped();
+        let percent = |v: f64| (v * 100.0).round() / 100.0 + 0.0; // + 0.0: no "-0"
         Drive {
-            altitude_velocity: Some(c.up),
-            linear_velocity: Some(c.forward),
-            lateral_velocity: Some(c.right),
-            rotational_velocity: Some(c.yaw),
+            altitude_velocity: Some(percent(c.up)),
+            linear_velocity: Some(percent(c.forward)),
+            lateral_velocity: Some(percent(c.right)),
+            rotational_velocity: Some(percent(c.yaw)),
             normalized: Some(true),
             ..Drive::default()
         }

@@ -9,7 +9,6 @@
 use std::collections::VecDeque;
 use std::io::Write;
 use std::path::Path;
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::net::TcpStream;
@@ -64,7 +63,9 @@ pub enum ConnectionError {
     },
 }
 
-/// A recording of one connection, shared by the reader task and the writer.
+/// A recording of one connection. Server lines are recorded when the caller takes them, not
+/// when the reader task reads them, so that the interleaving with the caller's commands is
+/// the order of cause and effect (and the same in every lockstep run).
 #[derive(Debug)]
 struct Recorder {
     file: std::io::BufWriter<std::fs::File>,
@@ -72,15 +73,19 @@ struct Recorder {
     time: f64,
 }
 
-type SharedRecorder = Arc<Mutex<Recorder>>;
-
-fn record(recorder: Option<&SharedRecorder>, direction: Direction, line: &str) {
-    if let Some(r) = recorder
-        && let Ok(mut r) = r.lock()
-    {
-        let time = r.time;
-        let _ = record::write_entry(&mut r.file, time, direction, line);
+impl Recorder {
+    fn write(&mut self, direction: Direction, line: &str) {
+        let _ = record::write_entry(&mut self.file, self.time, direction, line);
     }
+}
+
+/// What the reader task hands over: a message (with its text when recording), or an
+/// unreadable line (when recording), or the end.
+#[derive(Debug)]
+enum Incoming {
+    Message(ServerMessage, Option<String>),
+    Unreadable(String),
+    Failed(ConnectionError),
 }
 
 /// The lockstep state of a connection.
@@ -106,14 +111,14 @@ fn sync_time(message: &ServerMessage) -> Option<f64> {
 #[derive(Debug)]
 pub struct Connection {
     addr: String,
-    messages: mpsc::Receiver<Result<ServerMessage, ConnectionError>>,
+    messages: mpsc::Receiver<Incoming>,
     writer: OwnedWriteHalf,
     /// Aborted when the connection is dropped.
     _reader: AbortOnDropHandle<()>,
     /// Messages read ahead while waiting for a lockstep answer.
     pending: VecDeque<ServerMessage>,
     lockstep: Option<Lockstep>,
-    recorder: Option<SharedRecorder>,
+    recorder: Option<Recorder>,
 }
 
 impl Connection {
@@ -135,14 +140,13 @@ impl Connection {
                 error,
             })?;
         let _ = writeln!(file, "{}", record::HEADER);
-        let recorder = Arc::new(Mutex::new(Recorder { file, time: 0.0 }));
-        Self::open(addr, timeout, Some(recorder)).await
+        Self::open(addr, timeout, Some(Recorder { file, time: 0.0 })).await
     }
 
     async fn open(
         addr: &str,
         timeout: Duration,
-        recorder: Option<SharedRecorder>,
+        recorder: Option<Recorder>,
     ) -> Result<Self, ConnectionError> {
         let stream = tokio::time::timeout(timeout, TcpStream::connect(addr))
             .await
@@ -158,7 +162,7 @@ impl Connection {
         let _ = stream.set_nodelay(true);
         let (read, writer) = stream.into_split();
         let (tx, messages) = mpsc::channel(CHANNEL_CAPACITY);
-        let reader = tokio::spawn(read_messages(LineReader::new(read), tx, recorder.clone()));
+        let reader = tokio::spawn(read_messages(LineReader::new(read), tx, recorder.is_some()));
         tracing::debug!(addr, "connected");
         Ok(Self {
             addr: addr.to_owned(),
@@ -183,10 +187,9 @@ impl Connection {
         self.send_line("SYNC {Time 0}").await?;
         let deadline = tokio::time::Instant::now() + wait;
         loop {
-            let message = match tokio::time::timeout_at(deadline, self.messages.recv()).await {
+            let message = match tokio::time::timeout_at(deadline, self.receive()).await {
                 Err(_) => return Ok(false),
-                Ok(None) => return Err(ConnectionError::Closed),
-                Ok(Some(message)) => message?,
+                Ok(message) => message?,
             };
             if let Some(reached) = sync_time(&message) {
                 self.lockstep = Some(Lockstep {
@@ -227,17 +230,35 @@ impl Connection {
                 let line = format!("SYNC {{Time {:.4}}}", lockstep.reached + lockstep.step);
                 self.send_line(&line).await?;
             }
-            let message = self
-                .messages
-                .recv()
-                .await
-                .unwrap_or(Err(ConnectionError::Closed))?;
+            let message = self.receive().await?;
             match (sync_time(&message), &mut self.lockstep) {
                 (Some(reached), Some(lockstep)) => {
                     lockstep.reached = reached;
                     lockstep.waiting = false;
                 }
                 _ => return Ok(message),
+            }
+        }
+    }
+
+    /// The next message from the reader task, recorded as it is taken.
+    async fn receive(&mut self) -> Result<ServerMessage, ConnectionError> {
+        loop {
+            match self.messages.recv().await {
+                None => return Err(ConnectionError::Closed),
+                Some(Incoming::Failed(error)) => return Err(error),
+                Some(Incoming::Unreadable(line)) => {
+                    if let Some(r) = &mut self.recorder {
+                        r.write(Direction::Server, &line);
+                    }
+                }
+                Some(Incoming::Message(message, line)) => {
+                    if let (Some(r), Some(line)) = (&mut self.recorder, line) {
+                        r.time = message.time().unwrap_or(r.time);
+                        r.write(Direction::Server, &line);
+                    }
+                    return Ok(message);
+                }
             }
         }
     }
@@ -251,7 +272,9 @@ impl Connection {
 
     async fn send_line(&mut self, line: &str) -> Result<(), ConnectionError> {
         tracing::trace!(%line, "send");
-        record(self.recorder.as_ref(), Direction::Client, line);
+        if let Some(r) = &mut self.recorder {
+            r.write(Direction::Client, line);
+        }
         write_line(&mut self.writer, line)
             .await
             .map_err(ConnectionError::Write)
@@ -278,9 +301,7 @@ impl Connection {
     /// Closes the connection cleanly (the server then removes the robot).
     pub async fn disconnect(mut self) -> Result<(), ConnectionError> {
         use tokio::io::AsyncWriteExt;
-        if let Some(r) = &self.recorder
-            && let Ok(mut r) = r.lock()
-        {
+        if let Some(r) = &mut self.recorder {
             let _ = r.file.flush();
         }
         self.writer.shutdown().await.map_err(ConnectionError::Write)
@@ -289,37 +310,31 @@ impl Connection {
 
 async fn read_messages(
     mut lines: LineReader<tokio::net::tcp::OwnedReadHalf>,
-    tx: mpsc::Sender<Result<ServerMessage, ConnectionError>>,
-    recorder: Option<SharedRecorder>,
+    tx: mpsc::Sender<Incoming>,
+    record: bool,
 ) {
     loop {
         let item = match lines.next_line().await {
             Ok(None) => return, // dropping tx tells the consumer: closed
-            Err(e) => Err(ConnectionError::Read(e)),
+            Err(e) => Incoming::Failed(ConnectionError::Read(e)),
             Ok(Some(line)) if line.trim().is_empty() => continue,
             Ok(Some(line)) => match ServerMessage::parse(&line) {
                 Ok(parsed) => {
-                    if let Some(r) = &recorder {
-                        if let Some(time) = parsed.message.time()
-                            && let Ok(mut r) = r.lock()
-                        {
-                            r.time = time;
-                        }
-                        record(Some(r), Direction::Server, &line);
-                    }
                     if !parsed.deviations.is_empty() {
                         tracing::trace!(%line, deviations = ?parsed.deviations, "tolerated");
                     }
-                    Ok(parsed.message)
+                    Incoming::Message(parsed.message, record.then_some(line))
                 }
                 Err(error) => {
-                    record(recorder.as_ref(), Direction::Server, &line);
                     tracing::warn!(%line, %error, "unreadable server line skipped");
-                    continue;
+                    if !record {
+                        continue;
+                    }
+                    Incoming::Unreadable(line)
                 }
             },
         };
-        let stop = item.is_err();
+        let stop = matches!(item, Incoming::Failed(_));
         if tx.send(item).await.is_err() || stop {
             return;
         }

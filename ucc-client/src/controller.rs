@@ -115,6 +115,37 @@ pub struct RunConfig {
     /// Record every line of every iteration's connection: this file for the first,
     /// `NAME-2.EXT`, `NAME-3.EXT`, … for the next (docs/recording.md).
     pub record: Option<PathBuf>,
+    /// Go on with the next iteration when one fails (a mission timeout, an empty battery, a
+    /// spawn that gave no stream); the failure is counted in the [`Summary`]. Failures that
+    /// would repeat every time (no server, unwritable files) always end the run.
+    pub keep_going: bool,
+    /// Which map pictures to draw.
+    pub pictures: Pictures,
+}
+
+/// Which map pictures a run draws (in the log directory).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Pictures {
+    /// One per iteration and the overlay of all.
+    #[default]
+    All,
+    /// Only the overlay of all iterations.
+    Overlay,
+    /// None.
+    None,
+}
+
+impl FromStr for Pictures {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "all" => Ok(Self::All),
+            "overlay" => Ok(Self::Overlay),
+            "none" => Ok(Self::None),
+            _ => Err(format!("expected all, overlay or none, not {s:?}")),
+        }
+    }
 }
 
 impl Default for RunConfig {
@@ -137,6 +168,8 @@ impl Default for RunConfig {
             mission_timeout: 120.0,
             lockstep: false,
             record: None,
+            keep_going: false,
+            pictures: Pictures::All,
         }
     }
 }
@@ -255,6 +288,27 @@ pub enum RunError {
     Picture(#[from] PictureError),
 }
 
+impl RunError {
+    /// Whether the failure would happen again in the next iteration, so that going on is
+    /// pointless (no server, a bad configuration, files that cannot be written).
+    pub fn is_fatal(&self) -> bool {
+        matches!(
+            self,
+            Self::UnknownAgent { .. }
+                | Self::NoMissions
+                | Self::Refused(_)
+                | Self::Connection(
+                    ConnectionError::Connect { .. }
+                        | ConnectionError::ConnectTimeout { .. }
+                        | ConnectionError::Record { .. }
+                )
+                | Self::NoStartPoses { .. }
+                | Self::Output { .. }
+                | Self::Picture(_)
+        )
+    }
+}
+
 /// Something a user cares about, reported while running.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Progress {
@@ -291,6 +345,13 @@ pub enum Progress {
         iteration: usize,
         /// Its summary.
         summary: IterationSummary,
+    },
+    /// An iteration failed (and the run goes on, with `keep_going`).
+    IterationFailed {
+        /// 1-based.
+        iteration: usize,
+        /// Why.
+        error: String,
     },
     /// Files were written.
     Written {
@@ -330,6 +391,9 @@ impl fmt::Display for Progress {
                 "[{iteration}] iteration done: {} missions in {:.1} simulated s, {:.1} m flown",
                 summary.missions_done, summary.duration, summary.distance
             ),
+            Self::IterationFailed { iteration, error } => {
+                write!(f, "[{iteration}] iteration failed: {error}")
+            }
             Self::Written { files } => {
                 let names: Vec<_> = files.iter().map(|p| p.display().to_string()).collect();
                 write!(f, "wrote {}", names.join(", "))
@@ -351,15 +415,121 @@ pub struct IterationSummary {
     pub trajectory: Vec<TrajectoryPoint>,
     /// Files written for this iteration.
     pub files: Vec<PathBuf>,
+    /// Why the iteration failed (`None`: every mission done).
+    pub error: Option<String>,
+}
+
+impl IterationSummary {
+    /// Simulated seconds from the first to the last trajectory sample.
+    pub fn simulated_seconds(&self) -> f64 {
+        match (self.trajectory.first(), self.trajectory.last()) {
+            (Some(a), Some(b)) => b.time - a.time,
+            _ => 0.0,
+        }
+    }
 }
 
 /// The result of a whole run.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Summary {
-    /// One entry per completed iteration.
+    /// One entry per iteration flown, completed or failed.
     pub iterations: Vec<IterationSummary>,
     /// The overlay pictures (every iteration's path on one map).
     pub overlay: Vec<PathBuf>,
+    /// The results table (`PREFIX-results.csv`), when a log directory is set.
+    pub results: Option<PathBuf>,
+}
+
+/// Figures over the iterations of a run.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Statistics {
+    /// Iterations that completed every mission.
+    pub completed: usize,
+    /// Iterations that failed.
+    pub failed: usize,
+    /// Mean and standard deviation of the completion time of the completed iterations
+    /// (simulated seconds).
+    pub duration: (f64, f64),
+    /// Mean and standard deviation of their path length (metres).
+    pub distance: (f64, f64),
+    /// The largest distance between any completed iteration's path and the first one's
+    /// (symmetric Hausdorff distance in metres); 0 when every path is the same.
+    pub max_deviation: f64,
+    /// Simulated seconds flown in all iterations.
+    pub simulated_seconds: f64,
+}
+
+impl Summary {
+    /// The figures of the run.
+    pub fn statistics(&self) -> Statistics {
+        let done: Vec<&IterationSummary> = self
+            .iterations
+            .iter()
+            .filter(|i| i.error.is_none())
+            .collect();
+        let first = done.first().map(|i| path_of(i));
+        Statistics {
+            completed: done.len(),
+            failed: self.iterations.len() - done.len(),
+            duration: mean_and_spread(done.iter().map(|i| i.duration)),
+            distance: mean_and_spread(done.iter().map(|i| i.distance)),
+            max_deviation: first.as_ref().map_or(0.0, |first| {
+                done.iter()
+                    .map(|i| hausdorff(first, &path_of(i)))
+                    .fold(0.0, f64::max)
+            }),
+            simulated_seconds: self.iterations.iter().map(|i| i.simulated_seconds()).sum(),
+        }
+    }
+
+    /// How far each iteration's path lies from the first completed one's (metres).
+    fn deviations(&self) -> Vec<Option<f64>> {
+        let first = self
+            .iterations
+            .iter()
+            .find(|i| i.error.is_none())
+            .map(path_of);
+        self.iterations
+            .iter()
+            .map(|i| first.as_ref().map(|f| hausdorff(f, &path_of(i))))
+            .collect()
+    }
+}
+
+fn path_of(iteration: &IterationSummary) -> Vec<Coordinates> {
+    iteration.trajectory.iter().map(|p| p.position).collect()
+}
+
+fn mean_and_spread(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let values: Vec<f64> = values.collect();
+    if values.is_empty() {
+        return (0.0, 0.0);
+    }
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    (mean, var.sqrt())
+}
+
+/// The symmetric Hausdorff distance between two sampled paths.
+fn hausdorff(a: &[Coordinates], b: &[Coordinates]) -> f64 {
+    let directed = |from: &[Coordinates], to: &[Coordinates]| {
+        from.iter()
+            .map(|p| {
+                to.iter()
+                    .map(|q| (p - q).norm())
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max)
+    };
+    if a.is_empty() || b.is_empty() {
+        return if a.len() == b.len() {
+            0.0
+        } else {
+            f64::INFINITY
+        };
+    }
+    directed(a, b).max(directed(b, a))
 }
 
 /// Flies `config.missions` `config.iterations` times; reports progress to `observer`.
@@ -393,31 +563,79 @@ pub async fn run_missions(
                 files: files.clone(),
             });
         }
-        result?;
-        let iteration_summary = flight.summary(files);
-        observer(&Progress::IterationDone {
-            iteration,
-            summary: iteration_summary.clone(),
-        });
+        let mut iteration_summary = flight.summary(files);
+        match result {
+            Ok(()) => observer(&Progress::IterationDone {
+                iteration,
+                summary: iteration_summary.clone(),
+            }),
+            Err(e) if !config.keep_going || e.is_fatal() => return Err(e),
+            Err(e) => {
+                iteration_summary.error = Some(e.to_string());
+                observer(&Progress::IterationFailed {
+                    iteration,
+                    error: e.to_string(),
+                });
+            }
+        }
         summary.iterations.push(iteration_summary);
     }
-    if let Some(base) = config.file("overlay") {
+    if config.pictures != Pictures::None
+        && let Some(base) = config.file("overlay")
+    {
         let picture = MapPicture {
             title: format!("{} iterations", summary.iterations.len()),
-            paths: summary
+            paths: summary.iterations.iter().map(path_of).collect(),
+            waypoints: waypoints(config),
+            start: summary
                 .iterations
                 .iter()
-                .map(|i| i.trajectory.iter().map(|p| p.position).collect())
-                .collect(),
-            waypoints: waypoints(config),
-            start: first_position(&summary.iterations[0].trajectory),
+                .find_map(|i| first_position(&i.trajectory)),
         };
         summary.overlay = picture.write(&base)?.to_vec();
         observer(&Progress::Written {
             files: summary.overlay.clone(),
         });
     }
+    if let Some(path) = config.file("results.csv") {
+        write_results(&path, &summary).map_err(|error| RunError::Output {
+            path: path.clone(),
+            error,
+        })?;
+        summary.results = Some(path);
+    }
     Ok(summary)
+}
+
+/// Writes one line per iteration: its number, status, missions done, completion time,
+/// path length, distance of its path from the first one's, and the error.
+fn write_results(path: &Path, summary: &Summary) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    writeln!(
+        out,
+        "iteration,status,missions_done,duration_s,distance_m,deviation_m,simulated_s,error"
+    )?;
+    for (n, (i, deviation)) in summary
+        .iterations
+        .iter()
+        .zip(summary.deviations())
+        .enumerate()
+    {
+        writeln!(
+            out,
+            "{},{},{},{:.4},{:.4},{},{:.4},{}",
+            n + 1,
+            if i.error.is_none() { "ok" } else { "failed" },
+            i.missions_done,
+            i.duration,
+            i.distance,
+            deviation.map_or(String::new(), |d| format!("{d:.4}")),
+            i.simulated_seconds(),
+            i.error.as_deref().unwrap_or("").replace([',', '\n'], " "),
+        )?;
+    }
+    out.flush()
 }
 
 /// Asks the server for the map's start poses (`GETSTARTPOSES`) on a connection of its own.
@@ -668,6 +886,7 @@ impl Flight {
             distance,
             trajectory: self.trajectory.clone(),
             files,
+            error: None,
         }
     }
 
@@ -689,6 +908,9 @@ impl Flight {
         };
         write_log(&log, &self.log).map_err(output(&log))?;
         write_trajectory(&csv, &self.trajectory).map_err(output(&csv))?;
+        if config.pictures != Pictures::All {
+            return Ok(vec![log, csv]);
+        }
         let picture = MapPicture {
             title: format!("{} — iteration {}", config.prefix, self.iteration),
             paths: vec![self.trajectory.iter().map(|p| p.position).collect()],

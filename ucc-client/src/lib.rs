@@ -45,7 +45,8 @@ pub mod wire;
 pub use agent::{Agent, AgentEvent, MissionRefused, SpeedCommand, Step};
 pub use connection::{Connection, ConnectionError};
 pub use controller::{
-    IterationSummary, Progress, RunConfig, RunError, Start, Summary, run_missions,
+    IterationSummary, Pictures, Progress, RunConfig, RunError, Start, Statistics, Summary,
+    run_missions,
 };
 pub use geometry::Coordinates;
 pub use mission::{Mission, MissionError};

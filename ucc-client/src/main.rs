@@ -79,6 +79,19 @@ struct RunArgs {
     /// Server port.
     #[arg(long, default_value_t = 3000)]
     port: u16,
+    /// Start a usar-server inside this process on a free port instead of connecting to
+    /// --host/--port (with --map, --seed and --time-scale).
+    #[arg(long)]
+    local: bool,
+    /// With --local: the map (an embedded name or a file).
+    #[arg(long, requires = "local", value_name = "NAME|FILE")]
+    map: Option<String>,
+    /// With --local: the seed of every noise source.
+    #[arg(long, requires = "local", default_value_t = 0)]
+    seed: u64,
+    /// With --local: simulated seconds per wall second, or `max`.
+    #[arg(long, requires = "local", default_value = "max", value_name = "K|max")]
+    time_scale: usar_server::TimeScale,
     /// Robot class (`stsAirRobot`, `AirRobot`, or `Package.Class`).
     #[arg(long, default_value = "stsAirRobot")]
     robot: String,
@@ -121,6 +134,12 @@ struct RunArgs {
     /// first iteration, FILE-2, FILE-3, … (before the extension) for the next.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
+    /// Map pictures to draw: all (each iteration and the overlay), overlay, or none.
+    #[arg(long, default_value = "all", value_name = "all|overlay|none")]
+    pictures: ucc_client::Pictures,
+    /// Print only the progress bar, failures and the summary.
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 #[derive(Args)]
@@ -168,7 +187,7 @@ fn main() -> ExitCode {
             std::io::stdout().lock(),
             std::io::stderr().lock(),
         )),
-        Cmd::Run(args) => runtime().and_then(|rt| rt.block_on(run(*args))),
+        Cmd::Run(args) => runtime().and_then(|rt| rt.block_on(run_command(*args))),
         Cmd::Tap {
             listen,
             bind,
@@ -217,7 +236,38 @@ async fn until_interrupted<T>(
     }
 }
 
-async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
+/// `ucc run`: against --host/--port, or against a server started here with --local.
+async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
+    if !args.local {
+        let addr = format!("{}:{}", args.host, args.port);
+        return run(args, addr).await;
+    }
+    let map = match &args.map {
+        None => usar_server::sim::map::Map::default_map(),
+        Some(name) => match usar_server::sim::map::Map::embedded(name) {
+            Some(map) => map,
+            None => usar_server::sim::map::Map::from_file(std::path::Path::new(name))?,
+        },
+    };
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .context("cannot open a local port for the server")?;
+    let addr = listener.local_addr()?.to_string();
+    let mut config = usar_server::ServerConfig {
+        map,
+        time_scale: args.time_scale,
+        ..usar_server::ServerConfig::default()
+    };
+    config.sim.seed = args.seed;
+    let shutdown = CancellationToken::new();
+    let server = tokio::spawn(usar_server::run(listener, config, shutdown.child_token()));
+    let result = run(args, addr).await;
+    shutdown.cancel();
+    let _ = tokio::time::timeout(Duration::from_secs(5), server).await;
+    result
+}
+
+async fn run(args: RunArgs, addr: String) -> anyhow::Result<ExitCode> {
     let mut missions = match &args.missions {
         Some(path) => load_missions(path)?,
         None => Vec::new(),
@@ -230,7 +280,7 @@ async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         bail!("--stream-timeout must be a positive number of seconds");
     }
     let config = RunConfig {
-        addr: format!("{}:{}", args.host, args.port),
+        addr,
         robot: args.robot,
         name: args.name,
         agent: args.agent,
@@ -243,12 +293,78 @@ async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         mission_timeout: args.mission_timeout,
         lockstep: args.lockstep,
         record: args.record,
+        keep_going: true,
+        pictures: args.pictures,
         ..RunConfig::default()
     };
-    let summary =
-        until_interrupted(async { Ok(run_missions(&config, print_progress).await?) }).await?;
+    let bar = progress_bar(config.iterations);
+    let quiet = args.quiet;
+    let began = std::time::Instant::now();
+    let observer = |p: &Progress| {
+        match p {
+            Progress::IterationDone { .. } | Progress::IterationFailed { .. } => bar.inc(1),
+            _ => {}
+        }
+        let show = !quiet || matches!(p, Progress::IterationFailed { .. });
+        if show && !matches!(p, Progress::Written { .. }) {
+            bar.suspend(|| println!("{p}"));
+        }
+    };
+    let summary = until_interrupted(async { Ok(run_missions(&config, observer).await?) }).await;
+    bar.finish_and_clear();
+    let summary = summary?;
+    let wall = began.elapsed().as_secs_f64();
     print_summary(&summary, &config);
+    print_statistics(&summary, wall);
+    let failed = summary.statistics().failed;
+    if failed > 0 {
+        let first = summary.iterations.iter().find_map(|i| i.error.as_deref());
+        eprintln!(
+            "ucc: error: {failed} of {} iteration(s) failed{}",
+            summary.iterations.len(),
+            first.map_or(String::new(), |e| format!(" (first: {e})"))
+        );
+        return Ok(ExitCode::FAILURE);
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A progress bar over the iterations (hidden when stderr is not a terminal or for one
+/// iteration).
+fn progress_bar(iterations: usize) -> indicatif::ProgressBar {
+    if iterations < 2 {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(iterations as u64);
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{bar:40} {pos}/{len} iterations, {elapsed} elapsed, {eta} left",
+    ) {
+        bar.set_style(style);
+    }
+    bar
+}
+
+fn print_statistics(summary: &Summary, wall: f64) {
+    let s = summary.statistics();
+    println!("iterations: {} done, {} failed", s.completed, s.failed);
+    if s.completed > 0 {
+        println!(
+            "completion time: {:.2} s mean, {:.3} s spread (simulated)",
+            s.duration.0, s.duration.1
+        );
+        println!(
+            "path length: {:.2} m mean, {:.3} m spread; largest distance from the first path: {:.3} m",
+            s.distance.0, s.distance.1, s.max_deviation
+        );
+    }
+    println!(
+        "wall time {wall:.2} s for {:.1} simulated s: real-time factor {:.1}",
+        s.simulated_seconds,
+        s.simulated_seconds / wall.max(1e-9)
+    );
+    if let Some(results) = &summary.results {
+        println!("results: {}", results.display());
+    }
 }
 
 async fn tap(bind: &str, port: u16, upstream: String, record: PathBuf) -> anyhow::Result<ExitCode> {
@@ -277,13 +393,17 @@ fn print_summary(summary: &Summary, config: &RunConfig) {
         summary.iterations.len()
     );
     if let Some(dir) = &config.log_dir {
+        let per_iteration: Vec<&PathBuf> =
+            summary.iterations.iter().flat_map(|i| &i.files).collect();
         println!("files are in {}", dir.display());
-        for file in summary
-            .iterations
-            .iter()
-            .flat_map(|i| &i.files)
-            .chain(&summary.overlay)
-        {
+        // Name every file of a short run; for a long one only the overlay.
+        let listed = if summary.iterations.len() <= 3 {
+            per_iteration.clone()
+        } else {
+            println!("  ({} files of the iterations)", per_iteration.len());
+            Vec::new()
+        };
+        for file in listed.into_iter().chain(&summary.overlay) {
             println!("  {}", file.display());
         }
     }

@@ -106,35 +106,38 @@ fn read_request(client: ClientId, line: String, peer: SocketAddr, record: bool) 
             return Request::Unreadable { client, line };
         }
     };
-    for deviation in &parsed.deviations {
-        warn!(%peer, %deviation, %line, "tolerated deviation");
+    // The lockstep extension (docs/lockstep.md) is ours: not a deviation, not unknown.
+    let sync = match &parsed.message {
+        Command::Other(message) if message.kind.eq_ignore_ascii_case("SYNC") => Some(
+            message
+                .get("Time")
+                .and_then(|t| t.trim().parse::<f64>().ok())
+                .filter(|t| t.is_finite()),
+        ),
+        _ => None,
+    };
+    if sync.is_none() {
+        for deviation in &parsed.deviations {
+            warn!(%peer, %deviation, %line, "tolerated deviation");
+        }
     }
     let text = record.then_some(line);
-    match parsed.message {
-        Command::Other(message) if message.kind.eq_ignore_ascii_case("SYNC") => {
-            match message.get("Time").map(str::trim).map(str::parse::<f64>) {
-                Some(Ok(time)) if time.is_finite() => Request::Sync {
-                    client,
-                    time,
-                    line: text,
-                },
-                _ => {
-                    warn!(%peer, "SYNC without a valid {{Time t}} ignored");
-                    Request::Unreadable {
-                        client,
-                        line: text.unwrap_or_default(),
-                    }
-                }
-            }
-        }
-        command => {
-            if let Command::Other(message) = &command {
-                warn!(%peer, command = %message.kind, "unknown command ignored");
-            }
-            Request::Command {
+    match sync {
+        None => Request::Command {
+            client,
+            command: Box::new(parsed.message),
+            line: text,
+        },
+        Some(Some(time)) => Request::Sync {
+            client,
+            time,
+            line: text,
+        },
+        Some(None) => {
+            warn!(%peer, "SYNC without a valid {{Time t}} ignored");
+            Request::Unreadable {
                 client,
-                command: Box::new(command),
-                line: text,
+                line: text.unwrap_or_default(),
             }
         }
     }
