@@ -456,3 +456,78 @@ async fn an_empty_battery_leaves_only_sta() {
     }
     server.stop().await;
 }
+
+/// STA times received by `c` until `count` have arrived.
+async fn sta_times(c: &mut Client, count: usize) -> Vec<f64> {
+    let mut times = Vec::new();
+    while times.len() < count {
+        if let (_, ServerMessage::Sta(sta)) = c.message().await {
+            times.push(sta.time.seconds);
+        }
+    }
+    times
+}
+
+#[tokio::test]
+async fn a_client_that_never_reads_does_not_slow_the_others() {
+    let server = TestServer::with(usar_server::ServerConfig {
+        time_scale: usar_server::TimeScale::Factor(50.0),
+        client_queue: 4,
+        ..usar_server::ServerConfig::default()
+    })
+    .await;
+    let mut sleeper = server.client().await;
+    let start = first_start(&mut sleeper).await;
+    let (x, y, z) = (start.location.x, start.location.y, start.location.z);
+    // Spawns a robot whose stream it never reads; also a silent connection that says nothing.
+    sleeper
+        .send(&format!(
+            "INIT {{ClassName USARBot.stsAirRobot}} {{Location {},{},{}}}",
+            x - 2.0,
+            y,
+            z
+        ))
+        .await;
+    let _silent = server.client().await;
+    let mut reader = server.client().await;
+    reader.raw_line().await.unwrap();
+    reader.spawn_at([x + 2.0, y, z], 0.0).await;
+    // 40 simulated seconds (some 5 MB of output): more than the sleeper's queue and socket
+    // buffers hold, so its output is being dropped meanwhile.
+    let times = sta_times(&mut reader, 400).await;
+    for w in times.windows(2) {
+        assert!((w[1] - w[0] - 0.1).abs() < 0.011, "STA gap {w:?}");
+    }
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn sixty_four_connections_are_served_and_the_next_is_refused() {
+    let server = TestServer::start().await;
+    let mut clients = Vec::new();
+    for _ in 0..64 {
+        let mut c = server.client().await;
+        assert!(c.raw_line().await.unwrap().starts_with("NFO "));
+        clients.push(c);
+    }
+    let mut extra = server.client().await;
+    assert_eq!(
+        extra.raw_line().await,
+        None,
+        "connection 65 is closed at once"
+    );
+    // All 64 keep being served.
+    for c in &mut clients {
+        c.send("GETSTARTPOSES").await;
+    }
+    for c in &mut clients {
+        let (line, _) = c.message().await;
+        assert!(line.starts_with("NFO {StartPoses "), "{line}");
+    }
+    // A slot freed is a slot to reuse.
+    drop(clients.pop());
+    tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+    let mut again = server.client().await;
+    assert!(again.raw_line().await.unwrap().starts_with("NFO "));
+    server.stop().await;
+}

@@ -354,3 +354,70 @@ impl Driver {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use usar_proto::{Sta, StaLayout, Time};
+
+    fn sta(t: f64) -> ServerMessage {
+        ServerMessage::Sta(Sta {
+            time: Time::udk(t),
+            battery: 1200,
+            vehicle: None,
+            layout: StaLayout::Udk,
+        })
+    }
+
+    #[test]
+    fn a_full_queue_drops_whole_ticks_without_waiting() {
+        let (queue, mut output) = mpsc::channel(2);
+        let mut client = Client {
+            peer: "test".into(),
+            queue,
+            pending: String::new(),
+            dropped: 0,
+            barrier: None,
+            answered: false,
+            record: None,
+        };
+        for tick in 1..=5 {
+            client.push(&sta(f64::from(tick) / 10.0), 0.0);
+            client.push(&sta(f64::from(tick) / 10.0 + 0.05), 0.0);
+            client.flush(); // never blocks
+        }
+        assert_eq!(client.dropped, 3);
+        // The queue holds the first two ticks, each whole, in one chunk.
+        let first = output.try_recv().unwrap();
+        assert_eq!(
+            &first[..],
+            b"STA {Time 0.1000} {Battery 1200}\r\nSTA {Time 0.1500} {Battery 1200}\r\n"
+        );
+        assert!(output.try_recv().unwrap().starts_with(b"STA {Time 0.2000}"));
+        assert!(output.try_recv().is_err());
+    }
+
+    #[test]
+    fn barriers_hold_the_world_until_the_next_sync() {
+        let client = |barrier| Client {
+            peer: "test".into(),
+            queue: mpsc::channel(1).0,
+            pending: String::new(),
+            dropped: 0,
+            barrier,
+            answered: false,
+            record: None,
+        };
+        let dt = 0.005;
+        assert!(
+            !client(None).holds_at(5.0, dt),
+            "never waited for without SYNC"
+        );
+        assert!(!client(Some(0.1)).holds_at(0.09, dt));
+        assert!(client(Some(0.1)).holds_at(0.1, dt), "stops at the barrier");
+        assert!(
+            client(Some(0.1)).holds_at(0.0975, dt),
+            "no step past the barrier"
+        );
+    }
+}
