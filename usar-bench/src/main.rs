@@ -42,9 +42,16 @@ struct Args {
     /// Distance between neighbouring UAVs on the spawn grid, metres.
     #[arg(long, default_value_t = 1.0)]
     spacing: f64,
+    /// Horizontal layers of the spawn grid, each `--spacing` above the one below (the first
+    /// at the map's first start): for more UAVs than fit on one floor.
+    #[arg(long, default_value_t = 1)]
+    layers: usize,
     /// Print one JSON object per run instead of the table.
     #[arg(long)]
     json: bool,
+    /// Step the simulation directly, without sockets (the cost of the world alone).
+    #[arg(long)]
+    sim_only: bool,
     /// Find the largest N that holds real time (real-time factor ≥ 0.98, every message
     /// delivered), doubling from --uavs and then bisecting.
     #[arg(long)]
@@ -102,10 +109,16 @@ struct ClientStats {
     bytes: u64,
     span: f64,
     latencies: Vec<Duration>,
+    /// Wall instant and simulated time of the first and of the last STA counted.
+    first: Option<(Instant, f64)>,
+    last: Option<(Instant, f64)>,
 }
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
+    if args.sim_only {
+        return sim_only(&args);
+    }
     let runtime = tokio::runtime::Runtime::new()?;
     if !args.sweep {
         let report = runtime.block_on(run_once(&args, args.uavs))?;
@@ -177,6 +190,89 @@ fn print(args: &Args, r: &Report) {
         .map(|(k, v)| format!("{k} {:.0}%", v * 100.0))
         .collect();
     println!("  delivered vs nominal: {}", rates.join(", "));
+}
+
+/// Steps a world with `--uavs` robots for `--seconds` and prints the cost per tick.
+fn sim_only(args: &Args) -> anyhow::Result<()> {
+    use usar_proto::{Command, Drive, Init, Vec3};
+    use usar_server::sim::{SimConfig, World, map::Map, robots::RobotCatalog};
+    let map = match &args.map {
+        None => Map::default_map(),
+        Some(name) => Map::embedded(name).context("unknown embedded map")?,
+    };
+    let start = map.starts().first().context("no start pose")?.location;
+    let mut world = World::new(map, RobotCatalog::embedded(), SimConfig::default());
+    let mut clients = Vec::new();
+    for i in 0..args.uavs {
+        let c = world.connect();
+        let [x, y, z] = spawn_point(args, start, i);
+        world.command(
+            c,
+            Command::Init(Init {
+                class_name: "USARBot.stsAirRobot".into(),
+                location: Some(Vec3::new(x, y, z)),
+                ..Init::default()
+            }),
+        );
+        clients.push(c);
+    }
+    let ticks = (args.seconds / world.dt()).round() as u64;
+    let mut out = Vec::new();
+    let (mut messages, mut bytes) = (0u64, 0u64);
+    let mut text = String::new();
+    let began = Instant::now();
+    let mut step_time = Duration::ZERO;
+    for tick in 0..ticks {
+        if tick % 20 == 0 {
+            let v = if (tick / 200) % 2 == 0 { 0.2 } else { -0.2 };
+            for &c in &clients {
+                world.command(
+                    c,
+                    Command::Drive(Drive {
+                        linear_velocity: Some(v),
+                        ..Drive::default()
+                    }),
+                );
+            }
+        }
+        let t = Instant::now();
+        world.step(&mut out);
+        step_time += t.elapsed();
+        for (_, m) in out.drain(..) {
+            text.clear();
+            m.write_to(&mut text);
+            messages += 1;
+            bytes += text.len() as u64 + 2;
+        }
+    }
+    let wall = began.elapsed().as_secs_f64();
+    println!(
+        "sim only: {} robots ({} in the world), {:.1} simulated s in {wall:.2} s wall: real-time factor {:.2}; \
+         step {:.1} µs/tick, printing {:.1} µs/tick; {messages} messages, {:.1} MB",
+        args.uavs,
+        world.robot_count(),
+        args.seconds,
+        args.seconds / wall,
+        step_time.as_secs_f64() * 1e6 / ticks as f64,
+        (wall - step_time.as_secs_f64()) * 1e6 / ticks as f64,
+        bytes as f64 / 1e6
+    );
+    Ok(())
+}
+
+/// Where UAV `i` of `args.uavs` spawns: a square grid per layer centred on `start`, layers
+/// stacked upwards (z down).
+fn spawn_point(args: &Args, start: [f64; 3], i: usize) -> [f64; 3] {
+    let layers = args.layers.max(1);
+    let per_layer = args.uavs.div_ceil(layers);
+    let side = (per_layer as f64).sqrt().ceil() as usize;
+    let (layer, k) = (i / per_layer, i % per_layer);
+    let offset = (side as f64 - 1.0) / 2.0;
+    [
+        start[0] + ((k / side) as f64 - offset) * args.spacing,
+        start[1] + ((k % side) as f64 - offset) * args.spacing,
+        start[2] - layer as f64 * args.spacing,
+    ]
 }
 
 /// A started server process, killed on drop.
@@ -260,17 +356,12 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
         }
     };
     let start = first_start(addr).await?;
-    let side = (uavs as f64).sqrt().ceil() as usize;
     let began = Instant::now();
     let mut tasks = Vec::new();
+    let mut args = args.clone();
+    args.uavs = uavs;
     for i in 0..uavs {
-        let (row, col) = ((i / side) as f64, (i % side) as f64);
-        let offset = (side as f64 - 1.0) / 2.0;
-        let location = [
-            start[0] + (row - offset) * args.spacing,
-            start[1] + (col - offset) * args.spacing,
-            start[2],
-        ];
+        let location = spawn_point(&args, start, i);
         let seconds = args.seconds;
         tasks.push(tokio::spawn(fly(addr, i, location, seconds)));
     }
@@ -285,6 +376,19 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
     drop(server);
 
     let span = all.iter().map(|c| c.span).sum::<f64>() / all.len().max(1) as f64;
+    // Real-time factor over the time every robot was flying (not connecting): simulated
+    // time against wall time between the first and the last STA anyone counted.
+    let firsts = all.iter().filter_map(|c| c.first);
+    let lasts = all.iter().filter_map(|c| c.last);
+    let start = firsts.clone().min_by_key(|f| f.0);
+    let end = lasts.clone().max_by_key(|l| l.0);
+    let (flying_wall, flying_sim) = match (start, end) {
+        (Some(a), Some(b)) => (
+            (b.0 - a.0).as_secs_f64(),
+            lasts.map(|l| l.1).fold(f64::MIN, f64::max) - firsts.map(|f| f.1).fold(f64::MAX, f64::min),
+        ),
+        _ => (wall, span),
+    };
     let mut delivered = BTreeMap::new();
     for (name, hz) in NOMINAL {
         let total: u64 = all
@@ -307,9 +411,9 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
         uavs,
         simulated_seconds: span,
         wall_seconds: wall,
-        real_time_factor: span / wall,
-        messages_per_second: all.iter().map(|c| c.messages).sum::<u64>() as f64 / wall,
-        bytes_per_second: all.iter().map(|c| c.bytes).sum::<u64>() as f64 / wall,
+        real_time_factor: flying_sim / flying_wall.max(1e-9),
+        messages_per_second: all.iter().map(|c| c.messages).sum::<u64>() as f64 / flying_wall.max(1e-9),
+        bytes_per_second: all.iter().map(|c| c.bytes).sum::<u64>() as f64 / flying_wall.max(1e-9),
         delivered,
         latency_ms_p50: pct(0.5),
         latency_ms_p90: pct(0.9),
@@ -374,14 +478,24 @@ async fn fly(
     let mut stats = ClientStats::default();
     let (mut first, mut next_drive, mut sign) = (None::<f64>, 0.0, 1.0);
     let mut flipped: Option<(Instant, f64)> = None;
-    while let Some(line) = lines.next_line().await? {
+    loop {
+        let line = tokio::time::timeout(Duration::from_secs(30), lines.next_line())
+            .await
+            .with_context(|| {
+                format!("client {index}: nothing from the server for 30 s (did the spawn at {x},{y},{z} fail?)")
+            })??;
+        let Some(line) = line else {
+            bail!("client {index}: the server closed the connection");
+        };
         stats.bytes += line.len() as u64 + 2;
         let Some(part) = part(&line) else { continue };
         if part == "STA" {
             let Some(t) = time_of(&line) else { continue };
             let t0 = *first.get_or_insert(t);
+            stats.first.get_or_insert((Instant::now(), t));
             if t >= t0 + seconds {
                 stats.span = t - t0;
+                stats.last = Some((Instant::now(), t));
                 break;
             }
             if t >= next_drive {

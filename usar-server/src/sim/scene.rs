@@ -172,6 +172,11 @@ impl Scene {
 
     /// Distance along the unit vector `dir` from `origin` to the first surface within
     /// `max`, ignoring the collider `exclude` (the sensor's own robot).
+    ///
+    /// Ray casts dominate the server's cost. parry casts rays on cylinders (every robot
+    /// body) with GJK, which a profile of 200 robots showed taking over 70% of the time, so
+    /// upright cylinders — the only kind the scene holds — are intersected in closed form
+    /// here; other shapes use parry's own ray casts.
     pub(crate) fn cast_ray(
         &self,
         origin: V3,
@@ -180,8 +185,26 @@ impl Scene {
         exclude: Option<ColliderHandle>,
     ) -> Option<f64> {
         let ray = Ray::new(to_vector(origin), to_vector(dir));
-        self.query(exclude)
-            .cast_ray(&ray, max as f32, true)
+        let skip = exclude.map(|h| h.into_raw_parts().0);
+        self.bvh
+            .cast_ray(&ray, max as f32, |leaf, best| {
+                if Some(leaf) == skip {
+                    return None;
+                }
+                let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
+                match collider.shape().as_cylinder() {
+                    Some(c) => upright_cylinder_toi(
+                        &ray,
+                        collider.translation(),
+                        c.radius,
+                        c.half_height,
+                        best,
+                    ),
+                    None => collider
+                        .shape()
+                        .cast_ray(collider.position(), &ray, best, true),
+                }
+            })
             .map(|(_, toi)| f64::from(toi))
     }
 
@@ -260,6 +283,53 @@ impl Scene {
     }
 }
 
+/// Time of impact of `ray` (unit direction) on a solid upright cylinder (axis along z)
+/// centred at `centre`, if within `max`; 0 when the ray starts inside.
+fn upright_cylinder_toi(
+    ray: &Ray,
+    centre: Vector,
+    radius: f32,
+    half_height: f32,
+    max: f32,
+) -> Option<f32> {
+    let p = ray.origin - centre;
+    let d = ray.dir;
+    let r2 = radius * radius;
+    let inside_disc = |x: f32, y: f32| x * x + y * y <= r2;
+    if inside_disc(p.x, p.y) && p.z.abs() <= half_height {
+        return Some(0.0);
+    }
+    let mut best: Option<f32> = None;
+    let mut take = |t: f32| {
+        if t >= 0.0 && t <= max && best.is_none_or(|b| t < b) {
+            best = Some(t);
+        }
+    };
+    // The side: |p.xy + t·d.xy| = r, entering (the smaller root).
+    let a = d.x * d.x + d.y * d.y;
+    if a > f32::EPSILON {
+        let b = p.x * d.x + p.y * d.y;
+        let c = p.x * p.x + p.y * p.y - r2;
+        let disc = b * b - a * c;
+        if disc >= 0.0 {
+            let t = (-b - disc.sqrt()) / a;
+            if (p.z + t * d.z).abs() <= half_height {
+                take(t);
+            }
+        }
+    }
+    // The caps: z = ±h within the disc.
+    if d.z.abs() > f32::EPSILON {
+        for cap in [-half_height, half_height] {
+            let t = (cap - p.z) / d.z;
+            if inside_disc(p.x + t * d.x, p.y + t * d.y) {
+                take(t);
+            }
+        }
+    }
+    best
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -290,6 +360,47 @@ mod tests {
                 .cast_ray([0.0; 3], [-1.0, 0.0, 0.0], 10.0, Some(me))
                 .is_none()
         );
+    }
+
+    #[test]
+    fn closed_form_cylinder_rays_agree_with_parry() {
+        let shape = BodyShape {
+            radius: 0.45,
+            half_height: 0.1,
+        };
+        let centre = [1.0, -0.5, -1.0];
+        let mut scene = Scene::new();
+        let handle = scene.insert_body(shape, centre);
+        let collider = scene.colliders.get(handle).unwrap();
+        let mut checked = 0;
+        // Rays from a ring of origins in many directions, some grazing, some from above.
+        for i in 0..24 {
+            let a = f64::from(i) * 0.2618;
+            let origin = [
+                centre[0] + 2.0 * a.cos(),
+                centre[1] + 2.0 * a.sin(),
+                -1.05 + 0.01 * f64::from(i % 5),
+            ];
+            for j in 0..36 {
+                let yaw = f64::from(j) * 0.1745;
+                for pitch in [-1.2, -0.3, 0.0, 0.05, 0.6] {
+                    let dir = direction(pitch, yaw);
+                    let ray = Ray::new(to_vector(origin), to_vector(dir));
+                    let ours = scene.cast_ray(origin, dir, 10.0, None);
+                    let parry = collider
+                        .shape()
+                        .cast_ray(collider.position(), &ray, 10.0, true)
+                        .map(f64::from);
+                    match (ours, parry) {
+                        (Some(x), Some(y)) => assert!((x - y).abs() < 1e-3, "{x} vs {y}"),
+                        (None, None) => {}
+                        (x, y) => panic!("ray {origin:?} {dir:?}: ours {x:?}, parry {y:?}"),
+                    }
+                    checked += usize::from(ours.is_some());
+                }
+            }
+        }
+        assert!(checked > 50, "only {checked} hits checked");
     }
 
     #[test]
