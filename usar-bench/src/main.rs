@@ -385,7 +385,8 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
     let (flying_wall, flying_sim) = match (start, end) {
         (Some(a), Some(b)) => (
             (b.0 - a.0).as_secs_f64(),
-            lasts.map(|l| l.1).fold(f64::MIN, f64::max) - firsts.map(|f| f.1).fold(f64::MAX, f64::min),
+            lasts.map(|l| l.1).fold(f64::MIN, f64::max)
+                - firsts.map(|f| f.1).fold(f64::MAX, f64::min),
         ),
         _ => (wall, span),
     };
@@ -412,7 +413,8 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
         simulated_seconds: span,
         wall_seconds: wall,
         real_time_factor: flying_sim / flying_wall.max(1e-9),
-        messages_per_second: all.iter().map(|c| c.messages).sum::<u64>() as f64 / flying_wall.max(1e-9),
+        messages_per_second: all.iter().map(|c| c.messages).sum::<u64>() as f64
+            / flying_wall.max(1e-9),
         bytes_per_second: all.iter().map(|c| c.bytes).sum::<u64>() as f64 / flying_wall.max(1e-9),
         delivered,
         latency_ms_p50: pct(0.5),

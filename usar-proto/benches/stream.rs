@@ -135,7 +135,8 @@ fn bench(c: &mut Criterion) {
             }
         })
     });
-    let mut out = String::with_capacity(text.len() * 2);
+    // Printed into bytes, as the server does (into the BytesMut of a tick).
+    let mut out: Vec<u8> = Vec::with_capacity(text.len() * 2);
     group.bench_function("print", |b| {
         b.iter(|| {
             out.clear();
@@ -145,7 +146,7 @@ fn bench(c: &mut Criterion) {
             black_box(out.len())
         })
     });
-    let parse_print = |out: &mut String| {
+    let parse_print = |out: &mut Vec<u8>| {
         out.clear();
         for line in &lines {
             if let Ok(p) = ServerMessage::parse(line) {

@@ -41,6 +41,13 @@ use crate::messages::Vec3;
 pub trait WireBuf {
     /// Appends text.
     fn push_text(&mut self, s: &str);
+    /// Appends ASCII bytes (digits, signs, points): byte buffers skip the UTF-8 check a
+    /// `&str` would need.
+    fn push_ascii(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.push_text(char::from(b).encode_utf8(&mut [0; 4]));
+        }
+    }
     /// Appends formatted text (only used on rare slow paths).
     fn push_args(&mut self, args: std::fmt::Arguments<'_>);
 }
@@ -48,6 +55,11 @@ pub trait WireBuf {
 impl WireBuf for String {
     fn push_text(&mut self, s: &str) {
         self.push_str(s);
+    }
+    fn push_ascii(&mut self, bytes: &[u8]) {
+        if let Ok(s) = std::str::from_utf8(bytes) {
+            self.push_str(s);
+        }
     }
     fn push_args(&mut self, args: std::fmt::Arguments<'_>) {
         // Writing into a String cannot fail.
@@ -59,6 +71,9 @@ impl WireBuf for Vec<u8> {
     fn push_text(&mut self, s: &str) {
         self.extend_from_slice(s.as_bytes());
     }
+    fn push_ascii(&mut self, bytes: &[u8]) {
+        self.extend_from_slice(bytes);
+    }
     fn push_args(&mut self, args: std::fmt::Arguments<'_>) {
         // Writing into a Vec cannot fail.
         let _ = std::io::Write::write_fmt(self, args);
@@ -69,6 +84,9 @@ impl WireBuf for Vec<u8> {
 impl WireBuf for bytes::BytesMut {
     fn push_text(&mut self, s: &str) {
         self.extend_from_slice(s.as_bytes());
+    }
+    fn push_ascii(&mut self, bytes: &[u8]) {
+        self.extend_from_slice(bytes);
     }
     fn push_args(&mut self, args: std::fmt::Arguments<'_>) {
         // Writing into a BytesMut cannot fail.
@@ -116,10 +134,7 @@ fn push_decimal(out: &mut impl WireBuf, negative: bool, ip: u64, frac: u64, deci
         pos -= 1;
         buf[pos] = b'-';
     }
-    // Only ASCII digits, '.' and '-' were written.
-    if let Ok(s) = std::str::from_utf8(&buf[pos..]) {
-        out.push_text(s);
-    }
+    out.push_ascii(&buf[pos..]);
 }
 
 /// Appends a signed integer.
@@ -142,7 +157,9 @@ pub fn push_fixed(out: &mut impl WireBuf, v: f64, decimals: u8) {
         // fractional part is near .5; those rare cases take the exact slow path.
         let fraction = scaled - scaled.floor();
         if scaled < 1e10 && (fraction - 0.5).abs() > 1e-5 {
-            let n = scaled.round() as u64;
+            // Positive and not near .5: adding a half and truncating is rounding, without a
+            // call into libm.
+            let n = (scaled + 0.5) as u64;
             push_decimal(out, v.is_sign_negative(), n / POW10[d], n % POW10[d], d);
             return;
         }
@@ -173,9 +190,10 @@ pub fn push_float_string(out: &mut impl WireBuf, v: f64, p: u8) {
     let a = v.abs();
     let pow = POW10[p] as f64;
     let scaled = a * pow;
-    let grid = scaled.round();
+    // Rounding by a cast (saturating; NaN gives 0 and fails the test below): no libm call.
+    let n = (scaled + 0.5) as u64;
+    let grid = n as f64;
     if grid < 1e17 && (scaled - grid).abs() <= (scaled * 1e-9).max(1e-12 * pow) {
-        let n = grid as u64;
         push_decimal(out, negative, n / POW10[p], n % POW10[p], p);
         return;
     }

@@ -25,10 +25,7 @@
 //! Number and vector rules are in the typed layer (`crate::messages::command`).
 
 use crate::error::ParseError;
-use nom::{
-    IResult, Parser, bytes::complete::take_till, character::complete::char, combinator::opt,
-    sequence::preceded,
-};
+use nom::IResult;
 
 /// One protocol line: `KIND {Key Value} {Key Value} ...`.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -289,8 +286,9 @@ fn is_ws(c: char) -> bool {
     matches!(c, ' ' | '\t' | '\r' | '\n')
 }
 
+/// Trims spaces, tabs and stray CR/LF (and form feeds), byte-wise.
 fn trim_ws(s: &str) -> &str {
-    s.trim_matches(is_ws)
+    s.trim_ascii()
 }
 
 /// `is a word`: a letter, then letters, digits or `_`.
@@ -300,16 +298,39 @@ fn is_word(s: &str) -> bool {
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
 }
 
+// The two parsers below are hand-written in nom's `IResult` shape: `str::find` with a
+// single-byte char searches with memchr, several times faster than nom's `take_till` (a char
+// loop) or `take_until` (a two-way substring searcher) on 1.2 KB laser lines.
+
 /// Text up to the next `{` (or the end).
 fn till_brace(i: &str) -> IResult<&str, &str> {
-    take_till(|c| c == '{').parse(i)
+    Ok(i.find('{').map_or(("", i), |k| (&i[k..], &i[..k])))
 }
 
 /// `{content}` or an unclosed `{content`; returns the content and whether it was closed.
 fn group(i: &str) -> IResult<&str, (&str, bool)> {
-    preceded(char('{'), (take_till(|c| c == '}'), opt(char('}'))))
-        .map(|(body, close)| (body, close.is_some()))
-        .parse(i)
+    let Some(body) = i.strip_prefix('{') else {
+        return Err(nom::Err::Error(nom::error::Error::new(
+            i,
+            nom::error::ErrorKind::Char,
+        )));
+    };
+    Ok(match body.find('}') {
+        Some(k) => (&body[k + 1..], (&body[..k], true)),
+        None => ("", (body, false)),
+    })
+}
+
+/// Whether `s` has two spaces in a row (memchr from space to space: lines have few).
+fn has_double_space(s: &str) -> bool {
+    let mut rest = s;
+    while let Some(k) = rest.find(' ') {
+        rest = &rest[k + 1..];
+        if rest.starts_with(' ') {
+            return true;
+        }
+    }
+    false
 }
 
 fn push_once(devs: &mut Vec<Deviation>, d: Deviation) {
@@ -329,7 +350,7 @@ impl<'a> Raw<'a> {
         if text.is_empty() {
             return Err(ParseError::new("empty line"));
         }
-        if text.len() != line.len() || text.contains("  ") {
+        if text.len() != line.len() || has_double_space(text) {
             push_once(devs, Deviation::ExtraWhitespace);
         }
         let (mut rest, kind) = till_brace(text).unwrap_or(("", text));
@@ -364,7 +385,12 @@ impl<'a> Raw<'a> {
         if content.len() != body.len() {
             push_once(devs, Deviation::ExtraWhitespace);
         }
-        if multi {
+        // Grouped pairs need at least four tokens, so at least three separators; the byte
+        // count is cheap even for a 228-number scan.
+        let (key, value) = content.split_once(is_ws).unwrap_or((content, ""));
+        // Grouped pairs need whitespace inside the value; most values (a 228-number scan)
+        // have none, which memchr tells quickly.
+        if multi && (value.contains(' ') || value.contains('\t')) {
             let mut tokens = content.split(is_ws).filter(|t| !t.is_empty());
             let count = tokens.clone().count();
             if count >= 4 && count % 2 == 0 && tokens.clone().step_by(2).all(is_word) {
@@ -375,7 +401,6 @@ impl<'a> Raw<'a> {
                 return;
             }
         }
-        let (key, value) = content.split_once(is_ws).unwrap_or((content, ""));
         self.pairs.push(RawPair {
             key,
             value: trim_ws(value),
