@@ -22,7 +22,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use bytes::Bytes;
+use bytes::{Bytes, BytesMut};
 use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
@@ -99,7 +99,7 @@ struct Client {
     peer: String,
     queue: mpsc::Sender<Bytes>,
     /// Text of this tick not yet handed to the queue.
-    pending: String,
+    pending: BytesMut,
     dropped: u64,
     /// Lockstep target time, once the client has joined the barrier.
     barrier: Option<f64>,
@@ -113,17 +113,17 @@ impl Client {
         let start = self.pending.len();
         message.write_to(&mut self.pending);
         if let Some(file) = &mut self.record {
-            let line = &self.pending[start..];
-            let _ = record::write_entry(file, time, Direction::Server, line);
+            let line = String::from_utf8_lossy(&self.pending[start..]);
+            let _ = record::write_entry(file, time, Direction::Server, &line);
         }
-        self.pending.push_str("\r\n");
+        self.pending.extend_from_slice(b"\r\n");
     }
 
     fn flush(&mut self) {
         if self.pending.is_empty() {
             return;
         }
-        let chunk = Bytes::from(std::mem::take(&mut self.pending));
+        let chunk = self.pending.split().freeze();
         match self.queue.try_send(chunk) {
             Ok(()) => {}
             Err(mpsc::error::TrySendError::Full(_)) => {
@@ -302,7 +302,7 @@ impl Driver {
                     Client {
                         peer,
                         queue,
-                        pending: String::new(),
+                        pending: BytesMut::new(),
                         dropped: 0,
                         barrier: None,
                         answered: false,
@@ -375,7 +375,7 @@ mod tests {
         let mut client = Client {
             peer: "test".into(),
             queue,
-            pending: String::new(),
+            pending: BytesMut::new(),
             dropped: 0,
             barrier: None,
             answered: false,
@@ -402,7 +402,7 @@ mod tests {
         let client = |barrier| Client {
             peer: "test".into(),
             queue: mpsc::channel(1).0,
-            pending: String::new(),
+            pending: BytesMut::new(),
             dropped: 0,
             barrier,
             answered: false,
