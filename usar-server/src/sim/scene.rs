@@ -10,6 +10,7 @@
 //! refreshed immediately; queries run through rapier's `QueryPipeline` over that BVH.
 
 use rapier3d::math::{Pose, Rotation, Vector};
+use rapier3d::parry::bounding_volume::Aabb;
 use rapier3d::parry::partitioning::{Bvh, BvhWorkspace};
 use rapier3d::parry::query::{DefaultQueryDispatcher, ShapeCastOptions};
 use rapier3d::parry::shape::Cylinder;
@@ -145,7 +146,16 @@ impl Scene {
 
     fn reindex(&mut self, handle: ColliderHandle) {
         if let Some(collider) = self.colliders.get(handle) {
-            let aabb = collider.compute_aabb();
+            // Upright cylinders (every robot, every tick it moves) get their box in closed
+            // form; parry would build it from six support points.
+            let aabb = match collider.shape().as_cylinder() {
+                Some(c) => {
+                    let half = Vector::new(c.radius, c.radius, c.half_height);
+                    let centre = collider.translation();
+                    Aabb::new(centre - half, centre + half)
+                }
+                None => collider.compute_aabb(),
+            };
             self.bvh
                 .insert_with_change_detection(aabb, handle.into_raw_parts().0, LEAF_MARGIN);
         }

@@ -44,8 +44,9 @@ struct RangeScanner {
     /// The reported `{Resolution}` and `{FOV}`: the whole-unit values, as the engine's f32.
     resolution: f64,
     fov: f64,
-    /// Yaw offset of each beam, rad (+ = right); index 0 is the rightmost.
-    beams: Vec<f64>,
+    /// Cosine and sine of each beam's yaw offset (+ = right); index 0 is the rightmost.
+    /// Precomputed: a scan then costs one sin/cos instead of 228.
+    beams: Vec<(f64, f64)>,
 }
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
@@ -67,7 +68,10 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
     let beams = (0..)
         .map(|k| fov_uu / 2 - k * res_uu)
         .take_while(|&uu| uu >= -fov_uu / 2)
-        .map(from_uu)
+        .map(|uu| {
+            let (sin, cos) = from_uu(uu).sin_cos();
+            (cos, sin)
+        })
         .collect();
     Ok(Box::new(RangeScanner {
         resolution: from_uu(res_uu),
@@ -80,13 +84,14 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
 impl Sensor for RangeScanner {
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
         let (min, max) = (self.config.min_range, self.config.max_range);
+        let [cx, cy, z] = direction(at.pitch, at.yaw);
         let ranges = self
             .beams
             .iter()
-            .map(|&offset| {
-                let hit = at
-                    .trace(direction(at.pitch, at.yaw + offset), max)
-                    .unwrap_or(max);
+            .map(|&(cos, sin)| {
+                // The heading's direction turned by the beam's offset about the vertical.
+                let dir = [cx * cos - cy * sin, cy * cos + cx * sin, z];
+                let hit = at.trace(dir, max).unwrap_or(max);
                 noise.apply(hit).clamp(min, max)
             })
             .collect();
