@@ -14,9 +14,9 @@ use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
-use usar_proto::Message;
 use usar_proto::codec::LineCodec;
 use usar_proto::record::{self, Direction};
+use usar_proto::{Message, ServerMessage};
 
 /// One server line of a recording and the simulated time it was sent at.
 #[derive(Debug, Clone, PartialEq)]
@@ -66,8 +66,9 @@ pub enum ReplayError {
 }
 
 /// Reads a recording: `usar-record` files keep their `S` lines with their times; any other
-/// text is taken as a capture of server lines, one per line, timed by their `{Time t}`
-/// (lines without one keep the previous time). Blank lines and `#` comments are skipped.
+/// text is taken as a capture, one line per line, of which the server messages (NFO, STA,
+/// SEN, CONF, GEO, ASTA, EFF, DIE, …) are kept, timed by their `{Time t}` (lines without one
+/// keep the previous time). Blank lines, `#` comments and client commands are skipped.
 pub fn load(path: &Path) -> Result<Vec<ReplayLine>, ReplayError> {
     let name = path.display().to_string();
     let text = std::fs::read(path).map_err(|source| ReplayError::Io {
@@ -110,7 +111,7 @@ fn parse_capture(text: &str) -> Vec<ReplayLine> {
     let mut time = None;
     text.lines()
         .map(|l| l.trim_end_matches('\r'))
-        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .filter(|l| !l.starts_with('#') && ServerMessage::is_server_word(Message::word(l)))
         .map(|l| {
             if let Some(t) = Message::parse(l)
                 .ok()
@@ -209,6 +210,25 @@ mod tests {
         assert_eq!(lines.len(), 2);
         assert_eq!(lines[1].time, Some(0.1));
         assert_eq!(lines[1].text, "STA {Time 0.1000} {Battery 99999}");
+    }
+
+    #[test]
+    fn a_capture_keeps_its_server_lines() {
+        let text = "# a capture\nINIT {ClassName USARBot.P3AT}\n\nNFO {Level X}\nSEN {Time 1.5000} {Type Camera} \nSEN {Type INS} {Name I}\n";
+        let lines = parse_capture(text);
+        let texts: Vec<&str> = lines.iter().map(|l| l.text.as_str()).collect();
+        assert_eq!(
+            texts,
+            [
+                "NFO {Level X}",
+                "SEN {Time 1.5000} {Type Camera} ",
+                "SEN {Type INS} {Name I}"
+            ]
+        );
+        assert_eq!(
+            lines.iter().map(|l| l.time).collect::<Vec<_>>(),
+            [None, Some(1.5), Some(1.5)]
+        );
     }
 
     #[test]

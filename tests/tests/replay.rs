@@ -1,0 +1,64 @@
+//! A recorded flight served back by `usar-server replay` reads the same in the framework.
+
+use std::time::Duration;
+
+use tokio_util::sync::CancellationToken;
+use ucc_client::{Connection, Coordinates, Mission, RunConfig, Start, UavState, run_missions};
+use usar_server::replay::{self, Pace};
+use usar_server::{ServerConfig, TimeScale};
+
+#[tokio::test]
+async fn a_recorded_flight_replays_into_the_same_uav_state() {
+    let dir = std::env::temp_dir().join(format!("e2e-replay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let record = dir.join("flight.usarlog");
+
+    // Fly and record, in lockstep against a fresh server.
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    let shutdown = CancellationToken::new();
+    let server = tokio::spawn(usar_server::run(
+        listener,
+        ServerConfig {
+            time_scale: TimeScale::Max,
+            ..ServerConfig::default()
+        },
+        shutdown.clone(),
+    ));
+    let config = RunConfig {
+        addr,
+        start: Start::Pose {
+            location: Coordinates::new(0.0, 0.0, -1.0),
+            rotation: Coordinates::zeros(),
+        },
+        missions: vec![Mission::goto(Coordinates::new(2.0, 1.0, -2.0))],
+        lockstep: true,
+        record: Some(record.clone()),
+        ..RunConfig::default()
+    };
+    let summary = run_missions(&config, |_| {}).await.unwrap();
+    shutdown.cancel();
+    server.await.unwrap().unwrap();
+    let flown = summary.iterations[0].trajectory.last().unwrap().clone();
+
+    // Serve the recording and read it back with the framework's connection and model.
+    let lines = replay::load(&record).unwrap();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    let stop = CancellationToken::new();
+    let replayer = tokio::spawn(replay::serve(listener, lines, Pace::Fast, stop.clone()));
+    let mut conn = Connection::connect(&addr, Duration::from_secs(5))
+        .await
+        .unwrap();
+    let mut uav = UavState::new();
+    while let Ok(message) = conn.next_message().await {
+        uav.apply(&message);
+    }
+    stop.cancel();
+    replayer.await.unwrap().unwrap();
+
+    let position = uav.position.expect("positions were replayed");
+    assert_eq!(position.time, flown.time);
+    assert_eq!(position.value, flown.position);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
