@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use usar_proto::{Command, Init, Nfo, ServerMessage, StartPose};
 
-use crate::agent::{AgentEvent, MissionRefused, SpeedCommand};
+use crate::agent::{Agent, AgentEvent, MissionRefused, SpeedCommand};
 use crate::agents;
 use crate::connection::{Connection, ConnectionError};
 use crate::geometry::{Coordinates, to_wire};
@@ -543,7 +543,7 @@ pub async fn run_missions(
     if config.missions.is_empty() {
         return Err(RunError::NoMissions);
     }
-    check_agent(config)?;
+    make_agent(config)?; // refuse a bad agent or mission before connecting
     if let Some(dir) = &config.log_dir {
         std::fs::create_dir_all(dir).map_err(|error| RunError::Output {
             path: dir.clone(),
@@ -655,7 +655,8 @@ pub async fn start_poses(addr: &str, timeout: Duration) -> Result<Vec<StartPose>
     Ok(reply)
 }
 
-fn check_agent(config: &RunConfig) -> Result<(), RunError> {
+/// The configured agent with every mission handed over (refusals are errors).
+fn make_agent(config: &RunConfig) -> Result<Box<dyn Agent>, RunError> {
     let mut agent = agents::create(&config.agent).ok_or_else(|| RunError::UnknownAgent {
         name: config.agent.clone(),
         known: agents::names(),
@@ -663,7 +664,7 @@ fn check_agent(config: &RunConfig) -> Result<(), RunError> {
     for mission in &config.missions {
         agent.add_mission(mission.clone())?;
     }
-    Ok(())
+    Ok(agent)
 }
 
 fn waypoints(config: &RunConfig) -> Vec<Coordinates> {
@@ -768,13 +769,7 @@ impl Flight {
             },
         );
 
-        let mut agent = agents::create(&config.agent).ok_or_else(|| RunError::UnknownAgent {
-            name: config.agent.clone(),
-            known: agents::names(),
-        })?;
-        for mission in &config.missions {
-            agent.add_mission(mission.clone())?;
-        }
+        let mut agent = make_agent(config)?;
         agent.start(time);
         let mut sent: Option<SpeedCommand> = None;
         let mut mission_start = (0, time);
