@@ -179,3 +179,58 @@ async fn lockstep_iterations_repeat_exactly() {
     assert_eq!(paths[0], paths[2], "iteration 3 differs from 1");
     server.stop().await;
 }
+
+#[tokio::test]
+async fn a_stock_air_robot_with_a_ground_truth_flies_on_it() {
+    // A configuration change, not code: the stock AirRobot plus a GroundTruth part.
+    let dir = std::env::temp_dir().join(format!("e2e-airrobot-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("robots.toml");
+    std::fs::write(
+        &file,
+        r#"
+[[robot]]
+class = "USARBot.AirRobot"
+
+[[robot.part]]
+type = "IMU"
+name = "IMU"
+
+[[robot.part]]
+type = "GroundTruth"
+name = "GndTruth"
+"#,
+    )
+    .unwrap();
+    let robots = usar_server::sim::robots::RobotCatalog::from_file(&file).unwrap();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    let shutdown = CancellationToken::new();
+    let task = tokio::spawn(usar_server::run(
+        listener,
+        ServerConfig {
+            robots,
+            time_scale: TimeScale::Max,
+            ..ServerConfig::default()
+        },
+        shutdown.clone(),
+    ));
+    let goal = Coordinates::new(2.0, -1.0, -2.0);
+    let config = RunConfig {
+        addr,
+        robot: "AirRobot".into(),
+        start: pose(0.0, 0.0, -1.0),
+        missions: vec![Mission::goto(goal)],
+        lockstep: true,
+        ..RunConfig::default()
+    };
+    let summary = run_missions(&config, |_| {}).await.unwrap();
+    let path = &summary.iterations[0].trajectory;
+    assert!(path.len() > 10, "GroundTruth gave the positions");
+    assert!((path.last().unwrap().position - goal).norm() <= 0.3);
+    // No Velocity sensor: velocity is derived from the positions.
+    assert!(path.iter().any(|p| p.velocity.is_some_and(|v| v.norm() > 0.5)));
+    shutdown.cancel();
+    task.await.unwrap().unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+}
