@@ -229,7 +229,10 @@ name = "GndTruth"
     assert!(path.len() > 10, "GroundTruth gave the positions");
     assert!((path.last().unwrap().position - goal).norm() <= 0.3);
     // No Velocity sensor: velocity is derived from the positions.
-    assert!(path.iter().any(|p| p.velocity.is_some_and(|v| v.norm() > 0.5)));
+    assert!(
+        path.iter()
+            .any(|p| p.velocity.is_some_and(|v| v.norm() > 0.5))
+    );
     shutdown.cancel();
     task.await.unwrap().unwrap();
     std::fs::remove_dir_all(&dir).unwrap();

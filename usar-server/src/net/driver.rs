@@ -297,6 +297,7 @@ impl Driver {
                     );
                 }
                 let id = self.world.connect();
+                debug!(%peer, client = ?id, "joined the simulation");
                 self.clients.insert(
                     id,
                     Client {

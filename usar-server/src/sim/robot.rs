@@ -145,7 +145,7 @@ impl Robot {
             half_height: class.collision.height / 2.0,
         };
         if scene.overlaps(shape, spawn.position, None) {
-            warn!(class = %class.class, position = ?spawn.position, "spawn failed: place is occupied");
+            warn!(client = ?spawn.owner, class = %class.class, position = ?spawn.position, "spawn failed: place is occupied");
             return None;
         }
         let mut parts = Vec::new();
