@@ -187,3 +187,36 @@ fn decode_and_encode_give_back_the_capture() {
     assert_eq!(server(&lines), server(&capture));
     assert_eq!(server(&capture).len(), 21);
 }
+
+#[test]
+fn ctrl_c_ends_a_run_cleanly() {
+    let dir = scratch("interrupt");
+    let mut child = ucc()
+        .args(["run", "--local", "--time-scale", "1", "--start", "0,0,-1"])
+        .args(["--goto", "8,8,-2", "--goto", "-8,-8,-2", "--log-dir"])
+        .arg(&dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Interrupt mid-flight: once the UAV has spawned (the handler is installed by then).
+    let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("spawned") {
+        line.clear();
+        assert!(
+            std::io::BufRead::read_line(&mut stdout, &mut line).unwrap() > 0,
+            "ucc ended before spawning"
+        );
+    }
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("ucc: error: interrupted"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
