@@ -488,6 +488,8 @@ async fn fly_demo(addr: &str, args: &DemoArgs) -> anyhow::Result<(Summary, RunCo
         iterations: args.iterations as usize,
         log_dir: Some(args.output.clone()),
         prefix: "demo".into(),
+        // Our own server: lockstep makes the demo the same flight every time.
+        lockstep: true,
         ..RunConfig::default()
     };
     let summary = run_missions(&config, print_progress).await?;
