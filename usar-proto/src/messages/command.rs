@@ -151,8 +151,9 @@ use crate::format::WireBuf;
 use crate::message::{Deviation, Parsed, Raw, RawPair};
 use crate::value::{Lenient, lenient_f64, lenient_i64};
 
-/// The numeric DRIVE keys, in printing order (the order of the `Drive` fields).
-const DRIVE_NUMBERS: [&str; 13] = [
+/// Every DRIVE key: the numeric ones in printing order (the order of the `Drive` fields),
+/// then the flags.
+const DRIVE_KEYS: [&str; 15] = [
     "AltitudeVelocity",
     "LinearVelocity",
     "LateralVelocity",
@@ -166,7 +167,20 @@ const DRIVE_NUMBERS: [&str; 13] = [
     "Speed",
     "FrontSteer",
     "RearSteer",
+    "Normalized",
+    "Light",
 ];
+
+/// The numeric DRIVE keys.
+const DRIVE_NUMBERS: [&str; 13] = {
+    let mut numbers = [""; 13];
+    let mut i = 0;
+    while i < numbers.len() {
+        numbers[i] = DRIVE_KEYS[i];
+        i += 1;
+    }
+    numbers
+};
 
 impl Drive {
     fn numbers(&self) -> [Option<f64>; 13] {
@@ -281,24 +295,7 @@ impl Command {
             (Self::Init(init), known)
         } else if is("DRIVE") {
             let drive = Drive::read(&mut l);
-            const KNOWN: [&str; 15] = [
-                "AltitudeVelocity",
-                "LinearVelocity",
-                "LateralVelocity",
-                "RotationalVelocity",
-                "PitchAngle",
-                "RollAngle",
-                "Spin1",
-                "Spin2",
-                "Left",
-                "Right",
-                "Speed",
-                "FrontSteer",
-                "RearSteer",
-                "Normalized",
-                "Light",
-            ];
-            (Self::Drive(drive), &KNOWN)
+            (Self::Drive(drive), &DRIVE_KEYS)
         } else if is("GETSTARTPOSES") {
             (Self::GetStartPoses, &[])
         } else if is("GETCONF") || is("GETGEO") {

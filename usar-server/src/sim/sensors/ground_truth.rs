@@ -2,7 +2,7 @@
 
 use usar_proto::{ConfItem, SenData};
 
-use super::{NoSettings, Reading, Sensor, f32ish, settings};
+use super::{NoSettings, Reading, Sensor, interval_conf, settings};
 use crate::sim::noise::Noise;
 use crate::sim::robots::PartConfig;
 
@@ -28,10 +28,7 @@ impl Sensor for GroundTruth {
     }
 
     fn conf(&self, name: &str, interval: f64) -> ConfItem {
-        ConfItem::Interval {
-            name: name.to_string(),
-            scan_interval: f32ish(interval),
-        }
+        interval_conf(name, interval)
     }
 }
 

@@ -156,6 +156,15 @@ pub(crate) fn f32ish(v: f64) -> f64 {
     f64::from(v as f32)
 }
 
+/// The CONF item of a part that reports only its interval (`{Name n} {ScanInterval s}`:
+/// GroundTruth, INS, Position, Velocity), in the engine's f32.
+pub(crate) fn interval_conf(name: &str, interval: f64) -> ConfItem {
+    ConfItem::Interval {
+        name: name.to_string(),
+        scan_interval: f32ish(interval),
+    }
+}
+
 /// Unreal rotation units per radian (`C_AngleToURot`).
 pub(crate) const URU_PER_RAD: f32 = 10_430.378;
 
