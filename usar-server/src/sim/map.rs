@@ -9,6 +9,7 @@ use toml::Spanned;
 
 use super::obj;
 use super::scene::{Scene, V3, upright_pose, yaw_rotate};
+use super::wind::WindConfig;
 
 /// The maps built into the binary: short name, file name, text.
 const EMBEDDED: &[(&str, &str, &str)] = &[
@@ -93,6 +94,7 @@ pub struct Map {
     time_limit: i64,
     starts: Vec<PlayerStart>,
     solids: Vec<Solid>,
+    wind: Option<WindConfig>,
 }
 
 #[derive(Deserialize)]
@@ -109,6 +111,8 @@ struct RawMap {
     cylinder: Vec<Spanned<RawCylinder>>,
     #[serde(default)]
     mesh: Vec<Spanned<RawMesh>>,
+    #[serde(default)]
+    wind: Option<Spanned<WindConfig>>,
 }
 
 fn default_time_limit() -> i64 {
@@ -219,7 +223,13 @@ impl Map {
             time_limit: 20,
             starts: Vec::new(),
             solids: Vec::new(),
+            wind: None,
         })
+    }
+
+    /// The map's wind (`[wind]`), if it sets one.
+    pub fn wind(&self) -> Option<WindConfig> {
+        self.wind
     }
 
     /// The level name for the NFO line.
@@ -346,11 +356,21 @@ impl Map {
                 triangles: mesh.triangles,
             });
         }
+        let wind = match raw.wind {
+            Some(entry) => {
+                let at = entry.span().start;
+                let wind = entry.into_inner();
+                wind.check().map_err(|m| invalid(at, m))?;
+                Some(wind)
+            }
+            None => None,
+        };
         Ok(Self {
             level: raw.level,
             time_limit: raw.time_limit,
             starts,
             solids,
+            wind,
         })
     }
 

@@ -7,6 +7,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::map::line_of;
+use super::quadrotor::QuadrotorConfig;
 use super::sensors;
 
 /// The embedded catalog (`usar-server/robots.toml`).
@@ -65,6 +66,40 @@ impl Default for FlightConfig {
             max_tilt: 25.0,
             tilt_rate: 7000.0 / 10_430.378,
             tilt_margin: 200.0 / 10_430.378,
+        }
+    }
+}
+
+/// The flight model of a robot class (`dynamics = ..`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DynamicsKind {
+    /// UDK's AerialVehicle: velocities imposed, byte-compatible with USARSim.
+    #[default]
+    Kinematic,
+    /// A rigid-body quadrotor with motors, drag, wind and an onboard controller
+    /// (`[robot.quadrotor]`, docs/quadrotor.md).
+    Quadrotor,
+}
+
+/// When a contact is a crash (`[robot.crash]`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CrashConfig {
+    /// m/s into a surface above which a contact is a crash (quadrotor).
+    pub speed: f64,
+    /// Degrees of tilt above which a contact is a crash (quadrotor).
+    pub tilt: f64,
+    /// Kinematic model: any contact with the map or another robot is a crash.
+    pub on_contact: bool,
+}
+
+impl Default for CrashConfig {
+    fn default() -> Self {
+        Self {
+            speed: 1.0,
+            tilt: 60.0,
+            on_contact: false,
         }
     }
 }
@@ -164,6 +199,12 @@ pub struct RobotClass {
     pub class: String,
     /// Flight limits.
     pub flight: FlightConfig,
+    /// The flight model.
+    pub dynamics: DynamicsKind,
+    /// The quadrotor's parameters (used when `dynamics` is `Quadrotor`).
+    pub quadrotor: QuadrotorConfig,
+    /// When a contact is a crash.
+    pub crash: CrashConfig,
     /// Collision shape.
     pub collision: CollisionConfig,
     /// Battery life in simulated seconds; `None` = no battery part (`Battery 99999`).
@@ -193,6 +234,12 @@ struct RawRobot {
     class: String,
     #[serde(default)]
     flight: FlightConfig,
+    #[serde(default)]
+    dynamics: DynamicsKind,
+    #[serde(default)]
+    quadrotor: Option<QuadrotorConfig>,
+    #[serde(default)]
+    crash: CrashConfig,
     #[serde(default)]
     collision: CollisionConfig,
     #[serde(default)]
@@ -296,6 +343,9 @@ impl RobotCatalog {
             robots.push(RobotClass {
                 class: r.class,
                 flight: r.flight,
+                dynamics: r.dynamics,
+                quadrotor: r.quadrotor.unwrap_or_default(),
+                crash: r.crash,
                 collision: r.collision,
                 battery: r.battery,
                 parts,
@@ -341,6 +391,18 @@ fn check_flight(r: &RawRobot) -> Result<(), String> {
     )?;
     if let Some(b) = r.battery {
         positive("battery", b)?;
+    }
+    positive("crash.speed", r.crash.speed)?;
+    positive("crash.tilt", r.crash.tilt)?;
+    match (&r.quadrotor, r.dynamics) {
+        (Some(_), DynamicsKind::Kinematic) => {
+            return Err(
+                "[robot.quadrotor] needs `dynamics = \"quadrotor\"` (the robot is kinematic)"
+                    .into(),
+            );
+        }
+        (Some(q), DynamicsKind::Quadrotor) => q.check()?,
+        (None, _) => {}
     }
     Ok(())
 }
