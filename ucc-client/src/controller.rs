@@ -259,6 +259,14 @@ pub enum RunError {
         /// Simulated seconds.
         time: f64,
     },
+    /// The UAV crashed (its crash sensor fired, docs/quadrotor.md).
+    #[error("crashed at t={time:.2}s: {reason}")]
+    Crashed {
+        /// Simulated seconds.
+        time: f64,
+        /// What the UAV state knew then (speed, tilt, position).
+        reason: String,
+    },
     /// A mission took too long.
     #[error("mission {number} ({mission}) not done after {seconds} simulated seconds")]
     MissionTimeout {
@@ -783,6 +791,12 @@ impl Flight {
             let time = uav.time.unwrap_or(0.0);
             if uav.battery_empty() {
                 return Err(RunError::BatteryEmpty { time });
+            }
+            if let Some(crash) = &uav.crash {
+                return Err(RunError::Crashed {
+                    time: crash.time,
+                    reason: crash.value.clone(),
+                });
             }
             if !fresh {
                 continue;

@@ -55,6 +55,48 @@ impl WindConfig {
     }
 }
 
+/// A wind velocity from the command line: `vx,vy` or `vx,vy,vz` (m/s, x north, y east,
+/// z down: where the air moves to).
+pub fn parse_velocity(text: &str) -> Result<[f64; 3], String> {
+    let numbers: Vec<f64> = text
+        .split(',')
+        .map(|s| s.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("wind `{text}`: expected vx,vy[,vz] in m/s"))?;
+    match numbers[..] {
+        [x, y] => Ok([x, y, 0.0]),
+        [x, y, z] => Ok([x, y, z]),
+        _ => Err(format!("wind `{text}`: expected two or three numbers")),
+    }
+}
+
+impl WindConfig {
+    /// The run's wind: `base` (the map's, or calm) with the fields the command line gives;
+    /// `None` when it gives none (the map's wind then applies).
+    pub fn overridden(
+        base: Option<Self>,
+        velocity: Option<[f64; 3]>,
+        gusts: Option<f64>,
+        gust_length: Option<f64>,
+    ) -> Result<Option<Self>, String> {
+        if velocity.is_none() && gusts.is_none() && gust_length.is_none() {
+            return Ok(None);
+        }
+        let mut wind = base.unwrap_or_default();
+        if let Some(v) = velocity {
+            wind.velocity = v;
+        }
+        if let Some(g) = gusts {
+            wind.gusts = g;
+        }
+        if let Some(l) = gust_length {
+            wind.gust_length = l;
+        }
+        wind.check()?;
+        Ok(Some(wind))
+    }
+}
+
 /// The gust state of one robot.
 #[derive(Debug, Clone)]
 pub(crate) struct Gusts {
@@ -105,6 +147,29 @@ impl Gusts {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn command_line_wind() {
+        assert_eq!(parse_velocity("1,-2"), Ok([1.0, -2.0, 0.0]));
+        assert_eq!(parse_velocity(" 1, 2, 0.5"), Ok([1.0, 2.0, 0.5]));
+        assert!(parse_velocity("1").unwrap_err().contains("two or three"));
+        assert!(parse_velocity("1,x").unwrap_err().contains("vx,vy"));
+        let map = WindConfig {
+            velocity: [3.0, 0.0, 0.0],
+            gusts: 0.5,
+            gust_length: 20.0,
+        };
+        assert_eq!(
+            WindConfig::overridden(Some(map), None, None, None),
+            Ok(None)
+        );
+        let run = WindConfig::overridden(Some(map), None, Some(1.0), None).unwrap();
+        assert_eq!(
+            run.map(|w| (w.velocity, w.gusts)),
+            Some(([3.0, 0.0, 0.0], 1.0))
+        );
+        assert!(WindConfig::overridden(None, None, Some(-1.0), None).is_err());
+    }
 
     #[test]
     fn gusts_have_the_configured_intensity_and_repeat() {
