@@ -89,7 +89,7 @@ impl Default for QuadrotorConfig {
         Self {
             mass: 1.3,
             arm_length: 0.3,
-            inertia: [0.015, 0.015, 0.027],
+            inertia: [0.015, 0.015, 0.03],
             thrust_coefficient: 6.4e-6,
             torque_coefficient: 1.0e-7,
             motor_time_constant: 0.05,
