@@ -475,6 +475,26 @@ mod tests {
     }
 
     #[test]
+    fn wind_section() {
+        let map =
+            parse("level = \"x\"\n[wind]\nvelocity = [0.0, 2.0, 0.0]\ngusts = 0.5\n").unwrap();
+        let wind = map.wind().expect("wind");
+        assert_eq!(
+            (wind.velocity, wind.gusts, wind.gust_length),
+            ([0.0, 2.0, 0.0], 0.5, 20.0)
+        );
+        assert!(Map::default_map().wind().is_none());
+        let e = parse("level = \"x\"\n\n[wind]\ngusts = -1.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("test.toml:3:") && e.contains("gusts"), "{e}");
+        let e = parse("level = \"x\"\n[wind]\nspeed = 3.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("speed"), "{e}");
+    }
+
+    #[test]
     fn start_names_default_to_playerstart_index() {
         let map =
             parse("level = \"x\"\n[[start]]\ntag = \"PlayerStart\"\nlocation = [1,2,3]\n").unwrap();

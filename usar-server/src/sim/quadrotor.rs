@@ -9,8 +9,8 @@
 //! along body -z; rotor `i` turning counter-clockwise seen from above pushes the body
 //! clockwise (yaw +).
 //!
-//! Integration: [`SUBSTEPS`] semi-implicit Euler steps per tick (the controller runs at each,
-//! as an autopilot's inner loop would), exact exponential motor lag, quaternion attitude.
+//! Integration: semi-implicit Euler substeps of at most [`MAX_SUBSTEP`] (two per 5 ms tick;
+//! the controller runs at each, as an autopilot's 400 Hz inner loop would), exact exponential motor lag, quaternion attitude.
 //! The body then moves with one swept shape cast per tick, like the kinematic model, so it
 //! never passes through anything; a contact faster than the crash speed, or while tilted
 //! more than the crash tilt, is a crash.
@@ -24,8 +24,8 @@ use super::dynamics::{
 use super::scene::{V3, yaw_rotate};
 use super::wind::{Gusts, WindConfig};
 
-/// Controller and integration steps per 5 ms tick (a 400 Hz inner loop).
-pub(crate) const SUBSTEPS: usize = 2;
+/// Longest controller and integration step, s (two per 5 ms tick: a 400 Hz inner loop).
+pub(crate) const MAX_SUBSTEP: f64 = 0.0025;
 
 /// m/s: the velocity integral runs only while the error is smaller (no wind-up on steps).
 const INTEGRATE_BELOW: f64 = 0.5;
@@ -224,6 +224,8 @@ pub(crate) struct Quadrotor {
     unmix: [[f64; 4]; 4],
     /// Motor lag factor per substep.
     motor_alpha: f64,
+    /// Substeps per tick.
+    substeps: usize,
     /// Attitude, body → world, as a unit quaternion (w, x, y, z).
     q: [f64; 4],
     /// Body rates, rad/s.
@@ -336,12 +338,14 @@ impl Quadrotor {
             std::array::from_fn(|i| rotors[i].0 * kf),
             std::array::from_fn(|i| rotors[i].2 * km),
         ];
-        let h = dt / SUBSTEPS as f64;
+        let substeps = ((dt / MAX_SUBSTEP - 1e-9).ceil() as usize).max(1);
+        let h = dt / substeps as f64;
         let hover = config.hover_speed();
         Self {
             unmix: invert4(mix),
             rotors,
             motor_alpha: 1.0 - (-h / config.motor_time_constant).exp(),
+            substeps,
             q: euler_quat(rotation),
             rates: [0.0; 3],
             speeds: [hover; 4],
@@ -532,14 +536,14 @@ impl Dynamics for Quadrotor {
 
     fn step(&mut self, f: Flight<'_>) -> Option<Crash> {
         let dt = f.dt;
-        let h = dt / SUBSTEPS as f64;
+        let h = dt / self.substeps as f64;
         let start = *f.position;
         let v0 = *f.velocity;
         let (mut p, mut v) = (start, v0);
         let c = self.config.clone();
         let mean = self.gusts.mean();
         let wind = self.gusts.step(dt, norm(sub(v, mean)));
-        for _ in 0..SUBSTEPS {
+        for _ in 0..self.substeps {
             let r = quat_matrix(self.q);
             let command = self.control(p, v, &r, h);
             for (speed, target) in self.speeds.iter_mut().zip(command) {

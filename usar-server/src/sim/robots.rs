@@ -476,6 +476,14 @@ mod tests {
         ] {
             assert!(names.contains(&n), "{n} missing");
         }
+        let quad = catalog.get("USARBot.stsQuadrotor").expect("stsQuadrotor");
+        assert_eq!(quad.dynamics, DynamicsKind::Quadrotor);
+        assert_eq!(
+            quad.parts.len(),
+            sts.parts.len() + 1,
+            "the sts parts plus Crash"
+        );
+        assert_eq!(sts.dynamics, DynamicsKind::Kinematic);
         let air = catalog.get("USARBot.AirRobot").expect("AirRobot");
         assert_eq!(air.battery, None);
         assert_eq!(air.actuators[0].name, "cam");
@@ -507,5 +515,27 @@ mod tests {
         assert!(e.contains("package"), "{e}");
         let e = parse("[[robot]]\nclass = \"USARBot.X\"\nbattery = -3.0\n");
         assert!(e.starts_with("r.toml:1:") && e.contains("battery"), "{e}");
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\n[robot.quadrotor]\nmass = 2.0\n");
+        assert!(e.contains("needs `dynamics = \"quadrotor\"`"), "{e}");
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\ndynamics = \"quadrotor\"\n\
+             [robot.quadrotor]\nmass = 20.0\n",
+        );
+        assert!(
+            e.starts_with("r.toml:1:") && e.contains("cannot hover"),
+            "{e}"
+        );
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\ndynamics = \"helicopter\"\n");
+        assert!(
+            e.starts_with("r.toml:3:") && e.contains("helicopter"),
+            "{e}"
+        );
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\ndynamics = \"quadrotor\"\n\
+             [robot.quadrotor]\nconfiguration = \"y\"\n",
+        );
+        assert!(e.contains("configuration") || e.contains("`y`"), "{e}");
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\n[robot.crash]\nspeed = 0.0\n");
+        assert!(e.contains("crash.speed"), "{e}");
     }
 }
