@@ -300,3 +300,52 @@ async fn a_crash_fails_the_iteration_with_its_reason() {
     }
     server.stop().await;
 }
+
+#[tokio::test]
+async fn the_quadrotor_completes_four_waypoints_in_gusty_wind() {
+    // A regression: with a mixer that clipped yaw and attitude alike, the base agent's fast
+    // turns flipped the vehicle in gusts.
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    let shutdown = CancellationToken::new();
+    let mut config = ServerConfig {
+        time_scale: TimeScale::Max,
+        ..ServerConfig::default()
+    };
+    config.sim.seed = 4;
+    config.sim.wind = Some(usar_server::sim::WindConfig {
+        velocity: [0.0, 2.5, 0.0],
+        gusts: 1.0,
+        gust_length: 20.0,
+    });
+    let task = tokio::spawn(usar_server::run(listener, config, shutdown.clone()));
+    let config = RunConfig {
+        addr,
+        robot: "stsQuadrotor".into(),
+        start: pose(0.0, 0.0, -1.0),
+        missions: [
+            (3.0, 0.0, -2.0),
+            (3.0, 3.0, -2.5),
+            (-2.0, 3.0, -1.5),
+            (-2.0, -2.0, -2.0),
+        ]
+        .into_iter()
+        .map(|(x, y, z)| Mission::goto(Coordinates::new(x, y, z)))
+        .collect(),
+        mission_timeout: 30.0,
+        lockstep: true,
+        ..RunConfig::default()
+    };
+    let summary = run_missions(&config, |_| {}).await.unwrap();
+    let it = &summary.iterations[0];
+    assert_eq!(it.missions_done, 4, "{:?}", it.error);
+    let max_tilt = it
+        .trajectory
+        .iter()
+        .filter_map(|p| p.orientation)
+        .map(|o| (o.x.cos() * o.y.cos()).acos())
+        .fold(0.0, f64::max);
+    assert!(max_tilt < 35f64.to_radians(), "tilted up to {max_tilt} rad");
+    shutdown.cancel();
+    task.await.unwrap().unwrap();
+}

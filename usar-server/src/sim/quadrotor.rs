@@ -30,6 +30,9 @@ pub(crate) const MAX_SUBSTEP: f64 = 0.0025;
 /// m/s: the velocity integral runs only while the error is smaller (no wind-up on steps).
 const INTEGRATE_BELOW: f64 = 0.5;
 
+/// rad: the held heading stays this close to the actual one.
+const MAX_YAW_LAG: f64 = 0.5;
+
 /// Rotor arrangement.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -92,17 +95,17 @@ impl Default for QuadrotorConfig {
             inertia: [0.015, 0.015, 0.03],
             thrust_coefficient: 6.4e-6,
             torque_coefficient: 1.0e-7,
-            motor_time_constant: 0.05,
+            motor_time_constant: 0.03,
             rotor_speed_min: 100.0,
             rotor_speed_max: 1000.0,
             drag_linear: 0.25,
             drag_quadratic: 0.05,
             configuration: Configuration::X,
-            velocity_gain: 2.0,
-            velocity_integral_gain: 0.8,
+            velocity_gain: 4.0,
+            velocity_integral_gain: 2.0,
             altitude_gain: 1.5,
-            attitude_gain: 6.0,
-            rate_gain: 16.0,
+            attitude_gain: 8.0,
+            rate_gain: 20.0,
             max_tilt_rate: 4.0,
         }
     }
@@ -366,6 +369,12 @@ impl Quadrotor {
 
     /// Rotor speed commands for the current mode.
     fn control(&mut self, p: V3, v: V3, r: &M3, h: f64) -> [f64; 4] {
+        // The held heading never runs away from the actual one (weak yaw authority).
+        let yaw = r[1][0].atan2(r[0][0]);
+        let lag = wrap_angle(self.yaw_ref - yaw);
+        if lag.abs() > MAX_YAW_LAG {
+            self.yaw_ref = yaw + lag.clamp(-MAX_YAW_LAG, MAX_YAW_LAG);
+        }
         let c = &self.config;
         let m = c.mass;
         let (desired, thrust, yaw_ff) = match self.mode {
@@ -473,12 +482,29 @@ impl Quadrotor {
         let torque: V3 =
             std::array::from_fn(|i| inertia[i] * c.rate_gain * (want[i] - w[i]) + gyro[i]);
         let thrust = thrust.clamp(0.0, 4.0 * c.thrust_coefficient * c.rotor_speed_max.powi(2));
-        let wrench = [thrust, torque[0], torque[1], torque[2]];
+        // Mixer with priorities: thrust, roll and pitch first; yaw gets what the rotor speed
+        // limits leave (a saturated yaw demand must not cost the attitude).
         let (lo, hi) = (c.rotor_speed_min.powi(2), c.rotor_speed_max.powi(2));
-        std::array::from_fn(|i| {
-            let u: f64 = (0..4).map(|j| self.unmix[i][j] * wrench[j]).sum();
-            u.clamp(lo, hi).sqrt()
-        })
+        let base: [f64; 4] = std::array::from_fn(|i| {
+            let u: f64 = (0..3)
+                .map(|j| self.unmix[i][j] * [thrust, torque[0], torque[1]][j])
+                .sum();
+            u.clamp(lo, hi)
+        });
+        let yaw: [f64; 4] = std::array::from_fn(|i| self.unmix[i][3] * torque[2]);
+        let share = (0..4).fold(1.0f64, |share, i| {
+            let room = if yaw[i] > 0.0 {
+                hi - base[i]
+            } else {
+                base[i] - lo
+            };
+            if yaw[i].abs() > 0.0 {
+                share.min((room / yaw[i].abs()).max(0.0))
+            } else {
+                share
+            }
+        });
+        std::array::from_fn(|i| (base[i] + share * yaw[i]).clamp(lo, hi).sqrt())
     }
 
     /// Thrust (N) and body torque of the current rotor speeds.

@@ -160,16 +160,26 @@ fn forward_step_pitches_and_accelerates_at_g_tan_theta_without_climbing() {
         let accel_up = -(v[2] - last_v[2]) / dt;
         max_climb = max_climb.max(v[2].abs());
         min_pitch = min_pitch.min(r[1]);
-        if pitch.abs() > 0.1 {
-            // Nose down to go forward, and a = (g + climb accel)·tan θ ≈ g·tan θ.
+        if pitch.abs() > 0.15 {
+            // Nose down to go forward; the thrust along the tilted axis gives
+            // a = (g + a_up)·tan θ at every tick ...
             assert!(pitch < 0.0, "nose down, pitch {pitch}");
-            let expected = GRAVITY * (-pitch).tan();
+            let tan = (-pitch).tan();
+            let expected = (GRAVITY + accel_up) * tan;
             assert!(
-                (accel - expected).abs() < 0.04 * expected,
-                "a = {accel:.3} m/s², g·tan θ = {expected:.3} m/s² (θ = {:.1}°), vertical {accel_up:.3}",
+                (accel - expected).abs() < 0.03 * expected,
+                "a = {accel:.3} m/s², (g + a_up)·tan θ = {expected:.3} m/s² (θ = {:.1}°)",
                 pitch.to_degrees()
             );
-            checked += 1;
+            // ... and g·tan θ while the altitude is held.
+            if accel_up.abs() < 0.1 {
+                let level = GRAVITY * tan;
+                assert!(
+                    (accel - level).abs() < 0.03 * level,
+                    "a = {accel:.3} m/s², g·tan θ = {level:.3} m/s²"
+                );
+                checked += 1;
+            }
         }
         assert!(
             r[0].abs() < 1e-6 && v[1].abs() < 1e-6,
@@ -178,13 +188,16 @@ fn forward_step_pitches_and_accelerates_at_g_tan_theta_without_climbing() {
         (last_v, last_pitch) = (v, r[1]);
         speeds.push(v[0]);
     }
-    assert!(checked > 40, "only {checked} ticks with a real tilt");
+    assert!(
+        checked > 20,
+        "only {checked} ticks with a real tilt and no climb"
+    );
     assert!(
         min_pitch < -15f64.to_radians(),
         "pitches visibly: {}°",
         min_pitch.to_degrees()
     );
-    assert!(max_climb < 0.05, "climb rate up to {max_climb} m/s");
+    assert!(max_climb < 0.08, "climb rate up to {max_climb} m/s");
     // Some overshoot, then it settles at 2 m/s without sustained oscillation.
     let peak = speeds.iter().copied().fold(0.0, f64::max);
     assert!(peak > 2.0 && peak < 2.6, "peak {peak}");
