@@ -98,7 +98,12 @@ struct RunArgs {
           value_parser = usar_server::sim::wind::parse_velocity)]
     wind: Option<[f64; 3]>,
     /// With --local: gust intensity (standard deviation, m/s; seeded by --seed).
-    #[arg(long, requires = "local", value_name = "M/S")]
+    #[arg(
+        long,
+        requires = "local",
+        value_name = "M/S",
+        allow_hyphen_values = true
+    )]
     gusts: Option<f64>,
     /// Robot class (`stsAirRobot`, `stsQuadrotor`, `AirRobot`, or `Package.Class`).
     #[arg(long, default_value = "stsAirRobot")]

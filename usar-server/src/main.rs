@@ -58,10 +58,10 @@ struct Args {
     wind: Option<[f64; 3]>,
     /// Gust intensity for this run: standard deviation of the horizontal gusts, m/s
     /// (Dryden-type, seeded by --seed).
-    #[arg(long, value_name = "M/S")]
+    #[arg(long, value_name = "M/S", allow_hyphen_values = true)]
     gusts: Option<f64>,
     /// Gust length scale for this run, m (default 20).
-    #[arg(long, value_name = "M")]
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
     gust_length: Option<f64>,
 }
 
