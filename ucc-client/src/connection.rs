@@ -102,7 +102,7 @@ struct Lockstep {
 /// The time of a lockstep answer `SYNC {Time t}`.
 fn sync_time(message: &ServerMessage) -> Option<f64> {
     match message {
-        ServerMessage::Other(m) if m.kind == "SYNC" => m.get("Time")?.trim().parse().ok(),
+        ServerMessage::Sync(barrier) => Some(barrier.time.seconds),
         _ => None,
     }
 }

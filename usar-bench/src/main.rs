@@ -198,7 +198,7 @@ fn sim_only(args: &Args) -> anyhow::Result<()> {
     use usar_server::sim::{SimConfig, World, map::Map, robots::RobotCatalog};
     let map = match &args.map {
         None => Map::default_map(),
-        Some(name) => Map::embedded(name).context("unknown embedded map")?,
+        Some(name) => Map::lookup(name)?,
     };
     let start = map.starts().first().context("no start pose")?.location;
     let mut world = World::new(map, RobotCatalog::embedded(), SimConfig::default());

@@ -125,19 +125,7 @@ fn main() -> ExitCode {
 fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
     let map = match &args.map {
         None => Map::default_map(),
-        Some(name) => match Map::embedded(name) {
-            Some(map) => map,
-            None => {
-                let path = PathBuf::from(name);
-                if !path.exists() {
-                    anyhow::bail!(
-                        "--map {name}: no embedded map of that name ({}) and no such file",
-                        Map::embedded_names().join(", ")
-                    );
-                }
-                Map::from_file(&path)?
-            }
-        },
+        Some(name) => Map::lookup(name).with_context(|| format!("--map {name}"))?,
     };
     let robots = match &args.robots {
         None => RobotCatalog::embedded(),

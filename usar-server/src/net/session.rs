@@ -12,8 +12,8 @@ use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
-use usar_proto::Command;
 use usar_proto::codec::LineCodec;
+use usar_proto::{Command, SYNC_WORD};
 
 use super::driver::Request;
 use crate::sim::ClientId;
@@ -108,12 +108,8 @@ fn read_request(client: ClientId, line: String, peer: SocketAddr, record: bool) 
     };
     // The lockstep extension (docs/lockstep.md) is ours: not a deviation, not unknown.
     let sync = match &parsed.message {
-        Command::Other(message) if message.kind.eq_ignore_ascii_case("SYNC") => Some(
-            message
-                .get("Time")
-                .and_then(|t| t.trim().parse::<f64>().ok())
-                .filter(|t| t.is_finite()),
-        ),
+        Command::Sync(barrier) => Some(Some(barrier.time.seconds)),
+        Command::Other(message) if message.kind.eq_ignore_ascii_case(SYNC_WORD) => Some(None),
         _ => None,
     };
     if sync.is_none() {

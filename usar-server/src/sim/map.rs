@@ -42,6 +42,14 @@ pub enum MapError {
         /// Why.
         source: std::io::Error,
     },
+    /// A name that is neither an embedded map nor a file.
+    #[error("no map {name:?}: not an embedded map ({known}) and no such file")]
+    Unknown {
+        /// The name asked for.
+        name: String,
+        /// The embedded maps' names, comma separated.
+        known: String,
+    },
     /// The file is not a valid map.
     #[error("{path}:{line}: {message}")]
     Invalid {
@@ -184,9 +192,28 @@ impl Map {
         Self::parse(&text, path, &load)
     }
 
-    /// An embedded map by short name (see [`Map::embedded_names`]).
+    /// The map a user names: an embedded map (by short name or level name, any case, so
+    /// `arena`, `Arena` and `EmptyRoom` all work) or else a map file.
+    pub fn lookup(name: &str) -> Result<Self, MapError> {
+        if let Some(map) = Self::embedded(name) {
+            return Ok(map);
+        }
+        let path = Path::new(name);
+        if !path.exists() {
+            return Err(MapError::Unknown {
+                name: name.to_owned(),
+                known: Self::embedded_names().join(", "),
+            });
+        }
+        Self::from_file(path)
+    }
+
+    /// An embedded map by short name (see [`Map::embedded_names`]) or level name, any case.
     pub fn embedded(name: &str) -> Option<Self> {
-        let (_, file, text) = EMBEDDED.iter().find(|(short, ..)| *short == name)?;
+        let squash = |s: &str| s.replace('_', "").to_ascii_lowercase();
+        let (_, file, text) = EMBEDDED
+            .iter()
+            .find(|(short, ..)| squash(short) == squash(name))?;
         let load = |file: &str| {
             EMBEDDED_OBJ
                 .iter()
