@@ -215,8 +215,31 @@ fn ctrl_c_ends_a_run_cleanly() {
         .unwrap();
     assert!(status.success());
     let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("ucc: error: interrupted"), "{stderr}");
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    // Everything flown so far is written, marked as interrupted (the defect: nothing was).
+    let results = std::fs::read_to_string(dir.join("UCCLOG-results.csv")).unwrap();
+    assert!(
+        results
+            .lines()
+            .nth(1)
+            .unwrap()
+            .starts_with("1,interrupted,"),
+        "{results}"
+    );
+    let log = std::fs::read_to_string(dir.join("UCCLOG-01.log")).unwrap();
+    assert!(
+        log.trim_end().ends_with("interrupted: the run was stopped"),
+        "{log}"
+    );
+    for file in [
+        "UCCLOG-01-trajectory.csv",
+        "UCCLOG-01-map.png",
+        "UCCLOG-01-plots.png",
+        "UCCLOG-overlay.png",
+    ] {
+        assert!(dir.join(file).exists(), "{file} missing");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }

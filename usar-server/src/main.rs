@@ -47,6 +47,10 @@ struct Args {
     /// one file per connection (docs/recording.md).
     #[arg(long, value_name = "DIR")]
     record: Option<PathBuf>,
+    /// Offer lockstep to clients that ask (`SYNC`, docs/lockstep.md): reproducible runs at any
+    /// speed. Off by default, so that no client can hold the world for the others.
+    #[arg(long)]
+    lockstep: bool,
     /// List the embedded maps and exit.
     #[arg(long)]
     list_maps: bool,
@@ -141,6 +145,7 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         time_scale: args.time_scale,
         max_connections: args.max_connections,
         record: args.record.clone(),
+        lockstep: args.lockstep,
         ..ServerConfig::default()
     })
 }
