@@ -324,10 +324,6 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
         let lockstep = if args.lockstep {
             Lockstep::Required
         } else {
-            println!(
-                "ucc: running on sensor time: results depend on timing (with usar-server, \
-                 start it with --lockstep and pass --lockstep for repeatable runs)"
-            );
             Lockstep::Off
         };
         return run(args, addr, lockstep, None).await;
@@ -389,6 +385,12 @@ async fn run(
     missions.extend(args.goto.iter().copied().map(Mission::goto));
     if missions.is_empty() {
         bail!("no missions: give --goto x,y,z (repeatable) or --missions FILE");
+    }
+    if lockstep == Lockstep::Off {
+        println!(
+            "ucc: running on sensor time: results depend on timing (with usar-server, start \
+             it with --lockstep and pass --lockstep for repeatable runs)"
+        );
     }
     let settings = RunSettings {
         addr,
