@@ -154,7 +154,18 @@ impl MapPicture {
         let wall = RGBColor(150, 150, 150);
         if let Some(geometry) = &self.geometry {
             let clip = (east.start, east.end, north.start, north.end);
-            for footprint in &geometry.footprints {
+            // Only what stands at the flown heights: not the floor, not the ceiling.
+            let (low, high) = self
+                .paths
+                .iter()
+                .flatten()
+                .chain(&self.waypoints)
+                .chain(&self.start)
+                .fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+                    (lo.min(p.z), hi.max(p.z))
+                });
+            let at_height = |f: &&Footprint| low > high || (f.z_min <= high && f.z_max >= low);
+            for footprint in geometry.footprints.iter().filter(at_height) {
                 let outline: Vec<(f64, f64)> =
                     footprint.outline.iter().map(|&(x, y)| (y, x)).collect();
                 let clipped = clip_polygon(&outline, clip);
