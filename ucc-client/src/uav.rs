@@ -81,7 +81,9 @@ pub struct UavState {
     pub velocity: Option<Reading<Coordinates>>,
     /// Body-frame velocity (x forward, y right, z down), m/s.
     pub relative_velocity: Option<Reading<Coordinates>>,
-    /// IMU linear acceleration, m/s², gravity excluded.
+    /// IMU linear acceleration, m/s², body frame, z up: gravity excluded on USARSim's IMU;
+    /// the specific force (gravity included, hovering reads +9.81 on z) on robots with physics
+    /// such as the stsQuadrotor.
     pub acceleration: Option<Reading<Coordinates>>,
     /// IMU angular velocity (roll, pitch, yaw rates), rad/s.
     pub angular_velocity: Option<Reading<Coordinates>>,

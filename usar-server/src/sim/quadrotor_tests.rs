@@ -133,6 +133,38 @@ fn hover_holds_altitude_for_thirty_seconds_with_thrust_equal_to_weight() {
 }
 
 #[test]
+fn the_accelerometer_reads_only_idle_thrust_and_drag_in_free_fall() {
+    let catalog = RobotCatalog::embedded();
+    let q = catalog.get(QUAD).expect("class").quadrotor.clone();
+    let mut w = world_with(catalog, None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -4.5], 0.0);
+    // Idle rotors (the command is clamped to rotor_speed_min).
+    command(&mut w, c, "QUAD {Rotors 0,0,0,0}");
+    run(&mut w, 0.3);
+    let idle = 4.0 * q.thrust_coefficient * q.rotor_speed_min.powi(2);
+    let mut checked = 0;
+    for _ in 0..140 {
+        let mut out = Vec::new();
+        step(&mut w, &mut out);
+        let (_, v, _) = state(&w, c);
+        if let Some((a, _)) = imu_lines(&out).pop() {
+            // Falling level: idle thrust and drag push up; gravity does not show.
+            let speed = v[2];
+            let drag = (q.drag_linear + q.drag_quadratic * speed) * speed;
+            let expected = (idle + drag) / q.mass;
+            assert!(a.x.abs() < 1e-9 && a.y.abs() < 1e-9, "{a:?}");
+            assert!(
+                (a.z - expected).abs() < 0.03 * expected,
+                "{a:?} vs {expected}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 6, "{checked} readings");
+    assert!(state(&w, c).1[2] > 4.0, "fell fast");
+}
+
+#[test]
 fn forward_step_pitches_and_accelerates_at_g_tan_theta_without_climbing() {
     // Without drag, thrust alone accelerates the body: a = g·tan θ when it holds altitude.
     let mut w = world_with(without_drag(), None, 0);
