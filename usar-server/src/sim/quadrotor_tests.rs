@@ -250,7 +250,10 @@ fn forward_step_pitches_and_accelerates_at_g_tan_theta_without_climbing() {
 /// Attitude after 0.3 s of rotor speeds `delta` around hover (rotors 1 front-right,
 /// 2 rear-right, 3 rear-left, 4 front-left; 1 and 3 turn counter-clockwise from above).
 fn attitude_after(delta: [f64; 4]) -> [f64; 3] {
-    let catalog = RobotCatalog::embedded();
+    attitude_after_in(RobotCatalog::embedded(), delta)
+}
+
+fn attitude_after_in(catalog: RobotCatalog, delta: [f64; 4]) -> [f64; 3] {
     let hover = catalog.get(QUAD).expect("class").quadrotor.hover_speed();
     let mut w = world_with(catalog, None, 0);
     let c = spawn(&mut w, [0.0, 0.0, -2.5], 0.0);
@@ -287,6 +290,32 @@ fn rotor_speed_differences_roll_pitch_and_yaw_as_in_x_mode() {
     );
     let r = attitude_after([-60.0, 60.0, -60.0, 60.0]);
     assert!(r[2] < -0.02, "{r:?}");
+}
+
+#[test]
+fn plus_mode_rotors_sit_on_the_axes() {
+    let plus = || {
+        let mut catalog = RobotCatalog::embedded();
+        catalog
+            .get_mut(QUAD)
+            .expect("class")
+            .quadrotor
+            .configuration = super::quadrotor::Configuration::Plus;
+        catalog
+    };
+    let small = 1e-3;
+    // 1 front, 2 right, 3 rear, 4 left: the front faster than the rear lifts the nose only.
+    let r = attitude_after_in(plus(), [15.0, 0.0, -15.0, 0.0]);
+    assert!(
+        r[1] > 0.1 && r[0].abs() < small && r[2].abs() < small,
+        "{r:?}"
+    );
+    // The left faster than the right rolls right only.
+    let r = attitude_after_in(plus(), [0.0, -15.0, 0.0, 15.0]);
+    assert!(
+        r[0] > 0.1 && r[1].abs() < small && r[2].abs() < small,
+        "{r:?}"
+    );
 }
 
 #[test]
