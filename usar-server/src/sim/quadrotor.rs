@@ -30,6 +30,10 @@ pub(crate) const MAX_SUBSTEP: f64 = 0.0025;
 /// m/s: the velocity integral runs only while the error is smaller (no wind-up on steps).
 const INTEGRATE_BELOW: f64 = 0.5;
 
+/// m/s and rad/s: the largest set-point the controller takes (absurd DRIVE values stay
+/// finite).
+const MAX_TARGET: f64 = 100.0;
+
 /// rad: the held heading stays this close to the actual one.
 const MAX_YAW_LAG: f64 = 0.5;
 
@@ -386,6 +390,7 @@ impl Quadrotor {
                 yaw_rate,
                 thrust,
             } => {
+                let yaw_rate = yaw_rate.clamp(-MAX_TARGET, MAX_TARGET);
                 self.yaw_ref += yaw_rate * h;
                 let desired = super::dynamics::euler_to_matrix([roll, pitch, self.yaw_ref]);
                 (desired, thrust, yaw_rate)
@@ -395,7 +400,7 @@ impl Quadrotor {
                     Mode::Velocity(s) => Some(s),
                     _ => None,
                 };
-                let climb = set.map_or(0.0, |s| s.altitude);
+                let climb = set.map_or(0.0, |s| s.altitude.clamp(-MAX_TARGET, MAX_TARGET));
                 let vz = if climb == 0.0 {
                     let z = *self.hold_z.get_or_insert(p[2]);
                     (c.altitude_gain * (z - p[2]))
@@ -422,7 +427,11 @@ impl Quadrotor {
                 accel[2] = pi(2, vz, 0.3 * GRAVITY, &mut self.integral);
                 match set {
                     Some(s) => {
-                        let target = yaw_rotate(self.yaw_ref, [s.linear, s.lateral, 0.0]);
+                        let (linear, lateral) = (
+                            s.linear.clamp(-MAX_TARGET, MAX_TARGET),
+                            s.lateral.clamp(-MAX_TARGET, MAX_TARGET),
+                        );
+                        let target = yaw_rotate(self.yaw_ref, [linear, lateral, 0.0]);
                         // Feed-forward: the drag of the commanded speed in calm air.
                         let speed = target[0].hypot(target[1]);
                         let ff = (c.drag_linear + c.drag_quadratic * speed) / m;
@@ -435,7 +444,7 @@ impl Quadrotor {
                             accel[0] *= a_max / horizontal;
                             accel[1] *= a_max / horizontal;
                         }
-                        self.yaw_ref += s.yaw_rate * h;
+                        self.yaw_ref += s.yaw_rate.clamp(-MAX_TARGET, MAX_TARGET) * h;
                     }
                     None => {
                         self.integral[0] = 0.0;

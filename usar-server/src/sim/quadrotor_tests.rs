@@ -528,6 +528,42 @@ fn quad_on_a_kinematic_robot_and_bad_quad_lines_are_ignored() {
     assert!((p[2] + 2.0).abs() < 0.01, "still hovering: {p:?}");
 }
 
+#[test]
+fn absurd_commands_keep_every_number_finite() {
+    let mut w = world();
+    let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1e300),
+            lateral_velocity: Some(-1e300),
+            altitude_velocity: Some(1e300),
+            rotational_velocity: Some(1e300),
+            ..Drive::default()
+        },
+    );
+    let mut out = run(&mut w, 2.0);
+    command(
+        &mut w,
+        c,
+        "QUAD {Attitude 1e300,-1e300,1e300} {Thrust 1e300}",
+    );
+    out.extend(run(&mut w, 1.0));
+    command(&mut w, c, "QUAD {Rotors 1e300,-1e300,0,1e300}");
+    out.extend(run(&mut w, 1.0));
+    let (p, v, r) = state(&w, c);
+    assert!(
+        p.iter().chain(&v).chain(&r).all(|x| x.is_finite()),
+        "{p:?} {v:?} {r:?}"
+    );
+    let text = printed(&out);
+    assert!(
+        !text.contains("NaN") && !text.contains("inf"),
+        "non-finite output"
+    );
+}
+
 fn printed(out: &[(ClientId, ServerMessage)]) -> String {
     out.iter().map(|(c, m)| format!("{c:?} {m}\n")).collect()
 }

@@ -14,6 +14,9 @@ use serde::Deserialize;
 use super::noise::Noise;
 use super::scene::V3;
 
+/// The strongest wind component or gust intensity accepted, m/s (a hurricane is 70).
+const MAX_WIND: f64 = 100.0;
+
 /// Wind settings.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -39,11 +42,21 @@ impl Default for WindConfig {
 impl WindConfig {
     /// Checks the numbers; the message names the bad one.
     pub fn check(&self) -> Result<(), String> {
-        if !self.velocity.iter().all(|v| v.is_finite()) {
-            return Err("wind velocity must be finite".into());
+        if !self
+            .velocity
+            .iter()
+            .all(|v| v.is_finite() && v.abs() <= MAX_WIND)
+        {
+            return Err(format!(
+                "wind velocity components must be numbers within ±{MAX_WIND} m/s, got {:?}",
+                self.velocity
+            ));
         }
-        if !(self.gusts.is_finite() && self.gusts >= 0.0) {
-            return Err(format!("wind gusts must be >= 0, got {}", self.gusts));
+        if !(self.gusts.is_finite() && (0.0..=MAX_WIND).contains(&self.gusts)) {
+            return Err(format!(
+                "wind gusts must be between 0 and {MAX_WIND} m/s, got {}",
+                self.gusts
+            ));
         }
         if !(self.gust_length.is_finite() && self.gust_length > 0.0) {
             return Err(format!(
@@ -169,6 +182,8 @@ mod tests {
             Some(([3.0, 0.0, 0.0], 1.0))
         );
         assert!(WindConfig::overridden(None, None, Some(-1.0), None).is_err());
+        let e = WindConfig::overridden(None, Some([1e300, 0.0, 0.0]), None, None).unwrap_err();
+        assert!(e.contains("±100 m/s"), "{e}");
     }
 
     #[test]
