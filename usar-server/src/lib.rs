@@ -33,6 +33,7 @@
 
 pub mod net;
 pub mod replay;
+mod shown;
 pub mod sim;
 
 pub use net::{ServerConfig, ServerError, TimeScale, run};
