@@ -23,6 +23,7 @@ impl Server {
         let config = ServerConfig {
             map: Map::embedded(map).unwrap(),
             time_scale: TimeScale::Max,
+            lockstep: true,
             ..ServerConfig::default()
         };
         let task = tokio::spawn(usar_server::run(listener, config, shutdown.clone()));
@@ -211,6 +212,7 @@ name = "GndTruth"
         ServerConfig {
             robots,
             time_scale: TimeScale::Max,
+            lockstep: true,
             ..ServerConfig::default()
         },
         shutdown.clone(),

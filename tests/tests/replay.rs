@@ -21,6 +21,7 @@ async fn a_recorded_flight_replays_into_the_same_uav_state() {
         listener,
         ServerConfig {
             time_scale: TimeScale::Max,
+            lockstep: true,
             ..ServerConfig::default()
         },
         shutdown.clone(),

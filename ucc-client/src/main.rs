@@ -256,6 +256,8 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
     let mut config = usar_server::ServerConfig {
         map,
         time_scale: args.time_scale,
+        // Its own server: lockstep (opt-in on shared servers) is always on offer.
+        lockstep: true,
         ..usar_server::ServerConfig::default()
     };
     config.sim.seed = args.seed;
@@ -430,6 +432,7 @@ async fn demo(args: DemoArgs) -> anyhow::Result<ExitCode> {
     let shutdown = CancellationToken::new();
     let server_config = usar_server::ServerConfig {
         time_scale: usar_server::TimeScale::Factor(args.speed),
+        lockstep: true,
         ..usar_server::ServerConfig::default()
     };
     let server = tokio::spawn(usar_server::run(

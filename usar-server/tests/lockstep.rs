@@ -24,6 +24,7 @@ async fn until_sync(c: &mut Client) -> (Vec<String>, f64) {
 async fn flight(scale: TimeScale, seed: u64) -> Vec<String> {
     let mut config = ServerConfig {
         time_scale: scale,
+        lockstep: true,
         ..ServerConfig::default()
     };
     config.sim.seed = seed;
@@ -90,7 +91,12 @@ async fn lockstep_runs_are_byte_identical_at_any_time_scale() {
 
 #[tokio::test]
 async fn a_client_that_never_syncs_is_never_waited_for() {
-    let server = TestServer::start().await;
+    let server = TestServer::with(ServerConfig {
+        time_scale: TimeScale::Factor(10.0),
+        lockstep: true,
+        ..ServerConfig::default()
+    })
+    .await;
     let mut lockstep = server.client().await;
     lockstep.raw_line().await.unwrap();
     lockstep.send("GETSTARTPOSES").await;
@@ -123,5 +129,68 @@ async fn a_client_that_never_syncs_is_never_waited_for() {
             })
             .await;
     }
+    server.stop().await;
+}
+
+/// Spawns an stsAirRobot at the default map's first start and returns the STA times it
+/// receives until one reaches `until`.
+async fn sta_until(c: &mut Client, until: f64) -> f64 {
+    let mut last = 0.0;
+    while last < until {
+        last = c
+            .until(|m| match m {
+                ServerMessage::Sta(s) => Some(s.time.seconds),
+                _ => None,
+            })
+            .await;
+    }
+    last
+}
+
+#[tokio::test]
+async fn lockstep_is_off_unless_the_server_offers_it() {
+    // The attack: one `SYNC {Time 0}` froze the world for everyone.
+    let server = TestServer::start().await;
+    let mut c = server.client().await;
+    c.raw_line().await.unwrap();
+    c.send("SYNC {Time 0}").await;
+    c.spawn_at([0.0, 0.0, -1.0], 0.0).await;
+    let mut other = server.client().await;
+    other.raw_line().await.unwrap();
+    other.send("SYNC {Time 0}").await;
+    // The world runs on, and nobody is answered (a real USARSim ignores SYNC too).
+    for _ in 0..30 {
+        let line = c.raw_line().await.unwrap();
+        assert!(!line.starts_with("SYNC"), "{line}");
+    }
+    sta_until(&mut c, 1.0).await;
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn a_lockstep_client_that_stops_syncing_leaves_the_barrier() {
+    let server = TestServer::with(ServerConfig {
+        time_scale: TimeScale::Factor(10.0),
+        lockstep: true,
+        lockstep_timeout: std::time::Duration::from_millis(300),
+        ..ServerConfig::default()
+    })
+    .await;
+    let mut stuck = server.client().await;
+    stuck.raw_line().await.unwrap();
+    stuck.send("SYNC {Time 0.5}").await;
+    let mut free = server.client().await;
+    free.raw_line().await.unwrap();
+    free.spawn_at([0.0, 0.0, -1.0], 0.0).await;
+    // The world reaches the barrier, answers, and waits; the stuck client never syncs
+    // again: after the timeout the world goes on without it.
+    let (_, t) = until_sync(&mut stuck).await;
+    assert!((t - 0.5).abs() < 0.006, "answered at {t}");
+    let last = sta_until(&mut free, 2.0).await;
+    assert!(last >= 2.0);
+    // A later SYNC joins the barrier again.
+    stuck.send("SYNC {Time 3.0}").await;
+    let (_, t) = until_sync(&mut stuck).await;
+    assert!(t >= 2.0, "answered at {t}");
     server.stop().await;
 }
