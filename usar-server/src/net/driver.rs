@@ -546,6 +546,28 @@ mod tests {
     }
 
     #[test]
+    fn a_full_byte_buffer_drops_whole_ticks_too() {
+        let (queue, mut output) = mpsc::channel(1000);
+        let queued = Arc::new(AtomicUsize::new(0));
+        let mut client = Client::new("test".into(), queue, queued.clone());
+        client.buffer = 100; // bytes: two ticks of 2 × 34 bytes do not fit
+        for tick in 1..=5 {
+            client.push(&sta(f64::from(tick) / 10.0), 0.0);
+            client.push(&sta(f64::from(tick) / 10.0 + 0.05), 0.0);
+            client.flush();
+        }
+        assert_eq!(client.dropped, 4);
+        assert_eq!(queued.load(Ordering::Relaxed), 68);
+        // Written: its bytes are given back, and the next tick fits.
+        let first = output.try_recv().unwrap();
+        queued.fetch_sub(first.len(), Ordering::Relaxed);
+        client.push(&sta(0.6), 0.0);
+        client.flush();
+        assert_eq!(client.dropped, 4);
+        assert!(output.try_recv().unwrap().starts_with(b"STA {Time 0.6000}"));
+    }
+
+    #[test]
     fn barriers_hold_the_world_until_the_next_sync() {
         let client = |barrier| Client {
             barrier,

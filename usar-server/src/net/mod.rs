@@ -296,3 +296,37 @@ fn is_transient(e: &std::io::Error) -> bool {
         ConnectionAborted | ConnectionReset | Interrupted | WouldBlock
     ) || e.raw_os_error() == Some(24) // EMFILE: too many open files; retry later
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+
+    #[tokio::test]
+    async fn the_server_stops_with_an_error_when_the_simulation_dies() {
+        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap();
+        let shutdown = CancellationToken::new();
+        let server = tokio::spawn(run(listener, ServerConfig::default(), shutdown.clone()));
+        let stream = tokio::net::TcpStream::connect(addr).await.unwrap();
+        let (read, mut write) = stream.into_split();
+        let mut read = BufReader::new(read);
+        let mut line = String::new();
+        read.read_line(&mut line).await.unwrap();
+        write
+            .write_all(b"__CRASH_THE_SIMULATION__\r\n")
+            .await
+            .unwrap();
+        // Without anyone cancelling: the server ends on its own, with the error.
+        let result = tokio::time::timeout(Duration::from_secs(60), server)
+            .await
+            .expect("the server lingers after its simulation died")
+            .unwrap();
+        assert!(
+            matches!(result, Err(ServerError::Simulation(_))),
+            "{result:?}"
+        );
+        line.clear();
+        assert_eq!(read.read_line(&mut line).await.unwrap(), 0, "clients see EOF");
+    }
+}
