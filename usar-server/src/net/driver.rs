@@ -126,6 +126,7 @@ fn sync_reply(time: f64) -> ServerMessage {
                 value,
             }],
         }],
+        verbatim: None,
     })
 }
 
