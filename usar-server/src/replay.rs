@@ -100,14 +100,20 @@ pub fn load(path: &Path) -> Result<Vec<ReplayLine>, ReplayError> {
             size: size.max(text.len() as u64),
         });
     }
-    let text = String::from_utf8_lossy(&text);
+    parse(&String::from_utf8_lossy(&text), &name)
+}
+
+/// Reads the text of a recording or capture (as [`load`] does; errors name `path`).
+pub fn parse(text: &str, path: &str) -> Result<Vec<ReplayLine>, ReplayError> {
     let lines = if text.starts_with(record::HEADER) {
-        parse_record(&text, &name)?
+        parse_record(text, path)?
     } else {
-        parse_capture(&text)
+        parse_capture(text)
     };
     if lines.is_empty() {
-        return Err(ReplayError::Empty { path: name });
+        return Err(ReplayError::Empty {
+            path: path.to_owned(),
+        });
     }
     Ok(lines)
 }

@@ -192,6 +192,19 @@ pub(crate) fn line_of(text: &str, offset: usize) -> usize {
         + 1
 }
 
+/// The embedded OBJ file `file`.
+fn embedded_obj(file: &str, map: &Path) -> Result<(PathBuf, String), MapError> {
+    EMBEDDED_OBJ
+        .iter()
+        .find(|(f, _)| *f == file)
+        .map(|(f, text)| (Path::new("maps").join(f), (*text).to_string()))
+        .ok_or_else(|| MapError::MeshIo {
+            path: Path::new("maps").join(file),
+            map: map.to_path_buf(),
+            error: std::io::ErrorKind::NotFound.into(),
+        })
+}
+
 /// A mesh loader: relative file name → (path for messages, text).
 type ObjSource<'a> = &'a dyn Fn(&str) -> Result<(PathBuf, String), MapError>;
 
@@ -211,21 +224,17 @@ impl Map {
         Self::parse(&text, path, &load)
     }
 
+    /// A map from TOML text (errors name `path`); meshes may name only the embedded OBJ
+    /// files. For tools and fuzzing: nothing is read from disk.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, MapError> {
+        Self::parse(text, path, &|f: &str| embedded_obj(f, path))
+    }
+
     /// An embedded map by short name (see [`Map::embedded_names`]).
     pub fn embedded(name: &str) -> Option<Self> {
         let (_, file, text) = EMBEDDED.iter().find(|(short, ..)| *short == name)?;
-        let load = |file: &str| {
-            EMBEDDED_OBJ
-                .iter()
-                .find(|(f, _)| *f == file)
-                .map(|(f, text)| (Path::new("maps").join(f), (*text).to_string()))
-                .ok_or_else(|| MapError::MeshIo {
-                    path: Path::new("maps").join(file),
-                    map: Path::new("maps").join(DEFAULT_MAP),
-                    error: std::io::ErrorKind::NotFound.into(),
-                })
-        };
-        match Self::parse(text, &Path::new("maps").join(file), &load) {
+        let path = Path::new("maps").join(file);
+        match Self::parse(text, &path, &|f: &str| embedded_obj(f, &path)) {
             Ok(map) => Some(map),
             Err(e) => {
                 // Guarded by a unit test; never happens in a released binary.

@@ -246,6 +246,11 @@ impl RobotCatalog {
         Self::parse(&text, path)
     }
 
+    /// A catalog from TOML text (errors name `path`).
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, RobotConfigError> {
+        Self::parse(text, path)
+    }
+
     /// The built-in catalog: `USARBot.stsAirRobot` and `USARBot.AirRobot`.
     pub fn embedded() -> Self {
         Self::parse(EMBEDDED, Path::new("usar-server/robots.toml")).unwrap_or_else(|e| {
