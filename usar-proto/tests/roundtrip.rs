@@ -448,14 +448,13 @@ fn server_message() -> impl Strategy<Value = ServerMessage> {
             killer,
             damage_type
         })),
-        ("ZQ[A-Z]{0,6}", groups())
-            .prop_map(|(kind, groups)| {
-                ServerMessage::Other(Message {
-                    kind,
-                    groups,
-                    verbatim: None,
-                })
-            }),
+        ("ZQ[A-Z]{0,6}", groups()).prop_map(|(kind, groups)| {
+            ServerMessage::Other(Message {
+                kind,
+                groups,
+                verbatim: None,
+            })
+        }),
     ]
 }
 

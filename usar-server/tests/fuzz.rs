@@ -37,13 +37,21 @@ fn toml_f64(x: f64) -> String {
 }
 
 fn triple(v: [f64; 3]) -> String {
-    format!("[{}, {}, {}]", toml_f64(v[0]), toml_f64(v[1]), toml_f64(v[2]))
+    format!(
+        "[{}, {}, {}]",
+        toml_f64(v[0]),
+        toml_f64(v[1]),
+        toml_f64(v[2])
+    )
 }
 
 /// Checks a printed line: every number finite, within ±10^6, no `NaN`, no saturated i32.
 fn check_line(line: &str) {
     assert!(!line.contains("NaN") && !line.contains("inf"), "{line}");
-    assert!(!line.contains("2147483647") && !line.contains("2147483648"), "{line}");
+    assert!(
+        !line.contains("2147483647") && !line.contains("2147483648"),
+        "{line}"
+    );
     for token in line.split([' ', '{', '}', ',']) {
         if let Ok(x) = token.parse::<f64>() {
             assert!(x.is_finite() && x.abs() < 1e6, "{x} in {line}");

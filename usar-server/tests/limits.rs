@@ -36,10 +36,12 @@ async fn a_flood_of_valid_commands_does_not_stop_the_world() {
     // froze simulated time for everyone.
     let server = TestServer::with(config()).await;
     let mut flooder = Client::connect_from(server.addr, 2).await;
-    flooder.send("INIT {ClassName USARBot.stsAirRobot} {Location 3,3,-1}").await;
+    flooder
+        .send("INIT {ClassName USARBot.stsAirRobot} {Location 3,3,-1}")
+        .await;
     let flood = tokio::spawn(async move {
-        let chunk = "DRIVE {LinearVelocity 0.1}\r\nGETSTARTPOSES\r\nGETCONF {Type Sonar}\r\n"
-            .repeat(500);
+        let chunk =
+            "DRIVE {LinearVelocity 0.1}\r\nGETSTARTPOSES\r\nGETCONF {Type Sonar}\r\n".repeat(500);
         // Ends when the server stops (or the test ends).
         while flooder.writer.write_all(chunk.as_bytes()).await.is_ok() {}
     });
@@ -71,7 +73,11 @@ async fn connections_per_address_are_limited() {
         mine.push(c);
     }
     let mut fourth = Client::connect_from(server.addr, 2).await;
-    assert_eq!(fourth.raw_line().await, None, "the 4th from one address is closed");
+    assert_eq!(
+        fourth.raw_line().await,
+        None,
+        "the 4th from one address is closed"
+    );
     // Another address is served.
     let mut other = Client::connect_from(server.addr, 3).await;
     assert!(other.raw_line().await.unwrap().starts_with("NFO "));

@@ -101,12 +101,18 @@ fn maps_with_numbers_beyond_the_world_are_refused() {
     // The panic: a box of 1e39 (finite as f64, infinite as f32) crashed parry.
     let dir = scratch("huge-map");
     for (name, solid) in [
-        ("box", "[[box]]\ncenter = [0.0, 0.0, 0.0]\nsize = [1e39, 1.0, 1.0]\n"),
+        (
+            "box",
+            "[[box]]\ncenter = [0.0, 0.0, 0.0]\nsize = [1e39, 1.0, 1.0]\n",
+        ),
         (
             "cylinder",
             "[[cylinder]]\ncenter = [0.0, 0.0, 0.0]\nradius = 1e39\nheight = 1.0\n",
         ),
-        ("start", "[[start]]\ntag = \"S\"\nlocation = [1e300, 0.0, 0.0]\n"),
+        (
+            "start",
+            "[[start]]\ntag = \"S\"\nlocation = [1e300, 0.0, 0.0]\n",
+        ),
     ] {
         let map = dir.join(format!("{name}.toml"));
         std::fs::write(&map, format!("level = \"X\"\n{solid}")).unwrap();
@@ -131,10 +137,17 @@ fn mesh_errors_say_which_file_and_line_once() {
     assert_eq!(stderr.matches("No such file").count(), 1, "{stderr}");
     // A binary file given as an OBJ: the line of the first bad byte.
     std::fs::write(&map, "level = \"X\"\n[[mesh]]\nfile = \"bad.obj\"\n").unwrap();
-    std::fs::write(dir.join("bad.obj"), b"v 0 0 0\nv 1 0 0\n\xff\xfe\x00garbage\n").unwrap();
+    std::fs::write(
+        dir.join("bad.obj"),
+        b"v 0 0 0\nv 1 0 0\n\xff\xfe\x00garbage\n",
+    )
+    .unwrap();
     refused(
         &["--map".as_ref(), map.as_os_str()],
-        &[&format!("{}:3:", dir.join("bad.obj").display()), "not a text file"],
+        &[
+            &format!("{}:3:", dir.join("bad.obj").display()),
+            "not a text file",
+        ],
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -148,10 +161,21 @@ fn files_past_the_size_limits_are_refused_unread() {
         .unwrap()
         .set_len(1 << 30)
         .unwrap();
-    refused(&["--map".as_ref(), big.as_os_str()], &["larger than the limit"]);
-    refused(&["--robots".as_ref(), big.as_os_str()], &["larger than the limit"]);
     refused(
-        &["replay".as_ref(), big.as_os_str(), "--port".as_ref(), "0".as_ref()],
+        &["--map".as_ref(), big.as_os_str()],
+        &["larger than the limit"],
+    );
+    refused(
+        &["--robots".as_ref(), big.as_os_str()],
+        &["larger than the limit"],
+    );
+    refused(
+        &[
+            "replay".as_ref(),
+            big.as_os_str(),
+            "--port".as_ref(),
+            "0".as_ref(),
+        ],
         &["more than the limit"],
     );
     std::fs::remove_dir_all(&dir).unwrap();
@@ -183,7 +207,12 @@ fn replay_time_stamps_are_checked() {
         )
         .unwrap();
         refused(
-            &["replay".as_ref(), file.as_os_str(), "--port".as_ref(), "0".as_ref()],
+            &[
+                "replay".as_ref(),
+                file.as_os_str(),
+                "--port".as_ref(),
+                "0".as_ref(),
+            ],
             &[&format!("{}:3: bad time stamp", file.display())],
         );
     }
@@ -195,7 +224,12 @@ fn replay_time_stamps_are_checked() {
     )
     .unwrap();
     let mut child = server()
-        .args(["replay".as_ref(), file.as_os_str(), "--port".as_ref(), "0".as_ref()])
+        .args([
+            "replay".as_ref(),
+            file.as_os_str(),
+            "--port".as_ref(),
+            "0".as_ref(),
+        ])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -259,5 +293,8 @@ fn a_client_cannot_flood_the_log_or_write_control_bytes_into_it() {
     let log = log.join().unwrap();
     println!("{sent} bytes of garbage gave {} bytes of log", log.len());
     assert!(log.len() < 64 * 1024, "{} bytes of log", log.len());
-    assert!(!log.contains(&0x1b) && !log.contains(&0), "raw control bytes in the log");
+    assert!(
+        !log.contains(&0x1b) && !log.contains(&0),
+        "raw control bytes in the log"
+    );
 }

@@ -380,7 +380,9 @@ impl Driver {
         let timeout = self.settings.lockstep_timeout;
         let now = Instant::now();
         for c in self.clients.values_mut() {
-            let late = c.answered_at.is_some_and(|at| now.duration_since(at) >= timeout);
+            let late = c
+                .answered_at
+                .is_some_and(|at| now.duration_since(at) >= timeout);
             if late && c.holds_at(time, dt) && c.backlog.is_empty() {
                 warn!(peer = %c.peer, barrier = c.barrier, timeout_s = timeout.as_secs_f64(),
                     "lockstep client sent no SYNC in time; it leaves the barrier");

@@ -327,6 +327,10 @@ mod tests {
             "{result:?}"
         );
         line.clear();
-        assert_eq!(read.read_line(&mut line).await.unwrap(), 0, "clients see EOF");
+        assert_eq!(
+            read.read_line(&mut line).await.unwrap(),
+            0,
+            "clients see EOF"
+        );
     }
 }

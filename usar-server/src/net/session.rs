@@ -168,12 +168,7 @@ async fn write_output(
 
 /// Turns one client line into what the driver serves, logging (summarised, escaped) what a
 /// stock server would have silently tolerated or ignored.
-fn read_line(
-    text: String,
-    peer: SocketAddr,
-    limits: Limits,
-    complaints: &mut Complaints,
-) -> Line {
+fn read_line(text: String, peer: SocketAddr, limits: Limits, complaints: &mut Complaints) -> Line {
     let parsed = match Command::parse(&text) {
         Ok(parsed) => parsed,
         Err(error) => {

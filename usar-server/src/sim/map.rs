@@ -409,20 +409,21 @@ impl Map {
 
     /// Adds the map's solids, and the walls at the world's edge ([`LIMIT`]), to the scene.
     pub(crate) fn build(&self, scene: &mut Scene) {
-        let edges: Vec<Solid> = (0..3).flat_map(|axis| {
-            [-1.0, 1.0].map(|side| {
-                let mut center = [0.0; 3];
-                center[axis] = side * (LIMIT + 5.0);
-                let mut size = [2.0 * LIMIT + 20.0; 3];
-                size[axis] = 10.0;
-                Solid::Box {
-                    center,
-                    size,
-                    yaw: 0.0,
-                }
+        let edges: Vec<Solid> = (0..3)
+            .flat_map(|axis| {
+                [-1.0, 1.0].map(|side| {
+                    let mut center = [0.0; 3];
+                    center[axis] = side * (LIMIT + 5.0);
+                    let mut size = [2.0 * LIMIT + 20.0; 3];
+                    size[axis] = 10.0;
+                    Solid::Box {
+                        center,
+                        size,
+                        yaw: 0.0,
+                    }
+                })
             })
-        })
-        .collect();
+            .collect();
         for solid in self.solids.iter().chain(&edges) {
             let collider = match solid {
                 Solid::Box { center, size, yaw } => ColliderBuilder::cuboid(
@@ -469,9 +470,15 @@ fn finite(values: &[&[f64; 3]]) -> Result<(), String> {
 }
 
 fn within(values: &[&[f64; 3]], limit: f64) -> Result<(), String> {
-    match values.iter().flat_map(|v| v.iter()).find(|x| x.abs() > limit) {
+    match values
+        .iter()
+        .flat_map(|v| v.iter())
+        .find(|x| x.abs() > limit)
+    {
         None => Ok(()),
-        Some(x) => Err(format!("{x} is out of range: numbers must be within ±{limit}")),
+        Some(x) => Err(format!(
+            "{x} is out of range: numbers must be within ±{limit}"
+        )),
     }
 }
 

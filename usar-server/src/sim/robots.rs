@@ -418,7 +418,11 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
         "position and direction",
         &[part.position, part.direction].concat(),
     )?;
-    if [part.position, part.direction].concat().iter().any(|x| x.abs() > MAX_SIZE) {
+    if [part.position, part.direction]
+        .concat()
+        .iter()
+        .any(|x| x.abs() > MAX_SIZE)
+    {
         return Err(format!("position and direction must be within ±{MAX_SIZE}"));
     }
     if let Some(interval) = part.interval {
@@ -436,7 +440,11 @@ fn check_actuator(a: &ActuatorConfig) -> Result<(), String> {
         "position and direction",
         &[a.position, a.direction].concat(),
     )?;
-    if [a.position, a.direction].concat().iter().any(|x| x.abs() > MAX_SIZE) {
+    if [a.position, a.direction]
+        .concat()
+        .iter()
+        .any(|x| x.abs() > MAX_SIZE)
+    {
         return Err(format!("position and direction must be within ±{MAX_SIZE}"));
     }
     if a.joints.is_empty() {
@@ -445,7 +453,10 @@ fn check_actuator(a: &ActuatorConfig) -> Result<(), String> {
     for j in &a.joints {
         all_finite("joint limits", &[j.min, j.max, j.max_torque])?;
         if [j.min, j.max, j.max_torque].iter().any(|x| x.abs() > 1e6) {
-            return Err(format!("actuator `{}`: joint numbers must be within ±1e6", a.name));
+            return Err(format!(
+                "actuator `{}`: joint numbers must be within ±1e6",
+                a.name
+            ));
         }
         if j.min > j.max {
             return Err(format!("actuator `{}`: joint min > max", a.name));

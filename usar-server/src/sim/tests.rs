@@ -390,7 +390,10 @@ fn non_finite_numbers_do_not_poison_the_world() {
     // turning at -1800 deg/s, inside the room.
     let (p, r) = pose(&w, c);
     assert!(p.iter().chain(&r).all(|x| x.is_finite()), "{p:?} {r:?}");
-    assert!(p[0].abs() < 10.0 && p[1].abs() < 10.0 && p[2] == -1.0, "{p:?}");
+    assert!(
+        p[0].abs() < 10.0 && p[1].abs() < 10.0 && p[2] == -1.0,
+        "{p:?}"
+    );
     assert!(!out.is_empty());
 }
 

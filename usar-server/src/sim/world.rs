@@ -6,11 +6,11 @@ use tracing::{debug, warn};
 use usar_proto::{Command, Conf, Geo, Init, ItemQuery, Nfo, ServerMessage, StartPose};
 
 use super::map::{self, Map};
-use crate::shown::{Repeats, Shown};
 use super::robot::{Robot, Spawn};
 use super::robots::RobotCatalog;
 use super::scene::{Scene, V3};
 use super::{ClientId, SimConfig};
+use crate::shown::{Repeats, Shown};
 
 /// Ticks between BVH refits (leaf updates only ever grow the tree's inner boxes).
 const REFIT_EVERY: u64 = 200;
@@ -45,7 +45,13 @@ fn complain(complaints: &mut BTreeMap<ClientId, Repeats>, client: ClientId) -> O
 /// An INIT location: non-finite components are 0, the rest within the map's limits.
 fn spawn_location(v: usar_proto::Vec3) -> V3 {
     let limit = map::LIMIT - map::EDGE_MARGIN;
-    V3::from(v).map(|x| if x.is_finite() { x.clamp(-limit, limit) } else { 0.0 })
+    V3::from(v).map(|x| {
+        if x.is_finite() {
+            x.clamp(-limit, limit)
+        } else {
+            0.0
+        }
+    })
 }
 
 /// An INIT rotation: non-finite components are 0, the rest bounded by [`bounded_angle`].
@@ -91,8 +97,6 @@ impl World {
             complaints: BTreeMap::new(),
         }
     }
-
-
 
     /// The map's level name for the NFO line.
     pub fn level(&self) -> &str {
@@ -195,11 +199,19 @@ impl World {
     }
 
     fn init(&mut self, client: ClientId, init: &Init) {
-        let spawned = self.robots.iter().filter(|r| r.spawned_by == client).count();
+        let spawned = self
+            .robots
+            .iter()
+            .filter(|r| r.spawned_by == client)
+            .count();
         if spawned >= self.robots_per_connection {
             if let Some(n) = complain(&mut self.complaints, client) {
-                warn!(?client, limit = self.robots_per_connection, count = n,
-                    "INIT ignored: this connection has spawned its robots already");
+                warn!(
+                    ?client,
+                    limit = self.robots_per_connection,
+                    count = n,
+                    "INIT ignored: this connection has spawned its robots already"
+                );
             }
             return;
         }
@@ -238,7 +250,12 @@ impl World {
         };
         let Some(robot) = Robot::spawn(spawn, &mut self.scene) else {
             if let Some(n) = complain(&mut self.complaints, client) {
-                warn!(?client, ?position, count = n, "spawn failed: place is occupied");
+                warn!(
+                    ?client,
+                    ?position,
+                    count = n,
+                    "spawn failed: place is occupied"
+                );
             }
             return;
         };

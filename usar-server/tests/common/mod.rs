@@ -75,9 +75,7 @@ impl Client {
     /// each separately.
     pub async fn connect_from(addr: SocketAddr, n: u8) -> Self {
         let socket = tokio::net::TcpSocket::new_v4().unwrap();
-        socket
-            .bind(SocketAddr::from(([127, 0, 0, n], 0)))
-            .unwrap();
+        socket.bind(SocketAddr::from(([127, 0, 0, n], 0))).unwrap();
         let stream = socket.connect(addr).await.unwrap();
         let (r, w) = stream.into_split();
         Self {
