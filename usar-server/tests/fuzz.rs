@@ -124,17 +124,26 @@ proptest! {
 
     #[test]
     fn robot_files_load_or_fail_cleanly(
-        speed in any_f64(),
-        radius in any_f64(),
-        battery in any_f64(),
-        interval in any_f64(),
-        position in prop::array::uniform3(any_f64()),
-        noise in any_f64(),
+        values in prop::collection::vec(prop::option::weighted(0.3, any_f64()), 12),
     ) {
+        // Each key is given (any f64) or left to its default, so that valid files are common.
+        let keys = [
+            ("battery", 0), ("flight.max_linear_speed", 1), ("flight.speed_limit", 2),
+            ("collision.radius", 3), ("S.interval", 4), ("S.noise", 5), ("S.max_range", 6),
+            ("S.beam_angle", 7), ("L.max_range", 8), ("L.fov", 9), ("L.resolution", 10),
+            ("L.noise", 11),
+        ];
+        let get = |section: &str| -> String {
+            keys.iter()
+                .filter_map(|(k, i)| {
+                    let (s, key) = k.split_once('.').unwrap_or(("", k));
+                    (s == section).then(|| values[*i].map(|v| format!("{key} = {}\n", toml_f64(v))))?
+                })
+                .collect()
+        };
         let text = format!(
-            "[[robot]]\nclass = \"USARBot.Fuzz\"\nbattery = {}\n[robot.flight]\nmax_linear_speed = {}\nspeed_limit = {}\n[robot.collision]\nradius = {}\n[[robot.part]]\ntype = \"Sonar\"\nname = \"S\"\ninterval = {}\nposition = {}\nnoise = {}\n",
-            toml_f64(battery), toml_f64(speed), toml_f64(speed), toml_f64(radius),
-            toml_f64(interval), triple(position), toml_f64(noise)
+            "[[robot]]\nclass = \"USARBot.Fuzz\"\n{}[robot.flight]\n{}[robot.collision]\n{}[[robot.part]]\ntype = \"Sonar\"\nname = \"S\"\n{}[[robot.part]]\ntype = \"RangeScanner\"\nname = \"L\"\n{}",
+            get(""), get("flight"), get("collision"), get("S"), get("L")
         );
         if let Ok(robots) = RobotCatalog::from_toml(&text, Path::new("fuzz.toml")) {
             fly_briefly(Map::default_map(), robots);

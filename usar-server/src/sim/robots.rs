@@ -428,7 +428,7 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
     if let Some(interval) = part.interval {
         at_most("interval", interval, 1e6)?;
     }
-    if !(part.noise.is_finite() && (0.0..=1e6).contains(&part.noise)) {
+    if !(part.noise.is_finite() && (0.0..=100.0).contains(&part.noise)) {
         return Err(format!("noise must be >= 0, got {}", part.noise));
     }
     (kind.build)(part).map(drop)
