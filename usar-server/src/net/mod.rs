@@ -3,7 +3,7 @@
 //! lines; it never touches rapier types.
 //!
 //! ```text
-//! TCP ─CommandCodec─▶ session ─Request (bounded mpsc)─▶ driver thread: World::command / step
+//! TCP ─CommandCodec─▶ session ─Request (mpsc, per-client permits)─▶ driver thread: World::command / step
 //!  ▲                                                                │
 //!  └── write_all ◀── session ◀── bounded per-client queue of Bytes ◀┘ (one chunk per tick)
 //! ```

@@ -32,11 +32,12 @@ const EMBEDDED_OBJ: &[(&str, &str)] = &[("tower.obj", include_str!("../../../map
 const DEFAULT_MAP: &str = "empty_room";
 
 /// Metres: every coordinate and size in a map (and every robot position) lies within
-/// ±`LIMIT` of the origin. The world ends there in a wall, so nothing flies further; f32
-/// (the physics' precision) still resolves centimetres at this distance.
+/// ±`LIMIT` of the origin on each axis. The world ends there: no motion goes further
+/// (`Scene::sweep`); f32 (the physics' precision) still resolves centimetres at this
+/// distance.
 pub const LIMIT: f64 = 100_000.0;
 
-/// Metres: INIT locations are held this far inside [`LIMIT`] (clear of the edge walls).
+/// Metres: INIT locations are held this far inside [`LIMIT`].
 pub const EDGE_MARGIN: f64 = 10.0;
 
 /// The largest map file read (bytes); larger files are refused before reading.
@@ -407,24 +408,9 @@ impl Map {
         })
     }
 
-    /// Adds the map's solids, and the walls at the world's edge ([`LIMIT`]), to the scene.
+    /// Adds the map's solids to the scene.
     pub(crate) fn build(&self, scene: &mut Scene) {
-        let edges: Vec<Solid> = (0..3)
-            .flat_map(|axis| {
-                [-1.0, 1.0].map(|side| {
-                    let mut center = [0.0; 3];
-                    center[axis] = side * (LIMIT + 5.0);
-                    let mut size = [2.0 * LIMIT + 20.0; 3];
-                    size[axis] = 10.0;
-                    Solid::Box {
-                        center,
-                        size,
-                        yaw: 0.0,
-                    }
-                })
-            })
-            .collect();
-        for solid in self.solids.iter().chain(&edges) {
+        for solid in &self.solids {
             let collider = match solid {
                 Solid::Box { center, size, yaw } => ColliderBuilder::cuboid(
                     (size[0] / 2.0) as f32,

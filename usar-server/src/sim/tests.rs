@@ -487,6 +487,22 @@ fn default_map_start_has_room_to_fly() {
 }
 
 #[test]
+fn nothing_flies_past_the_end_of_the_world() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [map::LIMIT - 30.0, 0.0, -1.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1e9),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 2.0);
+    assert_eq!(pose(&w, c).0, [map::LIMIT, 0.0, -1.0]);
+}
+
+#[test]
 fn a_second_init_is_ignored_like_usarsim() {
     let mut w = world();
     let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
