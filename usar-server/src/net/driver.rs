@@ -502,6 +502,15 @@ impl Driver {
             }
             Request::Line { client, line, .. } => self.serve(client, line),
             Request::Disconnect { client } => {
+                // What the client sent before it left is applied (and recorded) first, as
+                // if it had all been served at once.
+                while let Some((line, _permit)) = self
+                    .clients
+                    .get_mut(&client)
+                    .and_then(|c| c.backlog.pop_front())
+                {
+                    self.serve(client, line);
+                }
                 self.world.disconnect(client);
                 if let Some(mut c) = self.clients.remove(&client)
                     && let Some(file) = &mut c.record
