@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio_util::sync::CancellationToken;
-use ucc_client::{Coordinates, Mission, RunConfig, Start, run_missions};
-use usar_server::{ServerConfig, TimeScale};
+use ucc_client::{Coordinates, Lockstep, Mission, Progress, RunSettings, Start, agents};
+use usar_server::{LocalServer, ServerConfig, TimeScale};
 
 /// Valid lines that do not fit their word's typed layout.
 const ODD: &str = "SEN {Time 0.1000} {Type IMU}\r\nSEN {Time 0.1000} {Type Sonar} \r\nGEO {Type Camera} {Name c} {Orientation 0.00,0.00,0.00}{Mount AirRobot}\r\nSTA {Time 0.1000}\r\nSEN {Time 0.1} {Type Position} {Name Position} {Location 1,2}\r\n";
@@ -36,15 +36,14 @@ async fn proxy(client: tokio::net::TcpStream, server: String) {
 
 #[tokio::test]
 async fn the_client_flies_through_lines_it_cannot_type() {
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let server_addr = listener.local_addr().unwrap().to_string();
-    let shutdown = CancellationToken::new();
-    let config = ServerConfig {
+    let server = LocalServer::start(ServerConfig {
         time_scale: TimeScale::Max,
         lockstep: true,
         ..ServerConfig::default()
-    };
-    let server = tokio::spawn(usar_server::run(listener, config, shutdown.clone()));
+    })
+    .await
+    .unwrap();
+    let server_addr = server.addr().to_string();
     let front = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let front_addr = front.local_addr().unwrap().to_string();
     let relay = tokio::spawn(async move {
@@ -52,17 +51,17 @@ async fn the_client_flies_through_lines_it_cannot_type() {
             tokio::spawn(proxy(client, server_addr.clone()));
         }
     });
-    let config = RunConfig {
+    let settings = RunSettings {
         addr: front_addr,
-        start: Start::Pose {
-            location: Coordinates::new(0.0, 0.0, -1.0),
-            rotation: Coordinates::zeros(),
-        },
+        start: Start::at(Coordinates::new(0.0, 0.0, -1.0)),
         missions: vec![Mission::goto(Coordinates::new(3.0, 0.0, -2.0))],
-        lockstep: true,
-        ..RunConfig::default()
+        lockstep: Lockstep::Required,
+        ..RunSettings::default()
     };
-    let summary = tokio::time::timeout(Duration::from_secs(120), run_missions(&config, |_| {}))
+    let factory = agents::info("base").unwrap().create;
+    let (mut progress, cancel) = (|_: &Progress| {}, CancellationToken::new());
+    let flight = ucc_client::run(&settings, &factory, &mut progress, &cancel);
+    let summary = tokio::time::timeout(Duration::from_secs(120), flight)
         .await
         .expect("the flight ends")
         .unwrap();
@@ -72,6 +71,5 @@ async fn the_client_flies_through_lines_it_cannot_type() {
         "ended at {end:?}"
     );
     relay.abort();
-    shutdown.cancel();
-    let _ = server.await;
+    server.stop().await.unwrap();
 }

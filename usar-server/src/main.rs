@@ -49,8 +49,8 @@ struct Args {
     /// Robots one connection may spawn (USARSim: 1); further INITs are ignored.
     #[arg(long, default_value_t = 1, value_name = "N")]
     robots_per_connection: usize,
-    /// Offer the lockstep extension (`SYNC`, docs/lockstep.md): a client may then hold the
-    /// world at a barrier. Off by default, because it holds the world for every client.
+    /// Offer lockstep to clients that ask (`SYNC`, docs/lockstep.md): reproducible runs at any
+    /// speed. Off by default, so that no client can hold the world for the others.
     #[arg(long)]
     lockstep: bool,
     /// Wall-clock seconds a lockstep client may take to send its next SYNC before it leaves
@@ -141,19 +141,7 @@ fn main() -> ExitCode {
 fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
     let map = match &args.map {
         None => Map::default_map(),
-        Some(name) => match Map::embedded(name) {
-            Some(map) => map,
-            None => {
-                let path = PathBuf::from(name);
-                if !path.exists() {
-                    anyhow::bail!(
-                        "--map {name}: no embedded map of that name ({}) and no such file",
-                        Map::embedded_names().join(", ")
-                    );
-                }
-                Map::from_file(&path)?
-            }
-        },
+        Some(name) => Map::lookup(name).with_context(|| format!("--map {name}"))?,
     };
     let robots = match &args.robots {
         None => RobotCatalog::embedded(),

@@ -25,10 +25,12 @@ mod line;
 mod nfo;
 mod sen;
 mod sta;
+mod sync;
 
 pub use command::*;
 pub use common::*;
 pub use server::*;
+pub use sync::{Barrier, SYNC_WORD};
 
 use crate::error::ParseError;
 use crate::format::WireBuf;
@@ -93,6 +95,8 @@ impl ServerMessage {
             Eff::read(r("eff")).map(|m| Some(Self::Eff(m)))
         } else if is("DIE") {
             Die::read(r("die")).map(|m| Some(Self::Die(m)))
+        } else if is(SYNC_WORD) {
+            Barrier::read(r("sync")).map(|m| Some(Self::Sync(m)))
         } else {
             Ok(None)
         };
@@ -127,6 +131,7 @@ impl ServerMessage {
             Self::Asta(m) => m.write(out),
             Self::Eff(m) => m.write(out),
             Self::Die(m) => m.write(out),
+            Self::Sync(m) => m.write(out),
             Self::Other(m) => m.write_to(out),
         }
     }

@@ -25,7 +25,6 @@
 //! `SYNC` within `lockstep_timeout` (wall clock) of its answer leaves the barrier.
 
 use std::collections::{BTreeMap, VecDeque};
-use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -36,8 +35,8 @@ use bytes::{Bytes, BytesMut};
 use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
-use usar_proto::record::{self, Direction};
-use usar_proto::{Command, Group, Message, Nfo, Pair, ServerMessage, format};
+use usar_proto::record::{Direction, RecordWriter};
+use usar_proto::{Barrier, Command, Nfo, ServerMessage};
 
 use super::TimeScale;
 use crate::sim::{ClientId, World};
@@ -116,18 +115,7 @@ pub(super) fn game_info(world: &World) -> Bytes {
 
 /// The lockstep reply `SYNC {Time t}`.
 fn sync_reply(time: f64) -> ServerMessage {
-    let mut value = String::new();
-    format::push_fixed(&mut value, time, 4);
-    ServerMessage::Other(Message {
-        kind: "SYNC".into(),
-        groups: vec![Group {
-            pairs: vec![Pair {
-                key: "Time".into(),
-                value,
-            }],
-        }],
-        verbatim: None,
-    })
+    ServerMessage::Sync(Barrier::at(time))
 }
 
 /// A duration of `seconds`, whatever the number (NaN and negatives are 0, huge is capped).
@@ -160,7 +148,7 @@ struct Client {
     answered: bool,
     /// When the world reached the barrier (the lockstep timeout runs from then).
     answered_at: Option<Instant>,
-    record: Option<std::io::BufWriter<std::fs::File>>,
+    record: Option<RecordWriter>,
 }
 
 impl Client {
@@ -185,7 +173,7 @@ impl Client {
         message.write_to(&mut self.pending);
         if let Some(file) = &mut self.record {
             let line = String::from_utf8_lossy(&self.pending[start..]);
-            let _ = record::write_entry(file, time, Direction::Server, &line);
+            let _ = file.write_at(time, Direction::Server, &line);
         }
         self.pending.extend_from_slice(b"\r\n");
     }
@@ -410,20 +398,14 @@ impl Driver {
         }
     }
 
-    fn open_record(&mut self) -> Option<std::io::BufWriter<std::fs::File>> {
+    fn open_record(&mut self) -> Option<RecordWriter> {
         let dir = self.settings.record_dir.as_ref()?;
         let path = dir.join(format!("connection-{:04}.usarlog", self.connections));
-        match std::fs::File::create(&path) {
-            Ok(file) => {
-                let mut file = std::io::BufWriter::new(file);
-                let _ = writeln!(file, "{}", record::HEADER);
-                Some(file)
-            }
-            Err(error) => {
-                warn!(path = %path.display(), %error, "cannot record this connection");
-                None
-            }
-        }
+        RecordWriter::create(&path)
+            .inspect_err(
+                |error| warn!(path = %path.display(), %error, "cannot record this connection"),
+            )
+            .ok()
     }
 
     fn record_client_line(&mut self, client: ClientId, line: Option<&str>) {
@@ -431,7 +413,7 @@ impl Driver {
         if let (Some(c), Some(line)) = (self.clients.get_mut(&client), line)
             && let Some(file) = &mut c.record
         {
-            let _ = record::write_entry(file, time, Direction::Client, line);
+            let _ = file.write_at(time, Direction::Client, line);
         }
     }
 
@@ -481,12 +463,7 @@ impl Driver {
                 if let Some(file) = &mut record {
                     let nfo = game_info(&self.world);
                     let text = String::from_utf8_lossy(&nfo);
-                    let _ = record::write_entry(
-                        file,
-                        self.world.time(),
-                        Direction::Server,
-                        text.trim_end(),
-                    );
+                    let _ = file.write_at(self.world.time(), Direction::Server, text.trim_end());
                 }
                 let id = self.world.connect();
                 debug!(%peer, client = ?id, "joined the simulation");

@@ -93,8 +93,8 @@ pub struct ServerConfig {
     pub idle_timeout: Duration,
     /// A connection that has started a line and not ended it within this time is closed.
     pub line_timeout: Duration,
-    /// Whether clients may use the lockstep extension (`SYNC`, docs/lockstep.md); off by
-    /// default, because a lockstep client holds the world for everyone.
+    /// Offer lockstep (`SYNC`, docs/lockstep.md) to clients that ask. Off by default: then a
+    /// `SYNC` is an unknown command like any other, and no client can hold the world.
     pub lockstep: bool,
     /// Wall-clock time a lockstep client may take to send its next `SYNC` before it is
     /// removed from the barrier (with a warning) and the world goes on without it.

@@ -21,8 +21,8 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc, oneshot};
 use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
-use usar_proto::Command;
 use usar_proto::codec::LineCodec;
+use usar_proto::{Command, SYNC_WORD};
 
 use super::AddressSlot;
 use super::driver::{Line, Request};
@@ -184,12 +184,10 @@ fn read_line(text: String, peer: SocketAddr, limits: Limits, complaints: &mut Co
     }
     // The lockstep extension (docs/lockstep.md) is ours: not a deviation, not unknown.
     let sync = match &parsed.message {
-        Command::Other(message) if message.kind.eq_ignore_ascii_case("SYNC") => Some(
-            message
-                .get("Time")
-                .and_then(|t| t.trim().parse::<f64>().ok())
-                .filter(|t| t.is_finite() && *t >= 0.0),
-        ),
+        Command::Sync(barrier) => {
+            Some(Some(barrier.time.seconds).filter(|t| t.is_finite() && *t >= 0.0))
+        }
+        Command::Other(message) if message.kind.eq_ignore_ascii_case(SYNC_WORD) => Some(None),
         _ => None,
     };
     if sync.is_some() && !limits.lockstep {
