@@ -57,7 +57,7 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
             part.name
         ));
     }
-    if !(config.max_range <= crate::sim::map::LIMIT) {
+    if config.max_range > crate::sim::map::LIMIT {
         return Err(format!(
             "part `{}`: max_range must be at most {} m",
             part.name,
