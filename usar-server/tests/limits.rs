@@ -119,9 +119,30 @@ async fn silent_and_half_sent_connections_are_closed_but_quiet_clients_stay() {
         }
         half
     });
+    // The same with a line past the length limit, which the server skips as it arrives.
+    let mut long = server.client().await;
+    long.raw_line().await.unwrap();
+    long.send("GETSTARTPOSES").await;
+    long.message().await;
+    let endless = tokio::spawn(async move {
+        let chunk = vec![b'A'; 16 * 1024];
+        for _ in 0..40 {
+            if long.writer.write_all(&chunk).await.is_err() {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        long
+    });
     assert_eq!(silent.raw_line().await, None, "no line at all: closed");
     let mut half = drip.await.unwrap();
     assert_eq!(half.raw_line().await, None, "a line never ended: closed");
+    let mut long = endless.await.unwrap();
+    assert_eq!(
+        long.raw_line().await,
+        None,
+        "an over-long line never ended: closed"
+    );
     // A client that said something and then only listens is kept.
     tokio::time::sleep(Duration::from_millis(700)).await;
     quiet.send("GETSTARTPOSES").await;

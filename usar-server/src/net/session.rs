@@ -97,7 +97,9 @@ pub(super) async fn serve(
                 Ok(None) => return "disconnected",
                 Err(_) if first => return "closing: no complete line in time",
                 // Waiting between lines is fine; a line left half-sent is not.
-                Err(_) if lines.read_buffer().is_empty() => continue,
+                Err(_) if lines.read_buffer().is_empty() && !lines.decoder().skipping() => {
+                    continue;
+                }
                 Err(_) => return "closing: line not finished in time",
             };
             first = false;
