@@ -472,7 +472,9 @@ async fn sta_times(c: &mut Client, count: usize) -> Vec<f64> {
 async fn a_client_that_never_reads_does_not_slow_the_others() {
     let server = TestServer::with(usar_server::ServerConfig {
         time_scale: usar_server::TimeScale::Factor(50.0),
-        client_queue: 4,
+        // Small enough that the sleeper's output is dropped early, large enough (about half
+        // a simulated second) that a reader on a busy machine is never 4 ticks behind.
+        client_buffer: 64 * 1024,
         ..usar_server::ServerConfig::default()
     })
     .await;
