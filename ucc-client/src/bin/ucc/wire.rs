@@ -14,9 +14,10 @@
 //!   (UDK ignores unknown commands, and unknown words in the wild — `MULTIDRIVE` — come from
 //!   clients). An unknown word therefore decodes as `{"client":{"Other":{...}}}`.
 //! * Blank lines and lines starting with `#` (comments in capture files) are skipped.
-//! * A line that cannot be read is reported on `err` as `line N: reason` and the others go
-//!   on; both functions return the number of such lines (the program exits with 1 when it
-//!   is not 0).
+//! * Every protocol line decodes: a server line that does not fit its typed message decodes
+//!   in the generic form, which encodes back to the same bytes. A line that cannot be read
+//!   (JSON for `encode`) is reported on `err` as `line N: reason` and the others go on; both
+//!   functions return the number of such lines (the program exits with 1 when it is not 0).
 //! * Output lines end with `\n` only (no `\r`). Input may be any mix of `\r\n`/`\n`; bytes
 //!   that are not UTF-8 are read lossily.
 
