@@ -99,21 +99,33 @@ async fn healthy_rate(addr: SocketAddr) -> f64 {
         .write_all(b"INIT {ClassName USARBot.stsAirRobot} {Name Healthy} {Start Start1}\r\n")
         .await
         .unwrap();
+    // Whole simulated seconds (from one STA to the STA ATTACK later), so that the sensors'
+    // different intervals do not change the count per period.
+    let sta_time = |line: &str| {
+        line.strip_prefix("STA {Time ")
+            .and_then(|rest| rest.split('}').next())
+            .and_then(|t| t.parse::<f64>().ok())
+    };
     let begin = Instant::now() + HEAD_START;
-    while Instant::now() < begin {
+    let (first, t0) = loop {
         if !matches!(read_line(&mut lines, &mut line).await, Ok(Ok(n)) if n > 0) {
             return 0.0;
         }
-    }
-    let end = begin + ATTACK;
-    let mut count = 0u64;
-    while Instant::now() < end {
+        if let Some(t) = sta_time(&line).filter(|_| Instant::now() >= begin) {
+            break (Instant::now(), t);
+        }
+    };
+    let mut count = 1u64;
+    let last = loop {
         if !matches!(read_line(&mut lines, &mut line).await, Ok(Ok(n)) if n > 0) {
-            break;
+            return 0.0;
+        }
+        if sta_time(&line).is_some_and(|t| t >= t0 + ATTACK.as_secs_f64() - 1e-3) {
+            break Instant::now();
         }
         count += 1;
-    }
-    count as f64 / ATTACK.as_secs_f64()
+    };
+    count as f64 / (last - first).as_secs_f64()
 }
 
 /// Reads one line (cleared first), failing after 30 s.
@@ -262,6 +274,18 @@ fn garbage(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
     })
 }
 
+fn long_lines(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let mut s = connect(addr, 2).await.unwrap();
+        s.write_all(b"INIT {ClassName USARBot.stsAirRobot} {Location 3,3,-1}\r\n")
+            .await
+            .unwrap();
+        let line = format!("GETCONF {{Type {}}}\r\n", "Sonar".repeat(12_000));
+        flood(s, line.repeat(16).into_bytes(), stop).await;
+        "60 KB commands (just under the line limit) as fast as possible, never reading".into()
+    })
+}
+
 fn sync_zero(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
     tokio::spawn(async move {
         let mut s = connect(addr, 2).await.unwrap();
@@ -289,6 +313,7 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
         ("INIT flood", init_flood),
         ("huge numbers", huge_numbers),
         ("garbage", garbage),
+        ("long lines", long_lines),
         ("SYNC {Time 0}", sync_zero),
     ];
     let mut failures = Vec::new();
