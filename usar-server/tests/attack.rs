@@ -13,11 +13,13 @@ use std::time::{Duration, Instant};
 
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpStream;
+use tokio_util::sync::CancellationToken;
 
 /// How long the healthy client's rate is measured during each attack.
 const ATTACK: Duration = Duration::from_secs(3);
 
-/// Head start of the attack before the measurement begins.
+/// Head start of the attack before the measurement begins (the attack goes on until the
+/// measurement ends, which is at most `2 × ATTACK + 1 s` later).
 const HEAD_START: Duration = Duration::from_millis(700);
 
 /// The healthy client must keep this share of its baseline rate.
@@ -106,9 +108,20 @@ async fn healthy_rate(addr: SocketAddr) -> f64 {
             .and_then(|rest| rest.split('}').next())
             .and_then(|t| t.parse::<f64>().ok())
     };
+    // The attack goes on until the measurement ends; a world that stalls is measured as
+    // such: the measurement ends at `deadline` whatever happens.
     let begin = Instant::now() + HEAD_START;
+    let deadline = begin + 2 * ATTACK + Duration::from_secs(1);
+    let next = async |lines: &mut BufReader<_>, line: &mut String| {
+        line.clear();
+        let wait = deadline.saturating_duration_since(Instant::now());
+        matches!(
+            tokio::time::timeout(wait, lines.read_line(line)).await,
+            Ok(Ok(n)) if n > 0
+        )
+    };
     let (first, t0) = loop {
-        if !matches!(read_line(&mut lines, &mut line).await, Ok(Ok(n)) if n > 0) {
+        if !next(&mut lines, &mut line).await {
             return 0.0;
         }
         if let Some(t) = sta_time(&line).filter(|_| Instant::now() >= begin) {
@@ -116,16 +129,16 @@ async fn healthy_rate(addr: SocketAddr) -> f64 {
         }
     };
     let mut count = 1u64;
-    let last = loop {
-        if !matches!(read_line(&mut lines, &mut line).await, Ok(Ok(n)) if n > 0) {
-            return 0.0;
+    loop {
+        if !next(&mut lines, &mut line).await {
+            break; // past the deadline (or the server closed)
         }
         if sta_time(&line).is_some_and(|t| t >= t0 + ATTACK.as_secs_f64() - 1e-3) {
-            break Instant::now();
+            break;
         }
         count += 1;
-    };
-    count as f64 / (last - first).as_secs_f64()
+    }
+    count as f64 / (Instant::now() - first).as_secs_f64()
 }
 
 /// Reads one line (cleared first), failing after 30 s.
@@ -137,9 +150,9 @@ async fn read_line(
     tokio::time::timeout(Duration::from_secs(30), lines.read_line(line)).await
 }
 
-/// Writes `chunk` again and again until `stop`, never reading.
-async fn flood(mut stream: TcpStream, chunk: Vec<u8>, stop: Instant) {
-    while Instant::now() < stop {
+/// Writes `chunk` again and again until stopped, never reading.
+async fn flood(mut stream: TcpStream, chunk: Vec<u8>, stop: CancellationToken) {
+    while !stop.is_cancelled() {
         let write = tokio::time::timeout(Duration::from_millis(200), stream.write_all(&chunk));
         if let Ok(Err(_)) = write.await {
             return;
@@ -147,10 +160,10 @@ async fn flood(mut stream: TcpStream, chunk: Vec<u8>, stop: Instant) {
     }
 }
 
-/// Reads and discards everything until `stop`.
-async fn drain(mut read: tokio::net::tcp::OwnedReadHalf, stop: Instant) {
+/// Reads and discards everything until stopped.
+async fn drain(mut read: tokio::net::tcp::OwnedReadHalf, stop: CancellationToken) {
     let mut buf = vec![0u8; 64 * 1024];
-    while Instant::now() < stop {
+    while !stop.is_cancelled() {
         let read = tokio::time::timeout(Duration::from_millis(200), read.read(&mut buf));
         if let Ok(Ok(0) | Err(_)) = read.await {
             return;
@@ -161,10 +174,13 @@ async fn drain(mut read: tokio::net::tcp::OwnedReadHalf, stop: Instant) {
 /// One attack: its name, the server's extra flags and what it does until the deadline.
 type Attack = (
     &'static str,
-    fn(SocketAddr, Instant) -> tokio::task::JoinHandle<String>,
+    fn(SocketAddr, CancellationToken) -> tokio::task::JoinHandle<String>,
 );
 
-fn valid_command_flood(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
+fn valid_command_flood(
+    addr: SocketAddr,
+    stop: CancellationToken,
+) -> tokio::task::JoinHandle<String> {
     tokio::spawn(async move {
         let mut s = connect(addr, 2).await.unwrap();
         s.write_all(b"INIT {ClassName USARBot.stsAirRobot} {Location 3,3,-1}\r\n")
@@ -178,13 +194,13 @@ fn valid_command_flood(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHand
     })
 }
 
-fn start_poses_flood(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
+fn start_poses_flood(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
     tokio::spawn(async move {
         let s = connect(addr, 2).await.unwrap();
         let (read, mut write) = s.into_split();
-        let reader = tokio::spawn(drain(read, stop));
+        let reader = tokio::spawn(drain(read, stop.clone()));
         let chunk = "GETSTARTPOSES\r\n".repeat(1000);
-        while Instant::now() < stop {
+        while !stop.is_cancelled() {
             let sent = tokio::time::timeout(
                 Duration::from_millis(200),
                 write.write_all(chunk.as_bytes()),
@@ -198,7 +214,7 @@ fn start_poses_flood(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle
     })
 }
 
-fn idle_connections(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
+fn idle_connections(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
     tokio::spawn(async move {
         let mut held = Vec::new();
         for _ in 0..64 {
@@ -210,7 +226,7 @@ fn idle_connections(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<
                 }
             }
         }
-        tokio::time::sleep_until(stop.into()).await;
+        stop.cancelled().await;
         format!(
             "64 idle connections from one address ({} served)",
             held.len()
@@ -218,7 +234,7 @@ fn idle_connections(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<
     })
 }
 
-fn init_flood(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
+fn init_flood(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
     tokio::spawn(async move {
         let s = connect(addr, 2).await.unwrap();
         let chunk: String = (0..20_000)
@@ -233,18 +249,18 @@ fn init_flood(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String
             })
             .collect();
         let (read, mut write) = s.into_split();
-        let reader = tokio::spawn(drain(read, stop));
+        let reader = tokio::spawn(drain(read, stop.clone()));
         let _ = write.write_all(chunk.as_bytes()).await;
         let _ = reader.await;
         "20,000 INITs on one connection".into()
     })
 }
 
-fn huge_numbers(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
+fn huge_numbers(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
     tokio::spawn(async move {
         let s = connect(addr, 2).await.unwrap();
         let (read, mut write) = s.into_split();
-        let reader = tokio::spawn(drain(read, stop));
+        let reader = tokio::spawn(drain(read, stop.clone()));
         let _ = write
             .write_all(
                 b"INIT {ClassName USARBot.stsAirRobot} {Location 1e308,1e308,-1e308}\r\n\
@@ -256,7 +272,7 @@ fn huge_numbers(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<Stri
     })
 }
 
-fn garbage(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
+fn garbage(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
     tokio::spawn(async move {
         let s = connect(addr, 2).await.unwrap();
         let mut chunk = Vec::new();
@@ -274,7 +290,7 @@ fn garbage(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
     })
 }
 
-fn long_lines(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
+fn long_lines(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
     tokio::spawn(async move {
         let mut s = connect(addr, 2).await.unwrap();
         s.write_all(b"INIT {ClassName USARBot.stsAirRobot} {Location 3,3,-1}\r\n")
@@ -286,7 +302,7 @@ fn long_lines(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String
     })
 }
 
-fn sync_zero(addr: SocketAddr, stop: Instant) -> tokio::task::JoinHandle<String> {
+fn sync_zero(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
     tokio::spawn(async move {
         let mut s = connect(addr, 2).await.unwrap();
         s.write_all(b"SYNC {Time 0}\r\nINIT {ClassName USARBot.AirRobot} {Location 3,-3,-1}\r\n")
@@ -323,11 +339,12 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
     );
     for (name, attack) in attacks {
         let mut server = Server::start(&[]);
-        let stop = Instant::now() + HEAD_START + ATTACK + Duration::from_millis(300);
-        let attacker = attack(server.addr, stop);
+        let stop = CancellationToken::new();
+        let attacker = attack(server.addr, stop.clone());
         tokio::time::sleep(Duration::from_millis(100)).await;
         let rate = healthy_rate(server.addr).await;
         let peak = server.peak_mib();
+        stop.cancel();
         let what = attacker.await.unwrap();
         let share = rate / baseline;
         println!(
