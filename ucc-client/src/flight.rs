@@ -16,7 +16,9 @@
 //!
 //! Lines without a time stamp (INS) belong to the open frame. A trajectory row is written for
 //! every frame that has a position reading of its time stamp, with every other reading as of
-//! that time stamp. In lockstep the rule is exact and the same at any speed.
+//! that time stamp. If the input pauses in the middle of a time stamp's lines, the agent has
+//! stepped on it already and does not again; the late readings complete its row. In lockstep
+//! the rule is exact and the same at any speed.
 //!
 //! ```
 //! use ucc_client::flight::Flight;
@@ -86,6 +88,8 @@ pub struct Flight {
     error: Option<RunError>,
     /// The time stamp of the readings gathered and not yet stepped on.
     frame: Option<f64>,
+    /// The time stamp the agent last stepped on.
+    stepped: Option<f64>,
     lockstep: Option<Lockstep>,
     /// Whether any STA or SEN has come since INIT.
     streaming: bool,
@@ -129,6 +133,7 @@ impl Flight {
             phase: Phase::Connected,
             error: None,
             frame: None,
+            stepped: None,
             lockstep: None,
             streaming: false,
             sent: None,
@@ -356,6 +361,18 @@ impl Flight {
 
     fn fly(&mut self, time: f64) {
         self.uav.dead_reckon(time);
+        if self.stepped.is_some_and(|last| time <= last + 1e-9) {
+            // Late lines of a time stamp already stepped on (the input paused mid-frame):
+            // the row of that time stamp gets them; the agent sees them at the next one.
+            if let Some(point) = TrajectoryPoint::of(&self.uav, time)
+                && let Some(last) = self.record.trajectory.last_mut()
+                && (last.time - time).abs() < 1e-9
+            {
+                *last = point;
+            }
+            return;
+        }
+        self.stepped = Some(time);
         self.record_point(time);
         let step = self.agent.step(&self.uav, time);
         for event in step.events {
@@ -509,6 +526,27 @@ mod tests {
         for (t, p, v) in seen.iter() {
             assert_eq!((Some(*t), Some(*t)), (*p, *v), "the agent saw mixed stamps");
         }
+    }
+
+    /// Without lockstep the input may pause in the middle of a time stamp's lines: the agent
+    /// steps once for it all the same, and its row ends up with every reading.
+    #[test]
+    fn a_time_stamp_split_by_a_pause_is_stepped_on_once() {
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let mut f = flight(Box::new(Witness(seen.clone())));
+        f.on_message(&position(0.1, 0.0));
+        f.on_message(&velocity(0.1, 0.0));
+        f.end_of_frame();
+        f.on_message(&position(0.2, 0.1));
+        f.end_of_frame(); // the pause
+        f.on_message(&velocity(0.2, 2.0));
+        f.end_of_frame();
+        f.on_message(&position(0.3, 0.3));
+        f.end_of_frame();
+        let times: Vec<f64> = seen.lock().unwrap().iter().map(|s| s.0).collect();
+        assert_eq!(times, [0.1, 0.2, 0.3]);
+        let row = &f.record().trajectory[1];
+        assert_eq!((row.time, row.velocity.unwrap().x), (0.2, 2.0));
     }
 
     #[test]
