@@ -62,6 +62,8 @@ pub struct SimConfig {
     pub dt: f64,
     /// The wind for this run; `None`: the map's `[wind]` (calm when it has none).
     pub wind: Option<WindConfig>,
+    /// Robots one connection may spawn (USARSim: one); further INITs are ignored (logged).
+    pub robots_per_connection: usize,
 }
 
 impl Default for SimConfig {
@@ -70,6 +72,7 @@ impl Default for SimConfig {
             seed: 0,
             dt: 1.0 / 200.0,
             wind: None,
+            robots_per_connection: 1,
         }
     }
 }

@@ -244,6 +244,10 @@ impl Scene {
         motion: V3,
     ) -> (V3, Option<V3>) {
         let mut contact = None;
+        // The world ends at ±LIMIT on every axis (docs/limits.md): no motion leaves it.
+        let limit = super::map::LIMIT;
+        let motion: V3 =
+            std::array::from_fn(|i| (centre[i] + motion[i]).clamp(-limit, limit) - centre[i]);
         let cylinder = shape.cylinder();
         let mut pos = centre;
         let length = norm(motion);
