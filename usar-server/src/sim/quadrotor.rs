@@ -151,6 +151,32 @@ impl QuadrotorConfig {
                 return Err(format!("{what} must be >= 0, got {v}"));
             }
         }
+        for (what, v, max) in [
+            ("quadrotor.mass", self.mass, 1000.0),
+            ("quadrotor.arm_length", self.arm_length, 100.0),
+            (
+                "quadrotor.motor_time_constant",
+                self.motor_time_constant,
+                10.0,
+            ),
+            ("quadrotor.rotor_speed_max", self.rotor_speed_max, 1e5),
+            ("quadrotor.drag_linear", self.drag_linear, 1e3),
+            ("quadrotor.drag_quadratic", self.drag_quadratic, 1e3),
+            ("quadrotor.velocity_gain", self.velocity_gain, 50.0),
+            (
+                "quadrotor.velocity_integral_gain",
+                self.velocity_integral_gain,
+                50.0,
+            ),
+            ("quadrotor.altitude_gain", self.altitude_gain, 50.0),
+            ("quadrotor.attitude_gain", self.attitude_gain, 100.0),
+            ("quadrotor.rate_gain", self.rate_gain, 200.0),
+            ("quadrotor.max_tilt_rate", self.max_tilt_rate, 100.0),
+        ] {
+            if v > max {
+                return Err(format!("{what} must be at most {max}, got {v}"));
+            }
+        }
         if self.rotor_speed_min >= self.rotor_speed_max {
             return Err("quadrotor.rotor_speed_min must be below rotor_speed_max".into());
         }
@@ -249,6 +275,8 @@ pub(crate) struct Quadrotor {
     gusts: Gusts,
     imu: ImuTruth,
     contact: bool,
+    /// The integration blew up once (logged once).
+    diverged: bool,
 }
 
 /// The rotation of a unit quaternion (w, x, y, z): body → world.
@@ -366,6 +394,7 @@ impl Quadrotor {
                 body_rates: [0.0; 3],
             },
             contact: false,
+            diverged: false,
             config,
             limits,
         }
@@ -609,6 +638,27 @@ impl Dynamics for Quadrotor {
                 let n = self.q.iter().map(|x| x * x).sum::<f64>().sqrt();
                 self.q = self.q.map(|x| x / n);
             }
+        }
+        let finite = p.iter().chain(&v).chain(&self.rates).all(|x| x.is_finite())
+            && self.q.iter().all(|x| x.is_finite());
+        if !finite {
+            // Parameters the explicit integration cannot follow (absurd gains or drag): stop
+            // the robot where it was instead of putting NaN on the wire.
+            if !std::mem::replace(&mut self.diverged, true) {
+                tracing::warn!(
+                    "quadrotor integration diverged: check its [robot.quadrotor] parameters"
+                );
+            }
+            self.q = euler_quat([0.0, 0.0, f.rotation[2]]);
+            self.rates = [0.0; 3];
+            self.speeds = [0.0; 4];
+            self.mode = Mode::Off;
+            *f.velocity = [0.0; 3];
+            return Some(Crash {
+                speed: 0.0,
+                tilt: 0.0,
+                reason: "the integration diverged (check the quadrotor parameters)".into(),
+            });
         }
         let (moved, hit) = f.scene.sweep_contact(f.body, f.shape, start, sub(p, start));
         *f.position = moved;

@@ -564,6 +564,40 @@ fn absurd_commands_keep_every_number_finite() {
     );
 }
 
+#[test]
+fn parameters_the_integration_cannot_follow_stop_the_robot_instead_of_nan() {
+    // Within the checked bounds but far from any vehicle: 10 g with 1000 N·s/m of drag.
+    let mut catalog = RobotCatalog::embedded();
+    let q = &mut catalog.get_mut(QUAD).expect("class").quadrotor;
+    q.mass = 0.01;
+    q.thrust_coefficient = 1e-6;
+    q.drag_linear = 1000.0;
+    q.check().expect("accepted by the catalog checks");
+    // High above the city: nothing near to stop it.
+    let mut w = World::new(
+        Map::lookup("city").expect("city"),
+        catalog,
+        SimConfig::default(),
+    );
+    let c = spawn(&mut w, [0.0, 0.0, -2000.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(2.0),
+            ..Drive::default()
+        },
+    );
+    let out = run(&mut w, 1.0);
+    let (p, v, r) = state(&w, c);
+    assert!(
+        p.iter().chain(&v).chain(&r).all(|x| x.is_finite()),
+        "{p:?} {v:?} {r:?}"
+    );
+    assert!(!printed(&out).contains("NaN"));
+    assert!(w.crashed(c), "stopped and reported");
+}
+
 fn printed(out: &[(ClientId, ServerMessage)]) -> String {
     out.iter().map(|(c, m)| format!("{c:?} {m}\n")).collect()
 }
