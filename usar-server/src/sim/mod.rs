@@ -39,8 +39,8 @@ mod world;
 #[cfg(test)]
 mod tests;
 
-pub use map::{Map, MapError, PlayerStart};
-pub use robots::{RobotCatalog, RobotClass, RobotConfigError};
+pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
+pub use robots::{RobotCatalog, RobotClass};
 pub use world::World;
 
 /// A connection as the simulation knows it.
