@@ -44,8 +44,8 @@ mod quadrotor_tests;
 #[cfg(test)]
 mod tests;
 
-pub use map::{Map, MapError, PlayerStart};
-pub use robots::{RobotCatalog, RobotClass, RobotConfigError};
+pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
+pub use robots::{RobotCatalog, RobotClass};
 pub use wind::WindConfig;
 pub use world::World;
 

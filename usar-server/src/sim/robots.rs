@@ -1,12 +1,12 @@
 //! Robot classes: a TOML catalog in the spirit of USARSim's ini sections (see
 //! `docs/robots.md`). A new robot is a configuration entry, not code.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::map::{ReadError, line_of, read_text};
+use super::map::{ConfigError, ConfigFile, line_of, read_text};
 
 /// The largest robot file read (bytes).
 pub const MAX_ROBOT_FILE: u64 = 1 << 20;
@@ -15,29 +15,6 @@ use super::sensors;
 
 /// The embedded catalog (`usar-server/robots.toml`).
 const EMBEDDED: &str = include_str!("../../robots.toml");
-
-/// Errors reading a robot catalog; each names the file, the line and what is wrong.
-#[derive(Debug, thiserror::Error)]
-pub enum RobotConfigError {
-    /// The file could not be read.
-    #[error("cannot read robot file {path}: {error}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// Why (shown in this error's text, so not its `source`).
-        error: std::io::Error,
-    },
-    /// The file is not a valid catalog.
-    #[error("{path}:{line}: {message}")]
-    Invalid {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
-}
 
 /// Flight limits and behaviour (AerialVehicle / AirRobot defaults).
 #[derive(Debug, Clone, Deserialize)]
@@ -271,30 +248,14 @@ pub struct RobotCatalog {
 
 impl RobotCatalog {
     /// Reads a catalog file; files past [`MAX_ROBOT_FILE`] bytes are refused unread.
-    pub fn from_file(path: &Path) -> Result<Self, RobotConfigError> {
-        let invalid = |line, message| RobotConfigError::Invalid {
-            path: path.to_path_buf(),
-            line,
-            message,
-        };
-        let text = read_text(path, MAX_ROBOT_FILE).map_err(|e| match e {
-            ReadError::Io(error) => RobotConfigError::Io {
-                path: path.to_path_buf(),
-                error,
-            },
-            ReadError::TooLarge { size, limit } => invalid(
-                1,
-                format!("file of {size} bytes is larger than the limit of {limit} bytes"),
-            ),
-            ReadError::NotText { line } => {
-                invalid(line, "not a text file (bytes that are not UTF-8)".into())
-            }
-        })?;
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        let text = read_text(path, MAX_ROBOT_FILE)
+            .map_err(|e| e.into_config_error(ConfigFile::Robots, path, None))?;
         Self::parse(&text, path)
     }
 
     /// A catalog from TOML text (errors name `path`).
-    pub fn from_toml(text: &str, path: &Path) -> Result<Self, RobotConfigError> {
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, ConfigError> {
         Self::parse(text, path)
     }
 
@@ -326,8 +287,8 @@ impl RobotCatalog {
             .find(|r| r.class.eq_ignore_ascii_case(class))
     }
 
-    fn parse(text: &str, path: &Path) -> Result<Self, RobotConfigError> {
-        let invalid = |offset: usize, message: String| RobotConfigError::Invalid {
+    fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        let invalid = |offset: usize, message: String| ConfigError::Invalid {
             path: path.to_path_buf(),
             line: line_of(text, offset),
             message,
