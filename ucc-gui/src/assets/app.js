@@ -153,8 +153,17 @@ function drawMap() {
   for (let y = Math.ceil(wy0 / step) * step; y <= wy1; y += step) { const [sx] = toScreen(0, y); ctx.moveTo(sx, 0); ctx.lineTo(sx, map.height); }
   ctx.stroke();
   if (geometry) {
+    // Only what stands at the flown heights: not the floor, not the ceiling.
+    let low = Infinity, high = -Infinity;
+    const seen = (z) => { if (z < low) low = z; if (z > high) high = z; };
+    for (const c of uavs.values()) {
+      for (const m of c.info.missions) if (m.kind === "GotoXyz") seen(m.z);
+      if (c.info.live && c.info.live.position) seen(c.info.live.position[2]);
+    }
+    if (low > high) { low = -3; high = -0.5; }
     ctx.fillStyle = "#8d99ae";
     for (const f of geometry) {
+      if (!(f.z_min <= high && f.z_max >= low)) continue;
       ctx.beginPath();
       f.outline.forEach((p, i) => { const [sx, sy] = toScreen(p[0], p[1]); i ? ctx.lineTo(sx, sy) : ctx.moveTo(sx, sy); });
       ctx.closePath(); ctx.fill();

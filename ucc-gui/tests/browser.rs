@@ -1,0 +1,271 @@
+//! The control center in a real browser: headless Chromium driven through chromedriver.
+//!
+//! Skips (with a message) when `chromium`/`chromedriver` are not installed, unless
+//! `UCC_GUI_REQUIRE_BROWSER=1` (set by `.ci/run`), which turns the skip into a failure.
+//! The map screenshot is written to `target/ucc-gui-artifacts/map.png`.
+
+use std::path::PathBuf;
+use std::process::Stdio;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use fantoccini::actions::{InputSource, MouseActions, PointerAction};
+use fantoccini::{Client, ClientBuilder, Locator};
+use serde_json::json;
+use tokio_util::sync::CancellationToken;
+use ucc_gui::{GuiConfig, ServerChoice};
+use usar_server::{ServerConfig, TimeScale};
+
+fn which(names: &[&str]) -> Option<PathBuf> {
+    let path = std::env::var_os("PATH")?;
+    names.iter().find_map(|n| {
+        std::env::split_paths(&path)
+            .map(|d| d.join(n))
+            .find(|p| p.is_file())
+    })
+}
+
+/// chromium and chromedriver, or `None` (skip) — a failure when the browser is required.
+fn browser() -> Option<(PathBuf, PathBuf)> {
+    let found = which(&["chromium", "chromium-browser", "google-chrome"])
+        .zip(which(&["chromedriver"]));
+    if found.is_none() {
+        let msg = "browser tests skipped: chromium and chromedriver are not installed \
+                   (apt-get install chromium chromium-driver)";
+        if std::env::var("UCC_GUI_REQUIRE_BROWSER").is_ok_and(|v| v == "1") {
+            panic!("{msg}, and UCC_GUI_REQUIRE_BROWSER=1 requires them");
+        }
+        eprintln!("{msg}");
+    }
+    found
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+struct Session {
+    client: Client,
+    driver: tokio::process::Child,
+    _profile: PathBuf,
+}
+
+async fn start_browser(chromium: &PathBuf, chromedriver: &PathBuf) -> Result<Session> {
+    let port = free_port();
+    let driver = tokio::process::Command::new(chromedriver)
+        .arg(format!("--port={port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .kill_on_drop(true)
+        .spawn()
+        .context("cannot start chromedriver")?;
+    for _ in 0..100 {
+        if tokio::net::TcpStream::connect(("127.0.0.1", port)).await.is_ok() {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let profile = std::env::temp_dir().join(format!("ucc-gui-chromium-{}-{port}", std::process::id()));
+    let caps = json!({
+        "goog:chromeOptions": {
+            "binary": chromium,
+            "args": ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                     "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                     "--disable-dev-shm-usage", "--window-size=1400,1000",
+                     format!("--user-data-dir={}", profile.display())]
+        }
+    });
+    let mut builder = ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new());
+    builder.capabilities(caps.as_object().unwrap().clone());
+    let client = builder
+        .connect(&format!("http://127.0.0.1:{port}"))
+        .await
+        .context("cannot open a chromium session")?;
+    Ok(Session {
+        client,
+        driver,
+        _profile: profile,
+    })
+}
+
+async fn start_gui(speed: TimeScale) -> Result<(String, CancellationToken, PathBuf)> {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+    let url = ucc_gui::url(listener.local_addr()?, None);
+    let log_dir = std::env::temp_dir().join(format!("ucc-gui-test-{}", free_port()));
+    let config = GuiConfig {
+        server: ServerChoice::Local(Box::new(ServerConfig {
+            time_scale: speed,
+            lockstep: true,
+            ..ServerConfig::default()
+        })),
+        log_dir: log_dir.clone(),
+        token: None,
+    };
+    let cancel = CancellationToken::new();
+    let stop = cancel.clone();
+    tokio::spawn(async move { ucc_gui::serve(listener, config, stop).await });
+    Ok((url, cancel, log_dir))
+}
+
+async fn by_id(c: &Client, id: &str) -> Result<fantoccini::elements::Element> {
+    Ok(c.find(Locator::Css(&format!("[data-testid=\"{id}\"]"))).await?)
+}
+
+async fn text(c: &Client, id: &str) -> Result<String> {
+    Ok(by_id(c, id).await?.text().await?)
+}
+
+async fn type_into(c: &Client, id: &str, value: &str) -> Result<()> {
+    let e = by_id(c, id).await?;
+    e.clear().await?;
+    e.send_keys(value).await?;
+    Ok(())
+}
+
+/// Waits (up to `seconds`) until `check` holds, polling.
+async fn until<F, Fut>(what: &str, seconds: u64, mut check: F) -> Result<()>
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = Result<bool>>,
+{
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(seconds);
+    loop {
+        if check().await? {
+            return Ok(());
+        }
+        if tokio::time::Instant::now() > deadline {
+            bail!("gave up waiting for {what}");
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+async fn status(c: &Client) -> Result<String> {
+    Ok(c.find(Locator::Id("run-status")).await?.attr("data-status").await?.unwrap_or_default())
+}
+
+async fn count(c: &Client, css: &str) -> Result<usize> {
+    Ok(c.find_all(Locator::Css(css)).await?.len())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn fly_three_iterations_stop_and_refuse_bad_input() -> Result<()> {
+    let Some((chromium, chromedriver)) = browser() else {
+        return Ok(());
+    };
+    let (url, gui, log_dir) = start_gui(TimeScale::Factor(5.0)).await?;
+    let mut session = start_browser(&chromium, &chromedriver).await?;
+    let result = scenario(&session.client, &url).await;
+    let _ = session.client.clone().close().await;
+    let _ = session.driver.kill().await;
+    gui.cancel();
+    let _ = std::fs::remove_dir_all(&log_dir);
+    result
+}
+
+async fn scenario(c: &Client, url: &str) -> Result<()> {
+    c.goto(url).await?;
+    until("the page to connect", 20, || async {
+        Ok(count(c, "[data-testid=agent-type] option").await? > 0)
+    })
+    .await?;
+    let start = ServerConfig::default().map.starts()[0].clone();
+    let [ox, oy, _] = start.location;
+
+    // Create a UAV at the map's first start.
+    type_into(c, "start-pose", &start.tag).await?;
+    by_id(c, "create-uav").await?.click().await?;
+    until("the UAV in the list", 10, || async { Ok(count(c, "#uav-list li").await? == 1) }).await?;
+    assert!(c.title().await?.contains("UAV Control Center"));
+
+    // A bad coordinate gets a clear message.
+    type_into(c, "mission-x", "abc").await?;
+    type_into(c, "mission-y", "0").await?;
+    by_id(c, "mission-add").await?.click().await?;
+    until("the error message", 10, || async {
+        let e = by_id(c, "error").await?;
+        Ok(e.is_displayed().await? && e.text().await?.contains("mission x: \"abc\" is not a finite number"))
+    })
+    .await?;
+    assert_eq!(count(c, "[data-testid=mission-list] li").await?, 0);
+
+    // Two waypoints by the form, one by clicking on the map.
+    for (x, y) in [(ox, oy), (ox + 2.5, oy)] {
+        type_into(c, "mission-x", &format!("{x:.2}")).await?;
+        type_into(c, "mission-y", &format!("{y:.2}")).await?;
+        type_into(c, "mission-z", "-2").await?;
+        by_id(c, "mission-add").await?.click().await?;
+    }
+    until("two missions", 10, || async { Ok(count(c, "[data-testid=mission-list] li").await? == 2) }).await?;
+    let map = by_id(c, "map").await?;
+    // Where the point (ox + 2.5, oy + 2.5) is, relative to the canvas centre, in CSS pixels.
+    let offset = c
+        .execute(
+            "const [sx, sy] = toScreen(arguments[0], arguments[1]); const k = map.clientWidth / map.width;\
+             return [(sx - map.width / 2) * k, (sy - map.height / 2) * k];",
+            vec![json!(ox + 2.5), json!(oy + 2.5)],
+        )
+        .await?;
+    let (dx, dy) = (offset[0].as_f64().unwrap(), offset[1].as_f64().unwrap());
+    let click = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement { element: map.clone(), duration: None, x: dx, y: dy })
+        .then(PointerAction::Down { button: 0 })
+        .then(PointerAction::Up { button: 0 });
+    c.perform_actions(click).await?;
+    until("the clicked waypoint", 10, || async { Ok(count(c, "[data-testid=mission-list] li").await? == 3) }).await?;
+    let third = c.find_all(Locator::Css("[data-testid=mission-list] li")).await?[2].text().await?;
+    let nums: Vec<f64> = third
+        .trim_start_matches("GotoXyz ")
+        .trim_end_matches(" ×")
+        .split(',')
+        .map(|v| v.trim().parse().unwrap_or(f64::NAN))
+        .collect();
+    assert!(
+        (nums[0] - (ox + 2.5)).abs() < 0.3 && (nums[1] - (oy + 2.5)).abs() < 0.3 && nums[2] == -2.0,
+        "clicked waypoint {third:?}, expected near {},{}",
+        ox + 2.5,
+        oy + 2.5
+    );
+
+    // Loop three iterations; watch the position change, the counter reach 3, the log fill.
+    type_into(c, "iterations", "3").await?;
+    by_id(c, "start").await?.click().await?;
+    until("a position", 30, || async { Ok(!text(c, "uav-position").await?.is_empty()) }).await?;
+    let first = text(c, "uav-position").await?;
+    until("the position to change", 60, || async { Ok(text(c, "uav-position").await? != first) }).await?;
+    let parts: Vec<f64> = text(c, "uav-position").await?.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect();
+    assert!(parts.len() == 3 && parts.iter().all(|v| v.is_finite()), "position text {parts:?}");
+    assert!(text(c, "uav-battery").await?.contains('%'));
+    until("the run to end", 240, || async { Ok(status(c).await? != "running") }).await?;
+    assert_eq!(status(c).await?, "done", "{}", c.find(Locator::Id("run-status")).await?.text().await?);
+    assert_eq!(text(c, "iteration-counter").await?, "3");
+    let log = text(c, "log").await?;
+    assert!(log.contains("[3] iteration done"), "{log}");
+    assert!(log.lines().count() > 10, "{log}");
+    assert!(count(c, "#files a").await? >= 6, "the run's files are offered for download");
+
+    // The map screenshot (with the overlay of three iterations) as a test artifact.
+    let png = map.screenshot().await?;
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/ucc-gui-artifacts");
+    std::fs::create_dir_all(&dir)?;
+    std::fs::write(dir.join("map.png"), png)?;
+    let page = c.screenshot().await?;
+    std::fs::write(dir.join("page.png"), page)?;
+
+    // Stop mid-flight.
+    type_into(c, "iterations", "5").await?;
+    by_id(c, "start").await?.click().await?;
+    until("the second run to fly", 30, || async {
+        Ok(status(c).await? == "running" && text(c, "iteration-counter").await? == "1")
+    })
+    .await?;
+    by_id(c, "stop").await?.click().await?;
+    until("the run to stop", 30, || async { Ok(status(c).await? == "stopped") }).await?;
+    assert_eq!(text(c, "iteration-counter").await?, "1");
+    assert!(text(c, "log").await?.contains("interrupted"));
+    Ok(())
+}
