@@ -107,6 +107,8 @@ pub enum Request {
         /// The UAV.
         uav: u32,
     },
+    /// End the control center: stop every run (their files are written) and the server.
+    Quit,
     /// Which UAV this page shows in detail (laser beams, sonar cones, sensors).
     Select {
         /// The UAV.
@@ -248,6 +250,8 @@ pub enum Action {
     Connect(String),
     /// Restart the local server at this speed.
     Speed(String),
+    /// End the control center.
+    Quit,
     /// Start this UAV's run with these settings.
     Start(u32, Box<ucc_client::RunSettings>, String),
 }
@@ -499,6 +503,7 @@ impl Hub {
                 }
                 Ok(Action::None)
             }
+            Request::Quit => Ok(Action::Quit),
             Request::Select { uav } => {
                 self.uav(uav)?;
                 Ok(Action::None)

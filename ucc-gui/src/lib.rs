@@ -90,6 +90,8 @@ struct App {
     shared: Arc<Shared>,
     local: Arc<tokio::sync::Mutex<Option<Local>>>,
     token: Option<String>,
+    /// Cancelled by Quit.
+    shutdown: CancellationToken,
     /// The listener's port, and whether `Host` must name the loopback.
     port: u16,
     loopback_only: bool,
@@ -183,6 +185,7 @@ pub async fn serve(
         }),
         local: Arc::new(tokio::sync::Mutex::new(local)),
         token: config.token,
+        shutdown: shutdown.clone(),
         port: addr.port(),
         loopback_only,
         robots,
@@ -373,6 +376,11 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, String> {
     match action {
         Action::None => Ok(None),
         Action::Created(id) => Ok(Some(id)),
+        Action::Quit => {
+            app.shared.lock().log(0, "info", "quit: the control center stops".into());
+            app.shutdown.cancel();
+            Ok(None)
+        }
         Action::Connect(addr) => {
             flight::probe(&addr).await?;
             let mut local = app.local.lock().await;

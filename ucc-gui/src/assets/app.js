@@ -316,6 +316,7 @@ $("start").onclick = () => { if (needSelected()) send({ op: "start", uav: select
 $("stop").onclick = () => { if (needSelected()) send({ op: "stop", uav: selected }); };
 $("remove-uav").onclick = () => { if (needSelected()) send({ op: "remove", uav: selected }); };
 $("fit").onclick = fit;
+$("quit").onclick = () => { if (confirm("Stop every run and end the control center?")) send({ op: "quit" }); };
 $("overlay").onchange = () => { dirty = true; };
 $("log-uav").onchange = $("log-level").onchange = () => { logDirty = true; };
 $("hide-log").onclick = () => { const l = $("log"); l.hidden = !l.hidden; $("hide-log").textContent = l.hidden ? "Show log" : "Hide log"; };
