@@ -269,3 +269,68 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
     assert!(text(c, "log").await?.contains("interrupted"));
     Ok(())
 }
+
+/// The page with 50 UAVs flying: the browser's frame time. A benchmark, not a test: it runs
+/// only with `UCC_GUI_BENCH=1` and prints its figures (BENCHMARKS.md).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bench_frame_time_with_50_uavs() -> Result<()> {
+    if std::env::var("UCC_GUI_BENCH").as_deref() != Ok("1") {
+        eprintln!("frame-time benchmark skipped: set UCC_GUI_BENCH=1 to run it");
+        return Ok(());
+    }
+    let Some((chromium, chromedriver)) = browser() else {
+        return Ok(());
+    };
+    let (url, gui, log_dir) = start_gui(TimeScale::Factor(1.0)).await?;
+    let mut session = start_browser(&chromium, &chromedriver).await?;
+    let c = &session.client;
+    c.goto(&url).await?;
+    until("the page to connect", 20, || async {
+        Ok(count(c, "[data-testid=agent-type] option").await? > 0)
+    })
+    .await?;
+    // 50 UAVs on a grid, each flying a 1.5 m x 1 m box, many times.
+    c.execute(
+        "let id = 0;
+         for (const x of [-8, -4, 0, 4, 8]) for (let y = -9; y <= 9; y += 2) {
+           id++;
+           send({op: 'create', robot: 'stsAirRobot', agent: 'base', start: `${x},${y},-1`, name: ''});
+           for (const [dx, dy] of [[0, 0], [1.5, 0], [1.5, 1], [0, 1]])
+             send({op: 'add_mission', uav: id, kind: 'GotoXyz', x: String(x + dx), y: String(y + dy), z: '-2'});
+           send({op: 'options', uav: id, prefix: 'B' + id, pictures: 'none', autosave: false});
+           send({op: 'start', uav: id, iterations: '1000'});
+         }",
+        vec![],
+    )
+    .await?;
+    until("50 UAVs flying", 120, || async {
+        let n = c
+            .execute("return [...uavs.values()].filter(u => u.info.live && u.info.status === 'running').length", vec![])
+            .await?;
+        Ok(n.as_u64() == Some(50))
+    })
+    .await?;
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    let figures = c
+        .execute_async(
+            "const done = arguments[arguments.length - 1];
+             window.uccFrameTimes = []; const u0 = window.uccUpdates; const gaps = []; let last = performance.now();
+             const t0 = last;
+             function f(t) { gaps.push(t - last); last = t; if (t - t0 < 10000) requestAnimationFrame(f); else {
+               const q = (a, p) => { const s = [...a].sort((x, y) => x - y); return s[Math.min(s.length - 1, Math.floor(p * s.length))]; };
+               const d = window.uccFrameTimes;
+               done({draw_median: q(d, 0.5), draw_p95: q(d, 0.95), draw_max: q(d, 1), frames: d.length,
+                     gap_median: q(gaps, 0.5), gap_p95: q(gaps, 0.95), updates_per_s: (window.uccUpdates - u0) / ((t - t0) / 1000),
+                     trail_points: [...uavs.values()].reduce((n, u) => n + u.trail.length + u.past.flat().length, 0)});
+             } }
+             requestAnimationFrame(f);",
+            vec![],
+        )
+        .await?;
+    println!("ucc-gui frame time, 50 UAVs flying, 10 s: {figures}");
+    let _ = session.client.clone().close().await;
+    let _ = session.driver.kill().await;
+    gui.cancel();
+    let _ = std::fs::remove_dir_all(&log_dir);
+    Ok(())
+}

@@ -9,6 +9,7 @@ let selected = null, geometry = null, ws = null, logLines = [], logDirty = false
 let view = { cx: 0, cy: 0, scale: 20, fitted: false };
 let dirty = true;
 window.uccFrameTimes = []; // draw time of each frame, ms (the benchmark reads it)
+window.uccUpdates = 0; // state updates received
 
 function send(obj) { if (ws && ws.readyState === 1) ws.send(JSON.stringify(obj)); }
 function showError(message) {
@@ -39,6 +40,7 @@ function hello(m) {
 }
 
 function update(m) {
+  window.uccUpdates++;
   const s = m.server;
   $("server-info").textContent = `${s.local ? "local server" : "server"} ${s.addr}${s.map ? " · map " + s.map : ""}`;
   if (document.activeElement !== $("speed")) $("speed").value = s.speed;
