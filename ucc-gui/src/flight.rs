@@ -112,7 +112,12 @@ pub struct Live {
 }
 
 impl Live {
-    fn of(time: f64, uav: &UavState, command: Option<ucc_client::SpeedCommand>, hits: bool) -> Self {
+    fn of(
+        time: f64,
+        uav: &UavState,
+        command: Option<ucc_client::SpeedCommand>,
+        hits: bool,
+    ) -> Self {
         let v3 = |c: &ucc_client::Coordinates| [c.x, c.y, c.z];
         let position = uav.position.as_ref().map(|p| v3(&p.value));
         let laser = uav.laser.as_ref().map(|l| l.value.clone());
@@ -121,9 +126,18 @@ impl Live {
             position,
             attitude: uav.orientation.as_ref().map(|o| v3(&o.value)),
             velocity: uav.velocity.as_ref().map(|v| v3(&v.value)),
-            battery: uav.battery.as_ref().map(|b| (b.value.level, b.value.remaining)),
-            laser: laser.as_ref().map(|l| (l.ranges.clone(), l.resolution, l.fov)),
-            sonars: uav.sonars.iter().map(|s| s.as_ref().map(|r| r.value)).collect(),
+            battery: uav
+                .battery
+                .as_ref()
+                .map(|b| (b.value.level, b.value.remaining)),
+            laser: laser
+                .as_ref()
+                .map(|l| (l.ranges.clone(), l.resolution, l.fov)),
+            sonars: uav
+                .sonars
+                .iter()
+                .map(|s| s.as_ref().map(|r| r.value))
+                .collect(),
             free: (
                 uav.free_above.as_ref().map(|r| r.value),
                 uav.free_below.as_ref().map(|r| r.value),
@@ -147,7 +161,13 @@ impl Live {
 
     /// The JSON of the live panel; the laser and sonars only for the selected UAV.
     pub fn to_json(&self, detail: bool) -> Value {
-        let finite = |v: f64| if v.is_finite() { Value::from(v) } else { Value::Null };
+        let finite = |v: f64| {
+            if v.is_finite() {
+                Value::from(v)
+            } else {
+                Value::Null
+            }
+        };
         let arr = |a: &Option<[f64; 3]>| a.map(|a| a.map(finite));
         let mut v = json!({
             "time": finite(self.time),
@@ -161,11 +181,17 @@ impl Live {
                 .laser
                 .as_ref()
                 .map_or(Value::Null, |l| json!({"ranges": l.0.iter().map(|r| finite(*r)).collect::<Vec<_>>(), "resolution": finite(l.1), "fov": finite(l.2)}));
-            v["sonars"] = self.sonars.iter().map(|s| s.map_or(Value::Null, finite)).collect();
+            v["sonars"] = self
+                .sonars
+                .iter()
+                .map(|s| s.map_or(Value::Null, finite))
+                .collect();
             v["free_above"] = self.free.0.map_or(Value::Null, finite);
             v["free_below"] = self.free.1.map_or(Value::Null, finite);
             v["altitude"] = self.altitude.map_or(Value::Null, finite);
-            v["command"] = self.command.map_or(Value::Null, |c| c.map(finite).into_iter().collect());
+            v["command"] = self
+                .command
+                .map_or(Value::Null, |c| c.map(finite).into_iter().collect());
         }
         v
     }
@@ -173,29 +199,55 @@ impl Live {
 
 /// Starts the run of UAV `id` on a thread of its own; returns its cancellation token (also
 /// stored in the UAV).
-pub fn spawn_run(shared: Arc<Shared>, id: u32, settings: RunSettings, agent: String) -> Result<(), String> {
+pub fn spawn_run(
+    shared: Arc<Shared>,
+    id: u32,
+    settings: RunSettings,
+    agent: String,
+) -> Result<(), String> {
     let info = agents::info(&agent).ok_or_else(|| format!("unknown agent {agent:?}"))?;
     let cancel = CancellationToken::new();
     {
         let mut hub = shared.lock();
         hub.uav(id)?.cancel = Some(cancel.clone());
-        hub.log(id, "info", format!("run: {} iteration(s) of {} mission(s) against {}", settings.iterations, settings.missions.len(), settings.addr));
+        hub.log(
+            id,
+            "info",
+            format!(
+                "run: {} iteration(s) of {} mission(s) against {}",
+                settings.iterations,
+                settings.missions.len(),
+                settings.addr
+            ),
+        );
     }
     let thread_shared = shared.clone();
     let spawned = std::thread::Builder::new()
         .name(format!("ucc-gui-uav{id}"))
         .spawn(move || {
             let shared = thread_shared;
-            let runtime = match tokio::runtime::Builder::new_current_thread().enable_all().build() {
+            let runtime = match tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+            {
                 Ok(rt) => rt,
                 Err(e) => {
-                    shared.lock().finished(id, Status::Failed, Some(format!("cannot start a runtime: {e}")));
+                    shared.lock().finished(
+                        id,
+                        Status::Failed,
+                        Some(format!("cannot start a runtime: {e}")),
+                    );
                     return;
                 }
             };
             let hits = settings.map.is_none();
             let mut observer = |p: &Progress| observe(&shared, id, p, hits);
-            let result = runtime.block_on(ucc_client::run(&settings, &info.create, &mut observer, &cancel));
+            let result = runtime.block_on(ucc_client::run(
+                &settings,
+                &info.create,
+                &mut observer,
+                &cancel,
+            ));
             let mut hub = shared.lock();
             match result {
                 Ok(summary) => {
@@ -204,14 +256,41 @@ pub fn spawn_run(shared: Arc<Shared>, id: u32, settings: RunSettings, agent: Str
                     }
                     let failed = summary.statistics().failed;
                     let (status, error, line) = if summary.interrupted {
-                        (Status::Stopped, None, "run stopped; its files are written".to_owned())
+                        (
+                            Status::Stopped,
+                            None,
+                            "run stopped; its files are written".to_owned(),
+                        )
                     } else if failed > 0 {
-                        let first = summary.iterations.iter().find_map(|i| i.error()).map(str::to_owned);
-                        (Status::Failed, first.clone(), format!("run ended: {failed} of {} iteration(s) failed", summary.iterations.len()))
+                        let first = summary
+                            .iterations
+                            .iter()
+                            .find_map(|i| i.error())
+                            .map(str::to_owned);
+                        (
+                            Status::Failed,
+                            first.clone(),
+                            format!(
+                                "run ended: {failed} of {} iteration(s) failed",
+                                summary.iterations.len()
+                            ),
+                        )
                     } else {
-                        (Status::Done, None, format!("run ended: {} iteration(s) done", summary.iterations.len()))
+                        (
+                            Status::Done,
+                            None,
+                            format!("run ended: {} iteration(s) done", summary.iterations.len()),
+                        )
                     };
-                    hub.log(id, if status == Status::Failed { "error" } else { "info" }, line);
+                    hub.log(
+                        id,
+                        if status == Status::Failed {
+                            "error"
+                        } else {
+                            "info"
+                        },
+                        line,
+                    );
                     hub.finished(id, status, error);
                 }
                 Err(e) => {
@@ -221,7 +300,11 @@ pub fn spawn_run(shared: Arc<Shared>, id: u32, settings: RunSettings, agent: Str
             }
         });
     if let Err(e) = spawned {
-        shared.lock().finished(id, Status::Failed, Some(format!("cannot start a thread: {e}")));
+        shared.lock().finished(
+            id,
+            Status::Failed,
+            Some(format!("cannot start a thread: {e}")),
+        );
         return Err(format!("cannot start a thread for the run: {e}"));
     }
     Ok(())
@@ -265,7 +348,11 @@ fn observe(shared: &Shared, id: u32, progress: &Progress, hits: bool) {
         hub.log(id, level, progress.to_string());
     }
     // A pause holds the runner here (a stop still ends it: the token is checked after).
-    let cancel = hub.uavs.iter().find(|u| u.id == id).and_then(|u| u.cancel.clone());
+    let cancel = hub
+        .uavs
+        .iter()
+        .find(|u| u.id == id)
+        .and_then(|u| u.cancel.clone());
     while hub.paused && !cancel.as_ref().is_some_and(|c| c.is_cancelled()) {
         hub = shared
             .resumed

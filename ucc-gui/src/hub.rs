@@ -352,9 +352,13 @@ impl Hub {
                     return Err(format!("robot class: {robot:?} is not a class name"));
                 }
                 flight::check_agent(&agent)?;
-                let start: ucc_client::Start = start.parse().map_err(|e| format!("start pose: {e}"))?;
+                let start: ucc_client::Start =
+                    start.parse().map_err(|e| format!("start pose: {e}"))?;
                 if let ucc_client::Start::Pose { location, rotation } = &start
-                    && !(location.iter().chain(rotation.iter()).all(|v| v.is_finite()))
+                    && !(location
+                        .iter()
+                        .chain(rotation.iter())
+                        .all(|v| v.is_finite()))
                 {
                     return Err("start pose: every number must be finite".into());
                 }
@@ -465,9 +469,14 @@ impl Hub {
                 Ok(Action::None)
             }
             Request::Start { uav, iterations } => {
-                let n: usize = iterations.trim().parse().ok().filter(|n| (1..=10_000).contains(n)).ok_or_else(|| {
-                    format!("iterations: {iterations:?} is not a whole number from 1 to 10000")
-                })?;
+                let n: usize = iterations
+                    .trim()
+                    .parse()
+                    .ok()
+                    .filter(|n| (1..=10_000).contains(n))
+                    .ok_or_else(|| {
+                        format!("iterations: {iterations:?} is not a whole number from 1 to 10000")
+                    })?;
                 let addr = self.addr.clone();
                 let local = self.local;
                 let log_dir = self.log_dir.clone();
@@ -545,7 +554,9 @@ impl Hub {
                 u.history = thinned;
                 u.trail_epoch += 1;
             }
-            let speed = live.velocity.map_or(0.0, |v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt());
+            let speed = live
+                .velocity
+                .map_or(0.0, |v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt());
             u.history.push([
                 live.time as f32,
                 -p[2] as f32,
@@ -553,7 +564,8 @@ impl Hub {
                 live.battery.map_or(f32::NAN, |b| b.0 as f32),
             ]);
             if u.hits.len() < MAX_HITS {
-                u.hits.extend(live.hits.iter().map(|h| [h[0] as f32, h[1] as f32]));
+                u.hits
+                    .extend(live.hits.iter().map(|h| [h[0] as f32, h[1] as f32]));
             }
         }
         u.live = Some(live);
@@ -658,8 +670,16 @@ impl Hub {
     /// A UAV's log as text, filtered by level (`""` for all).
     pub fn log_text(&self, uav: Option<u32>, level: &str) -> String {
         let mut out = String::new();
-        for line in self.log.iter().filter(|l| uav.is_none_or(|u| l.uav == u) && level_passes(l.level, level)) {
-            let name = self.uavs.iter().find(|u| u.id == line.uav).map_or("?", |u| u.name.as_str());
+        for line in self
+            .log
+            .iter()
+            .filter(|l| uav.is_none_or(|u| l.uav == u) && level_passes(l.level, level))
+        {
+            let name = self
+                .uavs
+                .iter()
+                .find(|u| u.id == line.uav)
+                .map_or("?", |u| u.name.as_str());
             out.push_str(&format!("{name} {} {}\n", line.level, line.text));
         }
         out

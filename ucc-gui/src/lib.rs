@@ -192,8 +192,24 @@ pub async fn serve(
     };
     let router = Router::new()
         .route("/", get(index))
-        .route("/app.js", get(|| async { ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], APP_JS) }))
-        .route("/style.css", get(|| async { ([(header::CONTENT_TYPE, "text/css; charset=utf-8")], STYLE_CSS) }))
+        .route(
+            "/app.js",
+            get(|| async {
+                (
+                    [(header::CONTENT_TYPE, "text/javascript; charset=utf-8")],
+                    APP_JS,
+                )
+            }),
+        )
+        .route(
+            "/style.css",
+            get(|| async {
+                (
+                    [(header::CONTENT_TYPE, "text/css; charset=utf-8")],
+                    STYLE_CSS,
+                )
+            }),
+        )
         .route("/ws", get(websocket))
         .route("/api/state", get(state))
         .route("/api/log", get(log_file))
@@ -261,7 +277,11 @@ async fn guard(State(app): State<App>, request: HttpRequest, next: Next) -> Resp
             .find_map(|kv| kv.strip_prefix("token="))
             .unwrap_or("");
         if !same(given.as_bytes(), token.as_bytes()) {
-            return (StatusCode::UNAUTHORIZED, "missing or wrong token: open the URL printed by `ucc gui`").into_response();
+            return (
+                StatusCode::UNAUTHORIZED,
+                "missing or wrong token: open the URL printed by `ucc gui`",
+            )
+                .into_response();
         }
     }
     next.run(request).await
@@ -278,7 +298,9 @@ pub fn check_host(host: &str, port: u16, loopback_only: bool) -> Result<(), Stri
         return Ok(());
     }
     let names = ["127.0.0.1", "localhost", "[::1]"];
-    let ok = names.iter().any(|n| host == *n || host == format!("{n}:{port}"));
+    let ok = names
+        .iter()
+        .any(|n| host == *n || host == format!("{n}:{port}"));
     if ok {
         Ok(())
     } else {
@@ -292,7 +314,10 @@ async fn index() -> impl IntoResponse {
     (
         [
             (header::CONTENT_TYPE, "text/html; charset=utf-8"),
-            (header::CONTENT_SECURITY_POLICY, "default-src 'self'; connect-src 'self'; img-src 'self' data: blob:"),
+            (
+                header::CONTENT_SECURITY_POLICY,
+                "default-src 'self'; connect-src 'self'; img-src 'self' data: blob:",
+            ),
         ],
         INDEX_HTML,
     )
@@ -316,7 +341,11 @@ async fn page(app: App, mut socket: WebSocket) {
             "period_ms": UPDATE_PERIOD.as_millis() as u64,
         })
     };
-    if socket.send(Message::Text(hello.to_string().into())).await.is_err() {
+    if socket
+        .send(Message::Text(hello.to_string().into()))
+        .await
+        .is_err()
+    {
         return;
     }
     let mut cursor = Cursor::default();
@@ -356,10 +385,8 @@ async fn handle(app: &App, cursor: &mut Cursor, text: &str) -> Option<serde_json
     if let Request::Select { uav } = &request {
         cursor.selected = Some(*uav);
     }
-    let result = match app.shared.lock().apply(request) {
-        Ok(action) => Ok(action),
-        Err(e) => Err(e),
-    };
+    // The lock is released at the end of this statement, before any await.
+    let result = app.shared.lock().apply(request);
     let result = match result {
         Ok(action) => act(app, action).await,
         Err(e) => Err(e),
@@ -377,7 +404,9 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, String> {
         Action::None => Ok(None),
         Action::Created(id) => Ok(Some(id)),
         Action::Quit => {
-            app.shared.lock().log(0, "info", "quit: the control center stops".into());
+            app.shared
+                .lock()
+                .log(0, "info", "quit: the control center stops".into());
             app.shutdown.cancel();
             Ok(None)
         }
@@ -428,7 +457,10 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, String> {
 
 async fn state(State(app): State<App>) -> impl IntoResponse {
     let update = app.shared.lock().update(&mut Cursor::default());
-    ([(header::CONTENT_TYPE, "application/json")], update.to_string())
+    (
+        [(header::CONTENT_TYPE, "application/json")],
+        update.to_string(),
+    )
 }
 
 async fn log_file(State(app): State<App>, Query(q): Query<HashMap<String, String>>) -> Response {
@@ -436,25 +468,42 @@ async fn log_file(State(app): State<App>, Query(q): Query<HashMap<String, String
         None | Some("") | Some("all") => None,
         Some(s) => match s.parse() {
             Ok(id) => Some(id),
-            Err(_) => return (StatusCode::BAD_REQUEST, format!("uav: {s:?} is not a UAV id")).into_response(),
+            Err(_) => {
+                return (
+                    StatusCode::BAD_REQUEST,
+                    format!("uav: {s:?} is not a UAV id"),
+                )
+                    .into_response();
+            }
         },
     };
     let level = q.get("level").map_or("", |s| s.as_str());
     if !["", "info", "warn", "error"].contains(&level) {
-        return (StatusCode::BAD_REQUEST, format!("level: {level:?} (info, warn or error)")).into_response();
+        return (
+            StatusCode::BAD_REQUEST,
+            format!("level: {level:?} (info, warn or error)"),
+        )
+            .into_response();
     }
     let text = app.shared.lock().log_text(uav, level);
     (
         [
             (header::CONTENT_TYPE, "text/plain; charset=utf-8".to_owned()),
-            (header::CONTENT_DISPOSITION, "attachment; filename=\"ucc-gui.log\"".to_owned()),
+            (
+                header::CONTENT_DISPOSITION,
+                "attachment; filename=\"ucc-gui.log\"".to_owned(),
+            ),
         ],
         text,
     )
         .into_response()
 }
 
-async fn file(State(app): State<App>, Path((uav, index)): Path<(u32, usize)>, _headers: HeaderMap) -> Response {
+async fn file(
+    State(app): State<App>,
+    Path((uav, index)): Path<(u32, usize)>,
+    _headers: HeaderMap,
+) -> Response {
     let path = {
         let mut hub = app.shared.lock();
         match hub.uav(uav) {
@@ -463,13 +512,26 @@ async fn file(State(app): State<App>, Path((uav, index)): Path<(u32, usize)>, _h
         }
     };
     let Some(path) = path else {
-        return (StatusCode::NOT_FOUND, format!("UAV {uav} has no file {index}")).into_response();
+        return (
+            StatusCode::NOT_FOUND,
+            format!("UAV {uav} has no file {index}"),
+        )
+            .into_response();
     };
     let bytes = match std::fs::read(&path) {
         Ok(b) => b,
-        Err(e) => return (StatusCode::NOT_FOUND, format!("cannot read {}: {e}", path.display())).into_response(),
+        Err(e) => {
+            return (
+                StatusCode::NOT_FOUND,
+                format!("cannot read {}: {e}", path.display()),
+            )
+                .into_response();
+        }
     };
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let kind = match path.extension().and_then(|e| e.to_str()) {
         Some("png") => "image/png",
         Some("svg") => "image/svg+xml",
@@ -479,7 +541,10 @@ async fn file(State(app): State<App>, Path((uav, index)): Path<(u32, usize)>, _h
     (
         [
             (header::CONTENT_TYPE, kind.to_owned()),
-            (header::CONTENT_DISPOSITION, format!("attachment; filename=\"{}\"", name.replace('"', ""))),
+            (
+                header::CONTENT_DISPOSITION,
+                format!("attachment; filename=\"{}\"", name.replace('"', "")),
+            ),
         ],
         bytes,
     )

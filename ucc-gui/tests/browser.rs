@@ -27,8 +27,8 @@ fn which(names: &[&str]) -> Option<PathBuf> {
 
 /// chromium and chromedriver, or `None` (skip) — a failure when the browser is required.
 fn browser() -> Option<(PathBuf, PathBuf)> {
-    let found = which(&["chromium", "chromium-browser", "google-chrome"])
-        .zip(which(&["chromedriver"]));
+    let found =
+        which(&["chromium", "chromium-browser", "google-chrome"]).zip(which(&["chromedriver"]));
     if found.is_none() {
         let msg = "browser tests skipped: chromium and chromedriver are not installed \
                    (apt-get install chromium chromium-driver)";
@@ -64,12 +64,16 @@ async fn start_browser(chromium: &PathBuf, chromedriver: &PathBuf) -> Result<Ses
         .spawn()
         .context("cannot start chromedriver")?;
     for _ in 0..100 {
-        if tokio::net::TcpStream::connect(("127.0.0.1", port)).await.is_ok() {
+        if tokio::net::TcpStream::connect(("127.0.0.1", port))
+            .await
+            .is_ok()
+        {
             break;
         }
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
-    let profile = std::env::temp_dir().join(format!("ucc-gui-chromium-{}-{port}", std::process::id()));
+    let profile =
+        std::env::temp_dir().join(format!("ucc-gui-chromium-{}-{port}", std::process::id()));
     let caps = json!({
         "goog:chromeOptions": {
             "binary": chromium,
@@ -112,7 +116,8 @@ async fn start_gui(speed: TimeScale) -> Result<(String, CancellationToken, PathB
 }
 
 async fn by_id(c: &Client, id: &str) -> Result<fantoccini::elements::Element> {
-    Ok(c.find(Locator::Css(&format!("[data-testid=\"{id}\"]"))).await?)
+    Ok(c.find(Locator::Css(&format!("[data-testid=\"{id}\"]")))
+        .await?)
 }
 
 async fn text(c: &Client, id: &str) -> Result<String> {
@@ -145,7 +150,11 @@ where
 }
 
 async fn status(c: &Client) -> Result<String> {
-    Ok(c.find(Locator::Id("run-status")).await?.attr("data-status").await?.unwrap_or_default())
+    Ok(c.find(Locator::Id("run-status"))
+        .await?
+        .attr("data-status")
+        .await?
+        .unwrap_or_default())
 }
 
 async fn count(c: &Client, css: &str) -> Result<usize> {
@@ -179,7 +188,10 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
     // Create a UAV at the map's first start.
     type_into(c, "start-pose", &start.tag).await?;
     by_id(c, "create-uav").await?.click().await?;
-    until("the UAV in the list", 10, || async { Ok(count(c, "#uav-list li").await? == 1) }).await?;
+    until("the UAV in the list", 10, || async {
+        Ok(count(c, "#uav-list li").await? == 1)
+    })
+    .await?;
     assert!(c.title().await?.contains("UAV Control Center"));
 
     // A bad coordinate gets a clear message.
@@ -188,7 +200,10 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
     by_id(c, "mission-add").await?.click().await?;
     until("the error message", 10, || async {
         let e = by_id(c, "error").await?;
-        Ok(e.is_displayed().await? && e.text().await?.contains("mission x: \"abc\" is not a finite number"))
+        Ok(e.is_displayed().await?
+            && e.text()
+                .await?
+                .contains("mission x: \"abc\" is not a finite number"))
     })
     .await?;
     assert_eq!(count(c, "[data-testid=mission-list] li").await?, 0);
@@ -200,7 +215,10 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
         type_into(c, "mission-z", "-2").await?;
         by_id(c, "mission-add").await?.click().await?;
     }
-    until("two missions", 10, || async { Ok(count(c, "[data-testid=mission-list] li").await? == 2) }).await?;
+    until("two missions", 10, || async {
+        Ok(count(c, "[data-testid=mission-list] li").await? == 2)
+    })
+    .await?;
     let map = by_id(c, "map").await?;
     // Where the point (ox + 2.5, oy + 2.5) is, relative to the canvas centre, in CSS pixels.
     let offset = c
@@ -212,12 +230,24 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
         .await?;
     let (dx, dy) = (offset[0].as_f64().unwrap(), offset[1].as_f64().unwrap());
     let click = MouseActions::new("mouse".into())
-        .then(PointerAction::MoveToElement { element: map.clone(), duration: None, x: dx, y: dy })
+        .then(PointerAction::MoveToElement {
+            element: map.clone(),
+            duration: None,
+            x: dx,
+            y: dy,
+        })
         .then(PointerAction::Down { button: 0 })
         .then(PointerAction::Up { button: 0 });
     c.perform_actions(click).await?;
-    until("the clicked waypoint", 10, || async { Ok(count(c, "[data-testid=mission-list] li").await? == 3) }).await?;
-    let third = c.find_all(Locator::Css("[data-testid=mission-list] li")).await?[2].text().await?;
+    until("the clicked waypoint", 10, || async {
+        Ok(count(c, "[data-testid=mission-list] li").await? == 3)
+    })
+    .await?;
+    let third = c
+        .find_all(Locator::Css("[data-testid=mission-list] li"))
+        .await?[2]
+        .text()
+        .await?;
     let nums: Vec<f64> = third
         .trim_start_matches("GotoXyz ")
         .trim_end_matches(" ×")
@@ -234,19 +264,43 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
     // Loop three iterations; watch the position change, the counter reach 3, the log fill.
     type_into(c, "iterations", "3").await?;
     by_id(c, "start").await?.click().await?;
-    until("a position", 30, || async { Ok(!text(c, "uav-position").await?.is_empty()) }).await?;
+    until("a position", 30, || async {
+        Ok(!text(c, "uav-position").await?.is_empty())
+    })
+    .await?;
     let first = text(c, "uav-position").await?;
-    until("the position to change", 60, || async { Ok(text(c, "uav-position").await? != first) }).await?;
-    let parts: Vec<f64> = text(c, "uav-position").await?.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect();
-    assert!(parts.len() == 3 && parts.iter().all(|v| v.is_finite()), "position text {parts:?}");
+    until("the position to change", 60, || async {
+        Ok(text(c, "uav-position").await? != first)
+    })
+    .await?;
+    let parts: Vec<f64> = text(c, "uav-position")
+        .await?
+        .split(',')
+        .map(|v| v.parse().unwrap_or(f64::NAN))
+        .collect();
+    assert!(
+        parts.len() == 3 && parts.iter().all(|v| v.is_finite()),
+        "position text {parts:?}"
+    );
     assert!(text(c, "uav-battery").await?.contains('%'));
-    until("the run to end", 240, || async { Ok(status(c).await? != "running") }).await?;
-    assert_eq!(status(c).await?, "done", "{}", c.find(Locator::Id("run-status")).await?.text().await?);
+    until("the run to end", 240, || async {
+        Ok(status(c).await? != "running")
+    })
+    .await?;
+    assert_eq!(
+        status(c).await?,
+        "done",
+        "{}",
+        c.find(Locator::Id("run-status")).await?.text().await?
+    );
     assert_eq!(text(c, "iteration-counter").await?, "3");
     let log = text(c, "log").await?;
     assert!(log.contains("[3] iteration done"), "{log}");
     assert!(log.lines().count() > 10, "{log}");
-    assert!(count(c, "#files a").await? >= 6, "the run's files are offered for download");
+    assert!(
+        count(c, "#files a").await? >= 6,
+        "the run's files are offered for download"
+    );
 
     // The map screenshot (with the overlay of three iterations) as a test artifact.
     let png = map.screenshot().await?;
@@ -264,7 +318,10 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
     })
     .await?;
     by_id(c, "stop").await?.click().await?;
-    until("the run to stop", 30, || async { Ok(status(c).await? == "stopped") }).await?;
+    until("the run to stop", 30, || async {
+        Ok(status(c).await? == "stopped")
+    })
+    .await?;
     assert_eq!(text(c, "iteration-counter").await?, "1");
     assert!(text(c, "log").await?.contains("interrupted"));
     Ok(())

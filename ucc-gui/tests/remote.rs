@@ -55,22 +55,30 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
     };
     let hello = next().await;
     assert_eq!(hello["type"], "hello");
-    assert_eq!(hello["geometry"], Value::Null, "a plain server reports no geometry");
+    assert_eq!(
+        hello["geometry"],
+        Value::Null,
+        "a plain server reports no geometry"
+    );
     assert_eq!(hello["agents"], json!(["base", "avoid"]));
-    drop(next);
 
     let send = |v: Value| Message::Text(v.to_string().into());
-    ws.send(send(json!({"op": "create", "robot": "stsAirRobot", "agent": "base", "start": start.tag})))
-        .await
-        .unwrap();
-    for (x, y) in [(ox + 7.5, oy), (ox + 7.5, oy + 1.5)] { // 2.5 m from the north wall
+    ws.send(send(
+        json!({"op": "create", "robot": "stsAirRobot", "agent": "base", "start": start.tag}),
+    ))
+    .await
+    .unwrap();
+    for (x, y) in [(ox + 7.5, oy), (ox + 7.5, oy + 1.5)] {
+        // 2.5 m from the north wall
         ws.send(send(json!({"op": "add_mission", "uav": 1, "kind": "GotoXyz", "x": x.to_string(), "y": y.to_string(), "z": "-1.5"})))
             .await
             .unwrap();
     }
-    ws.send(send(json!({"op": "add_mission", "uav": 1, "kind": "GotoXyz", "x": "1", "y": "NaN", "z": "-1"})))
-        .await
-        .unwrap();
+    ws.send(send(
+        json!({"op": "add_mission", "uav": 1, "kind": "GotoXyz", "x": "1", "y": "NaN", "z": "-1"}),
+    ))
+    .await
+    .unwrap();
     ws.send(send(json!({"op": "start", "uav": 1, "iterations": "2"})))
         .await
         .unwrap();
@@ -79,7 +87,10 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
     let mut last = Value::Null;
     let deadline = tokio::time::Instant::now() + Duration::from_secs(180);
     loop {
-        assert!(tokio::time::Instant::now() < deadline, "the run did not end: {last}");
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "the run did not end: {last}"
+        );
         let m = tokio::time::timeout(Duration::from_secs(30), ws.next())
             .await
             .unwrap()
@@ -112,22 +123,59 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
     assert_eq!(last["missions"].as_array().unwrap().len(), 2);
     assert!(trail > 20, "{trail} trail points");
     assert!(past >= 1, "the first iteration's trail for the overlay");
-    assert!(hits > 100, "the laser's hits draw the map of a server without geometry: {hits}");
-    assert!(log.iter().any(|l| l == "[2] iteration done: 2 missions in" || l.starts_with("[2] iteration done")), "{log:?}");
+    assert!(
+        hits > 100,
+        "the laser's hits draw the map of a server without geometry: {hits}"
+    );
+    assert!(
+        log.iter().any(
+            |l| l == "[2] iteration done: 2 missions in" || l.starts_with("[2] iteration done")
+        ),
+        "{log:?}"
+    );
     assert!(log.iter().any(|l| l.contains("sensor time")) || !log.is_empty());
-    let files: Vec<&str> = last["files"].as_array().unwrap().iter().map(|f| f["name"].as_str().unwrap()).collect();
-    assert!(files.contains(&"UAV1-results.csv") && files.contains(&"UAV1-01.log"), "{files:?}");
+    let files: Vec<&str> = last["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        files.contains(&"UAV1-results.csv") && files.contains(&"UAV1-01.log"),
+        "{files:?}"
+    );
 
     // The files are offered for download; Quit ends the control center.
     let index = files.iter().position(|f| *f == "UAV1-results.csv").unwrap();
     let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    s.write_all(format!("GET /api/files/1/{index} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").as_bytes())
-        .await
-        .unwrap();
+    s.write_all(
+        format!("GET /api/files/1/{index} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n")
+            .as_bytes(),
+    )
+    .await
+    .unwrap();
     let mut body = String::new();
     s.read_to_string(&mut body).await.unwrap();
-    assert!(body.starts_with("HTTP/1.1 200") && body.contains("iteration,status"), "{body}");
+    assert!(
+        body.starts_with("HTTP/1.1 200") && body.contains("iteration,status"),
+        "{body}"
+    );
+    let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+    s.write_all(
+        format!(
+            "GET /api/log?uav=1&level=info HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+        )
+        .as_bytes(),
+    )
+    .await
+    .unwrap();
+    let mut saved = String::new();
+    s.read_to_string(&mut saved).await.unwrap();
+    assert!(
+        saved.contains("attachment") && saved.contains("UAV1 info [2] iteration done"),
+        "{saved}"
+    );
     ws.send(send(json!({"op": "quit"}))).await.unwrap();
     tokio::time::timeout(Duration::from_secs(20), served)
         .await

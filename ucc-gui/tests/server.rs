@@ -40,16 +40,41 @@ async fn the_page_carries_every_hook() {
     let page = http(addr, &get("/", &addr.to_string(), "")).await;
     assert!(page.starts_with("HTTP/1.1 200"), "{page}");
     for id in [
-        "server-host", "server-port", "connect", "robot-class", "agent-type", "start-pose",
-        "create-uav", "mission-x", "mission-y", "mission-z", "mission-add", "mission-list",
-        "iterations", "start", "stop", "iteration-counter", "uav-position", "uav-battery",
-        "log", "map",
+        "server-host",
+        "server-port",
+        "connect",
+        "robot-class",
+        "agent-type",
+        "start-pose",
+        "create-uav",
+        "mission-x",
+        "mission-y",
+        "mission-z",
+        "mission-add",
+        "mission-list",
+        "iterations",
+        "start",
+        "stop",
+        "iteration-counter",
+        "uav-position",
+        "uav-battery",
+        "log",
+        "map",
     ] {
-        assert!(page.contains(&format!("data-testid=\"{id}\"")), "no data-testid {id}");
+        assert!(
+            page.contains(&format!("data-testid=\"{id}\"")),
+            "no data-testid {id}"
+        );
     }
-    assert!(!page.contains("http://") && !page.contains("https://"), "nothing fetched from elsewhere");
+    assert!(
+        !page.contains("http://") && !page.contains("https://"),
+        "nothing fetched from elsewhere"
+    );
     let js = http(addr, &get("/app.js", &addr.to_string(), "")).await;
-    assert!(js.starts_with("HTTP/1.1 200") && js.contains("new WebSocket"), "{js}");
+    assert!(
+        js.starts_with("HTTP/1.1 200") && js.contains("new WebSocket"),
+        "{js}"
+    );
     stop.cancel();
 }
 
@@ -58,16 +83,36 @@ async fn other_hosts_and_origins_are_refused() {
     let (addr, stop) = start("127.0.0.1:0", None).await;
     let host = addr.to_string();
     // DNS rebinding: a page of evil.example resolved to 127.0.0.1.
-    let r = http(addr, &get("/api/state", &format!("evil.example:{}", addr.port()), "")).await;
-    assert!(r.starts_with("HTTP/1.1 403") && r.contains("not this machine's loopback"), "{r}");
+    let r = http(
+        addr,
+        &get("/api/state", &format!("evil.example:{}", addr.port()), ""),
+    )
+    .await;
+    assert!(
+        r.starts_with("HTTP/1.1 403") && r.contains("not this machine's loopback"),
+        "{r}"
+    );
     let upgrade = "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\n\
                    Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n";
-    let r = http(addr, &format!("GET /ws HTTP/1.1\r\nHost: {host}\r\n{upgrade}Origin: http://evil.example\r\n\r\n")).await;
+    let r = http(
+        addr,
+        &format!(
+            "GET /ws HTTP/1.1\r\nHost: {host}\r\n{upgrade}Origin: http://evil.example\r\n\r\n"
+        ),
+    )
+    .await;
     assert!(r.starts_with("HTTP/1.1 403") && r.contains("origin"), "{r}");
-    let r = http(addr, &format!("GET /ws HTTP/1.1\r\nHost: {host}\r\n{upgrade}Origin: http://{host}\r\n\r\n")).await;
+    let r = http(
+        addr,
+        &format!("GET /ws HTTP/1.1\r\nHost: {host}\r\n{upgrade}Origin: http://{host}\r\n\r\n"),
+    )
+    .await;
     assert!(r.starts_with("HTTP/1.1 101"), "{r}");
     let state = http(addr, &get("/api/state", &host, "")).await;
-    assert!(state.starts_with("HTTP/1.1 200") && state.contains("\"uavs\":[]"), "{state}");
+    assert!(
+        state.starts_with("HTTP/1.1 200") && state.contains("\"uavs\":[]"),
+        "{state}"
+    );
     stop.cancel();
 }
 
@@ -79,7 +124,9 @@ async fn beyond_the_loopback_a_token_is_required() {
         log_dir: std::env::temp_dir(),
         token: None,
     };
-    let err = ucc_gui::serve(listener, config, CancellationToken::new()).await.unwrap_err();
+    let err = ucc_gui::serve(listener, config, CancellationToken::new())
+        .await
+        .unwrap_err();
     assert!(matches!(err, GuiError::TokenRequired { .. }), "{err}");
 
     let (addr, stop) = start("0.0.0.0:0", Some("s3cret".into())).await;
@@ -103,32 +150,93 @@ fn hub_with_uav() -> (Hub, u32) {
         start: "0,0,-1".into(),
         name: String::new(),
     });
-    let Ok(Action::Created(id)) = created else { panic!("{created:?}") };
+    let Ok(Action::Created(id)) = created else {
+        panic!("{created:?}")
+    };
     (hub, id)
 }
 
 fn goto(uav: u32, x: &str, y: &str, z: &str) -> Request {
-    Request::AddMission { uav, kind: "GotoXyz".into(), x: x.into(), y: y.into(), z: z.into(), seconds: String::new() }
+    Request::AddMission {
+        uav,
+        kind: "GotoXyz".into(),
+        x: x.into(),
+        y: y.into(),
+        z: z.into(),
+        seconds: String::new(),
+    }
 }
 
 #[test]
 fn bad_input_gets_a_clear_message() {
     let (mut hub, id) = hub_with_uav();
     let err = |hub: &mut Hub, r: Request| hub.apply(r).unwrap_err();
-    assert_eq!(err(&mut hub, goto(id, "NaN", "0", "-2")), "mission x: \"NaN\" is not a finite number");
-    assert_eq!(err(&mut hub, goto(id, "1", "", "-2")), "mission y: empty (a number in metres)");
-    assert_eq!(err(&mut hub, goto(id, "1", "2", "inf")), "mission z: \"inf\" is not a finite number");
-    assert_eq!(err(&mut hub, goto(99, "1", "2", "3")), "there is no UAV 99 (it was removed?)");
-    let e = err(&mut hub, Request::Create { robot: "stsAirRobot".into(), agent: "nope".into(), start: "0,0,0".into(), name: String::new() });
-    assert_eq!(e, "agent type: unknown agent \"nope\" (known agents: base, avoid)");
-    let e = err(&mut hub, Request::Create { robot: "stsAirRobot".into(), agent: "base".into(), start: "1,2".into(), name: String::new() });
-    assert!(e.starts_with("start pose: ") && e.contains("2 numbers"), "{e}");
-    let e = err(&mut hub, Request::Start { uav: id, iterations: "3".into() });
+    assert_eq!(
+        err(&mut hub, goto(id, "NaN", "0", "-2")),
+        "mission x: \"NaN\" is not a finite number"
+    );
+    assert_eq!(
+        err(&mut hub, goto(id, "1", "", "-2")),
+        "mission y: empty (a number in metres)"
+    );
+    assert_eq!(
+        err(&mut hub, goto(id, "1", "2", "inf")),
+        "mission z: \"inf\" is not a finite number"
+    );
+    assert_eq!(
+        err(&mut hub, goto(99, "1", "2", "3")),
+        "there is no UAV 99 (it was removed?)"
+    );
+    let e = err(
+        &mut hub,
+        Request::Create {
+            robot: "stsAirRobot".into(),
+            agent: "nope".into(),
+            start: "0,0,0".into(),
+            name: String::new(),
+        },
+    );
+    assert_eq!(
+        e,
+        "agent type: unknown agent \"nope\" (known agents: base, avoid)"
+    );
+    let e = err(
+        &mut hub,
+        Request::Create {
+            robot: "stsAirRobot".into(),
+            agent: "base".into(),
+            start: "1,2".into(),
+            name: String::new(),
+        },
+    );
+    assert!(
+        e.starts_with("start pose: ") && e.contains("2 numbers"),
+        "{e}"
+    );
+    let e = err(
+        &mut hub,
+        Request::Start {
+            uav: id,
+            iterations: "3".into(),
+        },
+    );
     assert_eq!(e, "UAV1 has no missions: add a waypoint first");
     hub.apply(goto(id, "1", "2", "-2")).unwrap();
-    let e = err(&mut hub, Request::Start { uav: id, iterations: "0".into() });
+    let e = err(
+        &mut hub,
+        Request::Start {
+            uav: id,
+            iterations: "0".into(),
+        },
+    );
     assert!(e.starts_with("iterations: \"0\""), "{e}");
-    let e = err(&mut hub, Request::Connect { host: "h".into(), port: "99999".into() });
+    let e = err(
+        &mut hub,
+        Request::Connect {
+            host: "h".into(),
+            port: "99999".into(),
+        },
+    );
     assert!(e.starts_with("server port: "), "{e}");
     let e = err(&mut hub, Request::Speed { value: "2".into() });
     assert!(e.contains("only a local server"), "{e}");
@@ -140,7 +248,10 @@ fn bad_input_gets_a_clear_message() {
 fn updates_carry_only_what_is_new() {
     let (mut hub, id) = hub_with_uav();
     hub.apply(goto(id, "1", "2", "-2")).unwrap();
-    let Ok(Action::Start(uav, settings, agent)) = hub.apply(Request::Start { uav: id, iterations: "2".into() }) else {
+    let Ok(Action::Start(uav, settings, agent)) = hub.apply(Request::Start {
+        uav: id,
+        iterations: "2".into(),
+    }) else {
         panic!()
     };
     assert_eq!((uav, settings.iterations, agent.as_str()), (id, 2, "base"));
@@ -148,7 +259,11 @@ fn updates_carry_only_what_is_new() {
     let mut cursor = Cursor::default();
     hub.new_iteration(id, 1);
     for i in 0..5 {
-        let live = ucc_gui::flight::Live { time: i as f64 * 0.1, position: Some([i as f64, 0.0, -1.0]), ..Default::default() };
+        let live = ucc_gui::flight::Live {
+            time: i as f64 * 0.1,
+            position: Some([i as f64, 0.0, -1.0]),
+            ..Default::default()
+        };
         hub.sample(id, 1, live);
     }
     hub.log(id, "info", "hello".into());
@@ -157,7 +272,11 @@ fn updates_carry_only_what_is_new() {
     assert_eq!(u["uavs"][0]["status"], "running");
     assert_eq!(u["uavs"][0]["live"]["position"][0], 4.0);
     assert_eq!(u["log"][0]["text"], "hello");
-    let live = ucc_gui::flight::Live { time: 1.0, position: Some([9.0, 0.0, -1.0]), ..Default::default() };
+    let live = ucc_gui::flight::Live {
+        time: 1.0,
+        position: Some([9.0, 0.0, -1.0]),
+        ..Default::default()
+    };
     hub.sample(id, 1, live);
     let u = hub.update(&mut cursor);
     assert_eq!(u["uavs"][0]["trail"], serde_json::json!([[9.0, 0.0, -1.0]]));
@@ -171,8 +290,18 @@ fn updates_carry_only_what_is_new() {
     let u = hub.update(&mut cursor);
     assert_eq!(u["uavs"][0]["past"].as_array().unwrap().len(), 0);
     // A stop is refused nowhere, a second start while flying is.
-    assert!(hub.apply(Request::Start { uav: id, iterations: "1".into() }).unwrap_err().contains("already flying"));
+    assert!(
+        hub.apply(Request::Start {
+            uav: id,
+            iterations: "1".into()
+        })
+        .unwrap_err()
+        .contains("already flying")
+    );
     assert_eq!(hub.log_text(Some(id), "warn"), "");
     assert_eq!(hub.log_text(Some(id), ""), "UAV1 info hello\n");
-    assert!(ucc_gui::UPDATE_PERIOD <= Duration::from_millis(100), "at least 10 updates a second");
+    assert!(
+        ucc_gui::UPDATE_PERIOD <= Duration::from_millis(100),
+        "at least 10 updates a second"
+    );
 }

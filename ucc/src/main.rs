@@ -48,8 +48,10 @@ enum Cmd {
     /// Start a server inside this process and fly a built-in mission; writes the pictures.
     Demo(DemoArgs),
     /// Serve the control center in the browser: create UAVs, add waypoints, fly, watch live.
-    #[command(after_help = "Example:\n  ucc gui --local          # then open the printed URL\n  \
-                            ucc gui --host usarsim-host --port 3000")]
+    #[command(
+        after_help = "Example:\n  ucc gui --local          # then open the printed URL\n  \
+                            ucc gui --host usarsim-host --port 3000"
+    )]
     Gui(GuiArgs),
     /// Read protocol lines on stdin and print them as JSON (or re-printed); exit 1 if any failed.
     Decode {
@@ -679,7 +681,9 @@ async fn gui(args: GuiArgs) -> anyhow::Result<ExitCode> {
     let token = (!addr.ip().is_loopback()).then(ucc_gui::new_token);
     println!("ucc gui: open {}", ucc_gui::url(addr, token.as_deref()));
     if token.is_some() {
-        println!("ucc gui: listening beyond the loopback; the page and its API need the token in that URL");
+        println!(
+            "ucc gui: listening beyond the loopback; the page and its API need the token in that URL"
+        );
     }
     let config = ucc_gui::GuiConfig {
         server,
