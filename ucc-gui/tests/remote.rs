@@ -74,14 +74,34 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
             .await
             .unwrap();
     }
+    ws.send(send(json!({"op": "start", "uav": 1, "iterations": "2"})))
+        .await
+        .unwrap();
+
+    // Pause holds the flight: the simulated time of its state stops; Resume goes on.
+    while time_of_state(&mut ws).await.is_none() {}
+    ws.send(send(json!({"op": "pause", "paused": true})))
+        .await
+        .unwrap();
+    for _ in 0..4 {
+        time_of_state(&mut ws).await; // the pause takes effect at the flight's next event
+    }
+    let paused_at = time_of_state(&mut ws).await;
+    for _ in 0..10 {
+        assert_eq!(
+            time_of_state(&mut ws).await,
+            paused_at,
+            "the flight went on while paused"
+        );
+    }
+    ws.send(send(json!({"op": "pause", "paused": false})))
+        .await
+        .unwrap();
     ws.send(send(
         json!({"op": "add_mission", "uav": 1, "kind": "GotoXyz", "x": "1", "y": "NaN", "z": "-1"}),
     ))
     .await
     .unwrap();
-    ws.send(send(json!({"op": "start", "uav": 1, "iterations": "2"})))
-        .await
-        .unwrap();
 
     let (mut trail, mut hits, mut past, mut log, mut errors) = (0, 0, 0, Vec::new(), Vec::new());
     let mut last = Value::Null;
@@ -184,4 +204,24 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
         .unwrap();
     server.stop().await.unwrap();
     let _ = std::fs::remove_dir_all(log_dir);
+}
+
+/// The simulated time of the next state update's first UAV.
+async fn time_of_state<S, E>(ws: &mut S) -> Option<f64>
+where
+    S: futures::Stream<Item = Result<Message, E>> + Unpin,
+    E: std::fmt::Debug,
+{
+    loop {
+        let m = tokio::time::timeout(Duration::from_secs(30), ws.next())
+            .await
+            .unwrap()
+            .unwrap()
+            .unwrap();
+        let Message::Text(t) = m else { continue };
+        let v: Value = serde_json::from_str(t.as_str()).unwrap();
+        if v["type"] == "state" {
+            return v["uavs"][0]["live"]["time"].as_f64();
+        }
+    }
 }
