@@ -51,7 +51,14 @@ fn free_port() -> u16 {
 struct Session {
     client: Client,
     driver: tokio::process::Child,
-    _profile: PathBuf,
+    profile: PathBuf,
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        // A Chromium profile weighs tens of megabytes: leave none behind.
+        let _ = std::fs::remove_dir_all(&self.profile);
+    }
 }
 
 async fn start_browser(chromium: &PathBuf, chromedriver: &PathBuf) -> Result<Session> {
@@ -92,7 +99,7 @@ async fn start_browser(chromium: &PathBuf, chromedriver: &PathBuf) -> Result<Ses
     Ok(Session {
         client,
         driver,
-        _profile: profile,
+        profile,
     })
 }
 
@@ -349,7 +356,7 @@ async fn bench_frame_time_with_50_uavs() -> Result<()> {
     // 50 UAVs on a grid, each flying a 1.5 m x 1 m box, many times.
     c.execute(
         "let id = 0;
-         for (const x of [-8, -4, 0, 4, 8]) for (let y = -9; y <= 9; y += 2) {
+         for (const x of [-8, -4.5, -1, 2.5, 6]) for (let k = 0; k < 10; k++) { const y = Math.round((-9 + 1.9 * k) * 10) / 10;
            id++;
            send({op: 'create', robot: 'stsAirRobot', agent: 'base', start: `${x},${y},-1`, name: ''});
            for (const [dx, dy] of [[0, 0], [1.5, 0], [1.5, 1], [0, 1]])
@@ -385,6 +392,9 @@ async fn bench_frame_time_with_50_uavs() -> Result<()> {
         )
         .await?;
     println!("ucc-gui frame time, 50 UAVs flying, 10 s: {figures}");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/ucc-gui-artifacts");
+    std::fs::create_dir_all(&dir)?;
+    std::fs::write(dir.join("page-50-uavs.png"), c.screenshot().await?)?;
     let _ = session.client.clone().close().await;
     let _ = session.driver.kill().await;
     gui.cancel();

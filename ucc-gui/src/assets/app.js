@@ -7,7 +7,7 @@ const q = token ? "?token=" + encodeURIComponent(token) : "";
 const uavs = new Map(); // id -> {info, trail, past, history, hits}
 let selected = null, geometry = null, ws = null, logLines = [], logDirty = false;
 let view = { cx: 0, cy: 0, scale: 20, fitted: false };
-let dirty = true;
+let dirty = true, optionsShown = null; // the UAV whose logging options the form shows
 window.uccFrameTimes = []; // draw time of each frame, ms (the benchmark reads it)
 window.uccUpdates = 0; // state updates received
 
@@ -69,8 +69,7 @@ function update(m) {
 
 function select(id) {
   selected = id; send({ op: "select", uav: id });
-  const c = uavs.get(id);
-  if (c) { $("prefix").value = c.info.prefix; $("pictures").value = c.info.pictures; $("autosave").checked = c.info.autosave; }
+  optionsShown = null;
   panels(); dirty = true;
 }
 
@@ -89,6 +88,10 @@ function panels() {
   const c = selected !== null ? uavs.get(selected) : null;
   if (!c) { $("title").textContent = "UAV Control Center"; return; }
   const u = c.info, l = u.live;
+  if (optionsShown !== u.id) {
+    optionsShown = u.id;
+    $("prefix").value = u.prefix; $("pictures").value = u.pictures; $("autosave").checked = u.autosave;
+  }
   $("title").textContent = `UAV Control Center — ${u.name}: ${u.robot}, agent ${u.agent}`;
   $("mission-owner").textContent = "of " + u.name;
   const ml = u.missions.map((m, i) => `<li class="${i === u.active ? "active" : ""}">${i === u.active ? "▶ " : ""}${m.text} <button data-remove="${i}">×</button></li>`).join("");
