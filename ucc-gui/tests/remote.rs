@@ -225,3 +225,104 @@ where
         }
     }
 }
+
+/// The server area: a local server's speed changes (the server restarts), Connect refuses an
+/// address where nothing answers and switches to one where a server does.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn speed_and_connect() {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let shutdown = CancellationToken::new();
+    tokio::spawn(ucc_gui::serve(
+        listener,
+        GuiConfig {
+            server: ServerChoice::Local(Box::default()),
+            log_dir: std::env::temp_dir(),
+            token: None,
+        },
+        shutdown.clone(),
+    ));
+    let mut request = format!("ws://{addr}/ws").into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("Origin", format!("http://{addr}").parse().unwrap());
+    let (mut ws, _) = tokio_tungstenite::connect_async(request).await.unwrap();
+    let send = |v: Value| Message::Text(v.to_string().into());
+    // The next message of a type.
+    async fn next_of<S, E>(ws: &mut S, kind: &str) -> Value
+    where
+        S: futures::Stream<Item = Result<Message, E>> + Unpin,
+        E: std::fmt::Debug,
+    {
+        loop {
+            let m = tokio::time::timeout(Duration::from_secs(30), ws.next())
+                .await
+                .unwrap()
+                .unwrap()
+                .unwrap();
+            let Message::Text(t) = m else { continue };
+            let v: Value = serde_json::from_str(t.as_str()).unwrap();
+            if v["type"] == kind {
+                return v;
+            }
+        }
+    }
+    let hello = next_of(&mut ws, "hello").await;
+    assert!(hello["geometry"].as_array().is_some_and(|g| !g.is_empty()));
+    let first = next_of(&mut ws, "state").await["server"].clone();
+    assert_eq!(
+        (first["local"].clone(), first["speed"].clone()),
+        (json!(true), json!("1"))
+    );
+
+    ws.send(send(json!({"op": "speed", "value": "fast"})))
+        .await
+        .unwrap();
+    let e = next_of(&mut ws, "error").await;
+    assert!(e["message"].as_str().unwrap().starts_with("speed: "), "{e}");
+    ws.send(send(json!({"op": "speed", "value": "max"})))
+        .await
+        .unwrap();
+    let mut state = next_of(&mut ws, "state").await;
+    for _ in 0..50 {
+        if state["server"]["speed"] == "max" {
+            break;
+        }
+        state = next_of(&mut ws, "state").await;
+    }
+    assert_eq!(state["server"]["speed"], "max");
+    assert_ne!(state["server"]["addr"], first["addr"], "a new local server");
+
+    let nothing = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let dead = nothing.local_addr().unwrap().port();
+    drop(nothing);
+    ws.send(send(
+        json!({"op": "connect", "host": "127.0.0.1", "port": dead.to_string()}),
+    ))
+    .await
+    .unwrap();
+    let e = next_of(&mut ws, "error").await;
+    assert!(
+        e["message"].as_str().unwrap().contains("cannot connect"),
+        "{e}"
+    );
+
+    let other = LocalServer::start(ServerConfig::default()).await.unwrap();
+    let port = other.addr().port().to_string();
+    ws.send(send(
+        json!({"op": "connect", "host": "127.0.0.1", "port": port}),
+    ))
+    .await
+    .unwrap();
+    let mut state = next_of(&mut ws, "state").await;
+    for _ in 0..50 {
+        if state["server"]["local"] == false {
+            break;
+        }
+        state = next_of(&mut ws, "state").await;
+    }
+    assert_eq!(state["server"]["addr"], other.addr().to_string());
+    assert_eq!(state["server"]["local"], false);
+    shutdown.cancel();
+    other.stop().await.unwrap();
+}

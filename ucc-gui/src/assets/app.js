@@ -44,6 +44,8 @@ function update(m) {
   const s = m.server;
   $("server-info").textContent = `${s.local ? "local server" : "server"} ${s.addr}${s.map ? " · map " + s.map : ""}`;
   if (document.activeElement !== $("speed")) $("speed").value = s.speed;
+  $("speed-row").hidden = !s.local;
+  if (!s.local && geometry) { geometry = null; view.fitted = false; } // switched to another server
   $("pause").textContent = s.paused ? "Resume" : "Pause";
   $("pause").dataset.paused = s.paused;
   const seen = new Set();
