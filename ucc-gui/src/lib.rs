@@ -353,6 +353,10 @@ async fn page(app: App, mut socket: WebSocket) {
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
         tokio::select! {
+            () = app.shutdown.cancelled() => {
+                let _ = socket.send(Message::Close(None)).await;
+                return;
+            }
             message = socket.recv() => {
                 let text = match message {
                     Some(Ok(Message::Text(t))) => t,

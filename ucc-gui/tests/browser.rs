@@ -40,6 +40,11 @@ fn browser() -> Option<(PathBuf, PathBuf)> {
     found
 }
 
+/// Where the screenshots and downloads go.
+fn artifacts() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/ucc-gui-artifacts")
+}
+
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
@@ -88,6 +93,7 @@ async fn start_browser(chromium: &PathBuf, chromedriver: &PathBuf) -> Result<Ses
                      "--disable-background-networking", "--disable-component-update", "--disable-sync",
                      "--disable-dev-shm-usage", "--window-size=1400,1000",
                      format!("--user-data-dir={}", profile.display())]
+
         }
     });
     let mut builder = ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new());
@@ -311,11 +317,33 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
 
     // The map screenshot (with the overlay of three iterations) as a test artifact.
     let png = map.screenshot().await?;
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/ucc-gui-artifacts");
+    let dir = artifacts();
     std::fs::create_dir_all(&dir)?;
     std::fs::write(dir.join("map.png"), png)?;
     let page = c.screenshot().await?;
     std::fs::write(dir.join("page.png"), page)?;
+
+    // Save log asks for the log as a download (headless Chromium does not finish downloads
+    // here, so the test catches the link and fetches it itself).
+    let href = c
+        .execute(
+            "let href = null; const orig = HTMLAnchorElement.prototype.click;\
+             HTMLAnchorElement.prototype.click = function () { href = this.href; };\
+             document.getElementById('save-log').click();\
+             HTMLAnchorElement.prototype.click = orig; return href;",
+            vec![],
+        )
+        .await?;
+    let href = href.as_str().context("Save log made no link")?.to_owned();
+    assert!(href.contains("/api/log?uav="), "{href}");
+    let saved = c
+        .execute_async(
+            "const done = arguments[arguments.length - 1]; fetch(arguments[0]).then(r => r.text()).then(done);",
+            vec![json!(href)],
+        )
+        .await?;
+    let saved = saved.as_str().unwrap_or_default();
+    assert!(saved.contains("UAV1 info [3] iteration done"), "{saved}");
 
     // Stop mid-flight.
     type_into(c, "iterations", "5").await?;
@@ -392,7 +420,7 @@ async fn bench_frame_time_with_50_uavs() -> Result<()> {
         )
         .await?;
     println!("ucc-gui frame time, 50 UAVs flying, 10 s: {figures}");
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/ucc-gui-artifacts");
+    let dir = artifacts();
     std::fs::create_dir_all(&dir)?;
     std::fs::write(dir.join("page-50-uavs.png"), c.screenshot().await?)?;
     let _ = session.client.clone().close().await;
