@@ -233,6 +233,8 @@ pub struct Hub {
     pub uavs: Vec<Uav>,
     /// Where runs write their files.
     pub log_dir: PathBuf,
+    /// The robot classes of a local server (`None`: not known, any class may be asked for).
+    pub robot_classes: Option<Vec<String>>,
     /// The log, all UAVs, in order.
     pub log: std::collections::VecDeque<LogLine>,
     next_id: u32,
@@ -268,6 +270,7 @@ impl Hub {
             map: String::new(),
             uavs: Vec::new(),
             log_dir,
+            robot_classes: None,
             log: Default::default(),
             next_id: 1,
             next_seq: 1,
@@ -350,6 +353,23 @@ impl Hub {
                 let robot = robot.trim().to_owned();
                 if robot.is_empty() || robot.contains(['{', '}', ' ']) {
                     return Err(format!("robot class: {robot:?} is not a class name"));
+                }
+                if let Some(known) = &self.robot_classes {
+                    let full = if robot.contains('.') {
+                        robot.clone()
+                    } else {
+                        format!("USARBot.{robot}")
+                    };
+                    if !known.iter().any(|k| k.eq_ignore_ascii_case(&full)) {
+                        let names: Vec<&str> = known
+                            .iter()
+                            .map(|k| k.trim_start_matches("USARBot."))
+                            .collect();
+                        return Err(format!(
+                            "robot class: {robot:?} is unknown to this server (it has: {})",
+                            names.join(", ")
+                        ));
+                    }
                 }
                 flight::check_agent(&agent)?;
                 let start: ucc_client::Start =

@@ -171,6 +171,16 @@ pub async fn serve(
     };
     let mut hub = Hub::new(server_addr, local.is_some(), config.log_dir);
     hub.geometry = hub_geometry;
+    if let Some(l) = &local {
+        hub.robot_classes = Some(
+            l.config
+                .robots
+                .classes()
+                .iter()
+                .map(|r| r.class.clone())
+                .collect(),
+        );
+    }
     hub.map = map_name;
     if let Some(l) = &local {
         hub.speed = match l.config.time_scale {
@@ -426,6 +436,7 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, String> {
             hub.addr = addr.clone();
             hub.local = false;
             hub.geometry = None;
+            hub.robot_classes = None;
             hub.map = String::new();
             hub.log(0, "info", format!("server: {addr}"));
             Ok(None)

@@ -240,6 +240,32 @@ fn bad_input_gets_a_clear_message() {
     assert!(e.starts_with("server port: "), "{e}");
     let e = err(&mut hub, Request::Speed { value: "2".into() });
     assert!(e.contains("only a local server"), "{e}");
+    hub.robot_classes = Some(vec![
+        "USARBot.stsAirRobot".into(),
+        "USARBot.AirRobot".into(),
+    ]);
+    let e = err(
+        &mut hub,
+        Request::Create {
+            robot: "Tank".into(),
+            agent: "base".into(),
+            start: "0,0,0".into(),
+            name: String::new(),
+        },
+    );
+    assert_eq!(
+        e,
+        "robot class: \"Tank\" is unknown to this server (it has: stsAirRobot, AirRobot)"
+    );
+    assert!(
+        hub.apply(Request::Create {
+            robot: "airrobot".into(),
+            agent: "base".into(),
+            start: "0,0,-1".into(),
+            name: String::new()
+        })
+        .is_ok()
+    );
     let bad: Result<Request, _> = serde_json::from_str(r#"{"op":"launch_missiles"}"#);
     assert!(bad.is_err());
 }
