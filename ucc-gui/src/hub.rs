@@ -186,6 +186,8 @@ pub struct Uav {
     pub trail_epoch: u64,
     /// Earlier iterations' trails.
     pub past: Vec<Vec<[f32; 3]>>,
+    /// Bumped when `past` is cleared (a new run).
+    pub past_epoch: u64,
     /// `[t, altitude, speed, battery]` for the plots.
     pub history: Vec<[f32; 4]>,
     /// What the laser hit, `[x, y]` (the map of a real USARSim).
@@ -208,6 +210,7 @@ pub struct Cursor {
 #[derive(Debug, Default, Clone, Copy)]
 struct UavCursor {
     epoch: u64,
+    past_epoch: u64,
     trail: usize,
     past: usize,
     history: usize,
@@ -410,6 +413,7 @@ impl Hub {
                     trail: Vec::new(),
                     trail_epoch: 0,
                     past: Vec::new(),
+                    past_epoch: 0,
                     history: Vec::new(),
                     hits: Vec::new(),
                     files: Vec::new(),
@@ -516,6 +520,7 @@ impl Hub {
                 u.iteration = 0;
                 u.active = None;
                 u.past.clear();
+                u.past_epoch += 1;
                 u.trail.clear();
                 u.trail_epoch += 1;
                 u.history.clear();
@@ -629,7 +634,9 @@ impl Hub {
                         ..UavCursor::default()
                     };
                 }
-                if c.past > u.past.len() {
+                let past_reset = c.past_epoch != u.past_epoch;
+                if past_reset {
+                    c.past_epoch = u.past_epoch;
                     c.past = 0;
                 }
                 let trail = &u.trail[c.trail.min(u.trail.len())..];
@@ -657,7 +664,7 @@ impl Hub {
                     "trail": trail,
                     "history_reset": reset,
                     "history": history.iter().map(|h| h.map(|v| if v.is_finite() { Value::from(v) } else { Value::Null })).collect::<Vec<_>>(),
-                    "past_reset": c.past == 0 && !u.past.is_empty() && reset,
+                    "past_reset": past_reset,
                     "past": past,
                     "hits": hits,
                     "files": u.files.iter().enumerate().map(|(i, f)| json!({"index": i, "name": f.file_name().map(|n| n.to_string_lossy().into_owned())})).collect::<Vec<_>>(),

@@ -315,6 +315,18 @@ fn updates_carry_only_what_is_new() {
     assert_eq!(u["uavs"][0]["iteration"], 2);
     let u = hub.update(&mut cursor);
     assert_eq!(u["uavs"][0]["past"].as_array().unwrap().len(), 0);
+    // A new run starts a new overlay.
+    hub.finished(id, ucc_gui::hub::Status::Done, None);
+    hub.apply(Request::Start {
+        uav: id,
+        iterations: "1".into(),
+    })
+    .unwrap();
+    let u = hub.update(&mut cursor);
+    assert_eq!(u["uavs"][0]["past_reset"], true);
+    assert_eq!(u["uavs"][0]["past"].as_array().unwrap().len(), 0);
+    let u = hub.update(&mut cursor);
+    assert_eq!(u["uavs"][0]["past_reset"], false);
     // A stop is refused nowhere, a second start while flying is.
     assert!(
         hub.apply(Request::Start {
