@@ -274,6 +274,55 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
         oy + 2.5
     );
 
+    // Drag pans (and adds no waypoint), the wheel zooms.
+    let view = |c: &Client| {
+        let c = c.clone();
+        async move {
+            Ok::<_, anyhow::Error>(
+                c.execute("return [view.cx, view.cy, view.scale]", vec![])
+                    .await?,
+            )
+        }
+    };
+    let before = view(c).await?;
+    let drag = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: map.clone(),
+            duration: None,
+            x: 0.0,
+            y: 0.0,
+        })
+        .then(PointerAction::Down { button: 0 })
+        .then(PointerAction::MoveBy {
+            duration: None,
+            x: 60.0,
+            y: 40.0,
+        })
+        .then(PointerAction::Up { button: 0 });
+    c.perform_actions(drag).await?;
+    let panned = view(c).await?;
+    assert!(
+        panned[0] != before[0] && panned[1] != before[1] && panned[2] == before[2],
+        "{before} -> {panned}"
+    );
+    c.execute(
+        "map.dispatchEvent(new WheelEvent('wheel', {deltaY: -100, clientX: 100, clientY: 100, bubbles: true, cancelable: true}))",
+        vec![],
+    )
+    .await?;
+    let zoomed = view(c).await?;
+    assert!(
+        zoomed[2].as_f64() > panned[2].as_f64(),
+        "{panned} -> {zoomed}"
+    );
+    c.execute("fit()", vec![]).await?;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert_eq!(
+        count(c, "[data-testid=mission-list] li").await?,
+        3,
+        "a drag adds no waypoint"
+    );
+
     // Loop three iterations; watch the position change, the counter reach 3, the log fill.
     type_into(c, "iterations", "3").await?;
     by_id(c, "start").await?.click().await?;
