@@ -86,6 +86,17 @@ enum Solid {
     },
 }
 
+/// One solid of a map seen from above (see [`Map::top_view`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TopShape {
+    /// The outline's corners (x, y), metres.
+    pub outline: Vec<[f64; 2]>,
+    /// The solid's top (smallest z; z is down), metres.
+    pub z_min: f64,
+    /// The solid's bottom (largest z), metres.
+    pub z_max: f64,
+}
+
 /// A loaded map: level name, time limit, player starts and static geometry.
 #[derive(Debug, Clone)]
 pub struct Map {
@@ -352,6 +363,66 @@ impl Map {
             starts,
             solids,
         })
+    }
+
+    /// The map seen from above: each solid's outline in the x-y plane (metres, protocol
+    /// frame) with its vertical extent; a mesh gives one shape per triangle. For pictures.
+    pub fn top_view(&self) -> Vec<TopShape> {
+        let mut shapes = Vec::new();
+        for solid in &self.solids {
+            match solid {
+                Solid::Box { center, size, yaw } => {
+                    let (hx, hy) = (size[0] / 2.0, size[1] / 2.0);
+                    let outline = [[hx, hy], [hx, -hy], [-hx, -hy], [-hx, hy]]
+                        .iter()
+                        .map(|c| {
+                            let r = yaw_rotate(*yaw, [c[0], c[1], 0.0]);
+                            [r[0] + center[0], r[1] + center[1]]
+                        })
+                        .collect();
+                    shapes.push(TopShape {
+                        outline,
+                        z_min: center[2] - size[2] / 2.0,
+                        z_max: center[2] + size[2] / 2.0,
+                    });
+                }
+                Solid::Cylinder {
+                    center,
+                    radius,
+                    height,
+                } => {
+                    let outline = (0..24)
+                        .map(|i| {
+                            let a = f64::from(i) * std::f64::consts::TAU / 24.0;
+                            [center[0] + radius * a.cos(), center[1] + radius * a.sin()]
+                        })
+                        .collect();
+                    shapes.push(TopShape {
+                        outline,
+                        z_min: center[2] - height / 2.0,
+                        z_max: center[2] + height / 2.0,
+                    });
+                }
+                Solid::Mesh {
+                    vertices,
+                    triangles,
+                } => {
+                    for t in triangles {
+                        let corners: Vec<V3> = t
+                            .iter()
+                            .filter_map(|&i| vertices.get(i as usize).copied())
+                            .collect();
+                        let z = corners.iter().map(|c| c[2]);
+                        shapes.push(TopShape {
+                            z_min: z.clone().fold(f64::INFINITY, f64::min),
+                            z_max: z.fold(f64::NEG_INFINITY, f64::max),
+                            outline: corners.iter().map(|c| [c[0], c[1]]).collect(),
+                        });
+                    }
+                }
+            }
+        }
+        shapes
     }
 
     /// Adds the map's solids to the scene.
