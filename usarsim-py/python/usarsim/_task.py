@@ -22,6 +22,18 @@ FIELDS = {
     "waypoint": 3,
 }
 
+#: (low, high, width) of each observation; readings are clipped to them.
+BOUNDS = {
+    "position": (-1e4, 1e4, 3),
+    "velocity": (-100.0, 100.0, 3),
+    "attitude": (-np.pi, np.pi, 3),
+    "angular_velocity": (-100.0, 100.0, 3),
+    "sonar": (0.0, 5.0, SONARS),
+    "laser": (0.0, 4.0, LASER_BEAMS),
+    "battery": (0.0, 1.0, 1),
+    "waypoint": (-2e4, 2e4, 3),
+}
+
 #: Reward for each waypoint reached.
 WAYPOINT_BONUS = 10.0
 #: Reward per control period in which the body was stopped by a wall, floor or UAV.
@@ -34,18 +46,7 @@ def observation_space() -> spaces.Dict:
     def box(n, lo=-INF, hi=INF):
         return spaces.Box(lo, hi, (n,), np.float32)
 
-    return spaces.Dict(
-        {
-            "position": box(3),
-            "velocity": box(3),
-            "attitude": box(3),
-            "angular_velocity": box(3),
-            "sonar": box(SONARS, 0.0),
-            "laser": box(LASER_BEAMS, 0.0),
-            "battery": box(1, 0.0, 1.0),
-            "waypoint": box(3),
-        }
-    )
+    return spaces.Dict({k: box(BOUNDS[k][2], BOUNDS[k][0], BOUNDS[k][1]) for k in FIELDS})
 
 
 def action_space() -> spaces.Box:
@@ -142,12 +143,10 @@ class Tasks:
 
     def observe(self, raw) -> dict:
         """The observation dict (float32 arrays, one row per UAV)."""
-        obs = {k: np.asarray(raw[k], dtype=np.float32) for k in FIELDS if k != "waypoint"}
-        obs["sonar"] = np.maximum(obs["sonar"], 0.0)
-        obs["laser"] = np.maximum(obs["laser"], 0.0)
-        obs["battery"] = np.clip(obs["battery"], 0.0, 1.0)
-        obs["waypoint"] = self._vector(raw).astype(np.float32)
-        return obs
+        values = {k: raw[k] for k in FIELDS if k != "waypoint"}
+        values["attitude"] = (raw["attitude"] + np.pi) % (2 * np.pi) - np.pi
+        values["waypoint"] = self._vector(raw)
+        return {k: np.clip(v, BOUNDS[k][0], BOUNDS[k][1]).astype(np.float32) for k, v in values.items()}
 
     def reward(self, raw):
         """Rewards, terminated and truncated flags and info arrays after one step."""
