@@ -1,86 +1,73 @@
 //! End to end: a real usar-server, the ucc controller and its agents, in lockstep.
 
-use std::time::Duration;
-
 use tokio_util::sync::CancellationToken;
 use ucc_client::agent::AgentEvent;
-use ucc_client::{Coordinates, Mission, Progress, RunConfig, Start, run_missions};
+use ucc_client::agents;
+use ucc_client::{Coordinates, Lockstep, Mission, Progress, RunSettings, Start, Summary};
 use usar_server::sim::map::Map;
-use usar_server::{ServerConfig, TimeScale};
+use usar_server::{LocalServer, ServerConfig, TimeScale};
 
-/// A server on `map` on a free port, as fast as lockstep allows; cancelled on drop.
-struct Server {
-    addr: String,
-    shutdown: CancellationToken,
-    task: tokio::task::JoinHandle<Result<(), usar_server::ServerError>>,
+/// A lockstep server on `map` on a free port, as fast as lockstep allows.
+async fn server(map: &str) -> LocalServer {
+    LocalServer::start(ServerConfig {
+        map: Map::lookup(map).unwrap(),
+        time_scale: TimeScale::Max,
+        lockstep: true,
+        ..ServerConfig::default()
+    })
+    .await
+    .unwrap()
 }
 
-impl Server {
-    async fn start(map: &str) -> Self {
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let addr = listener.local_addr().unwrap().to_string();
-        let shutdown = CancellationToken::new();
-        let config = ServerConfig {
-            map: Map::embedded(map).unwrap(),
-            time_scale: TimeScale::Max,
-            ..ServerConfig::default()
-        };
-        let task = tokio::spawn(usar_server::run(listener, config, shutdown.clone()));
-        Self {
-            addr,
-            shutdown,
-            task,
-        }
-    }
-
-    /// Stops the server and checks it exits cleanly.
-    async fn stop(self) {
-        self.shutdown.cancel();
-        tokio::time::timeout(Duration::from_secs(30), self.task)
-            .await
-            .expect("the server stops on cancel")
-            .unwrap()
-            .unwrap();
-    }
+/// Flies `settings` with the agent named `agent`, collecting the progress.
+async fn fly(settings: &RunSettings, agent: &str) -> (Summary, Vec<Progress>) {
+    let factory = agents::info(agent).unwrap().create;
+    let mut events = Vec::new();
+    let summary = ucc_client::run(
+        settings,
+        &factory,
+        &mut |p: &Progress| events.push(p.clone()),
+        &CancellationToken::new(),
+    )
+    .await
+    .unwrap();
+    (summary, events)
 }
 
 fn pose(x: f64, y: f64, z: f64) -> Start {
-    Start::Pose {
-        location: Coordinates::new(x, y, z),
-        rotation: Coordinates::zeros(),
-    }
+    Start::at(Coordinates::new(x, y, z))
 }
 
 #[tokio::test]
 async fn four_waypoints_are_reached_in_order_within_tolerance() {
-    let server = Server::start("empty_room").await;
+    let server = server("empty_room").await;
     let waypoints = [
         Coordinates::new(3.0, 0.0, -2.0),
         Coordinates::new(3.0, 3.0, -2.5),
         Coordinates::new(-2.0, 3.0, -1.5),
         Coordinates::new(-2.0, -2.0, -2.0),
     ];
-    let config = RunConfig {
-        addr: server.addr.clone(),
+    let settings = RunSettings {
+        addr: server.addr().to_string(),
         start: pose(0.0, 0.0, -1.0),
         missions: waypoints.iter().copied().map(Mission::goto).collect(),
-        lockstep: true,
-        ..RunConfig::default()
+        lockstep: Lockstep::Required,
+        ..RunSettings::default()
     };
-    let mut reached = Vec::new();
-    let summary = run_missions(&config, |p| {
-        if let Progress::Agent {
-            event: AgentEvent::MissionDone {
-                index, distance, ..
-            },
-            ..
-        } = p
-        {
-            reached.push((*index, distance.unwrap()));
-        }
-    })
-    .await
-    .unwrap();
+    let (summary, events) = fly(&settings, "base").await;
+    let reached: Vec<(usize, f64)> = events
+        .iter()
+        .filter_map(|p| match p {
+            Progress::Agent {
+                event:
+                    AgentEvent::MissionDone {
+                        index, distance, ..
+                    },
+                ..
+            } => Some((*index, distance.unwrap())),
+            _ => None,
+        })
+        .collect();
     assert_eq!(
         reached.iter().map(|r| r.0).collect::<Vec<_>>(),
         [0, 1, 2, 3],
@@ -99,7 +86,7 @@ async fn four_waypoints_are_reached_in_order_within_tolerance() {
             .fold(f64::INFINITY, f64::min);
         assert!(closest <= 0.3, "the path passes {closest:.2} m from {w:?}");
     }
-    server.stop().await;
+    server.stop().await.unwrap();
 }
 
 /// Distance from point `p` to the segment `a`–`b`, in the horizontal plane.
@@ -117,20 +104,19 @@ fn distance_to_segment(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
 
 #[tokio::test]
 async fn the_avoid_agent_flies_around_a_pillar_without_touching_it() {
-    let server = Server::start("arena").await;
+    let server = server("arena").await;
     // The arena's pillar of radius 0.3 m at (-5, -4) stands right between start and goal.
     let pillar = (-5.0, -4.0);
     let goal = Coordinates::new(-2.0, -4.0, -1.5);
-    let config = RunConfig {
-        addr: server.addr.clone(),
-        agent: "avoid".into(),
+    let settings = RunSettings {
+        addr: server.addr().to_string(),
         start: pose(-8.0, -4.0, -1.5),
         missions: vec![Mission::goto(goal)],
-        lockstep: true,
+        lockstep: Lockstep::Required,
         mission_timeout: 60.0,
-        ..RunConfig::default()
+        ..RunSettings::default()
     };
-    let summary = run_missions(&config, |_| {}).await.unwrap();
+    let (summary, _) = fly(&settings, "avoid").await;
     let path: Vec<(f64, f64)> = summary.iterations[0]
         .trajectory
         .iter()
@@ -147,24 +133,24 @@ async fn the_avoid_agent_flies_around_a_pillar_without_touching_it() {
     );
     let end = summary.iterations[0].trajectory.last().unwrap().position;
     assert!((end - goal).norm() <= 0.3, "ended at {end:?}");
-    server.stop().await;
+    server.stop().await.unwrap();
 }
 
 #[tokio::test]
 async fn lockstep_iterations_repeat_exactly() {
-    let server = Server::start("empty_room").await;
-    let config = RunConfig {
-        addr: server.addr.clone(),
+    let server = server("empty_room").await;
+    let settings = RunSettings {
+        addr: server.addr().to_string(),
         start: pose(0.0, 0.0, -1.0),
         missions: vec![
             Mission::goto(Coordinates::new(2.0, 1.0, -2.0)),
             Mission::goto(Coordinates::new(0.0, 2.0, -1.5)),
         ],
         iterations: 3,
-        lockstep: true,
-        ..RunConfig::default()
+        lockstep: Lockstep::Required,
+        ..RunSettings::default()
     };
-    let summary = run_missions(&config, |_| {}).await.unwrap();
+    let (summary, _) = fly(&settings, "base").await;
     let paths: Vec<Vec<Coordinates>> = summary
         .iterations
         .iter()
@@ -177,7 +163,7 @@ async fn lockstep_iterations_repeat_exactly() {
     );
     assert_eq!(paths[0], paths[1], "iteration 2 differs from 1");
     assert_eq!(paths[0], paths[2], "iteration 3 differs from 1");
-    server.stop().await;
+    server.stop().await.unwrap();
 }
 
 #[tokio::test]
@@ -203,28 +189,24 @@ name = "GndTruth"
     )
     .unwrap();
     let robots = usar_server::sim::robots::RobotCatalog::from_file(&file).unwrap();
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap().to_string();
-    let shutdown = CancellationToken::new();
-    let task = tokio::spawn(usar_server::run(
-        listener,
-        ServerConfig {
-            robots,
-            time_scale: TimeScale::Max,
-            ..ServerConfig::default()
-        },
-        shutdown.clone(),
-    ));
+    let server = LocalServer::start(ServerConfig {
+        robots,
+        time_scale: TimeScale::Max,
+        lockstep: true,
+        ..ServerConfig::default()
+    })
+    .await
+    .unwrap();
     let goal = Coordinates::new(2.0, -1.0, -2.0);
-    let config = RunConfig {
-        addr,
+    let settings = RunSettings {
+        addr: server.addr().to_string(),
         robot: "AirRobot".into(),
         start: pose(0.0, 0.0, -1.0),
         missions: vec![Mission::goto(goal)],
-        lockstep: true,
-        ..RunConfig::default()
+        lockstep: Lockstep::Required,
+        ..RunSettings::default()
     };
-    let summary = run_missions(&config, |_| {}).await.unwrap();
+    let (summary, _) = fly(&settings, "base").await;
     let path = &summary.iterations[0].trajectory;
     assert!(path.len() > 10, "GroundTruth gave the positions");
     assert!((path.last().unwrap().position - goal).norm() <= 0.3);
@@ -233,7 +215,83 @@ name = "GndTruth"
         path.iter()
             .any(|p| p.velocity.is_some_and(|v| v.norm() > 0.5))
     );
-    shutdown.cancel();
-    task.await.unwrap().unwrap();
+    server.stop().await.unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The stock AirRobot reports no position (IMU, AltitudeSensor, compass, camera): the
+/// runner flies it by dead reckoning from its start, as a real USARSim's AirRobot.
+#[tokio::test]
+async fn the_stock_air_robot_flies_on_what_it_reports() {
+    let server = server("empty_room").await;
+    let goal = Coordinates::new(3.0, 2.0, -2.0);
+    let settings = RunSettings {
+        addr: server.addr().to_string(),
+        robot: "AirRobot".into(),
+        start: pose(0.0, 0.0, -1.0),
+        missions: vec![Mission::goto(goal)],
+        lockstep: Lockstep::Required,
+        ..RunSettings::default()
+    };
+    let (summary, _) = fly(&settings, "base").await;
+    assert!(
+        summary.iterations[0].is_done(),
+        "{:?}",
+        summary.iterations[0].status
+    );
+    let end = summary.iterations[0].trajectory.last().unwrap().position;
+    assert!((end - goal).norm() <= 0.3, "ended at {end:?}");
+    server.stop().await.unwrap();
+}
+
+/// Every trajectory row holds the readings of its own time stamp: the Velocity the server
+/// sent at time t is the velocity of the row for t (the defect: the row for t held the
+/// velocity of the time stamp before).
+#[tokio::test]
+async fn trajectory_rows_hold_the_readings_of_their_time_stamp() {
+    let server = server("empty_room").await;
+    let dir = std::env::temp_dir().join(format!("e2e-coherent-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let record = dir.join("flight.usarlog");
+    let settings = RunSettings {
+        addr: server.addr().to_string(),
+        start: pose(0.0, 0.0, -1.0),
+        missions: vec![Mission::goto(Coordinates::new(5.0, 3.0, -2.0))],
+        lockstep: Lockstep::Required,
+        record: Some(record.clone()),
+        ..RunSettings::default()
+    };
+    let (summary, _) = fly(&settings, "base").await;
+    server.stop().await.unwrap();
+    let text = std::fs::read_to_string(&record).unwrap();
+    let mut sent = std::collections::BTreeMap::new();
+    for line in text.lines() {
+        let Ok(Some(entry)) = usar_proto::record::parse_entry(line) else {
+            continue;
+        };
+        if let Ok(p) = usar_proto::ServerMessage::parse(entry.text)
+            && let usar_proto::ServerMessage::Sen(usar_proto::Sen {
+                time: Some(t),
+                data: usar_proto::SenData::Velocity { absolute, .. },
+            }) = p.message
+        {
+            sent.insert(format!("{:.4}", t.seconds), absolute);
+        }
+    }
+    let rows = &summary.iterations[0].trajectory;
+    assert!(rows.len() > 20);
+    let mut moving = 0;
+    for row in rows {
+        let v = row.velocity.unwrap();
+        let wire = sent[&format!("{:.4}", row.time)];
+        assert_eq!(
+            (v.x, v.y, v.z),
+            (wire.x, wire.y, wire.z),
+            "row t={}",
+            row.time
+        );
+        moving += usize::from(v.norm() > 0.5);
+    }
+    assert!(moving > 5, "a real flight");
     std::fs::remove_dir_all(&dir).unwrap();
 }

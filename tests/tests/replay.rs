@@ -3,9 +3,11 @@
 use std::time::Duration;
 
 use tokio_util::sync::CancellationToken;
-use ucc_client::{Connection, Coordinates, Mission, RunConfig, Start, UavState, run_missions};
+use ucc_client::{
+    Connection, Coordinates, Lockstep, Mission, RunSettings, Start, UavState, agents,
+};
 use usar_server::replay::{self, Pace};
-use usar_server::{ServerConfig, TimeScale};
+use usar_server::{LocalServer, ServerConfig, TimeScale};
 
 #[tokio::test]
 async fn a_recorded_flight_replays_into_the_same_uav_state() {
@@ -14,31 +16,30 @@ async fn a_recorded_flight_replays_into_the_same_uav_state() {
     let record = dir.join("flight.usarlog");
 
     // Fly and record, in lockstep against a fresh server.
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap().to_string();
-    let shutdown = CancellationToken::new();
-    let server = tokio::spawn(usar_server::run(
-        listener,
-        ServerConfig {
-            time_scale: TimeScale::Max,
-            ..ServerConfig::default()
-        },
-        shutdown.clone(),
-    ));
-    let config = RunConfig {
-        addr,
-        start: Start::Pose {
-            location: Coordinates::new(0.0, 0.0, -1.0),
-            rotation: Coordinates::zeros(),
-        },
-        missions: vec![Mission::goto(Coordinates::new(2.0, 1.0, -2.0))],
+    let server = LocalServer::start(ServerConfig {
+        time_scale: TimeScale::Max,
         lockstep: true,
+        ..ServerConfig::default()
+    })
+    .await
+    .unwrap();
+    let settings = RunSettings {
+        addr: server.addr().to_string(),
+        start: Start::at(Coordinates::new(0.0, 0.0, -1.0)),
+        missions: vec![Mission::goto(Coordinates::new(2.0, 1.0, -2.0))],
+        lockstep: Lockstep::Required,
         record: Some(record.clone()),
-        ..RunConfig::default()
+        ..RunSettings::default()
     };
-    let summary = run_missions(&config, |_| {}).await.unwrap();
-    shutdown.cancel();
-    server.await.unwrap().unwrap();
+    let summary = ucc_client::run(
+        &settings,
+        &agents::info("base").unwrap().create,
+        &mut |_: &ucc_client::Progress| {},
+        &CancellationToken::new(),
+    )
+    .await
+    .unwrap();
+    server.stop().await.unwrap();
     let flown = summary.iterations[0].trajectory.last().unwrap().clone();
 
     // Serve the recording and read it back with the framework's connection and model.

@@ -137,7 +137,7 @@ pub struct Step {
 #[error("agent {agent} cannot fly a {kind} mission: {reason}")]
 pub struct MissionRefused {
     /// The agent's name.
-    pub agent: &'static str,
+    pub agent: String,
     /// The mission type.
     pub kind: &'static str,
     /// Why.
@@ -146,8 +146,8 @@ pub struct MissionRefused {
 
 /// A control algorithm. Implementations are pure: state and time in, command and log out.
 pub trait Agent: Send {
-    /// The name the registry knows it by.
-    fn name(&self) -> &'static str;
+    /// A short name for logs (the registry's name for the built-in agents).
+    fn name(&self) -> &str;
 
     /// Appends a mission, or refuses a type it does not handle.
     fn add_mission(&mut self, mission: Mission) -> Result<(), MissionRefused>;
@@ -160,6 +160,26 @@ pub trait Agent: Send {
 
     /// Called whenever new sensor data has arrived, with the simulated time.
     fn step(&mut self, uav: &UavState, time: f64) -> Step;
+}
+
+/// Makes a fresh agent for every iteration: what the runner takes instead of an agent
+/// name, so that any agent flies (one from another crate, a Python one). Any
+/// `Fn() -> Box<dyn Agent>` is a factory.
+///
+/// ```
+/// use ucc_client::{Agent, AgentFactory, agents};
+/// let factory = || agents::create("avoid").unwrap();
+/// assert_eq!(factory.create().name(), "avoid");
+/// ```
+pub trait AgentFactory: Send + Sync {
+    /// A new agent with no missions.
+    fn create(&self) -> Box<dyn Agent>;
+}
+
+impl<F: Fn() -> Box<dyn Agent> + Send + Sync> AgentFactory for F {
+    fn create(&self) -> Box<dyn Agent> {
+        self()
+    }
 }
 
 #[cfg(test)]

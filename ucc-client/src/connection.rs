@@ -1,13 +1,10 @@
 //! A connection to a USARSim server: a reader task that turns every line into a typed
 //! [`ServerMessage`], a writer for [`Command`]s, a clean disconnect.
 //!
-//! Optional extras: a recording of every line in both directions (docs/recording.md), and
-//! lockstep with a server that offers it (docs/lockstep.md): once enabled, the connection
-//! lets the world advance one step at a time, after the caller has seen (and answered) every
-//! message up to the last barrier.
+//! Optionally it records every line in both directions (docs/recording.md). Lockstep
+//! (docs/lockstep.md) is the flight loop's business ([`crate::flight`]): here a `SYNC` is a
+//! command and its answer a message like any other.
 
-use std::collections::VecDeque;
-use std::io::Write;
 use std::path::Path;
 use std::time::Duration;
 
@@ -15,7 +12,7 @@ use tokio::net::TcpStream;
 use tokio::net::tcp::OwnedWriteHalf;
 use tokio::sync::mpsc;
 use tokio_util::task::AbortOnDropHandle;
-use usar_proto::record::{self, Direction};
+use usar_proto::record::{Direction, RecordWriter};
 use usar_proto::{Command, ServerMessage};
 
 use crate::agent::SpeedCommand;
@@ -63,22 +60,6 @@ pub enum ConnectionError {
     },
 }
 
-/// A recording of one connection. Server lines are recorded when the caller takes them, not
-/// when the reader task reads them, so that the interleaving with the caller's commands is
-/// the order of cause and effect (and the same in every lockstep run).
-#[derive(Debug)]
-struct Recorder {
-    file: std::io::BufWriter<std::fs::File>,
-    /// The latest simulated time the server sent: the stamp of the next entries.
-    time: f64,
-}
-
-impl Recorder {
-    fn write(&mut self, direction: Direction, line: &str) {
-        let _ = record::write_entry(&mut self.file, self.time, direction, line);
-    }
-}
-
 /// What the reader task hands over: a message (with its text when recording), or an
 /// unreadable line (when recording), or the end.
 #[derive(Debug)]
@@ -86,25 +67,6 @@ enum Incoming {
     Message(ServerMessage, Option<String>),
     Unreadable(String),
     Failed(ConnectionError),
-}
-
-/// The lockstep state of a connection.
-#[derive(Debug, Clone, Copy)]
-struct Lockstep {
-    /// Simulated seconds per barrier step.
-    step: f64,
-    /// The last barrier the server reported reaching.
-    reached: f64,
-    /// Whether a `SYNC` is outstanding.
-    waiting: bool,
-}
-
-/// The time of a lockstep answer `SYNC {Time t}`.
-fn sync_time(message: &ServerMessage) -> Option<f64> {
-    match message {
-        ServerMessage::Other(m) if m.kind == "SYNC" => m.get("Time")?.trim().parse().ok(),
-        _ => None,
-    }
 }
 
 /// An open connection.
@@ -115,10 +77,10 @@ pub struct Connection {
     writer: OwnedWriteHalf,
     /// Aborted when the connection is dropped.
     _reader: AbortOnDropHandle<()>,
-    /// Messages read ahead while waiting for a lockstep answer.
-    pending: VecDeque<ServerMessage>,
-    lockstep: Option<Lockstep>,
-    recorder: Option<Recorder>,
+    /// Server lines are recorded when the caller takes them, not when the reader task reads
+    /// them, so that the interleaving with the caller's commands is the order of cause and
+    /// effect (and the same in every lockstep run).
+    recorder: Option<RecordWriter>,
 }
 
 impl Connection {
@@ -133,20 +95,17 @@ impl Connection {
         timeout: Duration,
         path: &Path,
     ) -> Result<Self, ConnectionError> {
-        let mut file = std::fs::File::create(path)
-            .map(std::io::BufWriter::new)
-            .map_err(|error| ConnectionError::Record {
-                path: path.display().to_string(),
-                error,
-            })?;
-        let _ = writeln!(file, "{}", record::HEADER);
-        Self::open(addr, timeout, Some(Recorder { file, time: 0.0 })).await
+        let recorder = RecordWriter::create(path).map_err(|error| ConnectionError::Record {
+            path: path.display().to_string(),
+            error,
+        })?;
+        Self::open(addr, timeout, Some(recorder)).await
     }
 
     async fn open(
         addr: &str,
         timeout: Duration,
-        recorder: Option<Recorder>,
+        recorder: Option<RecordWriter>,
     ) -> Result<Self, ConnectionError> {
         let stream = tokio::time::timeout(timeout, TcpStream::connect(addr))
             .await
@@ -169,43 +128,8 @@ impl Connection {
             messages,
             writer,
             _reader: AbortOnDropHandle::new(reader),
-            pending: VecDeque::new(),
-            lockstep: None,
             recorder,
         })
-    }
-
-    /// Asks the server for lockstep (`SYNC {Time 0}`) and waits up to `wait` for its answer.
-    /// Returns whether the server offers it; a stock USARSim never answers, and then the
-    /// connection goes on as before. With lockstep on, the world advances `step` simulated
-    /// seconds each time the caller has taken every message up to the last barrier.
-    pub async fn request_lockstep(
-        &mut self,
-        step: f64,
-        wait: Duration,
-    ) -> Result<bool, ConnectionError> {
-        self.send_line("SYNC {Time 0}").await?;
-        let deadline = tokio::time::Instant::now() + wait;
-        loop {
-            let message = match tokio::time::timeout_at(deadline, self.receive()).await {
-                Err(_) => return Ok(false),
-                Ok(message) => message?,
-            };
-            if let Some(reached) = sync_time(&message) {
-                self.lockstep = Some(Lockstep {
-                    step,
-                    reached,
-                    waiting: false,
-                });
-                return Ok(true);
-            }
-            self.pending.push_back(message);
-        }
-    }
-
-    /// Whether lockstep is on.
-    pub fn is_lockstep(&self) -> bool {
-        self.lockstep.is_some()
     }
 
     /// The address connected to.
@@ -213,49 +137,25 @@ impl Connection {
         &self.addr
     }
 
-    /// The next message from the server; [`ConnectionError::Closed`] once the server closed
-    /// the connection.
-    ///
-    /// With lockstep on, asking for the next message after the last barrier's answer releases
-    /// the world for one more step: everything the caller sent in between is applied first.
+    /// The next message from the server, recorded as it is taken;
+    /// [`ConnectionError::Closed`] once the server closed the connection. Lockstep replies
+    /// come as [`ServerMessage::Sync`] like any other message.
     pub async fn next_message(&mut self) -> Result<ServerMessage, ConnectionError> {
-        if let Some(message) = self.pending.pop_front() {
-            return Ok(message);
-        }
-        loop {
-            if let Some(lockstep) = &mut self.lockstep
-                && !lockstep.waiting
-            {
-                lockstep.waiting = true;
-                let line = format!("SYNC {{Time {:.4}}}", lockstep.reached + lockstep.step);
-                self.send_line(&line).await?;
-            }
-            let message = self.receive().await?;
-            match (sync_time(&message), &mut self.lockstep) {
-                (Some(reached), Some(lockstep)) => {
-                    lockstep.reached = reached;
-                    lockstep.waiting = false;
-                }
-                _ => return Ok(message),
-            }
-        }
-    }
-
-    /// The next message from the reader task, recorded as it is taken.
-    async fn receive(&mut self) -> Result<ServerMessage, ConnectionError> {
         loop {
             match self.messages.recv().await {
                 None => return Err(ConnectionError::Closed),
                 Some(Incoming::Failed(error)) => return Err(error),
                 Some(Incoming::Unreadable(line)) => {
                     if let Some(r) = &mut self.recorder {
-                        r.write(Direction::Server, &line);
+                        let _ = r.write(Direction::Server, &line);
                     }
                 }
                 Some(Incoming::Message(message, line)) => {
                     if let (Some(r), Some(line)) = (&mut self.recorder, line) {
-                        r.time = message.time().unwrap_or(r.time);
-                        r.write(Direction::Server, &line);
+                        if let Some(time) = message.time() {
+                            r.set_time(time);
+                        }
+                        let _ = r.write(Direction::Server, &line);
                     }
                     return Ok(message);
                 }
@@ -273,7 +173,7 @@ impl Connection {
     async fn send_line(&mut self, line: &str) -> Result<(), ConnectionError> {
         tracing::trace!(%line, "send");
         if let Some(r) = &mut self.recorder {
-            r.write(Direction::Client, line);
+            let _ = r.write(Direction::Client, line);
         }
         write_line(&mut self.writer, line)
             .await
@@ -302,7 +202,10 @@ impl Connection {
     pub async fn disconnect(mut self) -> Result<(), ConnectionError> {
         use tokio::io::AsyncWriteExt;
         if let Some(r) = &mut self.recorder {
-            let _ = r.file.flush();
+            r.flush().map_err(|error| ConnectionError::Record {
+                path: "the recording".into(),
+                error,
+            })?;
         }
         self.writer.shutdown().await.map_err(ConnectionError::Write)
     }

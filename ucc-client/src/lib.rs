@@ -1,53 +1,86 @@
-//! ucc-client: the UAV Control Center, a framework for flying USARSim UAVs with agents.
+//! ucc-client: the UAV Control Center, a framework for flying USARSim UAVs with agents —
+//! against a real USARSim or usar-server; it does not depend on the simulator.
 //!
 //! Layout:
 //!
-//! * [`connection`] — TCP connection to a server: typed messages in, commands out
-//!   ([`lines`] frames the byte stream);
+//! * [`agent`] — the [`Agent`] trait and [`AgentFactory`]; [`agents`] — the built-in agents
+//!   (`base`, `avoid`) and the registry of names the `ucc` program accepts;
+//! * [`flight`] — one flight, sans I/O: server messages in, commands and progress out;
+//! * [`runner`] — [`run`]: connect, spawn, fly, repeat, over a [`Connection`];
+//! * [`settings`] — [`RunSettings`]; [`progress`] — [`Progress`] events and the
+//!   [`Observer`]; [`stats`] — [`Summary`], [`Statistics`], the results table;
+//! * [`output`] and [`picture`] — the per-iteration log, trajectory CSV, map picture, plots;
+//! * [`connection`] — TCP connection to a server ([`lines`] frames the byte stream);
 //! * [`uav`] — the UAV model: the latest reading of every sensor ([`UavState`]);
 //! * [`geometry`] — coordinates and world/body frame rotations (nalgebra);
-//! * [`mission`] — missions and mission files;
-//! * [`agent`] — the [`Agent`] trait; [`agents`] — the agents (`base`, `avoid`) and their registry;
-//! * [`controller`] — spawn, fly every mission, repeat: [`run_missions`];
-//! * [`record`] and [`picture`] — the per-iteration log, trajectory CSV and map pictures;
-//! * [`wire`] — line decoding/encoding for `ucc decode` / `ucc encode`;
-//! * [`tap`] — the recording proxy of `ucc tap`.
+//! * [`mission`] — missions and mission files.
 //!
-//! Agents are pure: the controller hands them the state and the simulated time.
+//! Agents are pure: the flight hands them the state and the simulated time. Any type that
+//! implements [`Agent`] flies, from any crate:
 //!
-//! ```
-//! use ucc_client::{Agent, Coordinates, Mission, UavState, agents};
+//! ```no_run
+//! use ucc_client::{Agent, Coordinates, Mission, MissionRefused, RunSettings, Step, UavState};
 //!
-//! let mut agent = agents::create("base").unwrap();
-//! agent.add_mission(Mission::goto(Coordinates::new(5.0, 0.0, -2.0))).unwrap();
-//! agent.start(0.0);
+//! /// Climbs until 2 m up, then reports its one mission done.
+//! struct Climber { missions: Vec<Mission>, done: bool }
 //!
-//! let mut uav = UavState::new();
-//! uav.position = Some(ucc_client::uav::Reading { value: Coordinates::zeros(), time: 0.0 });
-//! let step = agent.step(&uav, 0.0);
-//! let command = step.command.unwrap();
-//! assert!(command.forward > 90.0 && command.up > 0.0); // ahead and up: fly forward, climb
+//! impl Agent for Climber {
+//!     fn name(&self) -> &str { "climber" }
+//!     fn add_mission(&mut self, m: Mission) -> Result<(), MissionRefused> {
+//!         self.missions.push(m);
+//!         Ok(())
+//!     }
+//!     fn start(&mut self, _time: f64) {}
+//!     fn stop(&mut self) {}
+//!     fn step(&mut self, uav: &UavState, _time: f64) -> Step {
+//!         let z = uav.position.as_ref().map_or(0.0, |p| p.value.z);
+//!         let up = if z > -2.0 { 50.0 } else { 0.0 };
+//!         Step {
+//!             command: Some(ucc_client::SpeedCommand { up, ..Default::default() }),
+//!             all_done: up == 0.0,
+//!             ..Step::default()
+//!         }
+//!     }
+//! }
+//!
+//! # async fn fly() -> Result<(), ucc_client::RunError> {
+//! let settings = RunSettings {
+//!     addr: "localhost:3000".into(),
+//!     missions: vec![Mission::Hover { seconds: 1.0 }],
+//!     ..RunSettings::default()
+//! };
+//! let factory = || Box::new(Climber { missions: vec![], done: false }) as Box<dyn Agent>;
+//! let cancel = tokio_util::sync::CancellationToken::new();
+//! let summary =
+//!     ucc_client::run(&settings, &factory, &mut |p: &ucc_client::Progress| println!("{p}"), &cancel)
+//!         .await?;
+//! println!("{} iteration(s)", summary.iterations.len());
+//! # Ok(())
+//! # }
 //! ```
 
 pub mod agent;
 pub mod agents;
 pub mod connection;
-pub mod controller;
+pub mod flight;
 pub mod geometry;
 pub mod lines;
 pub mod mission;
+pub mod output;
 pub mod picture;
-pub mod record;
-pub mod tap;
+pub mod progress;
+pub mod runner;
+pub mod settings;
+pub mod stats;
 pub mod uav;
-pub mod wire;
 
-pub use agent::{Agent, AgentEvent, MissionRefused, SpeedCommand, Step};
+pub use agent::{Agent, AgentEvent, AgentFactory, MissionRefused, SpeedCommand, Step};
 pub use connection::{Connection, ConnectionError};
-pub use controller::{
-    IterationSummary, Pictures, Progress, RunConfig, RunError, Start, Statistics, Summary,
-    run_missions,
-};
+pub use flight::Flight;
 pub use geometry::Coordinates;
 pub use mission::{Mission, MissionError};
+pub use progress::{Observer, Progress};
+pub use runner::{RunError, run};
+pub use settings::{Lockstep, Pictures, RunSettings, Start};
+pub use stats::{IterationStatus, IterationSummary, Statistics, Summary};
 pub use uav::UavState;

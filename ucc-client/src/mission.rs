@@ -14,6 +14,7 @@
 //! seconds = 3.0
 //! ```
 
+use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
@@ -66,19 +67,6 @@ impl Mission {
             Self::Hover { .. } => None,
         }
     }
-
-    /// Checks the numbers: finite coordinates, a non-negative duration.
-    fn validate(&self) -> Result<(), String> {
-        match self {
-            Self::GotoXyz { x, y, z } if ![x, y, z].iter().all(|v| v.is_finite()) => {
-                Err("GotoXyz coordinates must be finite numbers".into())
-            }
-            Self::Hover { seconds } if !(seconds.is_finite() && *seconds >= 0.0) => {
-                Err("Hover seconds must be a number >= 0".into())
-            }
-            _ => Ok(()),
-        }
-    }
 }
 
 impl fmt::Display for Mission {
@@ -121,11 +109,14 @@ pub enum MissionError {
     },
 }
 
+/// One `[[mission]]` table as written, every key and value with its place in the file.
+type RawMission = BTreeMap<toml::Spanned<String>, toml::Spanned<toml::Value>>;
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MissionFile {
     #[serde(default)]
-    mission: Vec<toml::Spanned<Mission>>,
+    mission: Vec<toml::Spanned<RawMission>>,
 }
 
 /// Reads a mission file.
@@ -137,7 +128,8 @@ pub fn load_missions(path: &Path) -> Result<Vec<Mission>, MissionError> {
     parse_missions(&text, path)
 }
 
-/// Parses the text of a mission file; `path` names it in errors.
+/// Parses the text of a mission file; `path` names it in errors, which point at the line of
+/// the bad key or value (at the `[[mission]]` header only for a missing key).
 pub fn parse_missions(text: &str, path: &Path) -> Result<Vec<Mission>, MissionError> {
     let invalid = |offset: Option<usize>, message: String| MissionError::Invalid {
         path: path.to_owned(),
@@ -150,14 +142,77 @@ pub fn parse_missions(text: &str, path: &Path) -> Result<Vec<Mission>, MissionEr
         return Err(invalid(None, "no [[mission]] entries".into()));
     }
     file.mission
-        .into_iter()
-        .map(|m| {
-            let offset = m.span().start;
-            let m = m.into_inner();
-            m.validate().map_err(|e| invalid(Some(offset), e))?;
-            Ok(m)
+        .iter()
+        .map(|table| {
+            read_mission(table).map_err(|(offset, message)| invalid(Some(offset), message))
         })
         .collect()
+}
+
+/// One mission from its table; an error is the byte offset to blame and what is wrong.
+fn read_mission(table: &toml::Spanned<RawMission>) -> Result<Mission, (usize, String)> {
+    let header = table.span().start;
+    let find = |key: &str| table.get_ref().iter().find(|(k, _)| k.get_ref() == key);
+    let (_, kind) = find("type").ok_or((
+        header,
+        "a [[mission]] needs a type (GotoXyz or Hover)".to_owned(),
+    ))?;
+    let (name, keys): (&str, &[&str]) = match kind.get_ref().as_str() {
+        Some("GotoXyz") => ("GotoXyz", &["x", "y", "z"]),
+        Some("Hover") => ("Hover", &["seconds"]),
+        Some(other) => {
+            return Err((
+                kind.span().start,
+                format!("unknown mission type {other:?} (known: GotoXyz, Hover)"),
+            ));
+        }
+        None => return Err((kind.span().start, "type must be a string".into())),
+    };
+    if let Some((key, _)) = table
+        .get_ref()
+        .iter()
+        .find(|(k, _)| k.get_ref() != "type" && !keys.contains(&k.get_ref().as_str()))
+    {
+        return Err((
+            key.span().start,
+            format!(
+                "unknown key `{}` in a {name} mission (its keys: {})",
+                key.get_ref(),
+                keys.join(", ")
+            ),
+        ));
+    }
+    let number = |key: &str| -> Result<(f64, usize), (usize, String)> {
+        let (_, value) = find(key).ok_or((header, format!("{name} mission without `{key}`")))?;
+        let at = value.span().start;
+        let v = match value.get_ref() {
+            toml::Value::Float(v) => *v,
+            toml::Value::Integer(v) => *v as f64,
+            _ => return Err((at, format!("`{key}` must be a number"))),
+        };
+        Ok((v, at))
+    };
+    let mission = match name {
+        "GotoXyz" => {
+            let [(x, ax), (y, ay), (z, az)] = [number("x")?, number("y")?, number("z")?];
+            if let Some(at) = [(x, ax), (y, ay), (z, az)]
+                .iter()
+                .find(|(v, _)| !v.is_finite())
+                .map(|(_, at)| *at)
+            {
+                return Err((at, "GotoXyz coordinates must be finite numbers".into()));
+            }
+            Mission::GotoXyz { x, y, z }
+        }
+        _ => {
+            let (seconds, at) = number("seconds")?;
+            if !(seconds.is_finite() && seconds >= 0.0) {
+                return Err((at, "Hover seconds must be a number >= 0".into()));
+            }
+            Mission::Hover { seconds }
+        }
+    };
+    Ok(mission)
 }
 
 fn line_of(text: &str, offset: usize) -> usize {
@@ -252,12 +307,15 @@ mod tests {
         let (line, _) = error_line("[[mission]]\ntype = \"GotoXyz\"\nx = = 1\n");
         assert_eq!(line, 3);
         let (line, msg) = error_line("[[mission]]\ntype = \"Hover\"\nseconds = -1\n");
-        assert_eq!(line, 1);
+        assert_eq!(line, 3, "the bad value's line");
         assert!(msg.contains(">= 0"), "{msg}");
         let (_, msg) = error_line("# nothing\n");
         assert!(msg.contains("no [[mission]]"));
         let err = parse("[[mission]]\ntype = \"Hover\"\nseconds = 1\nspeed = 2\n").unwrap_err();
-        assert!(err.to_string().starts_with("m.toml:"), "{err}");
+        assert!(
+            err.to_string().starts_with("m.toml:4: unknown key `speed`"),
+            "{err}"
+        );
     }
 
     #[test]

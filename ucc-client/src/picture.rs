@@ -1,6 +1,7 @@
-//! The map picture of the original map window: the paths seen from above (x north up,
-//! y east right), the waypoints as red squares, the start, axes in metres and a scale bar;
-//! written as SVG and PNG.
+//! The map picture of the original map window: the map's walls and obstacles (or what the
+//! laser saw), the paths seen from above (x north up, y east right), the waypoints as red
+//! squares, the start, axes in metres and a scale bar; and the plots of an iteration: a
+//! side view (altitude) and altitude, speed and battery over time. Written as SVG and PNG.
 //!
 //! PNG text is drawn with the DejaVu Sans font embedded in the crate
 //! (`assets/DejaVuSans.ttf`, Bitstream Vera license in `assets/DejaVuSans-LICENSE.txt`), so no
@@ -13,6 +14,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::geometry::Coordinates;
+use crate::output::TrajectoryPoint;
 
 const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 /// Side of the square plotting area, pixels.
@@ -21,6 +23,29 @@ const MARGIN: u32 = 20;
 const X_LABELS: u32 = 50;
 const Y_LABELS: u32 = 60;
 const CAPTION: u32 = 40;
+
+/// Paths of more iterations than this share one legend entry.
+const LEGEND_ITERATIONS: usize = 8;
+
+/// The outline of one solid of the map seen from above, and its height range: what the
+/// pictures draw of a map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Footprint {
+    /// Corners in order, world frame: (x north, y east), metres.
+    pub outline: Vec<(f64, f64)>,
+    /// The lowest z (z down: the top of the solid is `z_min`), metres.
+    pub z_min: f64,
+    /// The highest z (the bottom of the solid), metres.
+    pub z_max: f64,
+}
+
+/// The walls and obstacles of a map, for the pictures (a local server knows them from its map
+/// file; a real USARSim reports none, and then the pictures draw the laser's hits instead).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MapGeometry {
+    /// Every solid.
+    pub footprints: Vec<Footprint>,
+}
 
 /// What to draw.
 #[derive(Debug, Clone, Default)]
@@ -33,6 +58,10 @@ pub struct MapPicture {
     pub waypoints: Vec<Coordinates>,
     /// The start position.
     pub start: Option<Coordinates>,
+    /// The map's solids, when known.
+    pub geometry: Option<MapGeometry>,
+    /// Where the laser hit something (drawn as grey dots).
+    pub laser_hits: Vec<Coordinates>,
 }
 
 /// A picture that could not be written.
@@ -45,30 +74,38 @@ pub struct PictureError {
     pub message: String,
 }
 
+/// Draws `draw` into `<base>.svg` and `<base>.png` of `size` pixels; returns their paths.
+fn write_both(
+    base: &Path,
+    size: (u32, u32),
+    svg_draw: impl Fn(DrawingArea<SVGBackend<'_>, Shift>) -> Result<(), String>,
+    png_draw: impl Fn(DrawingArea<BitMapBackend<'_>, Shift>) -> Result<(), String>,
+) -> Result<[PathBuf; 2], PictureError> {
+    let svg = base.with_extension("svg");
+    let png = base.with_extension("png");
+    let failed = |path: &Path| {
+        let path = path.to_owned();
+        move |message: String| PictureError { path, message }
+    };
+    // Both backends measure text with the font.
+    register_font().map_err(failed(&svg))?;
+    svg_draw(SVGBackend::new(&svg, size).into_drawing_area()).map_err(failed(&svg))?;
+    png_draw(BitMapBackend::new(&png, size).into_drawing_area()).map_err(failed(&png))?;
+    Ok([svg, png])
+}
+
 impl MapPicture {
     /// Writes `<base>.svg` and `<base>.png`; returns their paths.
     pub fn write(&self, base: &Path) -> Result<[PathBuf; 2], PictureError> {
-        let svg = base.with_extension("svg");
-        let png = base.with_extension("png");
         let size = (
             PLOT_SIDE + Y_LABELS + 2 * MARGIN,
             PLOT_SIDE + X_LABELS + CAPTION + 2 * MARGIN,
         );
-        let failed = |path: &Path| {
-            let path = path.to_owned();
-            move |message: String| PictureError { path, message }
-        };
-        // Both backends measure text with the font.
-        register_font().map_err(failed(&svg))?;
-        self.draw(SVGBackend::new(&svg, size).into_drawing_area())
-            .map_err(failed(&svg))?;
-        self.draw(BitMapBackend::new(&png, size).into_drawing_area())
-            .map_err(failed(&png))?;
-        Ok([svg, png])
+        write_both(base, size, |a| self.draw(a), |a| self.draw(a))
     }
 
-    /// The square region shown, in chart coordinates (east, north): it holds every point with
-    /// a margin, and is at least 4 m wide.
+    /// The square region shown, in chart coordinates (east, north): it holds every point of
+    /// the paths, the waypoints and the start with a margin, and is at least 4 m wide.
     fn extent(&self) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
         let points = self
             .paths
@@ -84,7 +121,7 @@ impl MapPicture {
         if lo.0 > hi.0 {
             (lo, hi) = ((0.0, 0.0), (0.0, 0.0));
         }
-        let half = ((hi.0 - lo.0).max(hi.1 - lo.1) * 1.15 / 2.0).max(2.0);
+        let half = ((hi.0 - lo.0).max(hi.1 - lo.1) * 1.15 / 2.0 + 0.5).max(2.0);
         let centre = ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0);
         (
             centre.0 - half..centre.0 + half,
@@ -112,31 +149,70 @@ impl MapPicture {
             .map_err(err)?;
 
         let top_view = |p: &Coordinates| (p.y, p.x);
+        let inside = |(e, n): (f64, f64)| east.contains(&e) && north.contains(&n);
+        // The map first, under everything: solids in grey, or else the laser's hits.
+        let wall = RGBColor(150, 150, 150);
+        if let Some(geometry) = &self.geometry {
+            let clip = (east.start, east.end, north.start, north.end);
+            // Only what stands at the flown heights: not the floor, not the ceiling.
+            let (low, high) = self
+                .paths
+                .iter()
+                .flatten()
+                .chain(&self.waypoints)
+                .chain(&self.start)
+                .fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+                    (lo.min(p.z), hi.max(p.z))
+                });
+            let at_height = |f: &&Footprint| low > high || (f.z_min <= high && f.z_max >= low);
+            for footprint in geometry.footprints.iter().filter(at_height) {
+                let outline: Vec<(f64, f64)> =
+                    footprint.outline.iter().map(|&(x, y)| (y, x)).collect();
+                let clipped = clip_polygon(&outline, clip);
+                if clipped.len() >= 3 {
+                    chart
+                        .draw_series([Polygon::new(clipped, wall.mix(0.6).filled())])
+                        .map_err(err)?;
+                }
+            }
+            chart
+                .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+                .map_err(err)?
+                .label("walls and obstacles")
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], wall.mix(0.6).filled())
+                });
+        } else if !self.laser_hits.is_empty() {
+            let hits = self.laser_hits.iter().map(top_view).filter(|p| inside(*p));
+            chart
+                .draw_series(hits.map(|p| Circle::new(p, 1, wall.filled())))
+                .map_err(err)?
+                .label("laser hits")
+                .legend(move |(x, y)| Circle::new((x + 10, y), 2, wall.filled()));
+        }
+
+        let many = self.paths.len() > LEGEND_ITERATIONS;
         for (i, path) in self.paths.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
-            let label = if self.paths.len() > 1 {
-                format!("iteration {}", i + 1)
-            } else {
-                "path".to_owned()
-            };
-            chart
+            let series = chart
                 .draw_series(LineSeries::new(
                     path.iter().map(top_view),
-                    color.stroke_width(2),
+                    color.stroke_width(if many { 1 } else { 2 }),
                 ))
-                .map_err(err)?
-                .label(label)
-                .legend(move |(x, y)| {
+                .map_err(err)?;
+            // One legend entry per iteration for a few; one for all of many.
+            let label = match (self.paths.len(), many) {
+                (1, _) => Some("path".to_owned()),
+                (n, true) if i == 0 => Some(format!("paths of {n} iterations")),
+                (_, true) => None,
+                (_, false) => Some(format!("iteration {}", i + 1)),
+            };
+            if let Some(label) = label {
+                series.label(label).legend(move |(x, y)| {
                     PathElement::new([(x, y), (x + 20, y)], color.stroke_width(2))
                 });
+            }
         }
-        chart
-            .draw_series(self.waypoints.iter().map(|p| {
-                EmptyElement::at(top_view(p)) + Rectangle::new([(-5, -5), (5, 5)], RED.filled())
-            }))
-            .map_err(err)?
-            .label("waypoint")
-            .legend(|(x, y)| Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], RED.filled()));
         if let Some(start) = &self.start {
             let green = RGBColor(0, 150, 0);
             chart
@@ -149,6 +225,17 @@ impl MapPicture {
                 .label("start")
                 .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 6, green.filled()));
         }
+        // Waypoints on top of the start: hollow squares, so both stay visible.
+        chart
+            .draw_series(self.waypoints.iter().map(|p| {
+                EmptyElement::at(top_view(p))
+                    + Rectangle::new([(-6, -6), (6, 6)], RED.stroke_width(3))
+            }))
+            .map_err(err)?
+            .label("waypoint")
+            .legend(|(x, y)| {
+                Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], RED.stroke_width(2))
+            });
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)
@@ -158,25 +245,186 @@ impl MapPicture {
             .draw()
             .map_err(err)?;
 
-        // Scale bar: a round length about a fifth of the width, bottom left.
+        // Scale bar: a round length about a fifth of the width, above the plot on the right
+        // (outside the data, so it never hides the start or a waypoint).
         let width = east.end - east.start;
         let length = nice_length(width / 5.0);
-        let (x0, y0) = (east.start + width * 0.05, north.start + width * 0.05);
-        chart
-            .draw_series([PathElement::new(
-                [(x0, y0), (x0 + length, y0)],
-                BLACK.stroke_width(3),
-            )])
-            .map_err(err)?;
-        chart
-            .draw_series([Text::new(
-                format!("{length} m"),
-                (x0, y0 + width * 0.035),
-                ("sans-serif", 14).into_font().color(&BLACK),
-            )])
-            .map_err(err)?;
+        let (x0, _) = chart.backend_coord(&(east.start, north.start));
+        let (x1, _) = chart.backend_coord(&(east.start + length, north.start));
+        let (right, top) = chart.backend_coord(&(east.end, north.end));
+        let pixels = x1 - x0;
+        let y = top - 12;
+        root.draw(&PathElement::new(
+            [(right - pixels, y), (right, y)],
+            BLACK.stroke_width(3),
+        ))
+        .map_err(err)?;
+        root.draw(&Text::new(
+            format!("{length} m"),
+            (right - pixels - 50, y - 8),
+            ("sans-serif", 14).into_font().color(&BLACK),
+        ))
+        .map_err(err)?;
         root.present().map_err(err)
     }
+}
+
+/// The part of a polygon inside a rectangle `(x0, x1, y0, y1)` (Sutherland–Hodgman).
+fn clip_polygon(points: &[(f64, f64)], (x0, x1, y0, y1): (f64, f64, f64, f64)) -> Vec<(f64, f64)> {
+    let edges: [(usize, f64, bool); 4] =
+        [(0, x0, true), (0, x1, false), (1, y0, true), (1, y1, false)];
+    let mut out = points.to_vec();
+    for (axis, bound, keep_above) in edges {
+        let coord = |p: (f64, f64)| if axis == 0 { p.0 } else { p.1 };
+        let inside = |p: (f64, f64)| (coord(p) >= bound) == keep_above || coord(p) == bound;
+        let input = std::mem::take(&mut out);
+        for (i, &p) in input.iter().enumerate() {
+            let q = input[(i + 1) % input.len()];
+            if inside(p) {
+                out.push(p);
+            }
+            if inside(p) != inside(q) {
+                let t = (bound - coord(p)) / (coord(q) - coord(p));
+                out.push((p.0 + t * (q.0 - p.0), p.1 + t * (q.1 - p.1)));
+            }
+        }
+        if out.is_empty() {
+            break;
+        }
+    }
+    out
+}
+
+/// The side view and the time plots of one iteration: altitude over x (north), and altitude,
+/// speed and battery over simulated time.
+#[derive(Debug, Clone, Default)]
+pub struct Plots {
+    /// The caption.
+    pub title: String,
+    /// The trajectory.
+    pub trajectory: Vec<TrajectoryPoint>,
+    /// The waypoints (shown in the side view).
+    pub waypoints: Vec<Coordinates>,
+}
+
+impl Plots {
+    /// Writes `<base>.svg` and `<base>.png`; returns their paths.
+    pub fn write(&self, base: &Path) -> Result<[PathBuf; 2], PictureError> {
+        write_both(base, (1000, 760), |a| self.draw(a), |a| self.draw(a))
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), String> {
+        let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+        root.fill(&WHITE).map_err(err)?;
+        let root = root.titled(&self.title, ("sans-serif", 22)).map_err(err)?;
+        let panels = root.split_evenly((2, 2));
+        let t: Vec<f64> = self.trajectory.iter().map(|p| p.time).collect();
+        let altitude: Vec<(f64, f64)> = self
+            .trajectory
+            .iter()
+            .map(|p| (p.time, -p.position.z))
+            .collect();
+        let speed: Vec<(f64, f64)> = self
+            .trajectory
+            .iter()
+            .filter_map(|p| p.velocity.map(|v| (p.time, v.norm())))
+            .collect();
+        let battery: Vec<(f64, f64)> = self
+            .trajectory
+            .iter()
+            .filter_map(|p| p.battery.map(|b| (p.time, b * 100.0)))
+            .collect();
+        let side: Vec<(f64, f64)> = self
+            .trajectory
+            .iter()
+            .map(|p| (p.position.x, -p.position.z))
+            .collect();
+        let waypoints: Vec<(f64, f64)> = self.waypoints.iter().map(|w| (w.x, -w.z)).collect();
+        let time_range = range(t.iter().copied(), 1.0);
+        line_panel(
+            &panels[0],
+            "side view: altitude over x",
+            ("x, north (m)", "altitude, -z (m)"),
+            &side,
+            &waypoints,
+            range(side.iter().chain(&waypoints).map(|p| p.0), 2.0),
+        )
+        .map_err(err)?;
+        line_panel(
+            &panels[1],
+            "altitude",
+            ("simulated time (s)", "altitude, -z (m)"),
+            &altitude,
+            &[],
+            time_range.clone(),
+        )
+        .map_err(err)?;
+        line_panel(
+            &panels[2],
+            "speed",
+            ("simulated time (s)", "speed (m/s)"),
+            &speed,
+            &[],
+            time_range.clone(),
+        )
+        .map_err(err)?;
+        line_panel(
+            &panels[3],
+            "battery",
+            ("simulated time (s)", "battery (%)"),
+            &battery,
+            &[],
+            time_range,
+        )
+        .map_err(err)?;
+        root.present().map_err(err)
+    }
+}
+
+/// A range around the values with a margin, at least `min_width` wide.
+fn range(values: impl Iterator<Item = f64>, min_width: f64) -> std::ops::Range<f64> {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    if lo > hi {
+        return 0.0..min_width;
+    }
+    let pad = ((hi - lo) * 0.05).max((min_width - (hi - lo)).max(0.0) / 2.0);
+    lo - pad..hi + pad
+}
+
+/// One panel: a line of `(x, y)` points, red squares at `marks`.
+fn line_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    caption: &str,
+    (x_desc, y_desc): (&str, &str),
+    points: &[(f64, f64)],
+    marks: &[(f64, f64)],
+    x: std::ops::Range<f64>,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let y = range(points.iter().chain(marks).map(|p| p.1), 0.5);
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(52)
+        .build_cartesian_2d(x, y)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .light_line_style(WHITE.mix(0.0))
+        .draw()?;
+    chart.draw_series(LineSeries::new(
+        points.iter().copied(),
+        BLUE.stroke_width(2),
+    ))?;
+    chart.draw_series(
+        marks.iter().map(|&p| {
+            EmptyElement::at(p) + Rectangle::new([(-5, -5), (5, 5)], RED.stroke_width(2))
+        }),
+    )?;
+    Ok(())
 }
 
 /// The largest of 1, 2, 5 × 10ⁿ not above `v` (at least 0.1).
@@ -230,6 +478,14 @@ mod tests {
                 Coordinates::new(4.0, -1.0, -1.0),
             ],
             start: Some(Coordinates::zeros()),
+            geometry: Some(MapGeometry {
+                footprints: vec![Footprint {
+                    outline: vec![(5.0, -3.0), (5.5, -3.0), (5.5, 3.0), (5.0, 3.0)],
+                    z_min: -3.0,
+                    z_max: 0.0,
+                }],
+            }),
+            laser_hits: Vec::new(),
         };
         let files = picture.write(&dir.join("map")).unwrap();
         for f in &files {
@@ -240,10 +496,78 @@ mod tests {
         }
         let svg = std::fs::read_to_string(&files[0]).unwrap();
         assert!(svg.contains("north"));
+        assert!(svg.contains("walls and obstacles"), "the map is drawn");
         // An empty picture (no data at all) still draws.
         MapPicture::default().write(&dir.join("empty")).unwrap();
         if std::env::var_os("UCC_KEEP_PICTURES").is_none() {
             std::fs::remove_dir_all(&dir).unwrap();
         }
+    }
+
+    /// The defects: a legend entry per iteration ran off the image at 237 iterations, and
+    /// the scale bar could cover the start.
+    #[test]
+    fn many_iterations_share_one_legend_entry_and_the_scale_bar_stays_off_the_data() {
+        let dir = std::env::temp_dir().join(format!("ucc-legend-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path: Vec<_> = (0..20)
+            .map(|i| Coordinates::new(f64::from(i) * 0.2, 0.0, -1.0))
+            .collect();
+        let picture = MapPicture {
+            title: "many".into(),
+            paths: vec![path; 237],
+            start: Some(Coordinates::zeros()),
+            laser_hits: vec![Coordinates::new(1.0, 1.0, -1.0)],
+            ..MapPicture::default()
+        };
+        let [svg, _] = picture.write(&dir.join("overlay")).unwrap();
+        let svg = std::fs::read_to_string(svg).unwrap();
+        assert!(svg.contains("paths of 237 iterations"), "one entry for all");
+        assert!(!svg.contains("iteration 2<"), "no entry per iteration");
+        assert!(svg.contains("laser hits"));
+        // The scale bar's label sits above the plot's top edge (the caption row).
+        let label = svg.find(" m\n</text>").expect("a scale bar label");
+        let tag = &svg[svg[..label].rfind("<text").unwrap()..label];
+        let y: f64 = tag
+            .split("y=\"")
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(
+            y < f64::from(CAPTION + MARGIN + 10),
+            "scale bar label at y={y}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn plots_show_altitude_speed_and_battery() {
+        let dir = std::env::temp_dir().join(format!("ucc-plots-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let trajectory = (0..30)
+            .map(|i| TrajectoryPoint {
+                time: f64::from(i) * 0.1,
+                position: Coordinates::new(f64::from(i) * 0.1, 0.0, -1.0 - f64::from(i) * 0.05),
+                orientation: None,
+                velocity: Some(Coordinates::new(1.0, 0.0, -0.5)),
+                battery: Some(1.0 - f64::from(i) * 0.001),
+            })
+            .collect();
+        let plots = Plots {
+            title: "plots".into(),
+            trajectory,
+            waypoints: vec![Coordinates::new(3.0, 0.0, -2.5)],
+        };
+        let [svg, png] = plots.write(&dir.join("plots")).unwrap();
+        let svg = std::fs::read_to_string(svg).unwrap();
+        for caption in ["side view", "altitude", "speed", "battery"] {
+            assert!(svg.contains(caption), "{caption}");
+        }
+        assert!(std::fs::metadata(png).unwrap().len() > 1000);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

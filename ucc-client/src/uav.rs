@@ -54,6 +54,8 @@ impl LaserScan {
 /// Which sensor a position or orientation came from, best last.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Source {
+    /// Dead reckoning: the commanded velocities integrated with the reported heading.
+    DeadReckoning,
     /// Velocity integrated or derived.
     Derived,
     /// An INS (drifts, 2 decimals).
@@ -95,6 +97,12 @@ pub struct UavState {
     pub free_above: Option<Reading<f64>>,
     /// Free space below (SonarBottom), metres.
     pub free_below: Option<Reading<f64>>,
+    /// Height above the spawn point (an AltitudeSensor's `relativeAltitude`), metres, + = up.
+    pub altitude: Option<Reading<f64>>,
+    /// The speed command in force and when it was sent (for dead reckoning).
+    pub command: Option<Reading<crate::agent::SpeedCommand>>,
+    /// The z of the dead-reckoning origin (the spawn point).
+    reckoning_origin_z: Option<f64>,
     /// The battery value taken as "full".
     first_battery: Option<i64>,
     position_source: Option<Source>,
@@ -212,6 +220,12 @@ impl UavState {
                 self.angular_acceleration = reading(*angular_accel);
                 self.set_orientation(from_wire(*rotation), Source::Imu, time);
             }
+            SenData::AltitudeSensor { relative, .. } => {
+                self.altitude = Some(Reading {
+                    value: *relative,
+                    time,
+                });
+            }
             SenData::Sonar { readings, .. } => {
                 for r in readings {
                     self.set_sonar(r, time);
@@ -276,7 +290,9 @@ impl UavState {
         }
         let previous = self.position.replace(Reading { value, time });
         self.position_source = Some(source);
-        if self.velocity_source.is_some_and(|s| s > Source::Derived) {
+        if self.velocity_source.is_some_and(|s| s > Source::Derived)
+            || source == Source::DeadReckoning
+        {
             return;
         }
         if let Some(prev) = previous {
@@ -299,6 +315,63 @@ impl UavState {
                 time: v.time,
             });
         }
+    }
+
+    /// Starts dead reckoning at `start` (the spawn point) when no sensor gives a position;
+    /// returns whether it did.
+    pub fn seed_position(&mut self, start: Coordinates, time: f64) -> bool {
+        if self.position.is_some() {
+            return false;
+        }
+        self.position = Some(Reading { value: start, time });
+        self.position_source = Some(Source::DeadReckoning);
+        self.reckoning_origin_z = Some(start.z);
+        true
+    }
+
+    /// Notes the speed command sent at `time`.
+    pub fn set_command(&mut self, command: crate::agent::SpeedCommand, time: f64) {
+        if self.position_source == Some(Source::DeadReckoning) {
+            self.dead_reckon(time);
+        }
+        self.command = Some(Reading {
+            value: command,
+            time,
+        });
+    }
+
+    /// Advances a dead-reckoned position to `time`: the commanded velocity (the AirRobot's
+    /// maxima, protocol.md §5.1: 2 m/s) turned by the reported heading, integrated since the
+    /// last estimate; the height from an AltitudeSensor when there is one. USARSim imposes
+    /// commanded velocities, so this is exact until the robot touches something. Does nothing
+    /// when a sensor gives the position.
+    pub fn dead_reckon(&mut self, time: f64) {
+        if self.position_source != Some(Source::DeadReckoning) {
+            return;
+        }
+        let Some(last) = self.position.clone() else {
+            return;
+        };
+        let dt = time - last.time;
+        if dt <= 0.0 {
+            return;
+        }
+        const MAX_SPEED: f64 = 2.0; // m/s, the AirRobot's linear, lateral and altitude maximum
+        let c = self.command.as_ref().map(|c| c.value).unwrap_or_default();
+        let body = Coordinates::new(c.forward, c.right, -c.up) * (MAX_SPEED / 100.0);
+        let velocity =
+            crate::geometry::body_to_world_vector(&body, &Coordinates::new(0.0, 0.0, self.yaw()));
+        let mut value = last.value + velocity * dt;
+        if let (Some(alt), Some(z0)) = (&self.altitude, self.reckoning_origin_z) {
+            value.z = z0 - alt.value;
+        }
+        self.position = Some(Reading { value, time });
+        self.velocity = Some(Reading {
+            value: velocity,
+            time,
+        });
+        self.relative_velocity = Some(Reading { value: body, time });
+        self.velocity_source = Some(Source::DeadReckoning);
     }
 
     /// Where the UAV's velocity would take it in the world frame for a body-frame vector

@@ -215,8 +215,246 @@ fn ctrl_c_ends_a_run_cleanly() {
         .unwrap();
     assert!(status.success());
     let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("ucc: error: interrupted"), "{stderr}");
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    // Everything flown so far is written, marked as interrupted (the defect: nothing was).
+    let results = std::fs::read_to_string(dir.join("UCCLOG-results.csv")).unwrap();
+    assert!(
+        results
+            .lines()
+            .nth(1)
+            .unwrap()
+            .starts_with("1,interrupted,"),
+        "{results}"
+    );
+    let log = std::fs::read_to_string(dir.join("UCCLOG-01.log")).unwrap();
+    assert!(
+        log.trim_end().ends_with("interrupted: the run was stopped"),
+        "{log}"
+    );
+    for file in [
+        "UCCLOG-01-trajectory.csv",
+        "UCCLOG-01-map.png",
+        "UCCLOG-01-plots.png",
+        "UCCLOG-overlay.png",
+    ] {
+        assert!(dir.join(file).exists(), "{file} missing");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Runs `ucc` with `args`; returns (exit code, stdout, stderr).
+fn ucc_output(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = ucc().args(args).output().unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The defects: a bad robot class or start tag waited 10 s for a stream that never came,
+/// although the local server knows at once; a bad map name did not list the maps; map names
+/// were case-sensitive; an OS error was printed twice.
+#[test]
+fn a_local_run_says_at_once_what_is_wrong() {
+    let go = ["--goto", "1,0,-1"];
+    let (code, _, err) = ucc_output(
+        &[
+            &["run", "--local", "--robot", "Nope", "--start", "0,0,-1"][..],
+            &go,
+        ]
+        .concat(),
+    );
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("unknown robot class \"USARBot.Nope\"") && err.contains("USARBot.stsAirRobot"),
+        "{err}"
+    );
+    let (_, _, err) = ucc_output(&[&["run", "--local", "--start", "Nowhere"][..], &go].concat());
+    assert!(
+        err.contains("no PlayerStart \"Nowhere\"") && err.contains("Start1"),
+        "{err}"
+    );
+    let (_, _, err) = ucc_output(
+        &[
+            &["run", "--local", "--map", "nosuch", "--start", "0,0,-1"][..],
+            &go,
+        ]
+        .concat(),
+    );
+    assert!(err.contains("empty_room, arena, city"), "{err}");
+    let dir = scratch("map-is-a-directory");
+    let (_, _, err) = ucc_output(
+        &[
+            &[
+                "run",
+                "--local",
+                "--map",
+                dir.to_str().unwrap(),
+                "--start",
+                "0,0,-1",
+            ][..],
+            &go,
+        ]
+        .concat(),
+    );
+    assert_eq!(err.matches("(os error").count(), 1, "{err}");
+    let logs = scratch("arena-any-case");
+    let (code, out, err) = ucc_output(
+        &[
+            &[
+                "run",
+                "--local",
+                "--map",
+                "ARENA",
+                "--start",
+                "Start1",
+                "--goto",
+                "0,0,-1.5",
+                "-q",
+                "--log-dir",
+            ][..],
+            &[logs.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    assert_eq!(code, Some(0), "{out}\n{err}");
+}
+
+/// The defects: `--speed 0` exited 1 (the docs promise 2 for bad arguments) and
+/// `ucc demo --agent nope` announced a flight before failing.
+#[test]
+fn bad_arguments_are_usage_errors() {
+    let (code, out, err) = ucc_output(&["demo", "--agent", "nope"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(out.is_empty(), "announced something: {out}");
+    assert!(err.contains("known agents: base, avoid"), "{err}");
+    for args in [
+        &["demo", "--speed", "0"][..],
+        &["demo", "--speed", "nan"],
+        &[
+            "run",
+            "--start",
+            "0,0,-1",
+            "--goto",
+            "1,0,-1",
+            "--stream-timeout",
+            "-1",
+        ],
+        &[
+            "run",
+            "--start",
+            "0,0,-1",
+            "--goto",
+            "1,0,-1",
+            "--mission-timeout",
+            "inf",
+        ],
+    ] {
+        let (code, _, err) = ucc_output(args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+    }
+}
+
+/// The defect: ANSI colour codes ended up in piped output and log files.
+#[test]
+fn no_colour_codes_off_a_terminal() {
+    let dir = scratch("no-colour");
+    let out = ucc()
+        .env("RUST_LOG", "debug")
+        .args([
+            "run",
+            "--local",
+            "--start",
+            "0,0,-1",
+            "--goto",
+            "1,0,-1.5",
+            "--log-dir",
+        ])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert!(!out.stderr.is_empty(), "debug logs were written");
+    assert!(!out.stderr.contains(&0x1b), "escape codes on stderr");
+    assert!(!out.stdout.contains(&0x1b), "escape codes on stdout");
+    let log = std::fs::read(dir.join("UCCLOG-01.log")).unwrap();
+    assert!(!log.contains(&0x1b), "escape codes in the log file");
+}
+
+/// The defect: `ucc decode | head` printed a broken-pipe error.
+#[test]
+fn decode_into_a_closed_pipe_ends_quietly() {
+    use std::io::{BufRead, Write};
+    let mut child = ucc()
+        .arg("decode")
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let writer = std::thread::spawn(move || {
+        for _ in 0..20_000 {
+            if stdin
+                .write_all(b"STA {Time 1.0000} {Battery 1200}\n")
+                .is_err()
+            {
+                break;
+            }
+        }
+    });
+    let mut first = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.contains("Sta"), "{first}");
+    // The reader (like `head`) is gone now.
+    let out = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The defect: `ucc run --local` without `--lockstep` ran a full-speed server against a
+/// wall-clock client, and eight runs of one command flew 1.4 to 30.7 m. A local run is in
+/// lockstep: the same command gives the same flight.
+#[test]
+fn a_local_run_is_the_same_every_time() {
+    let results: Vec<String> = (0..3)
+        .map(|i| {
+            let dir = scratch(&format!("same-{i}"));
+            let (code, out, err) = ucc_output(
+                &[
+                    &[
+                        "run",
+                        "--local",
+                        "--start",
+                        "0,0,-1",
+                        "--goto",
+                        "4,2,-2",
+                        "-q",
+                        "--log-dir",
+                    ][..],
+                    &[dir.to_str().unwrap()],
+                ]
+                .concat(),
+            );
+            assert_eq!(code, Some(0), "{out}{err}");
+            assert!(
+                out.contains("in lockstep") || !out.contains("sensor time"),
+                "{out}"
+            );
+            std::fs::read_to_string(dir.join("UCCLOG-01-trajectory.csv")).unwrap()
+        })
+        .collect();
+    assert!(results[0].lines().count() > 20);
+    assert_eq!(results[0], results[1]);
+    assert_eq!(results[0], results[2]);
 }

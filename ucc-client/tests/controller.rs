@@ -5,7 +5,8 @@ use std::time::Duration;
 
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpListener;
-use ucc_client::{Coordinates, Mission, RunConfig, RunError, Start, run_missions};
+use tokio_util::sync::CancellationToken;
+use ucc_client::{Coordinates, Mission, Progress, RunError, RunSettings, Start, agents};
 
 /// Greets with NFO and then reads commands without ever answering, as USARSim does when the
 /// INIT names an unknown class.
@@ -25,14 +26,18 @@ async fn spawn_failure_is_reported() {
     let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap().to_string();
     tokio::spawn(silent_server(listener));
-    let config = RunConfig {
+    let settings = RunSettings {
         addr,
         start: Start::Tag("Start1".into()),
         missions: vec![Mission::goto(Coordinates::new(2.0, 0.0, -2.0))],
         stream_timeout: Duration::from_secs(2),
-        ..RunConfig::default()
+        ..RunSettings::default()
     };
-    let err = run_missions(&config, |_| {}).await.unwrap_err();
+    let base = agents::info("base").unwrap().create;
+    let cancel = CancellationToken::new();
+    let err = ucc_client::run(&settings, &base, &mut |_: &Progress| {}, &cancel)
+        .await
+        .unwrap_err();
     assert!(matches!(err, RunError::SpawnFailed { .. }), "{err}");
     assert!(err.to_string().contains("USARBot.stsAirRobot"), "{err}");
 }

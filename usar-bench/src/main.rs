@@ -19,7 +19,7 @@ use tokio::net::TcpStream;
 #[command(version, about)]
 struct Args {
     /// Number of UAVs (one connection each).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = at_least_one)]
     uavs: usize,
     /// Simulated seconds to fly (measured on each robot's STA time stamps).
     #[arg(long, default_value_t = 10.0)]
@@ -39,13 +39,15 @@ struct Args {
     /// The usar-server program to start (default: next to this program).
     #[arg(long)]
     server_bin: Option<PathBuf>,
-    /// Distance between neighbouring UAVs on the spawn grid, metres.
-    #[arg(long, default_value_t = 1.0)]
+    /// Distance between neighbouring UAVs on the spawn grid, metres: at least 1.3, since
+    /// each UAV is 0.9 m across and flies 0.2 m back and forth while the others spawn.
+    #[arg(long, default_value_t = 1.5, value_parser = spacing)]
     spacing: f64,
     /// Horizontal layers of the spawn grid, each `--spacing` above the one below (the first
-    /// at the map's first start): for more UAVs than fit on one floor.
-    #[arg(long, default_value_t = 1)]
-    layers: usize,
+    /// at the map's first start): for more UAVs than fit on one floor. Default: the fewest
+    /// layers in which every UAV fits on the map (checked before anything starts).
+    #[arg(long, value_parser = at_least_one)]
+    layers: Option<usize>,
     /// Print one JSON object per run instead of the table.
     #[arg(long)]
     json: bool,
@@ -56,6 +58,26 @@ struct Args {
     /// delivered), doubling from --uavs and then bisecting.
     #[arg(long)]
     sweep: bool,
+}
+
+/// A spawn grid spacing that leaves room for the benchmark's own motion.
+fn spacing(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 1.3 => Ok(v),
+        _ => Err(format!(
+            "expected at least 1.3 (metres), not {text:?}: closer UAVs bump into each other"
+        )),
+    }
+}
+
+/// A count of at least 1.
+fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!(
+            "expected a whole number of at least 1, not {text:?}"
+        )),
+    }
 }
 
 /// Nominal rates of the stsAirRobot's parts (Hz), protocol.md §9.
@@ -195,10 +217,13 @@ fn print(args: &Args, r: &Report) {
 /// Steps a world with `--uavs` robots for `--seconds` and prints the cost per tick.
 fn sim_only(args: &Args) -> anyhow::Result<()> {
     use usar_proto::{Command, Drive, Init, Vec3};
+    let mut args = args.clone();
+    plan_layout(&mut args)?;
+    let args = &args;
     use usar_server::sim::{SimConfig, World, map::Map, robots::RobotCatalog};
     let map = match &args.map {
         None => Map::default_map(),
-        Some(name) => Map::embedded(name).context("unknown embedded map")?,
+        Some(name) => Map::lookup(name)?,
     };
     let start = map.starts().first().context("no start pose")?.location;
     let mut world = World::new(map, RobotCatalog::embedded(), SimConfig::default());
@@ -260,10 +285,72 @@ fn sim_only(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// How many of `args.uavs` UAVs the grid of `args` puts where a robot can be on `map` (a dry
+/// run of the spawns in a world of its own).
+fn fitting(args: &Args, map: &usar_server::sim::map::Map) -> anyhow::Result<usize> {
+    use usar_proto::{Command, Init, Vec3};
+    use usar_server::sim::{SimConfig, World, robots::RobotCatalog};
+    let start = map
+        .starts()
+        .first()
+        .context("the map has no PlayerStart")?
+        .location;
+    let mut world = World::new(map.clone(), RobotCatalog::embedded(), SimConfig::default());
+    for i in 0..args.uavs {
+        let c = world.connect();
+        let [x, y, z] = spawn_point(args, start, i);
+        world.command(
+            c,
+            Command::Init(Init {
+                class_name: "USARBot.stsAirRobot".into(),
+                location: Some(Vec3::new(x, y, z)),
+                ..Init::default()
+            }),
+        );
+    }
+    Ok(world.robot_count())
+}
+
+/// Checks that every UAV fits on the map (a started server's or --sim-only's): with the
+/// given --layers, or else with the fewest layers that work. The defect it answers:
+/// 1000 UAVs on the default map failed after 30 s with "nothing from the server".
+fn plan_layout(args: &mut Args) -> anyhow::Result<()> {
+    if args.host.is_some() {
+        return Ok(()); // a running server's map is unknown here
+    }
+    let map = match &args.map {
+        None => usar_server::sim::map::Map::default_map(),
+        Some(name) => usar_server::sim::map::Map::lookup(name)?,
+    };
+    let candidates: Vec<usize> = match args.layers {
+        Some(l) => vec![l],
+        None => (1..=16).collect(),
+    };
+    let mut best = (0, 1);
+    for layers in candidates {
+        args.layers = Some(layers);
+        let n = fitting(args, &map)?;
+        if n == args.uavs {
+            return Ok(());
+        }
+        best = best.max((n, layers));
+    }
+    bail!(
+        "{} UAVs do not fit on map {} at --spacing {}: at most {} fit (with --layers {}). \
+         Pass fewer --uavs, a smaller --spacing, or a bigger map, e.g. \
+         `--map city --spacing 1.5 --layers 6` for 1000",
+        args.uavs,
+        map.level(),
+        args.spacing,
+        best.0,
+        best.1
+    )
+}
+
 /// Where UAV `i` of `args.uavs` spawns: a square grid per layer centred on `start`, layers
 /// stacked upwards (z down).
 fn spawn_point(args: &Args, start: [f64; 3], i: usize) -> [f64; 3] {
-    let layers = args.layers.max(1);
+    let layers = args.layers.unwrap_or(1).max(1);
     let per_layer = args.uavs.div_ceil(layers);
     let side = (per_layer as f64).sqrt().ceil() as usize;
     let (layer, k) = (i / per_layer, i % per_layer);
@@ -340,6 +427,10 @@ fn process_usage(pid: u32) -> (Option<f64>, Option<f64>) {
 }
 
 async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
+    let mut args = args.clone();
+    args.uavs = uavs;
+    plan_layout(&mut args)?;
+    let args = &args;
     let (server, addr) = match &args.host {
         Some(host) => {
             let addr = tokio::net::lookup_host((host.as_str(), args.port))
@@ -349,19 +440,15 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
             (None, addr)
         }
         None => {
-            let mut args = args.clone();
-            args.uavs = uavs;
-            let (server, addr) = start_server(&args)?;
+            let (server, addr) = start_server(args)?;
             (Some(server), addr)
         }
     };
     let start = first_start(addr).await?;
     let began = Instant::now();
     let mut tasks = Vec::new();
-    let mut args = args.clone();
-    args.uavs = uavs;
     for i in 0..uavs {
-        let location = spawn_point(&args, start, i);
+        let location = spawn_point(args, start, i);
         let seconds = args.seconds;
         tasks.push(tokio::spawn(fly(addr, i, location, seconds)));
     }

@@ -33,6 +33,6 @@ pub mod messages;
 pub mod record;
 mod value;
 
-pub use error::ParseError;
+pub use error::{ParseError, ParseErrorKind};
 pub use message::{Deviation, Group, Message, Pair, Parsed};
 pub use messages::*;

@@ -348,7 +348,11 @@ impl<'a> Raw<'a> {
     ) -> Result<Self, ParseError> {
         let text = trim_ws(line);
         if text.is_empty() {
-            return Err(ParseError::new("empty line"));
+            return Err(ParseError {
+                kind: crate::error::ParseErrorKind::EmptyLine,
+                key: None,
+                message: "empty line".into(),
+            });
         }
         if text.len() != line.len() || has_double_space(text) {
             push_once(devs, Deviation::ExtraWhitespace);

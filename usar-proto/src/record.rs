@@ -60,6 +60,62 @@ pub fn write_entry(
     writeln!(out, "{time:.4} {} {text}", direction.letter())
 }
 
+/// A recording being written (the one writer of `usar-server --record`, `ucc run --record`
+/// and `ucc tap`): the [`HEADER`], then one entry per line. Entries are stamped with the
+/// latest simulated time the caller has seen ([`RecordWriter::set_time`]) unless given one.
+#[derive(Debug)]
+pub struct RecordWriter<W: Write = std::io::BufWriter<std::fs::File>> {
+    out: W,
+    time: f64,
+}
+
+impl RecordWriter {
+    /// Creates (or truncates) the file at `path` and writes the header.
+    pub fn create(path: &std::path::Path) -> std::io::Result<Self> {
+        Self::new(std::io::BufWriter::new(std::fs::File::create(path)?))
+    }
+}
+
+impl<W: Write> RecordWriter<W> {
+    /// Starts a recording on `out`: writes the header.
+    pub fn new(mut out: W) -> std::io::Result<Self> {
+        writeln!(out, "{HEADER}")?;
+        Ok(Self { out, time: 0.0 })
+    }
+
+    /// The time stamp of the next entries written with [`RecordWriter::write`].
+    pub fn set_time(&mut self, time: f64) {
+        self.time = time;
+    }
+
+    /// The time stamp of the next entries.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Writes one entry at the current time stamp.
+    pub fn write(&mut self, direction: Direction, text: &str) -> std::io::Result<()> {
+        write_entry(&mut self.out, self.time, direction, text)
+    }
+
+    /// Writes one entry at `time` (which becomes the current time stamp).
+    pub fn write_at(&mut self, time: f64, direction: Direction, text: &str) -> std::io::Result<()> {
+        self.time = time;
+        self.write(direction, text)
+    }
+
+    /// Writes what is buffered to the file.
+    pub fn flush(&mut self) -> std::io::Result<()> {
+        self.out.flush()
+    }
+
+    /// The output, flushed.
+    pub fn into_inner(mut self) -> std::io::Result<W> {
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
 /// Reads one line of a recording; `Ok(None)` for blank lines and `#` comments.
 pub fn parse_entry(line: &str) -> Result<Option<Entry<'_>>, RecordError> {
     let line = line.trim_end_matches(['\r', '\n']);
@@ -107,6 +163,22 @@ mod tests {
                 direction: Direction::Server,
                 text: "STA {Time 0.1000} {Battery 99999}"
             }
+        );
+    }
+
+    #[test]
+    fn the_writer_stamps_entries_with_the_latest_time() {
+        let mut w = RecordWriter::new(Vec::new()).unwrap();
+        w.write(Direction::Client, "SYNC {Time 0.1000}").unwrap();
+        w.write_at(0.1, Direction::Server, "STA {Time 0.1000} {Battery 9}")
+            .unwrap();
+        w.write(Direction::Client, "DRIVE {LinearVelocity 1}")
+            .unwrap();
+        let text = String::from_utf8(w.into_inner().unwrap()).unwrap();
+        assert_eq!(
+            text,
+            "# usar-record 1\n0.0000 C SYNC {Time 0.1000}\n0.1000 S STA {Time 0.1000} {Battery 9}\n\
+             0.1000 C DRIVE {LinearVelocity 1}\n"
         );
     }
 

@@ -22,7 +22,7 @@
 //! parts are `0`, `0000` and `0,0000, ...`); `1,5, 2,5, 3,5` is (1, 5, 2) for UDK. The
 //! deviation carries UDK's reading so a server can log both.
 
-use crate::error::ParseError;
+use crate::error::{ParseError, ParseErrorKind};
 use crate::message::{Deviation, RawPair, find};
 use crate::messages::Vec3;
 
@@ -279,12 +279,17 @@ impl<'r, 'a> Reader<'r, 'a> {
         }
     }
 
-    fn missing(&self, key: &str) -> ParseError {
-        self.error(&format!("missing {{{key} ..}}"))
+    pub(crate) fn missing(&self, key: &str) -> ParseError {
+        let message = self.error(&format!("missing {{{key} ..}}")).message;
+        ParseError::about(ParseErrorKind::MissingKey, key, message)
     }
 
     fn bad(&self, kind: &str, key: &str, value: &str) -> ParseError {
-        self.error(&format!("bad {kind} {value:?} in {{{key} ..}}"))
+        self.bad_value(key, &format!("bad {kind} {value:?} in {{{key} ..}}"))
+    }
+
+    pub(crate) fn bad_value(&self, key: &str, text: &str) -> ParseError {
+        ParseError::about(ParseErrorKind::BadValue, key, self.error(text).message)
     }
 
     pub(crate) fn has(&self, key: &str) -> bool {

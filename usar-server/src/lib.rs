@@ -7,6 +7,7 @@
 //! * [`net`] — TCP sessions and the driver thread that owns the world; [`run`] serves the
 //!   protocol on a bound listener.
 //! * [`replay`] — serves a recording or a real capture to clients.
+//! * [`LocalServer`] — a server inside the calling process on a free port.
 //!
 //! ```no_run
 //! # async fn demo() -> Result<(), Box<dyn std::error::Error>> {
@@ -31,8 +32,10 @@
 //! # }
 //! ```
 
+mod local;
 pub mod net;
 pub mod replay;
 pub mod sim;
 
+pub use local::LocalServer;
 pub use net::{ServerConfig, ServerError, TimeScale, run};

@@ -24,6 +24,7 @@ async fn until_sync(c: &mut Client) -> (Vec<String>, f64) {
 async fn flight(scale: TimeScale, seed: u64) -> Vec<String> {
     let mut config = ServerConfig {
         time_scale: scale,
+        lockstep: true,
         ..ServerConfig::default()
     };
     config.sim.seed = seed;
@@ -90,7 +91,12 @@ async fn lockstep_runs_are_byte_identical_at_any_time_scale() {
 
 #[tokio::test]
 async fn a_client_that_never_syncs_is_never_waited_for() {
-    let server = TestServer::start().await;
+    let server = TestServer::with(ServerConfig {
+        time_scale: TimeScale::Factor(10.0),
+        lockstep: true,
+        ..ServerConfig::default()
+    })
+    .await;
     let mut lockstep = server.client().await;
     lockstep.raw_line().await.unwrap();
     lockstep.send("GETSTARTPOSES").await;
@@ -122,6 +128,27 @@ async fn a_client_that_never_syncs_is_never_waited_for() {
                 _ => None,
             })
             .await;
+    }
+    server.stop().await;
+}
+
+/// Lockstep is opt-in: without it a `SYNC` is an unknown command, never answered, and holds
+/// nobody (the defect: one `SYNC {Time 0}` froze the world for every client).
+#[tokio::test]
+async fn without_lockstep_a_sync_holds_nobody() {
+    let server = TestServer::start().await;
+    let mut c = server.client().await;
+    c.raw_line().await.unwrap();
+    c.send("SYNC {Time 0}").await;
+    c.send("INIT {ClassName USARBot.stsAirRobot} {Location 0,0,-1}")
+        .await;
+    let mut last = 0.0;
+    while last < 0.5 {
+        let (_, m) = c.message().await;
+        assert!(!matches!(m, ServerMessage::Sync(_)), "SYNC answered");
+        if let ServerMessage::Sta(s) = m {
+            last = s.time.seconds;
+        }
     }
     server.stop().await;
 }

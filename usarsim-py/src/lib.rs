@@ -224,7 +224,7 @@ impl PyBatch {
         self.get()
             .settings
             .map
-            .top_view()
+            .footprints()
             .into_iter()
             .map(|s| (s.outline, s.z_min, s.z_max))
             .collect()

@@ -157,7 +157,7 @@ impl Avoid {
 }
 
 impl Agent for Avoid {
-    fn name(&self) -> &'static str {
+    fn name(&self) -> &str {
         INFO.name
     }
 
@@ -165,7 +165,7 @@ impl Agent for Avoid {
         match mission {
             Mission::GotoXyz { .. } => self.base.add_mission(mission),
             Mission::Hover { .. } => Err(MissionRefused {
-                agent: INFO.name,
+                agent: INFO.name.into(),
                 kind: mission.kind(),
                 reason: "it only flies to points (use the base agent to hover)".into(),
             }),

@@ -101,7 +101,7 @@ impl Base {
 }
 
 impl Agent for Base {
-    fn name(&self) -> &'static str {
+    fn name(&self) -> &str {
         INFO.name
     }
 

@@ -1,7 +1,9 @@
 //! The agents and their registry.
 //!
-//! A new agent is one file in this folder (a type implementing [`Agent`], unit
-//! tests with synthetic states) and one line in [`AGENTS`].
+//! A new built-in agent is one file in this folder (a type implementing [`Agent`], unit
+//! tests with synthetic states) and one line in [`AGENTS`], which only names agents for the
+//! `ucc` program: the runner takes any [`AgentFactory`](crate::AgentFactory), so an agent in
+//! another crate needs no line here (see `ucc-client/examples/`).
 
 pub mod avoid;
 pub mod base;
@@ -22,9 +24,14 @@ pub struct AgentInfo {
 /// Every agent the `ucc` program knows.
 pub const AGENTS: &[AgentInfo] = &[base::INFO, avoid::INFO];
 
+/// The registry entry of `name`; its `create` is an [`AgentFactory`](crate::AgentFactory).
+pub fn info(name: &str) -> Option<&'static AgentInfo> {
+    AGENTS.iter().find(|a| a.name == name)
+}
+
 /// Creates the agent registered under `name`.
 pub fn create(name: &str) -> Option<Box<dyn Agent>> {
-    AGENTS.iter().find(|a| a.name == name).map(|a| (a.create)())
+    info(name).map(|a| (a.create)())
 }
 
 /// The registered names, comma separated (for messages).

@@ -23,6 +23,9 @@ pub enum Command {
     Act(Act),
     /// `MISPKG {Name ..} {Link i} {Value f} {Order 0}` (§2.6, deprecated).
     MisPkg(MisPkg),
+    /// `SYNC {Time t}`: join or advance the lockstep barrier (our extension,
+    /// docs/lockstep.md). A `SYNC` without a readable time is [`Command::Other`].
+    Sync(Barrier),
     /// Any other command, kept as read (UDK ignores these silently).
     Other(Message),
 }
@@ -146,6 +149,7 @@ pub struct MisPkg {
 }
 
 use super::line::Line;
+use super::sync::{Barrier, SYNC_WORD};
 use crate::error::ParseError;
 use crate::format::WireBuf;
 use crate::message::{Deviation, Parsed, Raw, RawPair};
@@ -258,6 +262,13 @@ fn write_links<B: WireBuf>(w: &mut Line<'_, B>, links: &[LinkValue]) {
     }
 }
 
+/// The time of a `SYNC`: strictly a finite number (a barrier at a guessed time would stall or
+/// race the world), unlike the lenient numbers of the stock commands.
+fn sync_time(l: &mut Lenient<'_, '_>) -> Option<f64> {
+    let text = l.text("Time")?;
+    text.trim().parse::<f64>().ok().filter(|t| t.is_finite())
+}
+
 impl Command {
     /// Parses a client line leniently, as the UDK server would read it: never fails except
     /// on an empty line; what was tolerated is in [`Parsed::deviations`]. Unknown command
@@ -328,6 +339,8 @@ impl Command {
                 Self::Act(act),
                 &["Name", "Link", "Value", "Gripper", "Sequence"],
             )
+        } else if let Some(time) = is(SYNC_WORD).then(|| sync_time(&mut l)).flatten() {
+            (Self::Sync(Barrier::at(time)), &["Time"])
         } else if is("MISPKG") {
             let mis = MisPkg {
                 name: l.string("Name").unwrap_or_default(),
@@ -391,6 +404,7 @@ impl Command {
                 }
             }
             Self::GetStartPoses => out.push_text("GETSTARTPOSES"),
+            Self::Sync(b) => b.write(out),
             Self::GetConf(q) | Self::GetGeo(q) => {
                 let word = if matches!(self, Self::GetConf(_)) {
                     "GETCONF"

@@ -24,10 +24,12 @@ mod line;
 mod nfo;
 mod sen;
 mod sta;
+mod sync;
 
 pub use command::*;
 pub use common::*;
 pub use server::*;
+pub use sync::{Barrier, SYNC_WORD};
 
 use crate::error::ParseError;
 use crate::format::WireBuf;
@@ -80,6 +82,8 @@ impl ServerMessage {
             Some(Self::Eff(Eff::read(r("eff"))?))
         } else if is("DIE") {
             Some(Self::Die(Die::read(r("die"))?))
+        } else if is(SYNC_WORD) {
+            Some(Self::Sync(Barrier::read(r("sync"))?))
         } else {
             None
         };
@@ -100,6 +104,7 @@ impl ServerMessage {
             Self::Asta(m) => m.write(out),
             Self::Eff(m) => m.write(out),
             Self::Die(m) => m.write(out),
+            Self::Sync(m) => m.write(out),
             Self::Other(m) => m.write_to(out),
         }
     }

@@ -360,11 +360,11 @@ fn gps_fix(d: &Reader<'_, '_>, lat: &str, lon: &str) -> Result<GpsFix, ParseErro
         let (Some(deg), Some(min), Some(h), None) =
             (parts.next(), parts.next(), parts.next(), parts.next())
         else {
-            return Err(d.error(&format!("bad coordinate {v:?} in {{{key} ..}}")));
+            return Err(d.bad_value(key, &format!("bad coordinate {v:?} in {{{key} ..}}")));
         };
         let mut hemisphere = h.trim().chars();
         let (Some(h), None) = (hemisphere.next(), hemisphere.next()) else {
-            return Err(d.error(&format!("bad hemisphere {h:?} in {{{key} ..}}")));
+            return Err(d.bad_value(key, &format!("bad hemisphere {h:?} in {{{key} ..}}")));
         };
         Ok((d.int_in(key, deg)?, d.number_in(key, min)?, h))
     };
@@ -396,7 +396,7 @@ impl Sen {
             .iter()
             .position(|p| p.key.eq_ignore_ascii_case("Type"))
         else {
-            return Err(r.error("missing {Type ..}"));
+            return Err(r.missing("Type"));
         };
         let kind = r.pairs[at].value;
         Ok(Self {

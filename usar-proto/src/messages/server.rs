@@ -2,6 +2,7 @@
 
 use super::command::LinkValue;
 use super::common::{Time, Vec3};
+use super::sync::Barrier;
 use crate::message::{Group, Message};
 
 /// A message the server sends.
@@ -24,6 +25,8 @@ pub enum ServerMessage {
     Eff(Eff),
     /// `DIE`: the robot was killed (§3.5).
     Die(Die),
+    /// `SYNC {Time t}`: a lockstep barrier was reached (our extension, docs/lockstep.md).
+    Sync(Barrier),
     /// Anything else, kept as read.
     Other(Message),
 }
@@ -571,6 +574,7 @@ impl ServerMessage {
             Self::Sen(s) => s.time.map(|t| t.seconds),
             Self::Asta(a) => Some(a.time.seconds),
             Self::Eff(e) => Some(e.time.seconds),
+            Self::Sync(b) => Some(b.time.seconds),
             Self::Nfo(_) | Self::Conf(_) | Self::Geo(_) | Self::Die(_) | Self::Other(_) => None,
         }
     }

@@ -21,7 +21,7 @@ pub(crate) fn read_time(r: &Reader<'_, '_>) -> Result<Option<Time>, ParseError> 
 
 /// Reads a required `{Time t}`.
 pub(crate) fn time(r: &Reader<'_, '_>) -> Result<Time, ParseError> {
-    read_time(r)?.ok_or_else(|| r.error("missing {Time ..}"))
+    read_time(r)?.ok_or_else(|| r.missing("Time"))
 }
 
 impl Sta {

@@ -18,7 +18,6 @@
 //! waited for.
 
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -26,8 +25,8 @@ use bytes::{Bytes, BytesMut};
 use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
-use usar_proto::record::{self, Direction};
-use usar_proto::{Command, Group, Message, Nfo, Pair, ServerMessage, format};
+use usar_proto::record::{Direction, RecordWriter};
+use usar_proto::{Barrier, Command, Nfo, ServerMessage};
 
 use super::TimeScale;
 use crate::sim::{ClientId, World};
@@ -81,17 +80,7 @@ pub(super) fn game_info(world: &World) -> Bytes {
 
 /// The lockstep reply `SYNC {Time t}`.
 fn sync_reply(time: f64) -> ServerMessage {
-    let mut value = String::new();
-    format::push_fixed(&mut value, time, 4);
-    ServerMessage::Other(Message {
-        kind: "SYNC".into(),
-        groups: vec![Group {
-            pairs: vec![Pair {
-                key: "Time".into(),
-                value,
-            }],
-        }],
-    })
+    ServerMessage::Sync(Barrier::at(time))
 }
 
 /// One connected client's outbound side.
@@ -105,7 +94,7 @@ struct Client {
     barrier: Option<f64>,
     /// Whether the client has been told that the world reached its barrier.
     answered: bool,
-    record: Option<std::io::BufWriter<std::fs::File>>,
+    record: Option<RecordWriter>,
 }
 
 impl Client {
@@ -114,7 +103,7 @@ impl Client {
         message.write_to(&mut self.pending);
         if let Some(file) = &mut self.record {
             let line = String::from_utf8_lossy(&self.pending[start..]);
-            let _ = record::write_entry(file, time, Direction::Server, &line);
+            let _ = file.write_at(time, Direction::Server, &line);
         }
         self.pending.extend_from_slice(b"\r\n");
     }
@@ -256,20 +245,14 @@ impl Driver {
         }
     }
 
-    fn open_record(&mut self) -> Option<std::io::BufWriter<std::fs::File>> {
+    fn open_record(&mut self) -> Option<RecordWriter> {
         let dir = self.record_dir.as_ref()?;
         let path = dir.join(format!("connection-{:04}.usarlog", self.connections));
-        match std::fs::File::create(&path) {
-            Ok(file) => {
-                let mut file = std::io::BufWriter::new(file);
-                let _ = writeln!(file, "{}", record::HEADER);
-                Some(file)
-            }
-            Err(error) => {
-                warn!(path = %path.display(), %error, "cannot record this connection");
-                None
-            }
-        }
+        RecordWriter::create(&path)
+            .inspect_err(
+                |error| warn!(path = %path.display(), %error, "cannot record this connection"),
+            )
+            .ok()
     }
 
     fn record_client_line(&mut self, client: ClientId, line: Option<&str>) {
@@ -277,7 +260,7 @@ impl Driver {
         if let (Some(c), Some(line)) = (self.clients.get_mut(&client), line)
             && let Some(file) = &mut c.record
         {
-            let _ = record::write_entry(file, time, Direction::Client, line);
+            let _ = file.write_at(time, Direction::Client, line);
         }
     }
 
@@ -289,12 +272,7 @@ impl Driver {
                 if let Some(file) = &mut record {
                     let nfo = game_info(&self.world);
                     let text = String::from_utf8_lossy(&nfo);
-                    let _ = record::write_entry(
-                        file,
-                        self.world.time(),
-                        Direction::Server,
-                        text.trim_end(),
-                    );
+                    let _ = file.write_at(self.world.time(), Direction::Server, text.trim_end());
                 }
                 let id = self.world.connect();
                 debug!(%peer, client = ?id, "joined the simulation");

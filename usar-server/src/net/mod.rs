@@ -68,6 +68,9 @@ pub struct ServerConfig {
     pub client_queue: usize,
     /// Record every connection's lines, both directions, into this folder (docs/recording.md).
     pub record: Option<std::path::PathBuf>,
+    /// Offer lockstep (`SYNC`, docs/lockstep.md) to clients that ask. Off by default: then a
+    /// `SYNC` is an unknown command like any other, and no client can hold the world.
+    pub lockstep: bool,
 }
 
 impl Default for ServerConfig {
@@ -81,6 +84,7 @@ impl Default for ServerConfig {
             max_line_length: 64 * 1024,
             client_queue: 256,
             record: None,
+            lockstep: false,
         }
     }
 }
@@ -125,6 +129,7 @@ pub async fn run(
         max_line_length: config.max_line_length,
         client_queue: config.client_queue.max(1),
         record: config.record.is_some(),
+        lockstep: config.lockstep,
     };
     let result = loop {
         tokio::select! {

@@ -12,8 +12,8 @@ use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
-use usar_proto::Command;
 use usar_proto::codec::LineCodec;
+use usar_proto::{Command, SYNC_WORD};
 
 use super::driver::Request;
 use crate::sim::ClientId;
@@ -25,6 +25,8 @@ pub(super) struct Limits {
     pub(super) client_queue: usize,
     /// Pass the text of client lines to the driver for the recording.
     pub(super) record: bool,
+    /// Whether `SYNC` is offered (docs/lockstep.md); if not, it is an unknown command.
+    pub(super) lockstep: bool,
 }
 
 /// Serves one connection until the client leaves, the socket fails or the server shuts down.
@@ -59,7 +61,7 @@ pub(super) async fn serve(
     let reader = async {
         while let Some(item) = lines.next().await {
             let request = match item {
-                Ok(Ok(line)) => read_request(client, line, peer, limits.record),
+                Ok(Ok(line)) => read_request(client, line, peer, limits),
                 Ok(Err(error)) => {
                     warn!(%peer, %error, "unreadable line ignored");
                     continue;
@@ -98,7 +100,8 @@ async fn write_output(
 
 /// Turns one client line into a request for the driver, logging what a stock server would
 /// have silently tolerated or ignored.
-fn read_request(client: ClientId, line: String, peer: SocketAddr, record: bool) -> Request {
+fn read_request(client: ClientId, line: String, peer: SocketAddr, limits: Limits) -> Request {
+    let record = limits.record;
     let parsed = match Command::parse(&line) {
         Ok(parsed) => parsed,
         Err(error) => {
@@ -108,12 +111,9 @@ fn read_request(client: ClientId, line: String, peer: SocketAddr, record: bool) 
     };
     // The lockstep extension (docs/lockstep.md) is ours: not a deviation, not unknown.
     let sync = match &parsed.message {
-        Command::Other(message) if message.kind.eq_ignore_ascii_case("SYNC") => Some(
-            message
-                .get("Time")
-                .and_then(|t| t.trim().parse::<f64>().ok())
-                .filter(|t| t.is_finite()),
-        ),
+        Command::Sync(_) | Command::Other(_) if !limits.lockstep => None,
+        Command::Sync(barrier) => Some(Some(barrier.time.seconds)),
+        Command::Other(message) if message.kind.eq_ignore_ascii_case(SYNC_WORD) => Some(None),
         _ => None,
     };
     if sync.is_none() {

@@ -42,6 +42,14 @@ pub enum MapError {
         /// Why.
         source: std::io::Error,
     },
+    /// A name that is neither an embedded map nor a file.
+    #[error("no map {name:?}: not an embedded map ({known}) and no such file")]
+    Unknown {
+        /// The name asked for.
+        name: String,
+        /// The embedded maps' names, comma separated.
+        known: String,
+    },
     /// The file is not a valid map.
     #[error("{path}:{line}: {message}")]
     Invalid {
@@ -86,14 +94,14 @@ enum Solid {
     },
 }
 
-/// One solid of a map seen from above (see [`Map::top_view`]).
+/// One solid of the map seen from above, for pictures and the browser's map.
 #[derive(Debug, Clone, PartialEq)]
-pub struct TopShape {
-    /// The outline's corners (x, y), metres.
+pub struct Footprint {
+    /// Corners in order, world frame `[x, y]` (north, east), metres.
     pub outline: Vec<[f64; 2]>,
-    /// The solid's top (smallest z; z is down), metres.
+    /// The top of the solid (z down: the smallest z), metres.
     pub z_min: f64,
-    /// The solid's bottom (largest z), metres.
+    /// The bottom of the solid, metres.
     pub z_max: f64,
 }
 
@@ -195,9 +203,28 @@ impl Map {
         Self::parse(&text, path, &load)
     }
 
-    /// An embedded map by short name (see [`Map::embedded_names`]).
+    /// The map a user names: an embedded map (by short name or level name, any case, so
+    /// `arena`, `Arena` and `EmptyRoom` all work) or else a map file.
+    pub fn lookup(name: &str) -> Result<Self, MapError> {
+        if let Some(map) = Self::embedded(name) {
+            return Ok(map);
+        }
+        let path = Path::new(name);
+        if !path.exists() {
+            return Err(MapError::Unknown {
+                name: name.to_owned(),
+                known: Self::embedded_names().join(", "),
+            });
+        }
+        Self::from_file(path)
+    }
+
+    /// An embedded map by short name (see [`Map::embedded_names`]) or level name, any case.
     pub fn embedded(name: &str) -> Option<Self> {
-        let (_, file, text) = EMBEDDED.iter().find(|(short, ..)| *short == name)?;
+        let squash = |s: &str| s.replace('_', "").to_ascii_lowercase();
+        let (_, file, text) = EMBEDDED
+            .iter()
+            .find(|(short, ..)| squash(short) == squash(name))?;
         let load = |file: &str| {
             EMBEDDED_OBJ
                 .iter()
@@ -246,6 +273,58 @@ impl Map {
     /// The player starts, in file order.
     pub fn starts(&self) -> &[PlayerStart] {
         &self.starts
+    }
+
+    /// Every solid seen from above: boxes as their four corners, cylinders as 24-gons, each
+    /// mesh triangle as itself.
+    pub fn footprints(&self) -> Vec<Footprint> {
+        let mut out = Vec::new();
+        for solid in &self.solids {
+            match solid {
+                Solid::Box { center, size, yaw } => {
+                    let outline = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                        .map(|(a, b)| {
+                            let r = yaw_rotate(*yaw, [a * size[0] / 2.0, b * size[1] / 2.0, 0.0]);
+                            [center[0] + r[0], center[1] + r[1]]
+                        })
+                        .to_vec();
+                    out.push(Footprint {
+                        outline,
+                        z_min: center[2] - size[2] / 2.0,
+                        z_max: center[2] + size[2] / 2.0,
+                    });
+                }
+                Solid::Cylinder {
+                    center,
+                    radius,
+                    height,
+                } => out.push(Footprint {
+                    outline: (0..24)
+                        .map(|i| {
+                            let a = f64::from(i) * std::f64::consts::TAU / 24.0;
+                            [center[0] + radius * a.cos(), center[1] + radius * a.sin()]
+                        })
+                        .collect(),
+                    z_min: center[2] - height / 2.0,
+                    z_max: center[2] + height / 2.0,
+                }),
+                Solid::Mesh {
+                    vertices,
+                    triangles,
+                } => out.extend(triangles.iter().filter_map(|t| {
+                    let v = t.map(|i| vertices.get(i as usize).copied());
+                    let [Some(a), Some(b), Some(c)] = v else {
+                        return None;
+                    };
+                    Some(Footprint {
+                        outline: vec![[a[0], a[1]], [b[0], b[1]], [c[0], c[1]]],
+                        z_min: a[2].min(b[2]).min(c[2]),
+                        z_max: a[2].max(b[2]).max(c[2]),
+                    })
+                })),
+            }
+        }
+        out
     }
 
     /// The first start whose tag or name equals `key` (case-insensitive).
@@ -363,66 +442,6 @@ impl Map {
             starts,
             solids,
         })
-    }
-
-    /// The map seen from above: each solid's outline in the x-y plane (metres, protocol
-    /// frame) with its vertical extent; a mesh gives one shape per triangle. For pictures.
-    pub fn top_view(&self) -> Vec<TopShape> {
-        let mut shapes = Vec::new();
-        for solid in &self.solids {
-            match solid {
-                Solid::Box { center, size, yaw } => {
-                    let (hx, hy) = (size[0] / 2.0, size[1] / 2.0);
-                    let outline = [[hx, hy], [hx, -hy], [-hx, -hy], [-hx, hy]]
-                        .iter()
-                        .map(|c| {
-                            let r = yaw_rotate(*yaw, [c[0], c[1], 0.0]);
-                            [r[0] + center[0], r[1] + center[1]]
-                        })
-                        .collect();
-                    shapes.push(TopShape {
-                        outline,
-                        z_min: center[2] - size[2] / 2.0,
-                        z_max: center[2] + size[2] / 2.0,
-                    });
-                }
-                Solid::Cylinder {
-                    center,
-                    radius,
-                    height,
-                } => {
-                    let outline = (0..24)
-                        .map(|i| {
-                            let a = f64::from(i) * std::f64::consts::TAU / 24.0;
-                            [center[0] + radius * a.cos(), center[1] + radius * a.sin()]
-                        })
-                        .collect();
-                    shapes.push(TopShape {
-                        outline,
-                        z_min: center[2] - height / 2.0,
-                        z_max: center[2] + height / 2.0,
-                    });
-                }
-                Solid::Mesh {
-                    vertices,
-                    triangles,
-                } => {
-                    for t in triangles {
-                        let corners: Vec<V3> = t
-                            .iter()
-                            .filter_map(|&i| vertices.get(i as usize).copied())
-                            .collect();
-                        let z = corners.iter().map(|c| c[2]);
-                        shapes.push(TopShape {
-                            z_min: z.clone().fold(f64::INFINITY, f64::min),
-                            z_max: z.fold(f64::NEG_INFINITY, f64::max),
-                            outline: corners.iter().map(|c| [c[0], c[1]]).collect(),
-                        });
-                    }
-                }
-            }
-        }
-        shapes
     }
 
     /// Adds the map's solids to the scene.

@@ -7,17 +7,15 @@ use std::time::Duration;
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpStream;
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
-use tokio_util::sync::CancellationToken;
 use usar_proto::{SenData, ServerMessage, Vec3};
-use usar_server::{ServerConfig, TimeScale};
+use usar_server::{LocalServer, ServerConfig, TimeScale};
 
 /// Wall-clock limit for any single wait in a test (a hang fails instead of blocking CI).
 pub const PATIENCE: Duration = Duration::from_secs(60);
 
 pub struct TestServer {
     pub addr: SocketAddr,
-    pub shutdown: CancellationToken,
-    pub task: tokio::task::JoinHandle<Result<(), usar_server::ServerError>>,
+    server: LocalServer,
 }
 
 impl TestServer {
@@ -31,14 +29,10 @@ impl TestServer {
     }
 
     pub async fn with(config: ServerConfig) -> Self {
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let addr = listener.local_addr().unwrap();
-        let shutdown = CancellationToken::new();
-        let task = tokio::spawn(usar_server::run(listener, config, shutdown.clone()));
+        let server = LocalServer::start(config).await.unwrap();
         Self {
-            addr,
-            shutdown,
-            task,
+            addr: server.addr(),
+            server,
         }
     }
 
@@ -46,13 +40,9 @@ impl TestServer {
         Client::connect(self.addr).await
     }
 
+    /// Stops the server and checks that it exits cleanly.
     pub async fn stop(self) {
-        self.shutdown.cancel();
-        tokio::time::timeout(PATIENCE, self.task)
-            .await
-            .expect("server did not stop")
-            .unwrap()
-            .unwrap();
+        self.server.stop().await.expect("the server stops cleanly");
     }
 }
 

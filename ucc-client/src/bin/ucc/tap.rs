@@ -6,7 +6,6 @@
 //! line that does not parse, or that only parses by tolerating a deviation, is logged as a
 //! warning.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -15,7 +14,8 @@ use tokio::net::{TcpListener, TcpStream};
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
-use usar_proto::record::{self, Direction};
+use ucc_client::runner::record_path;
+use usar_proto::record::{Direction, RecordWriter};
 use usar_proto::{Command, ServerMessage};
 
 /// Longest line the tap splits out for recording; longer ones are forwarded but not recorded.
@@ -23,30 +23,14 @@ const MAX_LINE: usize = 256 * 1024;
 
 /// Errors that end the tap.
 #[derive(Debug, thiserror::Error)]
-pub enum TapError {
+pub(crate) enum TapError {
     /// Accepting failed.
     #[error("listener failed: {0}")]
     Io(#[from] std::io::Error),
 }
 
-/// The recording file of the `n`-th connection (1-based): `FILE` for the first,
-/// `FILE-2`, `FILE-3`, … (before the extension) for the next.
-pub fn record_path(base: &Path, n: usize) -> PathBuf {
-    if n <= 1 {
-        return base.to_owned();
-    }
-    let stem = base
-        .file_stem()
-        .map_or_else(Default::default, |s| s.to_string_lossy());
-    let name = match base.extension() {
-        Some(ext) => format!("{stem}-{n}.{}", ext.to_string_lossy()),
-        None => format!("{stem}-{n}"),
-    };
-    base.with_file_name(name)
-}
-
 /// Accepts clients on `listener` and connects each to `upstream`, until `shutdown`.
-pub async fn run(
+pub(crate) async fn run(
     listener: TcpListener,
     upstream: String,
     record: PathBuf,
@@ -79,20 +63,12 @@ pub async fn run(
     Ok(())
 }
 
-/// What both directions of one connection share: the recording and the latest server time.
-struct Recording {
-    file: std::io::BufWriter<std::fs::File>,
-    time: f64,
-}
-
 async fn tap_one(client: TcpStream, upstream: &str, path: &Path) -> std::io::Result<()> {
     let server = TcpStream::connect(upstream)
         .await
         .map_err(|e| std::io::Error::new(e.kind(), format!("cannot connect to {upstream}: {e}")))?;
     let _ = (client.set_nodelay(true), server.set_nodelay(true));
-    let mut file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    writeln!(file, "{}", record::HEADER)?;
-    let recording = Arc::new(Mutex::new(Recording { file, time: 0.0 }));
+    let recording = Arc::new(Mutex::new(RecordWriter::create(path)?));
     let (client_read, client_write) = client.into_split();
     let (server_read, server_write) = server.into_split();
     let up = pump(
@@ -112,7 +88,7 @@ async fn tap_one(client: TcpStream, upstream: &str, path: &Path) -> std::io::Res
         r = down => r,
     };
     if let Ok(mut r) = recording.lock() {
-        r.file.flush()?;
+        r.flush()?;
     }
     result
 }
@@ -122,7 +98,7 @@ async fn pump(
     mut from: impl AsyncReadExt + Unpin,
     mut to: impl AsyncWriteExt + Unpin,
     direction: Direction,
-    recording: Arc<Mutex<Recording>>,
+    recording: Arc<Mutex<RecordWriter>>,
 ) -> std::io::Result<()> {
     let mut buffer = vec![0; 16 * 1024];
     let mut line = Vec::new();
@@ -156,7 +132,7 @@ async fn pump(
 }
 
 /// Records one line and warns when usar-proto cannot read it cleanly.
-fn observe(line: &str, direction: Direction, recording: &Mutex<Recording>) {
+fn observe(line: &str, direction: Direction, recording: &Mutex<RecordWriter>) {
     let problem = match direction {
         Direction::Client => match Command::parse(line) {
             Ok(p) => (!p.deviations.is_empty()).then(|| {
@@ -170,7 +146,7 @@ fn observe(line: &str, direction: Direction, recording: &Mutex<Recording>) {
                 if let Some(t) = p.message.time()
                     && let Ok(mut r) = recording.lock()
                 {
-                    r.time = t;
+                    r.set_time(t);
                 }
                 None
             }
@@ -180,21 +156,79 @@ fn observe(line: &str, direction: Direction, recording: &Mutex<Recording>) {
     if let Some(problem) = problem {
         warn!(?direction, %line, %problem, "line does not parse cleanly");
     }
-    if let Ok(mut r) = recording.lock() {
-        let time = r.time;
-        let _ = record::write_entry(&mut r.file, time, direction, line);
+    if let Ok(mut r) = recording.lock()
+        && let Err(error) = r.write(direction, line)
+    {
+        warn!(%error, "cannot record");
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tokio::io::{AsyncBufReadExt, BufReader};
 
-    #[test]
-    fn each_connection_gets_its_own_file() {
-        let base = Path::new("/tmp/run.usarlog");
-        assert_eq!(record_path(base, 1), PathBuf::from("/tmp/run.usarlog"));
-        assert_eq!(record_path(base, 3), PathBuf::from("/tmp/run-3.usarlog"));
-        assert_eq!(record_path(Path::new("log"), 2), PathBuf::from("log-2"));
+    #[tokio::test]
+    async fn the_tap_forwards_everything_and_records_both_directions() {
+        let shutdown = CancellationToken::new();
+        let upstream = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let upstream_addr = upstream.local_addr().unwrap().to_string();
+        let server = tokio::spawn(usar_server::run(
+            upstream,
+            usar_server::ServerConfig {
+                time_scale: usar_server::TimeScale::Factor(10.0),
+                ..usar_server::ServerConfig::default()
+            },
+            shutdown.clone(),
+        ));
+        let dir = std::env::temp_dir().join(format!("ucc-tap-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let record = dir.join("session.usarlog");
+        let front = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let front_addr = front.local_addr().unwrap();
+        let tap = tokio::spawn(run(front, upstream_addr, record.clone(), shutdown.clone()));
+
+        let stream = tokio::net::TcpStream::connect(front_addr).await.unwrap();
+        let (read, mut write) = stream.into_split();
+        let mut lines = BufReader::new(read).lines();
+        write
+            .write_all(
+                b"INIT {ClassName USARBot.stsAirRobot} {Location 0,0,-1}\r\nNOT A {COMMAND\r\n",
+            )
+            .await
+            .unwrap();
+        let mut received = Vec::new();
+        while received.len() < 30 {
+            received.push(lines.next_line().await.unwrap().unwrap());
+        }
+        assert!(received[0].starts_with("NFO {Gametype BotDeathMatch}"));
+        assert!(received.iter().any(|l| l.starts_with("STA {Time ")));
+        drop(write);
+        drop(lines);
+        // Give the tap a moment to see the close, then stop everything.
+        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+        shutdown.cancel();
+        tap.await.unwrap().unwrap();
+        server.await.unwrap().unwrap();
+
+        let text = std::fs::read_to_string(&record).unwrap();
+        let entries: Vec<&str> = text.lines().skip(1).collect();
+        assert!(
+            entries
+                .iter()
+                .any(|l| l.ends_with(" C INIT {ClassName USARBot.stsAirRobot} {Location 0,0,-1}")),
+            "{text}"
+        );
+        assert!(
+            entries.iter().any(|l| l.ends_with(" C NOT A {COMMAND")),
+            "{text}"
+        );
+        // Every line the client received is in the recording, in order.
+        let recorded: Vec<&str> = entries
+            .iter()
+            .filter_map(|l| l.split_once(" S ").map(|(_, line)| line))
+            .collect();
+        assert_eq!(&recorded[..received.len()], &received[..]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -1,6 +1,10 @@
 //! `ucc`, the UAV Control Center: fly missions with an agent against a USARSim server, run a
 //! self-contained demo, or decode/encode protocol lines.
 
+mod tap;
+mod wire;
+
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -8,9 +12,14 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use clap::{Args, Parser, Subcommand};
 use tokio_util::sync::CancellationToken;
-use ucc_client::controller::start_poses;
+use ucc_client::agents::{self, AgentInfo};
 use ucc_client::mission::{load_missions, parse_point};
-use ucc_client::{Coordinates, Mission, Progress, RunConfig, Start, Summary, agents, run_missions};
+use ucc_client::picture::{Footprint, MapGeometry};
+use ucc_client::runner::start_poses;
+use ucc_client::{Coordinates, Lockstep, Mission, Progress, RunSettings, Start, Summary};
+use usar_server::sim::map::Map;
+use usar_server::sim::robots::RobotCatalog;
+use usar_server::{LocalServer, ServerConfig, TimeScale};
 
 #[derive(Parser)]
 #[command(
@@ -80,18 +89,22 @@ struct RunArgs {
     #[arg(long, default_value_t = 3000)]
     port: u16,
     /// Start a usar-server inside this process on a free port instead of connecting to
-    /// --host/--port (with --map, --seed and --time-scale).
+    /// --host/--port (with --map, --robots, --seed and --time-scale). Always in lockstep:
+    /// the same command gives the same flight on any machine.
     #[arg(long)]
     local: bool,
-    /// With --local: the map (an embedded name or a file).
+    /// With --local: the map (an embedded name, any case, or a map file).
     #[arg(long, requires = "local", value_name = "NAME|FILE")]
     map: Option<String>,
+    /// With --local: a robot catalog file (docs/robots.md) instead of the embedded one.
+    #[arg(long, requires = "local", value_name = "FILE")]
+    robots: Option<PathBuf>,
     /// With --local: the seed of every noise source.
     #[arg(long, requires = "local", default_value_t = 0)]
     seed: u64,
-    /// With --local: simulated seconds per wall second, or `max`.
+    /// With --local: simulated seconds per wall second, or `max` (lockstep either way).
     #[arg(long, requires = "local", default_value = "max", value_name = "K|max")]
-    time_scale: usar_server::TimeScale,
+    time_scale: TimeScale,
     /// Robot class (`stsAirRobot`, `AirRobot`, or `Package.Class`).
     #[arg(long, default_value = "stsAirRobot")]
     robot: String,
@@ -99,8 +112,8 @@ struct RunArgs {
     #[arg(long, default_value = "UAV1")]
     name: String,
     /// Control agent (see `ucc run --help` for the list).
-    #[arg(long, default_value = "base", help = agent_help())]
-    agent: String,
+    #[arg(long, default_value = "base", help = agent_help(), value_parser = agent_name)]
+    agent: &'static AgentInfo,
     /// Start pose `x,y,z[,roll,pitch,yaw]` (metres, z down; radians) or a map PlayerStart tag.
     #[arg(long, allow_hyphen_values = true)]
     start: Start,
@@ -120,14 +133,15 @@ struct RunArgs {
     #[arg(long, default_value = "UCCLOG")]
     prefix: String,
     /// Simulated seconds a single mission may take before the run fails.
-    #[arg(long, default_value_t = 120.0, value_name = "SECONDS")]
+    #[arg(long, default_value_t = 120.0, value_name = "SECONDS", value_parser = positive_seconds)]
     mission_timeout: f64,
     /// Wall-clock seconds to wait for the sensor stream after spawning (and for any silence).
-    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = positive_seconds)]
     stream_timeout: f64,
-    /// Run in lockstep with the server when it offers it (docs/lockstep.md): reproducible
-    /// runs at any --time-scale. Without it (or against a stock USARSim) the agent runs on
-    /// sensor time.
+    /// Run in lockstep with the server (docs/lockstep.md; `usar-server --lockstep`):
+    /// reproducible runs at any speed; a server that does not offer it is an error. Without
+    /// it the agent runs on sensor time, as against a stock USARSim, and results depend on
+    /// timing. Implied by --local.
     #[arg(long)]
     lockstep: bool,
     /// Record every line of each iteration's connection (docs/recording.md): FILE for the
@@ -148,13 +162,14 @@ struct DemoArgs {
     #[arg(long, default_value = "ucc-demo-output")]
     output: PathBuf,
     /// Control agent.
-    #[arg(long, default_value = "base", help = agent_help())]
-    agent: String,
+    #[arg(long, default_value = "base", help = agent_help(), value_parser = agent_name)]
+    agent: &'static AgentInfo,
     /// How many times to fly the mission.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     iterations: u32,
-    /// Simulation speed: simulated seconds per wall-clock second.
-    #[arg(long, default_value_t = 1.0)]
+    /// Simulation speed: simulated seconds per wall-clock second (the flight is the same at
+    /// any speed: the demo runs in lockstep).
+    #[arg(long, default_value_t = 1.0, value_parser = positive_seconds)]
     speed: f64,
 }
 
@@ -166,23 +181,38 @@ fn agent_help() -> String {
     format!("Control agent: {}", list.join("; "))
 }
 
+/// `--agent NAME`: a registered agent (a bad name is a usage error, exit 2).
+fn agent_name(name: &str) -> Result<&'static AgentInfo, String> {
+    agents::info(name).ok_or_else(|| format!("unknown agent (known agents: {})", agents::names()))
+}
+
+/// A positive, finite number of seconds (or a positive speed).
+fn positive_seconds(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("expected a positive number, not {text:?}")),
+    }
+}
+
 fn main() -> ExitCode {
+    // Colour only on a terminal: never escape codes in a log file or a pipe.
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
         )
+        .with_ansi(std::io::stderr().is_terminal())
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
     let result = match cli.command {
-        Cmd::Decode { print, .. } => wire_exit(ucc_client::wire::decode(
+        Cmd::Decode { print, .. } => wire_exit(wire::decode(
             std::io::stdin().lock(),
             std::io::stdout().lock(),
             std::io::stderr().lock(),
             print,
         )),
-        Cmd::Encode => wire_exit(ucc_client::wire::encode(
+        Cmd::Encode => wire_exit(wire::encode(
             std::io::stdin().lock(),
             std::io::stdout().lock(),
             std::io::stderr().lock(),
@@ -199,10 +229,27 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("ucc: error: {e:#}");
+            eprintln!("ucc: error: {}", error_chain(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The error and its causes, `: `-separated, leaving out a cause that its effect already
+/// quotes (an I/O error is often both the message's tail and its source).
+fn error_chain(error: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in error.chain() {
+        let cause = cause.to_string();
+        if text.contains(&cause) {
+            continue;
+        }
+        if !text.is_empty() {
+            text.push_str(": ");
+        }
+        text.push_str(&cause);
+    }
+    text
 }
 
 fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
@@ -213,7 +260,12 @@ fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
 }
 
 fn wire_exit(failed: std::io::Result<usize>) -> anyhow::Result<ExitCode> {
-    let failed = failed.context("cannot read or write the lines")?;
+    let failed = match failed {
+        Ok(n) => n,
+        // The reader went away (`ucc decode | head`): that is the end, not an error.
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(ExitCode::SUCCESS),
+        Err(e) => return Err(anyhow::Error::new(e).context("cannot read or write the lines")),
+    };
     Ok(if failed > 0 {
         eprintln!("ucc: {failed} line(s) could not be converted");
         ExitCode::FAILURE
@@ -222,17 +274,46 @@ fn wire_exit(failed: std::io::Result<usize>) -> anyhow::Result<ExitCode> {
     })
 }
 
-fn print_progress(progress: &Progress) {
-    println!("{progress}");
+/// A token cancelled by Ctrl-C or SIGTERM.
+fn interrupt_token() -> CancellationToken {
+    let token = CancellationToken::new();
+    let cancel = token.clone();
+    tokio::spawn(async move {
+        #[cfg(unix)]
+        let terminate = async {
+            match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+                Ok(mut s) => {
+                    s.recv().await;
+                }
+                Err(_) => std::future::pending().await,
+            }
+        };
+        #[cfg(not(unix))]
+        let terminate = std::future::pending::<()>();
+        tokio::select! {
+            _ = tokio::signal::ctrl_c() => {}
+            () = terminate => {}
+        }
+        cancel.cancel();
+    });
+    token
 }
 
-/// Runs `future` until it ends or Ctrl-C.
-async fn until_interrupted<T>(
-    future: impl Future<Output = anyhow::Result<T>>,
-) -> anyhow::Result<T> {
-    tokio::select! {
-        result = future => result,
-        _ = tokio::signal::ctrl_c() => bail!("interrupted"),
+/// The exit code of an interrupted run (as a shell reports SIGINT).
+const INTERRUPTED: u8 = 130;
+
+/// The map's solids as the pictures draw them.
+fn geometry_of(map: &Map) -> MapGeometry {
+    MapGeometry {
+        footprints: map
+            .footprints()
+            .into_iter()
+            .map(|f| Footprint {
+                outline: f.outline.iter().map(|p| (p[0], p[1])).collect(),
+                z_min: f.z_min,
+                z_max: f.z_max,
+            })
+            .collect(),
     }
 }
 
@@ -240,34 +321,63 @@ async fn until_interrupted<T>(
 async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
     if !args.local {
         let addr = format!("{}:{}", args.host, args.port);
-        return run(args, addr).await;
+        let lockstep = if args.lockstep {
+            Lockstep::Required
+        } else {
+            Lockstep::Off
+        };
+        return run(args, addr, lockstep, None).await;
     }
     let map = match &args.map {
-        None => usar_server::sim::map::Map::default_map(),
-        Some(name) => match usar_server::sim::map::Map::embedded(name) {
-            Some(map) => map,
-            None => usar_server::sim::map::Map::from_file(std::path::Path::new(name))?,
-        },
+        None => Map::default_map(),
+        Some(name) => Map::lookup(name).with_context(|| format!("--map {name}"))?,
     };
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
-        .await
-        .context("cannot open a local port for the server")?;
-    let addr = listener.local_addr()?.to_string();
-    let mut config = usar_server::ServerConfig {
+    let robots = match &args.robots {
+        None => RobotCatalog::embedded(),
+        Some(path) => RobotCatalog::from_file(path)?,
+    };
+    let mut config = ServerConfig {
         map,
+        robots,
         time_scale: args.time_scale,
-        ..usar_server::ServerConfig::default()
+        lockstep: true,
+        ..ServerConfig::default()
     };
     config.sim.seed = args.seed;
-    let shutdown = CancellationToken::new();
-    let server = tokio::spawn(usar_server::run(listener, config, shutdown.child_token()));
-    let result = run(args, addr).await;
-    shutdown.cancel();
-    let _ = tokio::time::timeout(Duration::from_secs(5), server).await;
+    let settings_probe = RunSettings {
+        robot: args.robot.clone(),
+        ..RunSettings::default()
+    };
+    let tag = match &args.start {
+        Start::Tag(tag) => Some(tag.as_str()),
+        Start::Pose { .. } => None,
+    };
+    if let Some(problem) = config.spawn_problem(&settings_probe.class_name(), tag) {
+        bail!("{problem}");
+    }
+    let geometry = geometry_of(&config.map);
+    let server = LocalServer::start(config)
+        .await
+        .context("cannot start the local server")?;
+    let result = run(
+        args,
+        server.addr().to_string(),
+        Lockstep::Required,
+        Some(geometry),
+    )
+    .await;
+    if let Err(e) = server.stop().await {
+        eprintln!("ucc: the local server stopped with an error: {e}");
+    }
     result
 }
 
-async fn run(args: RunArgs, addr: String) -> anyhow::Result<ExitCode> {
+async fn run(
+    args: RunArgs,
+    addr: String,
+    lockstep: Lockstep,
+    map: Option<MapGeometry>,
+) -> anyhow::Result<ExitCode> {
     let mut missions = match &args.missions {
         Some(path) => load_missions(path)?,
         None => Vec::new(),
@@ -276,14 +386,16 @@ async fn run(args: RunArgs, addr: String) -> anyhow::Result<ExitCode> {
     if missions.is_empty() {
         bail!("no missions: give --goto x,y,z (repeatable) or --missions FILE");
     }
-    if !(args.stream_timeout > 0.0 && args.stream_timeout.is_finite()) {
-        bail!("--stream-timeout must be a positive number of seconds");
+    if lockstep == Lockstep::Off {
+        println!(
+            "ucc: running on sensor time: results depend on timing (with usar-server, start \
+             it with --lockstep and pass --lockstep for repeatable runs)"
+        );
     }
-    let config = RunConfig {
+    let settings = RunSettings {
         addr,
         robot: args.robot,
         name: args.name,
-        agent: args.agent,
         start: args.start,
         missions,
         iterations: args.iterations as usize,
@@ -291,34 +403,46 @@ async fn run(args: RunArgs, addr: String) -> anyhow::Result<ExitCode> {
         prefix: args.prefix,
         stream_timeout: Duration::from_secs_f64(args.stream_timeout),
         mission_timeout: args.mission_timeout,
-        lockstep: args.lockstep,
+        lockstep,
         record: args.record,
         keep_going: true,
         pictures: args.pictures,
-        ..RunConfig::default()
+        map,
+        ..RunSettings::default()
     };
-    let bar = progress_bar(config.iterations);
+    let bar = progress_bar(settings.iterations);
     let quiet = args.quiet;
     let began = std::time::Instant::now();
-    let observer = |p: &Progress| {
+    let mut observer = |p: &Progress| {
         match p {
             Progress::IterationDone { .. } | Progress::IterationFailed { .. } => bar.inc(1),
             _ => {}
         }
-        let show = !quiet || matches!(p, Progress::IterationFailed { .. });
-        if show && !matches!(p, Progress::Written { .. }) {
+        let show = !quiet
+            || matches!(
+                p,
+                Progress::IterationFailed { .. }
+                    | Progress::Interrupted { .. }
+                    | Progress::Warning { .. }
+            );
+        if show && p.is_loggable() && !matches!(p, Progress::Written { .. }) {
             bar.suspend(|| println!("{p}"));
         }
     };
-    let summary = until_interrupted(async { Ok(run_missions(&config, observer).await?) }).await;
+    let cancel = interrupt_token();
+    let summary = ucc_client::run(&settings, &args.agent.create, &mut observer, &cancel).await;
     bar.finish_and_clear();
     let summary = summary?;
     let wall = began.elapsed().as_secs_f64();
-    print_summary(&summary, &config);
+    print_summary(&summary, &settings);
     print_statistics(&summary, wall);
+    if summary.interrupted {
+        eprintln!("ucc: interrupted; everything flown so far is written");
+        return Ok(ExitCode::from(INTERRUPTED));
+    }
     let failed = summary.statistics().failed;
     if failed > 0 {
-        let first = summary.iterations.iter().find_map(|i| i.error.as_deref());
+        let first = summary.iterations.iter().find_map(|i| i.error());
         eprintln!(
             "ucc: error: {failed} of {} iteration(s) failed{}",
             summary.iterations.len(),
@@ -376,34 +500,37 @@ async fn tap(bind: &str, port: u16, upstream: String, record: PathBuf) -> anyhow
         listener.local_addr()?,
         record.display()
     );
-    let shutdown = CancellationToken::new();
-    let token = shutdown.clone();
-    tokio::spawn(async move {
-        let _ = tokio::signal::ctrl_c().await;
-        token.cancel();
-    });
-    ucc_client::tap::run(listener, upstream, record, shutdown).await?;
+    tap::run(listener, upstream, record, interrupt_token()).await?;
     Ok(ExitCode::SUCCESS)
 }
 
-fn print_summary(summary: &Summary, config: &RunConfig) {
+fn print_summary(summary: &Summary, settings: &RunSettings) {
     let missions: usize = summary.iterations.iter().map(|i| i.missions_done).sum();
     println!(
-        "done: {} iteration(s), {missions} mission(s) completed",
+        "{}: {} iteration(s), {missions} mission(s) completed",
+        if summary.interrupted {
+            "interrupted"
+        } else {
+            "done"
+        },
         summary.iterations.len()
     );
-    if let Some(dir) = &config.log_dir {
+    if let Some(dir) = &settings.log_dir {
         let per_iteration: Vec<&PathBuf> =
             summary.iterations.iter().flat_map(|i| &i.files).collect();
         println!("files are in {}", dir.display());
-        // Name every file of a short run; for a long one only the overlay.
+        // Name every file of a short run; for a long one only the overlay and the table.
         let listed = if summary.iterations.len() <= 3 {
             per_iteration.clone()
         } else {
             println!("  ({} files of the iterations)", per_iteration.len());
             Vec::new()
         };
-        for file in listed.into_iter().chain(&summary.overlay) {
+        for file in listed
+            .into_iter()
+            .chain(&summary.overlay)
+            .chain(&summary.results)
+        {
             println!("  {}", file.display());
         }
     }
@@ -420,36 +547,28 @@ const DEMO_OFFSETS: [[f64; 3]; 5] = [
 ];
 
 async fn demo(args: DemoArgs) -> anyhow::Result<ExitCode> {
-    if !(args.speed > 0.0 && args.speed.is_finite()) {
-        bail!("--speed must be a positive number");
-    }
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
-        .await
-        .context("cannot open a local port for the demo server")?;
-    let addr = listener.local_addr()?.to_string();
-    let shutdown = CancellationToken::new();
-    let server_config = usar_server::ServerConfig {
-        time_scale: usar_server::TimeScale::Factor(args.speed),
-        ..usar_server::ServerConfig::default()
+    let config = ServerConfig {
+        time_scale: TimeScale::Factor(args.speed),
+        lockstep: true,
+        ..ServerConfig::default()
     };
-    let server = tokio::spawn(usar_server::run(
-        listener,
-        server_config,
-        shutdown.child_token(),
-    ));
-    println!("ucc demo: usar-server started on {addr} with its embedded map");
-
-    let result = until_interrupted(fly_demo(&addr, &args)).await;
-
-    shutdown.cancel();
-    match tokio::time::timeout(Duration::from_secs(5), server).await {
-        Ok(Ok(Err(e))) => eprintln!("ucc demo: the server stopped with an error: {e}"),
-        Ok(Err(e)) => eprintln!("ucc demo: the server task failed: {e}"),
-        Err(_) => eprintln!("ucc demo: the server did not stop within 5 s"),
-        Ok(Ok(Ok(()))) => {}
+    let geometry = geometry_of(&config.map);
+    let server = LocalServer::start(config)
+        .await
+        .context("cannot start the demo server")?;
+    println!(
+        "ucc demo: usar-server started on {} with its embedded map",
+        server.addr()
+    );
+    let result = fly_demo(&server.addr().to_string(), &args, geometry).await;
+    if let Err(e) = server.stop().await {
+        eprintln!("ucc demo: the server stopped with an error: {e}");
     }
-    let (summary, config) = result?;
-    print_summary(&summary, &config);
+    let (summary, settings) = result?;
+    print_summary(&summary, &settings);
+    if summary.interrupted {
+        return Ok(ExitCode::from(INTERRUPTED));
+    }
     let png = summary
         .overlay
         .iter()
@@ -460,7 +579,11 @@ async fn demo(args: DemoArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-async fn fly_demo(addr: &str, args: &DemoArgs) -> anyhow::Result<(Summary, RunConfig)> {
+async fn fly_demo(
+    addr: &str,
+    args: &DemoArgs,
+    geometry: MapGeometry,
+) -> anyhow::Result<(Summary, RunSettings)> {
     let poses = start_poses(addr, Duration::from_secs(5))
         .await
         .context("cannot read the map's start poses")?;
@@ -475,11 +598,10 @@ async fn fly_demo(addr: &str, args: &DemoArgs) -> anyhow::Result<(Summary, RunCo
         origin.y,
         origin.z,
         DEMO_OFFSETS.len(),
-        args.agent
+        args.agent.name
     );
-    let config = RunConfig {
+    let settings = RunSettings {
         addr: addr.to_owned(),
-        agent: args.agent.clone(),
         start: Start::Tag(pose.name.clone()),
         missions: DEMO_OFFSETS
             .iter()
@@ -489,9 +611,16 @@ async fn fly_demo(addr: &str, args: &DemoArgs) -> anyhow::Result<(Summary, RunCo
         log_dir: Some(args.output.clone()),
         prefix: "demo".into(),
         // Our own server: lockstep makes the demo the same flight every time.
-        lockstep: true,
-        ..RunConfig::default()
+        lockstep: Lockstep::Required,
+        map: Some(geometry),
+        ..RunSettings::default()
     };
-    let summary = run_missions(&config, print_progress).await?;
-    Ok((summary, config))
+    let cancel = interrupt_token();
+    let mut print = |p: &Progress| {
+        if p.is_loggable() {
+            println!("{p}");
+        }
+    };
+    let summary = ucc_client::run(&settings, &args.agent.create, &mut print, &cancel).await?;
+    Ok((summary, settings))
 }

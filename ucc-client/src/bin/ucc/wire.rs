@@ -27,7 +27,7 @@ use usar_proto::{Command, Message, ServerMessage};
 /// One decoded line: which direction, and the typed message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
-pub enum WireLine {
+pub(crate) enum WireLine {
     /// A client → server command.
     Client(Command),
     /// A server → client message.
@@ -36,7 +36,7 @@ pub enum WireLine {
 
 impl WireLine {
     /// Reads one protocol line, choosing the direction by its message word.
-    pub fn parse(line: &str) -> Result<Self, usar_proto::ParseError> {
+    pub(crate) fn parse(line: &str) -> Result<Self, usar_proto::ParseError> {
         if ServerMessage::is_server_word(Message::word(line)) {
             Ok(Self::Server(ServerMessage::parse(line)?.message))
         } else {
@@ -78,7 +78,7 @@ fn for_each_line(
 
 /// `ucc decode`: protocol lines to JSON objects (or, with `print`, to printed lines).
 /// Returns the number of lines that could not be read.
-pub fn decode(
+pub(crate) fn decode(
     input: impl BufRead,
     mut out: impl Write,
     mut err: impl Write,
@@ -105,7 +105,11 @@ pub fn decode(
 
 /// `ucc encode`: JSON objects (as written by [`decode`]) to protocol lines. Returns the
 /// number of lines that could not be read.
-pub fn encode(input: impl BufRead, mut out: impl Write, mut err: impl Write) -> io::Result<usize> {
+pub(crate) fn encode(
+    input: impl BufRead,
+    mut out: impl Write,
+    mut err: impl Write,
+) -> io::Result<usize> {
     let mut failed = 0;
     for_each_line(input, |number, line| {
         match serde_json::from_str::<WireLine>(line) {
@@ -125,8 +129,8 @@ pub fn encode(input: impl BufRead, mut out: impl Write, mut err: impl Write) -> 
 mod tests {
     use super::*;
 
-    const CAPTURE: &str = include_str!("../../usar-proto/tests/data/USARcommandSample.txt");
-    const EXAMPLES: &str = include_str!("../../usar-proto/tests/data/protocol_examples.txt");
+    const CAPTURE: &str = include_str!("../../../../usar-proto/tests/data/USARcommandSample.txt");
+    const EXAMPLES: &str = include_str!("../../../../usar-proto/tests/data/protocol_examples.txt");
 
     fn run_decode(input: &str, print: bool) -> (String, String, usize) {
         let (mut out, mut err) = (Vec::new(), Vec::new());

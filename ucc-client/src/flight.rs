@@ -1,0 +1,608 @@
+//! One flight, sans I/O: server messages in, commands and progress out. The async
+//! [`runner`](crate::runner), the browser control center, the Python package and the unit
+//! tests all drive this same loop (in the manner of quinn-proto's core).
+//!
+//! # Readings of one time stamp, together
+//!
+//! A server sends one line per sensor, each stamped with its simulated time; the lines of one
+//! time stamp come one after another, sensors run at different intervals, and the network may
+//! cut the stream anywhere. The flight gathers the readings of the open time stamp (its
+//! *frame*) and steps the agent, and records a trajectory row, once the frame is complete:
+//!
+//! * when a line with a later time stamp arrives (before that line is applied), or
+//! * when the server answers a lockstep barrier (`SYNC`): everything up to it was sent, or
+//! * when the driver says the input went quiet ([`Flight::end_of_frame`]; without lockstep,
+//!   so that the agent does not wait a whole sensor interval for the next time stamp).
+//!
+//! Lines without a time stamp (INS) belong to the open frame. A trajectory row is written for
+//! every frame that has a position reading of its time stamp, with every other reading as of
+//! that time stamp. If the input pauses in the middle of a time stamp's lines, the agent has
+//! stepped on it already and does not again; the late readings complete its row. In lockstep
+//! the rule is exact and the same at any speed.
+//!
+//! ```
+//! use ucc_client::flight::Flight;
+//! use ucc_client::{Coordinates, Mission, RunSettings, Start, agents};
+//! use usar_proto::{Command, ServerMessage};
+//!
+//! let settings = RunSettings {
+//!     start: Start::at(Coordinates::new(0.0, 0.0, -1.0)),
+//!     missions: vec![Mission::goto(Coordinates::new(3.0, 0.0, -1.0))],
+//!     ..RunSettings::default()
+//! };
+//! let mut flight = Flight::new(1, &settings, agents::create("base").unwrap()).unwrap();
+//! flight.spawn();
+//! assert!(matches!(flight.poll_command(), Some(Command::Init(_))));
+//! let line = |l: &str| ServerMessage::parse(l).unwrap().message;
+//! flight.on_message(&line("SEN {Time 0.1000} {Type Position} {Name Position} {Location 0.0000,0.0000,-1.0000}"));
+//! flight.end_of_frame();
+//! let Some(Command::Drive(drive)) = flight.poll_command() else { panic!() };
+//! assert!(drive.linear_velocity.unwrap() > 0.0); // the target is ahead: fly forward
+//! ```
+
+use std::collections::VecDeque;
+
+use usar_proto::{Barrier, Command, Nfo, ServerMessage};
+
+use crate::agent::{Agent, AgentEvent, SpeedCommand};
+use crate::geometry::Coordinates;
+use crate::mission::Mission;
+use crate::output::{FlightRecord, TrajectoryPoint};
+use crate::progress::Progress;
+use crate::runner::RunError;
+use crate::settings::{RunSettings, Start};
+use crate::uav::UavState;
+
+/// Where a flight is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Connected, INIT not sent yet.
+    Connected,
+    /// INIT sent, waiting for the first complete frame with a position.
+    Spawning,
+    /// The agent flies.
+    Flying,
+    /// Every mission done; the stop command is queued.
+    Done,
+    /// Failed: see [`Flight::take_error`].
+    Failed,
+}
+
+/// Lockstep bookkeeping: the barrier the server last reported.
+#[derive(Debug, Clone, Copy)]
+struct Lockstep {
+    step: f64,
+    reached: f64,
+}
+
+/// One iteration's flight.
+pub struct Flight {
+    iteration: usize,
+    init: Command,
+    start: Start,
+    missions: Vec<Mission>,
+    mission_timeout: f64,
+    agent: Box<dyn Agent>,
+    uav: UavState,
+    phase: Phase,
+    error: Option<RunError>,
+    /// The time stamp of the readings gathered and not yet stepped on.
+    frame: Option<f64>,
+    /// The time stamp the agent last stepped on.
+    stepped: Option<f64>,
+    lockstep: Option<Lockstep>,
+    /// Whether any STA or SEN has come since INIT.
+    streaming: bool,
+    sent: Option<SpeedCommand>,
+    /// The running mission's index and start time.
+    mission_start: (usize, f64),
+    record: FlightRecord,
+    commands: VecDeque<Command>,
+    progress: VecDeque<Progress>,
+}
+
+impl std::fmt::Debug for Flight {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Flight")
+            .field("iteration", &self.iteration)
+            .field("agent", &self.agent.name())
+            .field("phase", &self.phase)
+            .field("frame", &self.frame)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Flight {
+    /// A flight of `settings`' missions with `agent`; a mission the agent refuses is an error.
+    pub fn new(
+        iteration: usize,
+        settings: &RunSettings,
+        mut agent: Box<dyn Agent>,
+    ) -> Result<Self, RunError> {
+        for mission in &settings.missions {
+            agent.add_mission(mission.clone())?;
+        }
+        Ok(Self {
+            iteration,
+            init: settings.init(),
+            start: settings.start.clone(),
+            missions: settings.missions.clone(),
+            mission_timeout: settings.mission_timeout,
+            agent,
+            uav: UavState::new(),
+            phase: Phase::Connected,
+            error: None,
+            frame: None,
+            stepped: None,
+            lockstep: None,
+            streaming: false,
+            sent: None,
+            mission_start: (0, 0.0),
+            record: FlightRecord {
+                iteration,
+                ..FlightRecord::default()
+            },
+            commands: VecDeque::new(),
+            progress: VecDeque::new(),
+        })
+    }
+
+    /// Flies in lockstep from here on: the server reported barrier `reached`; each frame
+    /// ends at a barrier and the next one, `step` simulated seconds later, is asked for once
+    /// the agent has answered.
+    pub fn set_lockstep(&mut self, step: f64, reached: f64) {
+        self.lockstep = Some(Lockstep { step, reached });
+    }
+
+    /// Whether the flight runs in lockstep.
+    pub fn is_lockstep(&self) -> bool {
+        self.lockstep.is_some()
+    }
+
+    /// Reports the connection (the map name comes from the server's NFO, if it came).
+    pub fn connected(&mut self, addr: &str) {
+        self.record.connected = true;
+        self.report(Progress::Connected {
+            iteration: self.iteration,
+            addr: addr.to_owned(),
+            map: self.record.map.clone(),
+            lockstep: self.is_lockstep(),
+        });
+        if self.lockstep.is_none() {
+            self.log(
+                "running on sensor time: the agent answers whatever arrives, so results \
+                 depend on timing (lockstep makes them repeatable)"
+                    .into(),
+            );
+        }
+    }
+
+    /// Queues the spawn: `GETSTARTPOSES` first when the start is a tag (its location seeds
+    /// dead reckoning for robots without a position sensor), then `INIT`, then the first
+    /// barrier in lockstep.
+    pub fn spawn(&mut self) {
+        match &self.start {
+            Start::Tag(_) => self.commands.push_back(Command::GetStartPoses),
+            Start::Pose { location, .. } => self.record.start = Some(*location),
+        }
+        self.commands.push_back(self.init.clone());
+        self.log(format!("sent {}", self.init));
+        self.phase = Phase::Spawning;
+        self.request_barrier();
+    }
+
+    /// Takes one server message.
+    pub fn on_message(&mut self, message: &ServerMessage) {
+        if matches!(self.phase, Phase::Done | Phase::Failed) {
+            return;
+        }
+        if let (Some(time), Some(open)) = (message.time(), self.frame)
+            && time > open + 1e-9
+        {
+            self.close_frame();
+        }
+        match message {
+            ServerMessage::Nfo(Nfo::GameInfo { level, .. }) => {
+                self.record.map = Some(level.clone())
+            }
+            ServerMessage::Nfo(Nfo::StartPoses { poses, .. }) => {
+                if let Start::Tag(tag) = &self.start
+                    && let Some(pose) = poses.iter().find(|p| p.name.eq_ignore_ascii_case(tag))
+                {
+                    let l = pose.location;
+                    self.record.start = Some(Coordinates::new(l.x, l.y, l.z));
+                }
+            }
+            ServerMessage::Sync(Barrier { time }) => {
+                if let Some(lockstep) = &mut self.lockstep {
+                    lockstep.reached = time.seconds;
+                    self.close_frame();
+                    self.request_barrier();
+                }
+                return;
+            }
+            _ => {}
+        }
+        self.streaming |= matches!(message, ServerMessage::Sta(_) | ServerMessage::Sen(_));
+        if self.uav.apply(message) && self.phase != Phase::Connected {
+            self.frame = Some(self.uav.time.unwrap_or(0.0));
+        }
+        if self.uav.battery_empty() && self.phase == Phase::Flying {
+            let time = self.uav.time.unwrap_or(0.0);
+            self.fail(RunError::BatteryEmpty { time });
+        }
+    }
+
+    /// Ends the open frame now: the driver saw the input go quiet (see the module docs).
+    /// Does nothing when no readings are pending.
+    pub fn end_of_frame(&mut self) {
+        self.close_frame();
+    }
+
+    /// Whether readings are gathered that the agent has not seen yet.
+    pub fn frame_open(&self) -> bool {
+        self.frame.is_some()
+    }
+
+    /// The next command to send, in order.
+    pub fn poll_command(&mut self) -> Option<Command> {
+        self.commands.pop_front()
+    }
+
+    /// The next progress event, in order.
+    pub fn poll_progress(&mut self) -> Option<Progress> {
+        self.progress.pop_front()
+    }
+
+    /// Where the flight is.
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+
+    /// Whether any STA or SEN line came since the spawn.
+    pub fn is_streaming(&self) -> bool {
+        self.streaming
+    }
+
+    /// Whether the flight is over (done or failed).
+    pub fn is_over(&self) -> bool {
+        matches!(self.phase, Phase::Done | Phase::Failed)
+    }
+
+    /// The failure, once (the flight stays [`Phase::Failed`]).
+    pub fn take_error(&mut self) -> Option<RunError> {
+        self.error.take()
+    }
+
+    /// Ends the flight with `error` (a time-out seen by the driver, a lost connection).
+    pub fn fail(&mut self, error: RunError) {
+        if self.is_over() {
+            return;
+        }
+        self.log(format!("error: {error}"));
+        self.agent.stop();
+        self.phase = Phase::Failed;
+        self.error = Some(error);
+    }
+
+    /// The UAV as last seen.
+    pub fn uav(&self) -> &UavState {
+        &self.uav
+    }
+
+    /// What the flight recorded so far.
+    pub fn record(&self) -> &FlightRecord {
+        &self.record
+    }
+
+    /// Adds a line to the flight's log.
+    pub fn log(&mut self, line: String) {
+        tracing::debug!(iteration = self.iteration, "{line}");
+        self.record.log.push(line);
+    }
+
+    /// The record, for writing the iteration's files.
+    pub fn into_record(self) -> FlightRecord {
+        self.record
+    }
+
+    fn report(&mut self, progress: Progress) {
+        if progress.is_loggable() {
+            self.log(progress.to_string());
+        }
+        self.progress.push_back(progress);
+    }
+
+    fn request_barrier(&mut self) {
+        if let Some(l) = self.lockstep
+            && !self.is_over()
+        {
+            self.commands
+                .push_back(Command::Sync(Barrier::at(l.reached + l.step)));
+        }
+    }
+
+    /// The readings of the open frame are complete: spawn, record, step the agent.
+    fn close_frame(&mut self) {
+        let Some(time) = self.frame.take() else {
+            return;
+        };
+        match self.phase {
+            Phase::Spawning => {
+                let seeded = self
+                    .record
+                    .start
+                    .is_some_and(|s| self.uav.seed_position(s, time));
+                let Some(position) = self.uav.position.as_ref().map(|p| p.value) else {
+                    return; // streaming, but nothing tells where the robot is yet
+                };
+                if seeded {
+                    self.log(
+                        "no position sensor: position by dead reckoning from the start, the \
+                         commanded velocities and the heading (and altitude when reported)"
+                            .into(),
+                    );
+                }
+                self.phase = Phase::Flying;
+                self.record.start_time = Some(time);
+                self.mission_start = (0, time);
+                self.report(Progress::Spawned {
+                    iteration: self.iteration,
+                    time,
+                    position,
+                });
+                self.agent.start(time);
+                self.fly(time);
+            }
+            Phase::Flying => self.fly(time),
+            _ => {}
+        }
+    }
+
+    fn fly(&mut self, time: f64) {
+        self.uav.dead_reckon(time);
+        if self.stepped.is_some_and(|last| time <= last + 1e-9) {
+            // Late lines of a time stamp already stepped on (the input paused mid-frame):
+            // the row of that time stamp gets them; the agent sees them at the next one.
+            if let Some(point) = TrajectoryPoint::of(&self.uav, time)
+                && let Some(last) = self.record.trajectory.last_mut()
+                && (last.time - time).abs() < 1e-9
+            {
+                *last = point;
+            }
+            return;
+        }
+        self.stepped = Some(time);
+        self.record_point(time);
+        let step = self.agent.step(&self.uav, time);
+        for event in step.events {
+            match &event {
+                AgentEvent::MissionStarted { index, .. } => self.mission_start = (*index, time),
+                AgentEvent::MissionDone { .. } => {
+                    self.record.missions_done += 1;
+                    self.record.end_time = Some(time);
+                }
+                AgentEvent::Log(_) => {}
+            }
+            self.report(Progress::Agent {
+                iteration: self.iteration,
+                event,
+            });
+        }
+        if let Some(command) = step.command.map(SpeedCommand::clamped)
+            && self.sent != Some(command)
+        {
+            self.send_speed(command, time);
+        }
+        self.report(Progress::State {
+            iteration: self.iteration,
+            time,
+            uav: Box::new(self.uav.clone()),
+            command: self.sent,
+        });
+        if step.all_done {
+            self.agent.stop();
+            if self.sent != Some(SpeedCommand::STOP) {
+                self.send_speed(SpeedCommand::STOP, time);
+            }
+            self.phase = Phase::Done;
+            return;
+        }
+        let (index, since) = self.mission_start;
+        if time - since > self.mission_timeout {
+            self.fail(RunError::MissionTimeout {
+                number: index + 1,
+                mission: self
+                    .missions
+                    .get(index)
+                    .cloned()
+                    .unwrap_or(Mission::Hover { seconds: 0.0 }),
+                seconds: self.mission_timeout,
+            });
+        }
+    }
+
+    fn send_speed(&mut self, command: SpeedCommand, time: f64) {
+        self.commands.push_back(Command::Drive(command.to_drive()));
+        self.uav.set_command(command, time);
+        self.sent = Some(command);
+    }
+
+    /// A trajectory row when the frame has a position of its own time stamp.
+    fn record_point(&mut self, time: f64) {
+        if let Some(point) = TrajectoryPoint::of(&self.uav, time)
+            && self.record.trajectory.last().is_none_or(|l| l.time < time)
+        {
+            self.record.trajectory.push(point);
+        }
+        if let Some(laser) = &self.uav.laser
+            && laser.time == time
+            && let Some(position) = &self.uav.position
+        {
+            self.record
+                .add_laser_hits(&position.value, self.uav.yaw(), &laser.value);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::agent::Step;
+    use crate::agents;
+
+    fn line(text: &str) -> ServerMessage {
+        ServerMessage::parse(text).unwrap().message
+    }
+
+    fn position(t: f64, x: f64) -> ServerMessage {
+        line(&format!(
+            "SEN {{Time {t:.4}}} {{Type Position}} {{Name Position}} {{Location {x:.4},0.0000,-1.0000}}"
+        ))
+    }
+
+    fn velocity(t: f64, vx: f64) -> ServerMessage {
+        line(&format!(
+            "SEN {{Time {t:.4}}} {{Type Velocity}} {{Name Velocity}} {{AbsoluteVelocity {vx:.4},0.0000,-0.6324}} {{RelativeVelocity {vx:.4},0.0000,-0.6324}}"
+        ))
+    }
+
+    /// The time of a step, and of the position and velocity the agent saw then.
+    type Seen = (f64, Option<f64>, Option<f64>);
+
+    /// Records what it is shown.
+    struct Witness(std::sync::Arc<std::sync::Mutex<Vec<Seen>>>);
+
+    impl Agent for Witness {
+        fn name(&self) -> &str {
+            "witness"
+        }
+        fn add_mission(&mut self, _: Mission) -> Result<(), crate::MissionRefused> {
+            Ok(())
+        }
+        fn start(&mut self, _: f64) {}
+        fn stop(&mut self) {}
+        fn step(&mut self, uav: &UavState, time: f64) -> Step {
+            let seen = (
+                time,
+                uav.position.as_ref().map(|p| p.time),
+                uav.velocity.as_ref().map(|v| v.time),
+            );
+            self.0.lock().unwrap().push(seen);
+            Step::default()
+        }
+    }
+
+    fn flight(agent: Box<dyn Agent>) -> Flight {
+        let settings = RunSettings {
+            missions: vec![Mission::goto(Coordinates::new(5.0, 0.0, -1.0))],
+            ..RunSettings::default()
+        };
+        let mut f = Flight::new(1, &settings, agent).unwrap();
+        f.spawn();
+        f
+    }
+
+    /// The defect: the row for t=0.3 carried the Velocity sent at t=0.2, because the loop
+    /// stepped on the Position line before the Velocity line of the same time stamp.
+    #[test]
+    fn a_frame_holds_the_readings_of_one_time_stamp() {
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let mut f = flight(Box::new(Witness(seen.clone())));
+        for (t, x, vx) in [(0.1, 0.0, 0.0), (0.2, 0.1, 2.0), (0.3, 0.3, 1.5)] {
+            f.on_message(&position(t, x));
+            f.on_message(&velocity(t, vx));
+        }
+        f.end_of_frame();
+        let rows: Vec<(f64, f64)> = f
+            .record()
+            .trajectory
+            .iter()
+            .map(|p| (p.time, p.velocity.unwrap().x))
+            .collect();
+        assert_eq!(rows, [(0.1, 0.0), (0.2, 2.0), (0.3, 1.5)]);
+        let seen = seen.lock().unwrap();
+        assert_eq!(seen.len(), 3, "one step per time stamp: {seen:?}");
+        for (t, p, v) in seen.iter() {
+            assert_eq!((Some(*t), Some(*t)), (*p, *v), "the agent saw mixed stamps");
+        }
+    }
+
+    /// Without lockstep the input may pause in the middle of a time stamp's lines: the agent
+    /// steps once for it all the same, and its row ends up with every reading.
+    #[test]
+    fn a_time_stamp_split_by_a_pause_is_stepped_on_once() {
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let mut f = flight(Box::new(Witness(seen.clone())));
+        f.on_message(&position(0.1, 0.0));
+        f.on_message(&velocity(0.1, 0.0));
+        f.end_of_frame();
+        f.on_message(&position(0.2, 0.1));
+        f.end_of_frame(); // the pause
+        f.on_message(&velocity(0.2, 2.0));
+        f.end_of_frame();
+        f.on_message(&position(0.3, 0.3));
+        f.end_of_frame();
+        let times: Vec<f64> = seen.lock().unwrap().iter().map(|s| s.0).collect();
+        assert_eq!(times, [0.1, 0.2, 0.3]);
+        let row = &f.record().trajectory[1];
+        assert_eq!((row.time, row.velocity.unwrap().x), (0.2, 2.0));
+    }
+
+    #[test]
+    fn a_lockstep_barrier_closes_the_frame_and_asks_for_the_next() {
+        let mut f = flight(agents::create("base").unwrap());
+        f.set_lockstep(0.1, 0.0);
+        // set_lockstep after spawn: the first barrier is asked now.
+        f.request_barrier();
+        let mut commands = Vec::new();
+        while let Some(c) = f.poll_command() {
+            commands.push(c.to_string());
+        }
+        assert_eq!(commands.last().unwrap(), "SYNC {Time 0.1000}");
+        f.on_message(&position(0.1, 0.0));
+        assert!(f.frame_open());
+        f.on_message(&line("SYNC {Time 0.1000}"));
+        assert!(!f.frame_open());
+        let commands: Vec<String> = std::iter::from_fn(|| f.poll_command())
+            .map(|c| c.to_string())
+            .collect();
+        assert!(commands[0].starts_with("DRIVE "), "{commands:?}");
+        assert_eq!(commands.last().unwrap(), "SYNC {Time 0.2000}");
+        assert_eq!(f.phase(), Phase::Flying);
+    }
+
+    #[test]
+    fn a_robot_without_a_position_sensor_flies_on_dead_reckoning() {
+        let settings = RunSettings {
+            robot: "AirRobot".into(),
+            start: Start::at(Coordinates::new(1.0, 2.0, -1.0)),
+            missions: vec![Mission::goto(Coordinates::new(9.0, 2.0, -1.0))],
+            ..RunSettings::default()
+        };
+        let mut f = Flight::new(1, &settings, agents::create("base").unwrap()).unwrap();
+        f.spawn();
+        let imu = |t: f64| {
+            line(&format!(
+                "SEN {{Time {t:.4}}} {{Type IMU}} {{Name IMU}} {{XYZAcceleration 0.0000,0.0000,0.0000}} {{AngularVel 0.0000,0.0000,0.0000}} {{AngularAccel 0.0000,0.0000,0.0000}} {{Rotation 0.0000,0.0000,0.0000}}"
+            ))
+        };
+        let altitude = |t: f64| {
+            line(&format!(
+                "SEN {{Time {t:.4}}} {{Type AltitudeSensor}} {{Name GPS}} {{relativeAltitude 0.0000}} {{absoluteAltitude 111.0000}}"
+            ))
+        };
+        for i in 1..=30 {
+            let t = f64::from(i) * 0.1;
+            f.on_message(&line(&format!("STA {{Time {t:.4}}} {{Battery 99999}}")));
+            f.on_message(&imu(t));
+            f.on_message(&altitude(t));
+            f.end_of_frame();
+        }
+        assert_eq!(f.phase(), Phase::Flying);
+        let p = f.uav().position.clone().unwrap();
+        assert!((p.value.y - 2.0).abs() < 1e-9 && p.value.z == -1.0, "{p:?}");
+        assert!(p.value.x > 2.0, "moved north by dead reckoning: {p:?}");
+        assert!(f.record().log.iter().any(|l| l.contains("dead reckoning")));
+    }
+}

@@ -1,0 +1,225 @@
+//! What one iteration leaves behind ([`FlightRecord`]) and the files it is written to: the
+//! log, the trajectory CSV, the map picture and the plots ([`write_iteration`]).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::geometry::{Coordinates, body_to_world_vector};
+use crate::picture::{MapPicture, Plots};
+use crate::runner::RunError;
+use crate::settings::{Pictures, RunSettings};
+use crate::uav::{LaserScan, UavState};
+
+/// At most this many laser hit points are kept per iteration (for the map picture when the
+/// map's geometry is unknown).
+const MAX_LASER_HITS: usize = 50_000;
+
+/// What one flight recorded.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FlightRecord {
+    /// 1-based.
+    pub iteration: usize,
+    /// The log lines.
+    pub log: Vec<String>,
+    /// One row per time stamp with a position.
+    pub trajectory: Vec<TrajectoryPoint>,
+    /// Where the laser hit something (world frame), thinned: every fourth beam.
+    pub laser_hits: Vec<Coordinates>,
+    /// Missions completed.
+    pub missions_done: usize,
+    /// Simulated time of the spawn.
+    pub start_time: Option<f64>,
+    /// Simulated time the last mission was done.
+    pub end_time: Option<f64>,
+    /// The start location, when known (a start pose, or the PlayerStart the server reported).
+    pub start: Option<Coordinates>,
+    /// The map name the server reported.
+    pub map: Option<String>,
+    /// Whether the connection was made (nothing worth a file happened otherwise).
+    pub connected: bool,
+}
+
+impl FlightRecord {
+    /// Metres flown along the trajectory.
+    pub fn distance(&self) -> f64 {
+        self.trajectory
+            .windows(2)
+            .map(|w| (w[1].position - w[0].position).norm())
+            .sum()
+    }
+
+    /// Simulated seconds from the spawn to the last mission done.
+    pub fn duration(&self) -> f64 {
+        match (self.start_time, self.end_time) {
+            (Some(s), Some(e)) => e - s,
+            _ => 0.0,
+        }
+    }
+
+    /// Adds the hit points of a scan taken at `position` with heading `yaw`.
+    pub fn add_laser_hits(&mut self, position: &Coordinates, yaw: f64, scan: &LaserScan) {
+        let max = scan.ranges.iter().copied().fold(0.0, f64::max);
+        for (i, &range) in scan.ranges.iter().enumerate().step_by(4) {
+            if self.laser_hits.len() >= MAX_LASER_HITS {
+                return;
+            }
+            if range.is_finite() && range > 0.0 && range < max - 1e-3 {
+                let bearing = scan.bearing(i);
+                let beam = Coordinates::new(bearing.cos(), bearing.sin(), 0.0) * range;
+                let world = body_to_world_vector(&beam, &Coordinates::new(0.0, 0.0, yaw));
+                self.laser_hits.push(position + world);
+            }
+        }
+    }
+}
+
+/// One sample of the trajectory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrajectoryPoint {
+    /// Simulated seconds.
+    pub time: f64,
+    /// World frame, metres, z down.
+    pub position: Coordinates,
+    /// Roll, pitch, yaw, radians.
+    pub orientation: Option<Coordinates>,
+    /// World frame, m/s.
+    pub velocity: Option<Coordinates>,
+    /// Battery level, fraction of the first value seen.
+    pub battery: Option<f64>,
+}
+
+impl TrajectoryPoint {
+    /// The row of time stamp `time`: `None` unless the position is of that time stamp; every
+    /// other reading as of it.
+    pub fn of(uav: &UavState, time: f64) -> Option<Self> {
+        let position = uav
+            .position
+            .as_ref()
+            .filter(|p| (p.time - time).abs() < 1e-9)?;
+        Some(Self {
+            time,
+            position: position.value,
+            orientation: uav.orientation.as_ref().map(|r| r.value),
+            velocity: uav.velocity.as_ref().map(|r| r.value),
+            battery: uav.battery.as_ref().map(|r| r.value.level),
+        })
+    }
+}
+
+/// The CSV header of [`write_trajectory`].
+pub const CSV_HEADER: &str = "time,x,y,z,roll,pitch,yaw,vx,vy,vz,battery";
+
+/// Writes the trajectory as CSV: simulated time, position, orientation, velocity, battery
+/// level (empty cells where unknown).
+pub fn write_trajectory(path: &Path, points: &[TrajectoryPoint]) -> std::io::Result<()> {
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    writeln!(out, "{CSV_HEADER}")?;
+    let triple = |v: Option<Coordinates>| {
+        v.map_or_else(
+            || ",,".to_owned(),
+            |v| format!("{:.4},{:.4},{:.4}", v.x, v.y, v.z),
+        )
+    };
+    for p in points {
+        writeln!(
+            out,
+            "{:.4},{},{},{},{}",
+            p.time,
+            triple(Some(p.position)),
+            triple(p.orientation),
+            triple(p.velocity),
+            p.battery.map_or(String::new(), |b| format!("{b:.4}")),
+        )?;
+    }
+    out.flush()
+}
+
+/// Writes log lines, one per line.
+pub fn write_log(path: &Path, lines: &[String]) -> std::io::Result<()> {
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    for line in lines {
+        writeln!(out, "{line}")?;
+    }
+    out.flush()
+}
+
+/// Writes the files of one iteration into the log directory (nothing without one): the log
+/// (with `last_line` at its end), the trajectory CSV and, with [`Pictures::All`], the map
+/// picture and the plots. Returns the files written.
+pub fn write_iteration(
+    settings: &RunSettings,
+    record: &FlightRecord,
+    last_line: &str,
+) -> Result<Vec<PathBuf>, RunError> {
+    if !record.connected {
+        return Ok(Vec::new());
+    }
+    let name = |suffix: &str| settings.file(&format!("{:02}{suffix}", record.iteration));
+    let (Some(log), Some(csv), Some(map), Some(plots)) = (
+        name(".log"),
+        name("-trajectory.csv"),
+        name("-map"),
+        name("-plots"),
+    ) else {
+        return Ok(Vec::new());
+    };
+    let output = |path: &Path| {
+        let path = path.to_owned();
+        move |error| RunError::Output { path, error }
+    };
+    let mut lines = record.log.clone();
+    lines.push(last_line.to_owned());
+    write_log(&log, &lines).map_err(output(&log))?;
+    write_trajectory(&csv, &record.trajectory).map_err(output(&csv))?;
+    let mut files = vec![log, csv];
+    if settings.pictures != Pictures::All {
+        return Ok(files);
+    }
+    let picture = MapPicture {
+        title: format!("{} — iteration {}", settings.prefix, record.iteration),
+        paths: vec![record.trajectory.iter().map(|p| p.position).collect()],
+        waypoints: settings.waypoints(),
+        start: record
+            .start
+            .or_else(|| record.trajectory.first().map(|p| p.position)),
+        geometry: settings.map.clone(),
+        laser_hits: record.laser_hits.clone(),
+    };
+    files.extend(picture.write(&map)?);
+    let plots_picture = Plots {
+        title: format!("{} — iteration {}", settings.prefix, record.iteration),
+        trajectory: record.trajectory.clone(),
+        waypoints: settings.waypoints(),
+    };
+    files.extend(plots_picture.write(&plots)?);
+    Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_has_header_and_empty_cells() {
+        let dir = std::env::temp_dir().join(format!("ucc-record-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.csv");
+        write_trajectory(
+            &path,
+            &[TrajectoryPoint {
+                time: 1.5,
+                position: Coordinates::new(1.0, 2.0, -3.0),
+                orientation: None,
+                velocity: Some(Coordinates::new(0.5, 0.0, 0.0)),
+                battery: Some(1.0),
+            }],
+        )
+        .unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(
+            text,
+            format!("{CSV_HEADER}\n1.5000,1.0000,2.0000,-3.0000,,,,0.5000,0.0000,0.0000,1.0000\n")
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

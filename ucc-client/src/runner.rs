@@ -1,0 +1,520 @@
+//! The runner: connect, spawn, fly every mission with a fresh agent, write the files, and do
+//! it again as many times as asked — [`run`]. It drives the sans-I/O [`Flight`] over a
+//! [`Connection`]; the agent comes from an [`AgentFactory`], progress goes to an
+//! [`Observer`], and a cancellation token stops it with every file written.
+//!
+//! Each iteration uses a fresh connection (a second INIT on the same connection would leave
+//! the old robot in the world). Time limits: `stream_timeout` (wall clock) for the stream to
+//! start and keep flowing, `mission_timeout` (simulated seconds) for each mission.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use tokio::time::Instant;
+use tokio_util::sync::CancellationToken;
+use usar_proto::{Barrier, Command, Nfo, ServerMessage, StartPose};
+
+use crate::agent::{AgentFactory, MissionRefused};
+use crate::connection::{Connection, ConnectionError};
+use crate::flight::{Flight, Phase};
+use crate::mission::Mission;
+use crate::output::write_iteration;
+use crate::picture::{MapPicture, PictureError};
+use crate::progress::{Observer, Progress};
+use crate::settings::{LOCKSTEP_STEP, Lockstep, Pictures, RunSettings};
+use crate::stats::{IterationStatus, IterationSummary, Summary};
+
+/// Without lockstep, the readings of one time stamp are taken as complete when nothing more
+/// arrives for this long (a server writes a time stamp's lines together).
+const QUIET: Duration = Duration::from_millis(3);
+
+/// How long to wait for the server's greeting and for a lockstep answer.
+const HANDSHAKE: Duration = Duration::from_secs(2);
+
+/// Why a run (or an iteration) failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// Nothing to fly.
+    #[error("no missions to fly")]
+    NoMissions,
+    /// The agent does not handle a mission type.
+    #[error(transparent)]
+    Refused(#[from] MissionRefused),
+    /// Talking to the server failed.
+    #[error(transparent)]
+    Connection(#[from] ConnectionError),
+    /// Lockstep was required and the server does not offer it.
+    #[error(
+        "the server at {addr} does not offer lockstep (a stock USARSim never does; start \
+         usar-server with --lockstep)"
+    )]
+    NoLockstep {
+        /// `host:port`.
+        addr: String,
+    },
+    /// INIT gave no stream.
+    #[error(
+        "spawn failed: no data from the server within {timeout:?} after INIT {class} \
+         (unknown robot class, bad start pose or tag, or no room there?)"
+    )]
+    SpawnFailed {
+        /// The class asked for.
+        class: String,
+        /// The limit.
+        timeout: Duration,
+    },
+    /// The robot streams data but nothing tells where it is.
+    #[error(
+        "the robot reports no position within {timeout:?}: it needs a Position, GroundTruth \
+         or INS sensor, or a known start for dead reckoning"
+    )]
+    NoPosition {
+        /// The limit.
+        timeout: Duration,
+    },
+    /// The stream stopped.
+    #[error("the server sent nothing for {timeout:?}")]
+    StreamStopped {
+        /// The limit.
+        timeout: Duration,
+    },
+    /// The battery ran out.
+    #[error("battery empty at t={time:.2}s")]
+    BatteryEmpty {
+        /// Simulated seconds.
+        time: f64,
+    },
+    /// A mission took too long.
+    #[error("mission {number} ({mission}) not done after {seconds} simulated seconds")]
+    MissionTimeout {
+        /// 1-based.
+        number: usize,
+        /// The mission.
+        mission: Mission,
+        /// The limit.
+        seconds: f64,
+    },
+    /// A GETSTARTPOSES reply did not come.
+    #[error("the server did not answer GETSTARTPOSES within {timeout:?}")]
+    NoStartPoses {
+        /// The limit.
+        timeout: Duration,
+    },
+    /// A log or trajectory file could not be written.
+    #[error("cannot write {path}: {error}")]
+    Output {
+        /// The file.
+        path: PathBuf,
+        /// Why (part of the message, so not a `source`).
+        error: std::io::Error,
+    },
+    /// A picture could not be written.
+    #[error(transparent)]
+    Picture(#[from] PictureError),
+}
+
+impl RunError {
+    /// Whether the failure would happen again in the next iteration, so that going on is
+    /// pointless (no server, a bad configuration, files that cannot be written).
+    pub fn is_fatal(&self) -> bool {
+        matches!(
+            self,
+            Self::NoMissions
+                | Self::Refused(_)
+                | Self::NoLockstep { .. }
+                | Self::Connection(
+                    ConnectionError::Connect { .. }
+                        | ConnectionError::ConnectTimeout { .. }
+                        | ConnectionError::Record { .. }
+                )
+                | Self::NoStartPoses { .. }
+                | Self::Output { .. }
+                | Self::Picture(_)
+        )
+    }
+}
+
+/// Flies `settings.missions` `settings.iterations` times, each time with a new agent from
+/// `agents`; reports progress to `observer`.
+///
+/// Returns when every iteration ended, at the first failure (unless `keep_going`), or when
+/// `cancel` is cancelled: then the iteration in flight is marked interrupted and, like
+/// every other, its log, trajectory and pictures are written, then the overlay and the
+/// results table ([`Summary::interrupted`] tells).
+pub async fn run(
+    settings: &RunSettings,
+    agents: &dyn AgentFactory,
+    observer: &mut dyn Observer,
+    cancel: &CancellationToken,
+) -> Result<Summary, RunError> {
+    if settings.missions.is_empty() {
+        return Err(RunError::NoMissions);
+    }
+    Flight::new(0, settings, agents.create())?; // refuse a mission before connecting
+    if let Some(dir) = &settings.log_dir {
+        std::fs::create_dir_all(dir).map_err(|error| RunError::Output {
+            path: dir.clone(),
+            error,
+        })?;
+    }
+    let mut summary = Summary::default();
+    let mut lockstep = settings.lockstep;
+    let mut failure = None;
+    for iteration in 1..=settings.iterations.max(1) {
+        if cancel.is_cancelled() {
+            summary.interrupted = true;
+            break;
+        }
+        let mut flight = Flight::new(iteration, settings, agents.create())?;
+        let result = tokio::select! {
+            r = fly(&mut flight, settings, lockstep, observer) => Some(r),
+            () = cancel.cancelled() => None,
+        };
+        let (status, last_line) = match result {
+            Some(Ok(())) => (IterationStatus::Done, "iteration done".to_owned()),
+            None => {
+                summary.interrupted = true;
+                (
+                    IterationStatus::Interrupted,
+                    "interrupted: the run was stopped".into(),
+                )
+            }
+            Some(Err(e)) => {
+                let status = (
+                    IterationStatus::Failed(e.to_string()),
+                    format!("iteration failed: {e}"),
+                );
+                failure = Some(e);
+                status
+            }
+        };
+        // Without lockstep once, do not wait for it again at every iteration.
+        if lockstep == Lockstep::IfOffered && !flight.is_lockstep() {
+            lockstep = Lockstep::Off;
+        }
+        drain(&mut flight, observer);
+        let record = flight.into_record();
+        let files = write_iteration(settings, &record, &last_line)?;
+        if !files.is_empty() {
+            observer.progress(&Progress::Written {
+                files: files.clone(),
+            });
+        }
+        let iteration_summary = IterationSummary {
+            status,
+            missions_done: record.missions_done,
+            duration: record.duration(),
+            distance: record.distance(),
+            trajectory: record.trajectory,
+            files,
+        };
+        observer.progress(&match &iteration_summary.status {
+            IterationStatus::Done => Progress::IterationDone {
+                iteration,
+                summary: iteration_summary.clone(),
+            },
+            IterationStatus::Failed(error) => Progress::IterationFailed {
+                iteration,
+                error: error.clone(),
+            },
+            IterationStatus::Interrupted => Progress::Interrupted { iteration },
+        });
+        summary.iterations.push(iteration_summary);
+        match failure.take() {
+            Some(e) if !settings.keep_going || e.is_fatal() => {
+                finish(settings, &mut summary, observer)?;
+                return Err(e);
+            }
+            _ if summary.interrupted => break,
+            _ => {}
+        }
+    }
+    finish(settings, &mut summary, observer)?;
+    Ok(summary)
+}
+
+/// Writes the overlay and the results table.
+fn finish(
+    settings: &RunSettings,
+    summary: &mut Summary,
+    observer: &mut dyn Observer,
+) -> Result<(), RunError> {
+    if settings.pictures != Pictures::None
+        && !summary.iterations.is_empty()
+        && let Some(base) = settings.file("overlay")
+    {
+        let n = summary.iterations.len();
+        let picture = MapPicture {
+            title: format!(
+                "{} — {n} iteration{}{}",
+                settings.prefix,
+                if n == 1 { "" } else { "s" },
+                if summary.interrupted {
+                    " (interrupted)"
+                } else {
+                    ""
+                }
+            ),
+            paths: summary
+                .iterations
+                .iter()
+                .map(IterationSummary::path)
+                .collect(),
+            waypoints: settings.waypoints(),
+            start: summary
+                .iterations
+                .iter()
+                .find_map(|i| i.trajectory.first().map(|p| p.position)),
+            geometry: settings.map.clone(),
+            laser_hits: Vec::new(),
+        };
+        summary.overlay = picture.write(&base)?.to_vec();
+        observer.progress(&Progress::Written {
+            files: summary.overlay.clone(),
+        });
+    }
+    if let Some(path) = settings.file("results.csv") {
+        summary
+            .write_results(&path)
+            .map_err(|error| RunError::Output {
+                path: path.clone(),
+                error,
+            })?;
+        summary.results = Some(path);
+    }
+    Ok(())
+}
+
+fn drain(flight: &mut Flight, observer: &mut dyn Observer) {
+    while let Some(p) = flight.poll_progress() {
+        observer.progress(&p);
+    }
+}
+
+/// Sends what the flight queued.
+async fn send_all(flight: &mut Flight, conn: &mut Connection) -> Result<(), ConnectionError> {
+    while let Some(command) = flight.poll_command() {
+        conn.send(&command).await?;
+    }
+    Ok(())
+}
+
+/// One iteration.
+async fn fly(
+    flight: &mut Flight,
+    settings: &RunSettings,
+    lockstep: Lockstep,
+    observer: &mut dyn Observer,
+) -> Result<(), RunError> {
+    let result = fly_inner(flight, settings, lockstep, observer).await;
+    drain(flight, observer);
+    if let Err(e) = &result
+        && !flight.is_over()
+    {
+        flight.log(format!("error: {e}"));
+    }
+    result
+}
+
+async fn fly_inner(
+    flight: &mut Flight,
+    settings: &RunSettings,
+    lockstep: Lockstep,
+    observer: &mut dyn Observer,
+) -> Result<(), RunError> {
+    let iteration = flight.record().iteration;
+    let mut conn = match &settings.record {
+        Some(path) => {
+            let path = record_path(path, iteration);
+            Connection::connect_recording(&settings.addr, settings.connect_timeout, &path).await?
+        }
+        None => Connection::connect(&settings.addr, settings.connect_timeout).await?,
+    };
+    // The server greets with NFO: take the map name from it if it comes quickly.
+    let greeting = HANDSHAKE.min(settings.stream_timeout);
+    if let Ok(message) = tokio::time::timeout(greeting, conn.next_message()).await {
+        flight.on_message(&message?);
+    }
+    if lockstep != Lockstep::Off {
+        match negotiate_lockstep(&mut conn, flight, HANDSHAKE.min(settings.stream_timeout)).await? {
+            Some(reached) => flight.set_lockstep(LOCKSTEP_STEP, reached),
+            None if lockstep == Lockstep::Required => {
+                return Err(RunError::NoLockstep {
+                    addr: settings.addr.clone(),
+                });
+            }
+            None => {
+                let message = "the server does not offer lockstep; running on sensor time".into();
+                flight.log(format!("warning: {message}"));
+                observer.progress(&Progress::Warning { iteration, message });
+            }
+        }
+    }
+    flight.connected(&settings.addr);
+    flight.spawn();
+    drain(flight, observer);
+
+    let spawned_by = Instant::now() + settings.stream_timeout;
+    loop {
+        send_all(flight, &mut conn).await?;
+        drain(flight, observer);
+        match flight.phase() {
+            Phase::Done => break,
+            Phase::Failed => {
+                return Err(flight.take_error().unwrap_or(RunError::StreamStopped {
+                    timeout: settings.stream_timeout,
+                }));
+            }
+            _ => {}
+        }
+        let quiet = flight.frame_open() && !flight.is_lockstep();
+        let deadline = if flight.phase() == Phase::Spawning {
+            spawned_by
+        } else {
+            Instant::now() + settings.stream_timeout
+        };
+        let wait = if quiet {
+            deadline.min(Instant::now() + QUIET)
+        } else {
+            deadline
+        };
+        match tokio::time::timeout_at(wait, conn.next_message()).await {
+            Ok(message) => flight.on_message(&message?),
+            Err(_) if quiet && Instant::now() < deadline => flight.end_of_frame(),
+            Err(_) if flight.phase() == Phase::Spawning && flight.is_streaming() => {
+                return Err(RunError::NoPosition {
+                    timeout: settings.stream_timeout,
+                });
+            }
+            Err(_) if flight.phase() == Phase::Spawning => {
+                return Err(RunError::SpawnFailed {
+                    class: settings.class_name(),
+                    timeout: settings.stream_timeout,
+                });
+            }
+            Err(_) => {
+                return Err(RunError::StreamStopped {
+                    timeout: settings.stream_timeout,
+                });
+            }
+        }
+    }
+    conn.disconnect().await?;
+    Ok(())
+}
+
+/// Asks for lockstep (`SYNC {Time 0}`) and waits up to `wait` for the answer; what comes
+/// before it goes to the flight. `None`: not offered (a stock USARSim never answers).
+async fn negotiate_lockstep(
+    conn: &mut Connection,
+    flight: &mut Flight,
+    wait: Duration,
+) -> Result<Option<f64>, RunError> {
+    conn.send(&Command::Sync(Barrier::at(0.0))).await?;
+    let deadline = Instant::now() + wait;
+    loop {
+        match tokio::time::timeout_at(deadline, conn.next_message()).await {
+            Err(_) => return Ok(None),
+            Ok(message) => match message? {
+                ServerMessage::Sync(barrier) => return Ok(Some(barrier.time.seconds)),
+                other => flight.on_message(&other),
+            },
+        }
+    }
+}
+
+/// The recording file of iteration `n`: `path` for the first, `NAME-n.EXT` for the next.
+pub fn record_path(path: &std::path::Path, n: usize) -> PathBuf {
+    if n <= 1 {
+        return path.to_owned();
+    }
+    let stem = path
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}-{n}.{}", ext.to_string_lossy()),
+        None => format!("{stem}-{n}"),
+    };
+    path.with_file_name(name)
+}
+
+/// Asks the server for the map's start poses (`GETSTARTPOSES`) on a connection of its own.
+pub async fn start_poses(addr: &str, timeout: Duration) -> Result<Vec<StartPose>, RunError> {
+    let mut conn = Connection::connect(addr, timeout).await?;
+    conn.send(&Command::GetStartPoses).await?;
+    let reply = tokio::time::timeout(timeout, async {
+        loop {
+            if let ServerMessage::Nfo(Nfo::StartPoses { poses, .. }) = conn.next_message().await? {
+                return Ok::<_, ConnectionError>(poses);
+            }
+        }
+    })
+    .await
+    .map_err(|_| RunError::NoStartPoses { timeout })??;
+    conn.disconnect().await?;
+    Ok(reply)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Coordinates;
+    use crate::agents;
+
+    #[test]
+    fn each_iteration_records_to_its_own_file() {
+        let base = std::path::Path::new("/tmp/run.usarlog");
+        assert_eq!(record_path(base, 1), PathBuf::from("/tmp/run.usarlog"));
+        assert_eq!(record_path(base, 3), PathBuf::from("/tmp/run-3.usarlog"));
+        assert_eq!(
+            record_path(std::path::Path::new("log"), 2),
+            PathBuf::from("log-2")
+        );
+    }
+
+    #[tokio::test]
+    async fn refuses_before_connecting() {
+        let mut settings = RunSettings {
+            addr: "127.0.0.1:1".into(),
+            ..RunSettings::default()
+        };
+        let base = || agents::create("base").unwrap();
+        let cancel = CancellationToken::new();
+        assert!(matches!(
+            run(&settings, &base, &mut |_: &Progress| {}, &cancel).await,
+            Err(RunError::NoMissions)
+        ));
+        settings.missions = vec![Mission::Hover { seconds: 1.0 }];
+        let avoid = || agents::create("avoid").unwrap();
+        let err = run(&settings, &avoid, &mut |_: &Progress| {}, &cancel)
+            .await
+            .unwrap_err();
+        assert!(matches!(err, RunError::Refused(_)), "{err}");
+    }
+
+    #[tokio::test]
+    async fn no_server() {
+        let port = {
+            let l = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+            l.local_addr().unwrap().port()
+        };
+        let settings = RunSettings {
+            addr: format!("127.0.0.1:{port}"),
+            missions: vec![Mission::goto(Coordinates::zeros())],
+            ..RunSettings::default()
+        };
+        let base = || agents::create("base").unwrap();
+        let err = run(
+            &settings,
+            &base,
+            &mut |_: &Progress| {},
+            &CancellationToken::new(),
+        )
+        .await
+        .unwrap_err();
+        assert!(
+            matches!(err, RunError::Connection(ConnectionError::Connect { .. })),
+            "{err}"
+        );
+    }
+}

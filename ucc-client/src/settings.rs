@@ -1,0 +1,263 @@
+//! What a run is asked to do: [`RunSettings`] (server, robot, start, missions, iterations,
+//! time limits, lockstep, outputs). The agent is not a setting: the runner takes an
+//! [`AgentFactory`](crate::AgentFactory).
+
+use std::fmt;
+use std::path::PathBuf;
+use std::str::FromStr;
+use std::time::Duration;
+
+use usar_proto::{Command, Init};
+
+use crate::geometry::{Coordinates, to_wire};
+use crate::mission::{Mission, parse_numbers};
+use crate::picture::MapGeometry;
+
+/// Simulated seconds per lockstep barrier: the rate of the Position and STA streams.
+pub const LOCKSTEP_STEP: f64 = 0.1;
+
+/// Where the UAV is spawned.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Start {
+    /// A pose: world frame, metres, z down; rotation roll, pitch, yaw in radians.
+    Pose {
+        /// x, y, z.
+        location: Coordinates,
+        /// roll, pitch, yaw.
+        rotation: Coordinates,
+    },
+    /// A PlayerStart of the map, by tag or name.
+    Tag(String),
+}
+
+impl Start {
+    /// A pose at `location`, level, heading north.
+    pub fn at(location: Coordinates) -> Self {
+        Self::Pose {
+            location,
+            rotation: Coordinates::zeros(),
+        }
+    }
+}
+
+impl FromStr for Start {
+    type Err = String;
+
+    /// `x,y,z`, `x,y,z,roll,pitch,yaw` (metres, radians) or a PlayerStart tag.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let s = s.trim();
+        let looks_numeric = s.starts_with(|c: char| c.is_ascii_digit() || "+-.".contains(c));
+        if !looks_numeric {
+            if s.is_empty() || s.contains(['{', '}']) {
+                return Err(format!("invalid start tag {s:?}"));
+            }
+            return Ok(Self::Tag(s.to_owned()));
+        }
+        let n = parse_numbers(s).map_err(|e| format!("invalid start pose {s:?}: {e}"))?;
+        let v = |i: usize| n.get(i).copied().unwrap_or(0.0);
+        match n.len() {
+            3 | 6 => Ok(Self::Pose {
+                location: Coordinates::new(v(0), v(1), v(2)),
+                rotation: Coordinates::new(v(3), v(4), v(5)),
+            }),
+            k => Err(format!(
+                "invalid start pose {s:?}: {k} numbers, expected x,y,z or x,y,z,roll,pitch,yaw"
+            )),
+        }
+    }
+}
+
+impl fmt::Display for Start {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Pose {
+                location: l,
+                rotation: r,
+            } => write!(
+                f,
+                "{:.2},{:.2},{:.2} (roll {:.2}, pitch {:.2}, yaw {:.2})",
+                l.x, l.y, l.z, r.x, r.y, r.z
+            ),
+            Self::Tag(tag) => write!(f, "start tag {tag}"),
+        }
+    }
+}
+
+/// Which map pictures a run draws (in the log directory).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Pictures {
+    /// Per iteration the map and the plots, and the overlay of all.
+    #[default]
+    All,
+    /// Only the overlay of all iterations.
+    Overlay,
+    /// None.
+    None,
+}
+
+impl FromStr for Pictures {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "all" => Ok(Self::All),
+            "overlay" => Ok(Self::Overlay),
+            "none" => Ok(Self::None),
+            _ => Err(format!("expected all, overlay or none, not {s:?}")),
+        }
+    }
+}
+
+/// Whether to fly in lockstep with the server (docs/lockstep.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Lockstep {
+    /// Run on sensor time: the agent answers whatever arrives, as against a stock USARSim.
+    /// Results then depend on timing (the machine's load, the network); the run says so in
+    /// its log.
+    #[default]
+    Off,
+    /// Lockstep when the server offers it, else sensor time (with a warning in the log).
+    IfOffered,
+    /// Lockstep or nothing: a server that does not offer it is an error. The same settings
+    /// then give the same flight every time.
+    Required,
+}
+
+/// Everything a run needs besides the agent.
+#[derive(Debug, Clone)]
+pub struct RunSettings {
+    /// `host:port` of the server.
+    pub addr: String,
+    /// Robot class: `stsAirRobot`, `AirRobot`, or a full `Package.Class`.
+    pub robot: String,
+    /// The robot's name in the world.
+    pub name: String,
+    /// Where to spawn, every iteration.
+    pub start: Start,
+    /// The missions, flown in order, every iteration.
+    pub missions: Vec<Mission>,
+    /// How many times to fly them.
+    pub iterations: usize,
+    /// Where to write the logs, trajectories and pictures; `None` writes nothing.
+    pub log_dir: Option<PathBuf>,
+    /// File name prefix of everything written.
+    pub prefix: String,
+    /// Wall-clock limit for connecting.
+    pub connect_timeout: Duration,
+    /// Wall-clock limit for the first sensor data after INIT, and for any silence after.
+    pub stream_timeout: Duration,
+    /// Simulated seconds a single mission may take.
+    pub mission_timeout: f64,
+    /// Lockstep with the server.
+    pub lockstep: Lockstep,
+    /// Record every line of every iteration's connection: this file for the first,
+    /// `NAME-2.EXT`, `NAME-3.EXT`, … for the next (docs/recording.md).
+    pub record: Option<PathBuf>,
+    /// Go on with the next iteration when one fails (a mission timeout, an empty battery, a
+    /// spawn that gave no stream); the failure is counted in the [`Summary`](crate::Summary).
+    /// Failures that would repeat every time (no server, unwritable files) always end the run.
+    pub keep_going: bool,
+    /// Which map pictures to draw.
+    pub pictures: Pictures,
+    /// The map's walls and obstacles, when known (a local server's map file), for the
+    /// pictures; without it the pictures draw what the laser saw.
+    pub map: Option<MapGeometry>,
+}
+
+impl Default for RunSettings {
+    fn default() -> Self {
+        Self {
+            addr: "localhost:3000".into(),
+            robot: "stsAirRobot".into(),
+            name: "UAV1".into(),
+            start: Start::at(Coordinates::zeros()),
+            missions: Vec::new(),
+            iterations: 1,
+            log_dir: None,
+            prefix: "UCCLOG".into(),
+            connect_timeout: Duration::from_secs(5),
+            stream_timeout: Duration::from_secs(10),
+            mission_timeout: 120.0,
+            lockstep: Lockstep::Off,
+            record: None,
+            keep_going: false,
+            pictures: Pictures::All,
+            map: None,
+        }
+    }
+}
+
+impl RunSettings {
+    /// The INIT class name: `robot` with `USARBot.` in front unless it names a package.
+    pub fn class_name(&self) -> String {
+        if self.robot.contains('.') {
+            self.robot.clone()
+        } else {
+            format!("USARBot.{}", self.robot)
+        }
+    }
+
+    /// The INIT command of every iteration.
+    pub fn init(&self) -> Command {
+        let mut init = Init {
+            class_name: self.class_name(),
+            name: Some(self.name.clone()),
+            ..Init::default()
+        };
+        match &self.start {
+            Start::Pose { location, rotation } => {
+                init.location = Some(to_wire(location));
+                init.rotation = Some(to_wire(rotation));
+            }
+            Start::Tag(tag) => init.start = Some(tag.clone()),
+        }
+        Command::Init(init)
+    }
+
+    /// The path of an output file `PREFIX-name` in the log directory.
+    pub fn file(&self, name: &str) -> Option<PathBuf> {
+        self.log_dir
+            .as_ref()
+            .map(|d| d.join(format!("{}-{name}", self.prefix)))
+    }
+
+    /// The GotoXyz targets, in order.
+    pub fn waypoints(&self) -> Vec<Coordinates> {
+        self.missions.iter().filter_map(Mission::target).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn start_parsing() {
+        assert_eq!(
+            "1,2,-3".parse::<Start>().unwrap(),
+            Start::at(Coordinates::new(1.0, 2.0, -3.0))
+        );
+        assert_eq!(
+            "1,2,-3,0,0,1.57".parse::<Start>().unwrap(),
+            Start::Pose {
+                location: Coordinates::new(1.0, 2.0, -3.0),
+                rotation: Coordinates::new(0.0, 0.0, 1.57)
+            }
+        );
+        assert_eq!(
+            "PlayerStart_1".parse::<Start>().unwrap(),
+            Start::Tag("PlayerStart_1".into())
+        );
+        assert!("1,2".parse::<Start>().unwrap_err().contains("2 numbers"));
+        assert!("1,a,2".parse::<Start>().is_err());
+        assert!("".parse::<Start>().is_err());
+    }
+
+    #[test]
+    fn class_names() {
+        let mut settings = RunSettings::default();
+        assert_eq!(settings.class_name(), "USARBot.stsAirRobot");
+        settings.robot = "MyPkg.Drone".into();
+        assert_eq!(settings.class_name(), "MyPkg.Drone");
+    }
+}
