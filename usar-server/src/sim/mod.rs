@@ -39,7 +39,7 @@ mod world;
 #[cfg(test)]
 mod tests;
 
-pub use map::{Map, MapError, PlayerStart, TopShape};
+pub use map::{Map, MapError, PlayerStart};
 pub use robots::{RobotCatalog, RobotClass, RobotConfigError};
 pub use world::World;
 
