@@ -59,12 +59,20 @@ impl Settings {
             }
         };
         let mut catalog = RobotCatalog::embedded();
-        let Some(class) = catalog.get_mut(robot) else {
+        let full = if robot.contains('.') {
+            robot.to_string()
+        } else {
+            format!("USARBot.{robot}")
+        };
+        if catalog.get(&full).is_none() {
             let known: Vec<&str> = catalog.classes().iter().map(|c| c.class.as_str()).collect();
             return Err(invalid(format!(
                 "robot: unknown robot class {robot:?} (known: {})",
                 known.join(", ")
             )));
+        }
+        let Some(class) = catalog.get_mut(&full) else {
+            return Err(invalid(format!("robot: unknown robot class {robot:?}")));
         };
         if let Some(noise) = noise {
             if !(noise.is_finite() && noise >= 0.0) {

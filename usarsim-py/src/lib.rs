@@ -11,6 +11,7 @@
 // PyO3's macros expand to `unsafe` blocks, so this crate does not forbid unsafe code the way
 // the rest of the workspace does (see Cargo.toml); it writes none itself.
 
+mod agents;
 mod core;
 mod remote;
 
@@ -309,6 +310,9 @@ impl PyRemote {
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyBatch>()?;
     m.add_class::<PyRemote>()?;
+    m.add_class::<agents::PyCommand>()?;
+    m.add_class::<agents::PyState>()?;
+    m.add_function(wrap_pyfunction!(agents::fly, m)?)?;
     m.add("LASER_BEAMS", LASER)?;
     m.add("SONARS", SONARS)?;
     Ok(())

@@ -103,7 +103,9 @@ impl Remote {
         self.set_timeout(SYNC_PROBE)?;
         loop {
             match self.read_message() {
-                Ok(Some(ServerMessage::Other(m))) if m.kind == "SYNC" => {
+                Ok(Some(ServerMessage::Sync(barrier))) => {
+                    // The server's clock need not start at 0 (earlier clients ran it).
+                    self.time = barrier.time.seconds;
                     self.set_timeout(TIMEOUT)?;
                     return Ok(true);
                 }
@@ -158,9 +160,11 @@ impl Remote {
     /// Lockstep: releases the world for one period and reads up to the barrier's answer.
     /// Otherwise: reads until a reading stamped one period later than the last arrives.
     fn advance(&mut self) -> Result<(), SimError> {
-        let target = self.time + self.period;
+        // Without lockstep the clock is only known from the readings: a fresh connection
+        // waits one period past the first time stamp it sees.
+        let mut target = (self.lockstep || self.time > 0.0).then_some(self.time + self.period);
         if self.lockstep {
-            self.send_line(&format!("SYNC {{Time {target:.4}}}"))?;
+            self.send_line(&format!("SYNC {{Time {:.4}}}", self.time + self.period))?;
         }
         loop {
             let message = match self.read_message() {
@@ -168,25 +172,23 @@ impl Remote {
                 Ok(None) => return Err(err(&self.addr, "the server closed the connection")),
                 Err(e) => return Err(err(&self.addr, format_args!("read failed: {e}"))),
             };
-            if let ServerMessage::Other(m) = &message
-                && m.kind == "SYNC"
-            {
+            if let ServerMessage::Sync(barrier) = &message {
                 if self.lockstep {
-                    self.time = m
-                        .get("Time")
-                        .and_then(|t| t.trim().parse().ok())
-                        .unwrap_or(target);
+                    self.time = barrier.time.seconds;
                     return Ok(());
                 }
                 continue;
             }
             self.state.apply(&message);
-            if !self.lockstep
-                && let Some(t) = message.time()
-                && t >= target - 1e-6
-            {
-                self.time = t;
-                return Ok(());
+            if self.lockstep {
+                continue;
+            }
+            if let Some(t) = message.time() {
+                let due = *target.get_or_insert(t + self.period);
+                if t >= due - 1e-6 && self.state.position.is_some() {
+                    self.time = t;
+                    return Ok(());
+                }
             }
         }
     }

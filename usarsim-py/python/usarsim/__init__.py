@@ -12,6 +12,8 @@ seed and actions give the same observations, bit for bit.
 """
 
 from ._core import LASER_BEAMS, SONARS, Batch, Remote
+from ._agent import Agent, fly
+from ._core import Command, State
 from ._env import UsarsimEnv, UsarsimVectorEnv, _register
 from ._task import observation_space, action_space
 
@@ -31,6 +33,10 @@ def vector_env(num_envs: int, task: str = "waypoints", **options) -> UsarsimVect
 _register()
 
 __all__ = [
+    "Agent",
+    "Command",
+    "State",
+    "fly",
     "Batch",
     "LASER_BEAMS",
     "Remote",
