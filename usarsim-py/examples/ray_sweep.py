@@ -51,5 +51,8 @@ def table(rows: list) -> str:
 
 if __name__ == "__main__":
     # Connects to RAY_ADDRESS when set, else starts a local Ray.
-    ray.init(num_cpus=None if os.environ.get("RAY_ADDRESS") else 2, include_dashboard=False)
+    if os.environ.get("RAY_ADDRESS"):
+        ray.init()
+    else:
+        ray.init(num_cpus=2, include_dashboard=False)
     print(table(sweep()))

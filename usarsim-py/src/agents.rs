@@ -40,7 +40,12 @@ impl PyCommand {
     #[new]
     #[pyo3(signature = (forward = 0.0, right = 0.0, up = 0.0, yaw = 0.0, done = false))]
     fn new(forward: f64, right: f64, up: f64, yaw: f64, done: bool) -> PyResult<Self> {
-        for (name, v) in [("forward", forward), ("right", right), ("up", up), ("yaw", yaw)] {
+        for (name, v) in [
+            ("forward", forward),
+            ("right", right),
+            ("up", up),
+            ("yaw", yaw),
+        ] {
             if !v.is_finite() {
                 return Err(PyValueError::new_err(format!(
                     "Command: {name} is not finite ({v})"

@@ -49,8 +49,9 @@ impl Settings {
     ) -> Result<Self, SimError> {
         let map = match Map::embedded(map) {
             Some(m) => m,
-            None if Path::new(map).is_file() => Map::from_file(Path::new(map))
-                .map_err(|e| invalid(format!("map: {e}")))?,
+            None if Path::new(map).is_file() => {
+                Map::from_file(Path::new(map)).map_err(|e| invalid(format!("map: {e}")))?
+            }
             None => {
                 return Err(invalid(format!(
                     "map: unknown map {map:?}: neither an embedded map ({}) nor a file",
@@ -305,16 +306,25 @@ impl Observations {
         self.angular_velocity
             .extend(xyz(s.angular_velocity.as_ref()));
         let range = |r: &Option<ucc_client::uav::Reading<f64>>| {
-            r.as_ref()
-                .map_or(NO_RANGE, |r| if r.value.is_finite() { r.value } else { NO_RANGE })
+            r.as_ref().map_or(NO_RANGE, |r| {
+                if r.value.is_finite() {
+                    r.value
+                } else {
+                    NO_RANGE
+                }
+            })
         };
         self.sonar.extend(s.sonars.iter().map(range));
         self.sonar.push(range(&s.free_above));
         self.sonar.push(range(&s.free_below));
         let beams = s.laser.as_ref().map_or(&[][..], |l| &l.value.ranges[..]);
-        self.laser.extend(
-            (0..LASER).map(|i| beams.get(i).copied().filter(|v| v.is_finite()).unwrap_or(NO_RANGE)),
-        );
+        self.laser.extend((0..LASER).map(|i| {
+            beams
+                .get(i)
+                .copied()
+                .filter(|v| v.is_finite())
+                .unwrap_or(NO_RANGE)
+        }));
         self.battery
             .push(s.battery.as_ref().map_or(1.0, |b| b.value.level));
         self.touched.push(touched);

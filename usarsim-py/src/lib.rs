@@ -102,6 +102,7 @@ impl PyBatch {
 #[pymethods]
 impl PyBatch {
     #[new]
+    #[allow(clippy::too_many_arguments)]
     #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None))]
     fn new(
         py: Python<'_>,

@@ -154,7 +154,12 @@ impl Remote {
             .writer
             .write_all(line.as_bytes())
             .and_then(|()| self.writer.write_all(b"\r\n"));
-        result.map_err(|e| err(&self.addr, format_args!("write failed (server closed?): {e}")))
+        result.map_err(|e| {
+            err(
+                &self.addr,
+                format_args!("write failed (server closed?): {e}"),
+            )
+        })
     }
 
     /// Lockstep: releases the world for one period and reads up to the barrier's answer.
