@@ -186,3 +186,35 @@ def test_uavs_in_one_world_see_each_other():
     assert obs["uav_0"]["laser"][114] < 2.0
     assert obs["uav_0"]["sonar"][0] < 2.0
     assert obs["uav_1"]["laser"][114] == 4.0  # uav_1 looks at the empty north of the room
+
+
+def test_reset_options_choose_start_and_waypoints():
+    env = gymnasium.make("usarsim/Waypoints-v0")
+    obs, _ = env.reset(seed=0, options={"start": "Start2", "waypoints": [[-5, -3, -1]]})
+    np.testing.assert_allclose(obs["position"], [-5, -5, -1], atol=1e-6)
+    np.testing.assert_allclose(obs["waypoint"], [0, 2, 0], atol=1e-5)
+    obs, _ = env.reset(seed=0, options={"start": "random"})
+    assert not np.allclose(obs["position"], [-5, -5, -1])
+
+
+def test_vector_and_multi_bad_input():
+    venv = usarsim.vector_env(2)
+    venv.reset(seed=0)
+    bad = np.zeros((2, 4))
+    bad[1, 3] = np.inf
+    with pytest.raises(ValueError, match="row 1, component 3 is not finite"):
+        venv.step(bad)
+    env = usarsim.multi_uav(n=2)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="'uav_7' is not a live agent"):
+        env.step({"uav_7": np.zeros(4)})
+    with pytest.raises(ValueError, match="shape"):
+        env.step({"uav_0": np.zeros(5)})
+    with pytest.raises(ValueError, match="n: expected an integer >= 1"):
+        usarsim.multi_uav(n=0)
+
+
+def test_remote_with_a_bad_address_is_a_value_error():
+    env = gymnasium.make("usarsim/Hover-v0", server="no-such-host.invalid:3000")
+    with pytest.raises(ValueError, match="no-such-host.invalid:3000"):
+        env.reset(seed=0)
