@@ -192,6 +192,8 @@ impl Agent for PythonAgent {
         }
         let state = self.state(uav, time);
         let answer = Python::attach(|py| -> PyResult<PyCommand> {
+            // Ctrl-C: the runner runs on the calling (main) thread, so signals are seen here.
+            py.check_signals()?;
             let result = self.object.call_method1(py, "step", (state.clone(),))?;
             result.extract::<PyCommand>(py).map_err(|_| {
                 PyValueError::new_err(format!(
@@ -398,8 +400,9 @@ fn run(
     cancel: &CancellationToken,
     quiet: bool,
 ) -> Result<ucc_client::Summary, String> {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
+    // On the calling thread, so that agents run on Python's main thread (signals, and
+    // libraries that insist on the main thread).
+    let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .map_err(|e| format!("cannot start the runtime: {e}"))?;

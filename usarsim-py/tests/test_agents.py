@@ -141,3 +141,22 @@ def test_remote_env_without_lockstep_runs_on_sensor_time():
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+def test_ctrl_c_during_a_run_raises_keyboard_interrupt():
+    import os
+    import signal
+
+    calls = []
+
+    class Interrupted(usarsim.Agent):
+        def step(self, state):
+            calls.append(state.time)
+            if len(calls) == 3:
+                os.kill(os.getpid(), signal.SIGINT)
+            return usarsim.Command(forward=1.0)
+
+    with pytest.raises(KeyboardInterrupt):
+        usarsim.fly(Interrupted, [(5.0, 0.0, -1.0)], iterations=3)
+    # The run stopped at the next step, not after three iterations of 25 steps or more.
+    assert len(calls) == 3
