@@ -451,6 +451,9 @@ fn a_local_run_is_the_same_every_time() {
                 out.contains("in lockstep") || !out.contains("sensor time"),
                 "{out}"
             );
+            // The defect: the overlay of one iteration was titled "1 iterations".
+            let overlay = std::fs::read_to_string(dir.join("UCCLOG-overlay.svg")).unwrap();
+            assert!(overlay.contains("UCCLOG — 1 iteration\n"), "title");
             std::fs::read_to_string(dir.join("UCCLOG-01-trajectory.csv")).unwrap()
         })
         .collect();
