@@ -67,10 +67,7 @@ class MultiUavEnv(ParallelEnv):
     def reset(self, seed=None, options=None):
         if seed is not None:
             self._rng = np.random.default_rng(seed)
-        starts = self._tasks.new_starts(self._rng, range(self.n), True, options)
-        if self._starts is not None:
-            starts = self._starts
-            self._tasks.targets[:, 0] = np.where(self._tasks.task == "hover", starts[:, :3], self._tasks.targets[:, 0])
+        starts = self._tasks.new_starts(self._rng, range(self.n), True, options, poses=self._starts)
         map_, robot, period, noise = self._args
         self._batch = _core.Batch(map_, robot, [_seed(self._rng)], starts, self.n, period, noise)
         self.agents = list(self.possible_agents)

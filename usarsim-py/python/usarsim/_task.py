@@ -100,13 +100,17 @@ class Tasks:
             return np.array([x, y, z, yaw])
         return np.array([0.0, 0.0, -1.0, 0.0])
 
-    def new_starts(self, rng: np.random.Generator, rows, shared_world: bool, options=None) -> np.ndarray:
-        """Chooses starts and targets for `rows`; returns their spawn poses (len(rows), 4)."""
+    def new_starts(self, rng: np.random.Generator, rows, shared_world: bool, options=None,
+                   poses=None) -> np.ndarray:
+        """Chooses starts and targets for `rows`; returns their spawn poses (len(rows), 4).
+        `poses` (one (x, y, z, yaw) per row) overrides the start option."""
         options = options or {}
         start = options.get("start", self.start)
         waypoints = options.get("waypoints", self.waypoints)
         rows = list(rows)
-        if start is None and not shared_world:
+        if poses is not None:
+            base = np.asarray(poses, dtype=np.float64)
+        elif start is None and not shared_world:
             base = np.tile(self.default_start(), (len(rows), 1))
         elif start is None or (isinstance(start, str) and start == "random"):
             pts = self.map.sample(rng, len(rows))
