@@ -352,6 +352,17 @@ fn bad_arguments_are_usage_errors() {
             "--mission-timeout",
             "inf",
         ],
+        // Finite but absurd: Duration::from_secs_f64 panicked on these.
+        &[
+            "run",
+            "--start",
+            "0,0,-1",
+            "--goto",
+            "1,0,-1",
+            "--stream-timeout",
+            "1e300",
+        ],
+        &["demo", "--speed", "1e-300"],
     ] {
         let (code, _, err) = ucc_output(args);
         assert_eq!(code, Some(2), "{args:?}: {err}");

@@ -383,6 +383,11 @@ fn start_server(args: &Args) -> anyhow::Result<(Server, SocketAddr)> {
     command
         .args(["--port", "0", "--time-scale", &args.time_scale])
         .args(["--max-connections", &(args.uavs * 2 + 16).to_string()])
+        // Every simulated UAV connects from this machine's loopback address.
+        .args([
+            "--max-connections-per-address",
+            &(args.uavs * 2 + 16).to_string(),
+        ])
         .env("RUST_LOG", "warn")
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit());

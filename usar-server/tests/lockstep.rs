@@ -132,6 +132,20 @@ async fn a_client_that_never_syncs_is_never_waited_for() {
     server.stop().await;
 }
 
+/// Reads the STA lines of `c` until one reaches `until`; returns its time.
+async fn sta_until(c: &mut Client, until: f64) -> f64 {
+    let mut last = 0.0;
+    while last < until {
+        last = c
+            .until(|m| match m {
+                ServerMessage::Sta(s) => Some(s.time.seconds),
+                _ => None,
+            })
+            .await;
+    }
+    last
+}
+
 /// Lockstep is opt-in: without it a `SYNC` is an unknown command, never answered, and holds
 /// nobody (the defect: one `SYNC {Time 0}` froze the world for every client).
 #[tokio::test]
@@ -150,5 +164,33 @@ async fn without_lockstep_a_sync_holds_nobody() {
             last = s.time.seconds;
         }
     }
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn a_lockstep_client_that_stops_syncing_leaves_the_barrier() {
+    let server = TestServer::with(ServerConfig {
+        time_scale: TimeScale::Factor(10.0),
+        lockstep: true,
+        lockstep_timeout: std::time::Duration::from_millis(300),
+        ..ServerConfig::default()
+    })
+    .await;
+    let mut stuck = server.client().await;
+    stuck.raw_line().await.unwrap();
+    stuck.send("SYNC {Time 0.5}").await;
+    let mut free = server.client().await;
+    free.raw_line().await.unwrap();
+    free.spawn_at([0.0, 0.0, -1.0], 0.0).await;
+    // The world reaches the barrier, answers, and waits; the stuck client never syncs
+    // again: after the timeout the world goes on without it.
+    let (_, t) = until_sync(&mut stuck).await;
+    assert!((t - 0.5).abs() < 0.006, "answered at {t}");
+    let last = sta_until(&mut free, 2.0).await;
+    assert!(last >= 2.0);
+    // A later SYNC joins the barrier again.
+    stuck.send("SYNC {Time 3.0}").await;
+    let (_, t) = until_sync(&mut stuck).await;
+    assert!(t >= 2.0, "answered at {t}");
     server.stop().await;
 }

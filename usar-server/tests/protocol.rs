@@ -472,7 +472,9 @@ async fn sta_times(c: &mut Client, count: usize) -> Vec<f64> {
 async fn a_client_that_never_reads_does_not_slow_the_others() {
     let server = TestServer::with(usar_server::ServerConfig {
         time_scale: usar_server::TimeScale::Factor(50.0),
-        client_queue: 4,
+        // Small enough that the sleeper's output is dropped early, large enough (about half
+        // a simulated second) that a reader on a busy machine is never 4 ticks behind.
+        client_buffer: 64 * 1024,
         ..usar_server::ServerConfig::default()
     })
     .await;
@@ -505,12 +507,13 @@ async fn a_client_that_never_reads_does_not_slow_the_others() {
 async fn sixty_four_connections_are_served_and_the_next_is_refused() {
     let server = TestServer::start().await;
     let mut clients = Vec::new();
-    for _ in 0..64 {
-        let mut c = server.client().await;
+    for i in 0..64 {
+        // 16 connections per address is the default limit.
+        let mut c = Client::connect_from(server.addr, 2 + i / 16).await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO "));
         clients.push(c);
     }
-    let mut extra = server.client().await;
+    let mut extra = Client::connect_from(server.addr, 100).await;
     assert_eq!(
         extra.raw_line().await,
         None,
@@ -527,7 +530,7 @@ async fn sixty_four_connections_are_served_and_the_next_is_refused() {
     // A slot freed is a slot to reuse.
     drop(clients.pop());
     tokio::time::sleep(std::time::Duration::from_millis(100)).await;
-    let mut again = server.client().await;
+    let mut again = Client::connect_from(server.addr, 100).await;
     assert!(again.raw_line().await.unwrap().starts_with("NFO "));
     server.stop().await;
 }

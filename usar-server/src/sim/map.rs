@@ -31,16 +31,41 @@ const EMBEDDED_OBJ: &[(&str, &str)] = &[("tower.obj", include_str!("../../../map
 /// The short name of the default map.
 const DEFAULT_MAP: &str = "empty_room";
 
+/// Metres: every coordinate and size in a map (and every robot position) lies within
+/// ±`LIMIT` of the origin on each axis. The world ends there: no motion goes further
+/// (`Scene::sweep`); f32 (the physics' precision) still resolves centimetres at this
+/// distance.
+pub const LIMIT: f64 = 100_000.0;
+
+/// Metres: INIT locations are held this far inside [`LIMIT`].
+pub const EDGE_MARGIN: f64 = 10.0;
+
+/// The largest map file read (bytes); larger files are refused before reading.
+pub const MAX_MAP_FILE: u64 = 16 << 20;
+
+/// The largest OBJ mesh file read (bytes).
+pub const MAX_OBJ_FILE: u64 = 64 << 20;
+
 /// Errors reading a map; each names the file, the line and what is wrong.
 #[derive(Debug, thiserror::Error)]
 pub enum MapError {
     /// The file could not be read.
-    #[error("cannot read map file {path}: {source}")]
+    #[error("cannot read map file {path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
+        /// Why (shown in this error's text, so not its `source`).
+        error: std::io::Error,
+    },
+    /// An OBJ mesh file that a map names could not be read.
+    #[error("cannot read mesh file {path} (named by {map}): {error}")]
+    MeshIo {
+        /// The OBJ file.
+        path: PathBuf,
+        /// The map that names it.
+        map: PathBuf,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A name that is neither an embedded map nor a file.
     #[error("no map {name:?}: not an embedded map ({known}) and no such file")]
@@ -187,20 +212,42 @@ pub(crate) fn line_of(text: &str, offset: usize) -> usize {
         + 1
 }
 
+/// The embedded OBJ file `file`.
+fn embedded_obj(file: &str, map: &Path) -> Result<(PathBuf, String), MapError> {
+    EMBEDDED_OBJ
+        .iter()
+        .find(|(f, _)| *f == file)
+        .map(|(f, text)| (Path::new("maps").join(f), (*text).to_string()))
+        .ok_or_else(|| MapError::MeshIo {
+            path: Path::new("maps").join(file),
+            map: map.to_path_buf(),
+            error: std::io::ErrorKind::NotFound.into(),
+        })
+}
+
 /// A mesh loader: relative file name → (path for messages, text).
 type ObjSource<'a> = &'a dyn Fn(&str) -> Result<(PathBuf, String), MapError>;
 
 impl Map {
     /// Reads a map file; OBJ files are looked up relative to it.
+    /// Files past [`MAX_MAP_FILE`] (or meshes past [`MAX_OBJ_FILE`]) are refused unread.
     pub fn from_file(path: &Path) -> Result<Self, MapError> {
-        let text = read(path)?;
+        let text = read_text(path, MAX_MAP_FILE).map_err(|e| e.into_map_error(path, None))?;
         let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        let map = path.to_path_buf();
         let load = move |file: &str| {
             let obj_path = dir.join(file);
-            let text = read(&obj_path)?;
+            let text = read_text(&obj_path, MAX_OBJ_FILE)
+                .map_err(|e| e.into_map_error(&obj_path, Some(&map)))?;
             Ok((obj_path, text))
         };
         Self::parse(&text, path, &load)
+    }
+
+    /// A map from TOML text (errors name `path`); meshes may name only the embedded OBJ
+    /// files. For tools and fuzzing: nothing is read from disk.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, MapError> {
+        Self::parse(text, path, &|f: &str| embedded_obj(f, path))
     }
 
     /// The map a user names: an embedded map (by short name or level name, any case, so
@@ -225,17 +272,8 @@ impl Map {
         let (_, file, text) = EMBEDDED
             .iter()
             .find(|(short, ..)| squash(short) == squash(name))?;
-        let load = |file: &str| {
-            EMBEDDED_OBJ
-                .iter()
-                .find(|(f, _)| *f == file)
-                .map(|(f, text)| (Path::new("maps").join(f), (*text).to_string()))
-                .ok_or_else(|| MapError::Io {
-                    path: Path::new("maps").join(file),
-                    source: std::io::ErrorKind::NotFound.into(),
-                })
-        };
-        match Self::parse(text, &Path::new("maps").join(file), &load) {
+        let path = Path::new("maps").join(file);
+        match Self::parse(text, &path, &|f: &str| embedded_obj(f, &path)) {
             Ok(map) => Some(map),
             Err(e) => {
                 // Guarded by a unit test; never happens in a released binary.
@@ -357,6 +395,8 @@ impl Map {
             let at = entry.span().start;
             let s = entry.get_ref();
             finite(&[&s.location, &s.rotation]).map_err(|m| invalid(at, m))?;
+            within(&[&s.location], LIMIT - EDGE_MARGIN).map_err(|m| invalid(at, m))?;
+            within(&[&s.rotation], 1000.0).map_err(|m| invalid(at, m))?;
             let name = s.name.clone().unwrap_or_else(|| format!("PlayerStart_{i}"));
             if let Some(dup) = starts
                 .iter()
@@ -382,6 +422,8 @@ impl Map {
             let b = entry.get_ref();
             let at = entry.span().start;
             finite(&[&b.center, &b.size, &[b.yaw; 3]]).map_err(|m| invalid(at, m))?;
+            within(&[&b.center, &b.size], LIMIT).map_err(|m| invalid(at, m))?;
+            within(&[&[b.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
             if b.size.iter().any(|&s| s <= 0.0) {
                 return Err(invalid(
                     at,
@@ -398,6 +440,7 @@ impl Map {
             let c = entry.get_ref();
             let at = entry.span().start;
             finite(&[&c.center, &[c.radius, c.height, 0.0]]).map_err(|m| invalid(at, m))?;
+            within(&[&c.center, &[c.radius, c.height, 0.0]], LIMIT).map_err(|m| invalid(at, m))?;
             if c.radius <= 0.0 || c.height <= 0.0 {
                 return Err(invalid(
                     at,
@@ -414,6 +457,8 @@ impl Map {
             let m = entry.get_ref();
             let at = entry.span().start;
             finite(&[&m.offset, &[m.yaw, m.scale, 0.0]]).map_err(|e| invalid(at, e))?;
+            within(&[&m.offset, &[m.scale, 0.0, 0.0]], LIMIT).map_err(|e| invalid(at, e))?;
+            within(&[&[m.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
             if m.scale <= 0.0 {
                 return Err(invalid(at, "mesh scale must be positive".into()));
             }
@@ -423,7 +468,7 @@ impl Map {
                 line,
                 message,
             })?;
-            let vertices = mesh
+            let vertices: Vec<V3> = mesh
                 .vertices
                 .iter()
                 .map(|&v| {
@@ -431,6 +476,15 @@ impl Map {
                     [r[0] + m.offset[0], r[1] + m.offset[1], r[2] + m.offset[2]]
                 })
                 .collect();
+            if let Some(v) = vertices.iter().find(|v| v.iter().any(|x| x.abs() > LIMIT)) {
+                return Err(invalid(
+                    at,
+                    format!(
+                        "mesh `{}` reaches {v:?}, beyond the world's limit of ±{LIMIT} m",
+                        m.file
+                    ),
+                ));
+            }
             solids.push(Solid::Mesh {
                 vertices,
                 triangles: mesh.triangles,
@@ -491,10 +545,82 @@ fn finite(values: &[&[f64; 3]]) -> Result<(), String> {
     }
 }
 
-fn read(path: &Path) -> Result<String, MapError> {
-    std::fs::read_to_string(path).map_err(|source| MapError::Io {
-        path: path.to_path_buf(),
-        source,
+fn within(values: &[&[f64; 3]], limit: f64) -> Result<(), String> {
+    match values
+        .iter()
+        .flat_map(|v| v.iter())
+        .find(|x| x.abs() > limit)
+    {
+        None => Ok(()),
+        Some(x) => Err(format!(
+            "{x} is out of range: numbers must be within ±{limit}"
+        )),
+    }
+}
+
+/// Why a text file could not be read.
+#[derive(Debug)]
+pub(crate) enum ReadError {
+    /// The file system said no.
+    Io(std::io::Error),
+    /// Larger than the limit (bytes).
+    TooLarge { size: u64, limit: u64 },
+    /// Not UTF-8 text; the 1-based line of the first bad byte.
+    NotText { line: usize },
+}
+
+impl ReadError {
+    fn into_map_error(self, path: &Path, map: Option<&Path>) -> MapError {
+        let io = |error| match map {
+            None => MapError::Io {
+                path: path.to_path_buf(),
+                error,
+            },
+            Some(map) => MapError::MeshIo {
+                path: path.to_path_buf(),
+                map: map.to_path_buf(),
+                error,
+            },
+        };
+        match self {
+            Self::Io(error) => io(error),
+            Self::TooLarge { size, limit } => MapError::Invalid {
+                path: path.to_path_buf(),
+                line: 1,
+                message: format!("file of {size} bytes is larger than the limit of {limit} bytes"),
+            },
+            Self::NotText { line } => MapError::Invalid {
+                path: path.to_path_buf(),
+                line,
+                message: "not a text file (bytes that are not UTF-8)".into(),
+            },
+        }
+    }
+}
+
+/// Reads a UTF-8 text file of at most `limit` bytes (checked before reading).
+pub(crate) fn read_text(path: &Path, limit: u64) -> Result<String, ReadError> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(ReadError::Io)?;
+    let size = file.metadata().map_err(ReadError::Io)?.len();
+    if size > limit {
+        return Err(ReadError::TooLarge { size, limit });
+    }
+    let mut bytes = Vec::new();
+    // `take` also bounds files that grow, or report no size (pipes, /dev/zero).
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(ReadError::Io)?;
+    if bytes.len() as u64 > limit {
+        return Err(ReadError::TooLarge {
+            size: bytes.len() as u64,
+            limit,
+        });
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        let good = e.utf8_error().valid_up_to();
+        let line = e.as_bytes()[..good].iter().filter(|&&b| b == b'\n').count() + 1;
+        ReadError::NotText { line }
     })
 }
 
@@ -504,9 +630,10 @@ mod tests {
 
     fn parse(text: &str) -> Result<Map, MapError> {
         let no_obj = |f: &str| {
-            Err(MapError::Io {
+            Err(MapError::MeshIo {
                 path: f.into(),
-                source: std::io::ErrorKind::NotFound.into(),
+                map: "test.toml".into(),
+                error: std::io::ErrorKind::NotFound.into(),
             })
         };
         Map::parse(text, Path::new("test.toml"), &no_obj)

@@ -54,6 +54,8 @@ pub struct SimConfig {
     pub seed: u64,
     /// Seconds per physics step (USARSim: 1/200).
     pub dt: f64,
+    /// Robots one connection may spawn (USARSim: one); further INITs are ignored (logged).
+    pub robots_per_connection: usize,
 }
 
 impl Default for SimConfig {
@@ -61,6 +63,7 @@ impl Default for SimConfig {
         Self {
             seed: 0,
             dt: 1.0 / 200.0,
+            robots_per_connection: 1,
         }
     }
 }

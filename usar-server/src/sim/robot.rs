@@ -1,7 +1,7 @@
 //! A spawned robot: AerialVehicle flight, parts with their timers, battery, actuators.
 
 use rapier3d::prelude::ColliderHandle;
-use tracing::warn;
+use tracing::{debug, warn};
 use usar_proto::{
     ActuatorJoint, Asta, ConfItem, Drive, GeoItem, LinkValue, Sen, ServerMessage, Sta, StaLayout,
     Time,
@@ -25,14 +25,14 @@ fn ticks(seconds: f64, dt: f64) -> u64 {
     ((seconds / dt).round() as u64).max(1)
 }
 
-/// A finite number, or 0 (logged) for NaN and infinities.
-fn finite(value: f64, key: &str) -> f64 {
-    if value.is_finite() {
-        value
-    } else {
-        warn!(key, value, "non-finite DRIVE value treated as 0");
-        0.0
+/// A DRIVE number within `±limit`; NaN is 0 (logged at debug level: a client could send
+/// it on every line).
+fn limited(value: f64, limit: f64, key: &str) -> f64 {
+    if value.is_nan() {
+        debug!(key, "NaN DRIVE value treated as 0");
+        return 0.0;
     }
+    value.clamp(-limit, limit)
 }
 
 /// A periodic output: interval and next due tick.
@@ -145,7 +145,6 @@ impl Robot {
             half_height: class.collision.height / 2.0,
         };
         if scene.overlaps(shape, spawn.position, None) {
-            warn!(client = ?spawn.owner, class = %class.class, position = ?spawn.position, "spawn failed: place is occupied");
             return None;
         }
         let mut parts = Vec::new();
@@ -235,7 +234,9 @@ impl Robot {
         self.battery_left(tick, dt) == 0
     }
 
-    /// Applies a DRIVE (§2.3).
+    /// Applies a DRIVE (§2.3). Every value is held to the robot's limits (normalized values
+    /// to ±100 %, absolute ones to `speed_limit`, `rotation_limit` and `tilt_limit`), so no
+    /// number a client sends can make the state non-finite.
     pub(crate) fn drive(&mut self, d: &Drive) {
         let f = &self.flight;
         let normalized = d.normalized == Some(true);
@@ -246,6 +247,18 @@ impl Robot {
                 v
             }
         };
+        let speed = |v: f64, key: &str| {
+            let limit = if normalized { 100.0 } else { f.speed_limit };
+            limited(v, limit, key)
+        };
+        let rate = |v: f64, key: &str| {
+            let limit = if normalized { 100.0 } else { f.rotation_limit };
+            limited(v, limit, key)
+        };
+        let angle = |v: f64, key: &str| {
+            let limit = if normalized { 100.0 } else { f.tilt_limit };
+            limited(v, limit, key)
+        };
         // The tilt that comes with a translation: ±max_tilt, scaled again when normalized.
         let tilt = |v: f64| {
             (-v.signum() * scaled(f.max_tilt, f.max_tilt))
@@ -253,29 +266,29 @@ impl Robot {
                 .to_radians()
         };
         if let Some(v) = d.linear_velocity {
-            let v = finite(v, "LinearVelocity");
+            let v = speed(v, "LinearVelocity");
             self.set.linear = scaled(v, f.max_linear_speed);
             self.set.pitch = if v == 0.0 { 0.0 } else { tilt(v) };
         }
         if let Some(v) = d.lateral_velocity {
-            let v = finite(v, "LateralVelocity");
+            let v = speed(v, "LateralVelocity");
             self.set.lateral = scaled(v, f.max_lateral_speed);
             self.set.roll = if v == 0.0 { 0.0 } else { -tilt(v) };
         }
         if let Some(v) = d.altitude_velocity {
-            self.set.altitude = scaled(finite(v, "AltitudeVelocity"), f.max_altitude_speed);
+            self.set.altitude = scaled(speed(v, "AltitudeVelocity"), f.max_altitude_speed);
         }
         if let Some(v) = d.rotational_velocity {
-            let degrees = scaled(finite(v, "RotationalVelocity"), f.max_rotation_speed);
+            let degrees = scaled(rate(v, "RotationalVelocity"), f.max_rotation_speed);
             self.set.yaw_rate = degrees.trunc().to_radians();
         }
         if let Some(v) = d.pitch_angle {
-            self.set.pitch = scaled(finite(v, "PitchAngle"), f.max_tilt)
+            self.set.pitch = scaled(angle(v, "PitchAngle"), f.max_tilt)
                 .trunc()
                 .to_radians();
         }
         if let Some(v) = d.roll_angle {
-            self.set.roll = scaled(finite(v, "RollAngle"), f.max_tilt)
+            self.set.roll = scaled(angle(v, "RollAngle"), f.max_tilt)
                 .trunc()
                 .to_radians();
         }
@@ -294,7 +307,7 @@ impl Robot {
             self.position = scene.sweep(self.body, self.shape, start, motion);
         }
         self.velocity = std::array::from_fn(|i| (self.position[i] - start[i]) / dt);
-        self.rotation[2] += s.yaw_rate * dt;
+        self.rotation[2] = super::world::bounded_angle(self.rotation[2] + s.yaw_rate * dt);
         let step = self.flight.tilt_rate * dt;
         for (angle, target) in [(0, s.roll), (1, s.pitch)] {
             let error = target - self.rotation[angle];
@@ -428,7 +441,7 @@ impl Robot {
     /// ACT/MISPKG: sets joint `index` (0-based) of actuator `name`.
     pub(crate) fn actuate(&mut self, name: &str, index: i64, value: f64) {
         if !value.is_finite() {
-            warn!(actuator = name, value, "non-finite ACT value ignored");
+            debug!(actuator = name, value, "non-finite ACT value ignored");
             return;
         }
         let actuator = self

@@ -6,7 +6,10 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::map::line_of;
+use super::map::{ReadError, line_of, read_text};
+
+/// The largest robot file read (bytes).
+pub const MAX_ROBOT_FILE: u64 = 1 << 20;
 use super::sensors;
 
 /// The embedded catalog (`usar-server/robots.toml`).
@@ -16,12 +19,12 @@ const EMBEDDED: &str = include_str!("../../robots.toml");
 #[derive(Debug, thiserror::Error)]
 pub enum RobotConfigError {
     /// The file could not be read.
-    #[error("cannot read robot file {path}: {source}")]
+    #[error("cannot read robot file {path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
-        /// Why.
-        source: std::io::Error,
+        /// Why (shown in this error's text, so not its `source`).
+        error: std::io::Error,
     },
     /// The file is not a valid catalog.
     #[error("{path}:{line}: {message}")]
@@ -53,6 +56,13 @@ pub struct FlightConfig {
     pub tilt_rate: f64,
     /// Pitch/roll dead band, rad (200 UU).
     pub tilt_margin: f64,
+    /// m/s: the most an absolute (not normalized) `LinearVelocity`, `LateralVelocity` or
+    /// `AltitudeVelocity` sets; larger values are clamped.
+    pub speed_limit: f64,
+    /// deg/s: the most an absolute `RotationalVelocity` sets.
+    pub rotation_limit: f64,
+    /// Degrees: the most an absolute `PitchAngle` or `RollAngle` sets.
+    pub tilt_limit: f64,
 }
 
 impl Default for FlightConfig {
@@ -65,6 +75,9 @@ impl Default for FlightConfig {
             max_tilt: 25.0,
             tilt_rate: 7000.0 / 10_430.378,
             tilt_margin: 200.0 / 10_430.378,
+            speed_limit: 50.0,
+            rotation_limit: 1800.0,
+            tilt_limit: 90.0,
         }
     }
 }
@@ -210,13 +223,32 @@ pub struct RobotCatalog {
 }
 
 impl RobotCatalog {
-    /// Reads a catalog file.
+    /// Reads a catalog file; files past [`MAX_ROBOT_FILE`] bytes are refused unread.
     pub fn from_file(path: &Path) -> Result<Self, RobotConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| RobotConfigError::Io {
+        let invalid = |line, message| RobotConfigError::Invalid {
             path: path.to_path_buf(),
-            source,
+            line,
+            message,
+        };
+        let text = read_text(path, MAX_ROBOT_FILE).map_err(|e| match e {
+            ReadError::Io(error) => RobotConfigError::Io {
+                path: path.to_path_buf(),
+                error,
+            },
+            ReadError::TooLarge { size, limit } => invalid(
+                1,
+                format!("file of {size} bytes is larger than the limit of {limit} bytes"),
+            ),
+            ReadError::NotText { line } => {
+                invalid(line, "not a text file (bytes that are not UTF-8)".into())
+            }
         })?;
         Self::parse(&text, path)
+    }
+
+    /// A catalog from TOML text (errors name `path`).
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, RobotConfigError> {
+        Self::parse(text, path)
     }
 
     /// The built-in catalog: `USARBot.stsAirRobot` and `USARBot.AirRobot`.
@@ -322,25 +354,47 @@ fn all_finite(what: &str, v: &[f64]) -> Result<(), String> {
     }
 }
 
+/// The largest speed (m/s), rate (deg/s), angle (deg) and size (m) a robot file may give.
+const MAX_SPEED: f64 = 1000.0;
+const MAX_RATE: f64 = 36_000.0;
+const MAX_ANGLE: f64 = 180.0;
+const MAX_SIZE: f64 = 100.0;
+
+fn at_most(what: &str, v: f64, max: f64) -> Result<(), String> {
+    positive(what, v)?;
+    if v > max {
+        return Err(format!("{what} must be at most {max}, got {v}"));
+    }
+    Ok(())
+}
+
 fn check_flight(r: &RawRobot) -> Result<(), String> {
     let f = &r.flight;
-    for (what, v) in [
-        ("flight.max_linear_speed", f.max_linear_speed),
-        ("flight.max_lateral_speed", f.max_lateral_speed),
-        ("flight.max_altitude_speed", f.max_altitude_speed),
-        ("flight.max_rotation_speed", f.max_rotation_speed),
-        ("flight.tilt_rate", f.tilt_rate),
-        ("collision.radius", r.collision.radius),
-        ("collision.height", r.collision.height),
+    for (what, v, max) in [
+        ("flight.max_linear_speed", f.max_linear_speed, MAX_SPEED),
+        ("flight.max_lateral_speed", f.max_lateral_speed, MAX_SPEED),
+        ("flight.max_altitude_speed", f.max_altitude_speed, MAX_SPEED),
+        ("flight.speed_limit", f.speed_limit, MAX_SPEED),
+        ("flight.max_rotation_speed", f.max_rotation_speed, MAX_RATE),
+        ("flight.rotation_limit", f.rotation_limit, MAX_RATE),
+        ("flight.tilt_limit", f.tilt_limit, MAX_ANGLE),
+        ("flight.tilt_rate", f.tilt_rate, MAX_RATE),
+        ("collision.radius", r.collision.radius, MAX_SIZE),
+        ("collision.height", r.collision.height, MAX_SIZE),
     ] {
-        positive(what, v)?;
+        at_most(what, v, max)?;
     }
     all_finite(
         "flight.max_tilt and flight.tilt_margin",
         &[f.max_tilt, f.tilt_margin],
     )?;
+    if f.max_tilt.abs() > MAX_ANGLE || f.tilt_margin.abs() > MAX_ANGLE {
+        return Err(format!(
+            "flight.max_tilt and flight.tilt_margin must be within ±{MAX_ANGLE}"
+        ));
+    }
     if let Some(b) = r.battery {
-        positive("battery", b)?;
+        at_most("battery", b, 1e9)?;
     }
     Ok(())
 }
@@ -364,26 +418,46 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
         "position and direction",
         &[part.position, part.direction].concat(),
     )?;
-    if let Some(interval) = part.interval {
-        positive("interval", interval)?;
+    if [part.position, part.direction]
+        .concat()
+        .iter()
+        .any(|x| x.abs() > MAX_SIZE)
+    {
+        return Err(format!("position and direction must be within ±{MAX_SIZE}"));
     }
-    if !(part.noise.is_finite() && part.noise >= 0.0) {
+    if let Some(interval) = part.interval {
+        at_most("interval", interval, 1e6)?;
+    }
+    if !(part.noise.is_finite() && (0.0..=100.0).contains(&part.noise)) {
         return Err(format!("noise must be >= 0, got {}", part.noise));
     }
     (kind.build)(part).map(drop)
 }
 
 fn check_actuator(a: &ActuatorConfig) -> Result<(), String> {
-    positive("interval", a.interval)?;
+    at_most("interval", a.interval, 1e6)?;
     all_finite(
         "position and direction",
         &[a.position, a.direction].concat(),
     )?;
+    if [a.position, a.direction]
+        .concat()
+        .iter()
+        .any(|x| x.abs() > MAX_SIZE)
+    {
+        return Err(format!("position and direction must be within ±{MAX_SIZE}"));
+    }
     if a.joints.is_empty() {
         return Err(format!("actuator `{}` needs at least one joint", a.name));
     }
     for j in &a.joints {
         all_finite("joint limits", &[j.min, j.max, j.max_torque])?;
+        if [j.min, j.max, j.max_torque].iter().any(|x| x.abs() > 1e6) {
+            return Err(format!(
+                "actuator `{}`: joint numbers must be within ±1e6",
+                a.name
+            ));
+        }
         if j.min > j.max {
             return Err(format!("actuator `{}`: joint min > max", a.name));
         }

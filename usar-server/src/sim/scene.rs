@@ -241,6 +241,10 @@ impl Scene {
         centre: V3,
         motion: V3,
     ) -> V3 {
+        // The world ends at ±LIMIT on every axis (docs/limits.md): no motion leaves it.
+        let limit = super::map::LIMIT;
+        let motion: V3 =
+            std::array::from_fn(|i| (centre[i] + motion[i]).clamp(-limit, limit) - centre[i]);
         let cylinder = shape.cylinder();
         let mut pos = centre;
         let length = norm(motion);

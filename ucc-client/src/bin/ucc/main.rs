@@ -187,10 +187,13 @@ fn agent_name(name: &str) -> Result<&'static AgentInfo, String> {
 }
 
 /// A positive, finite number of seconds (or a positive speed).
+/// From 0.001 to 1 000 000: beyond, a Duration or the server's pacing would overflow.
 fn positive_seconds(text: &str) -> Result<f64, String> {
     match text.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!("expected a positive number, not {text:?}")),
+        Ok(v) if (1e-3..=1e6).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "expected a number from 0.001 to 1000000, not {text:?}"
+        )),
     }
 }
 
