@@ -135,6 +135,7 @@ impl WorldSim {
         let config = SimConfig {
             seed,
             dt: settings.dt,
+            ..SimConfig::default()
         };
         let mut world = World::new(settings.map.clone(), settings.catalog.clone(), config);
         let mut uavs = Vec::with_capacity(poses.len());
