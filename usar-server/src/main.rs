@@ -13,7 +13,8 @@ use usar_server::sim::robots::RobotCatalog;
 use usar_server::{ServerConfig, TimeScale};
 
 /// A USARSim (UDK) stand-in: speaks the Gamebots text protocol and flies simulated
-/// quadrotors (USARBot.stsAirRobot, USARBot.AirRobot) headless, with rapier3d.
+/// quadrotors (USARBot.stsAirRobot, USARBot.AirRobot, USARBot.stsQuadrotor) headless, with
+/// rapier3d.
 ///
 /// When ready it prints one line on stdout: `usar-server listening on ADDRESS:PORT map LEVEL`.
 /// Ctrl-C or SIGTERM shut it down cleanly. Log level: RUST_LOG (default `info`), on stderr.
@@ -64,6 +65,18 @@ struct Args {
     /// List the embedded maps and exit.
     #[arg(long)]
     list_maps: bool,
+    /// Mean wind for this run, `vx,vy[,vz]` m/s (x north, y east, z down; where the air
+    /// goes), overriding the map's `[wind]`. Felt by robots with physics (stsQuadrotor).
+    #[arg(long, value_name = "VX,VY[,VZ]", allow_hyphen_values = true,
+          value_parser = usar_server::sim::wind::parse_velocity)]
+    wind: Option<[f64; 3]>,
+    /// Gust intensity for this run: standard deviation of the horizontal gusts, m/s
+    /// (Dryden-type, seeded by --seed).
+    #[arg(long, value_name = "M/S", allow_hyphen_values = true)]
+    gusts: Option<f64>,
+    /// Gust length scale for this run, m (default 20).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    gust_length: Option<f64>,
 }
 
 #[derive(Debug, clap::Subcommand)]
@@ -147,11 +160,19 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         None => RobotCatalog::embedded(),
         Some(path) => RobotCatalog::from_file(path)?,
     };
+    let wind = usar_server::sim::WindConfig::overridden(
+        map.wind(),
+        args.wind,
+        args.gusts,
+        args.gust_length,
+    )
+    .map_err(|e| anyhow::anyhow!("--wind/--gusts/--gust-length: {e}"))?;
     Ok(ServerConfig {
         map,
         robots,
         sim: SimConfig {
             seed: args.seed,
+            wind,
             robots_per_connection: args.robots_per_connection,
             ..SimConfig::default()
         },

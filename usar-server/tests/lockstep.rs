@@ -4,6 +4,7 @@ mod common;
 
 use common::{Client, TestServer};
 use usar_proto::{Nfo, SenData, ServerMessage};
+use usar_server::sim::WindConfig;
 use usar_server::{ServerConfig, TimeScale};
 
 /// Reads until the `SYNC` answer; returns every line read, in order, and the answer's time.
@@ -22,12 +23,23 @@ async fn until_sync(c: &mut Client) -> (Vec<String>, f64) {
 /// A small closed-loop flight: fly towards x = start + 1.5 while reading Position, in
 /// 0.1 s lockstep intervals. Returns every byte the client received.
 async fn flight(scale: TimeScale, seed: u64) -> Vec<String> {
+    flight_of("USARBot.stsAirRobot", None, scale, seed).await
+}
+
+/// [`flight`] with a robot class and a wind.
+async fn flight_of(
+    class: &str,
+    wind: Option<WindConfig>,
+    scale: TimeScale,
+    seed: u64,
+) -> Vec<String> {
     let mut config = ServerConfig {
         time_scale: scale,
         lockstep: true,
         ..ServerConfig::default()
     };
     config.sim.seed = seed;
+    config.sim.wind = wind;
     let server = TestServer::with(config).await;
     let mut c = server.client().await;
     let mut seen = vec![c.raw_line().await.unwrap()];
@@ -43,7 +55,7 @@ async fn flight(scale: TimeScale, seed: u64) -> Vec<String> {
     let (lines, t) = until_sync(&mut c).await;
     seen.extend(lines);
     c.send(&format!(
-        "INIT {{ClassName USARBot.stsAirRobot}} {{Location {},{},{}}}",
+        "INIT {{ClassName {class}}} {{Location {},{},{}}}",
         s.x, s.y, s.z
     ))
     .await;
@@ -87,6 +99,27 @@ async fn lockstep_runs_are_byte_identical_at_any_time_scale() {
     );
     assert_eq!(fast, again, "two runs differ");
     assert_eq!(fast, paced, "the time scale changed the run");
+}
+
+#[tokio::test]
+async fn a_quadrotor_in_gusty_wind_is_byte_identical_in_lockstep() {
+    let wind = Some(WindConfig {
+        velocity: [0.5, 1.5, 0.0],
+        gusts: 1.0,
+        gust_length: 15.0,
+    });
+    let quad = "USARBot.stsQuadrotor";
+    let fast = flight_of(quad, wind, TimeScale::Max, 9).await;
+    let again = flight_of(quad, wind, TimeScale::Max, 9).await;
+    let paced = flight_of(quad, wind, TimeScale::Factor(4.0), 9).await;
+    let other_seed = flight_of(quad, wind, TimeScale::Max, 10).await;
+    assert!(
+        fast.iter()
+            .any(|l| l.contains("{Type Touch} {Name Crash} {Touch False}"))
+    );
+    assert_eq!(fast, again, "two runs differ");
+    assert_eq!(fast, paced, "the time scale changed the run");
+    assert_ne!(fast, other_seed, "the seed drives the gusts");
 }
 
 #[tokio::test]

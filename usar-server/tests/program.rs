@@ -70,6 +70,9 @@ fn bad_flags_exit_2() {
         &["--time-scale", "fast"][..],
         &["--map", "no-such-map"],
         &["--bogus"],
+        &["--wind", "3"],
+        &["--gusts", "-1"],
+        &["--wind", "1e300,0"],
     ] {
         let out = server().args(args).output().unwrap();
         assert_eq!(out.status.code(), Some(2), "{args:?}");

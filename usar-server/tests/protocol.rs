@@ -534,3 +534,41 @@ async fn sixty_four_connections_are_served_and_the_next_is_refused() {
     assert!(again.raw_line().await.unwrap().starts_with("NFO "));
     server.stop().await;
 }
+
+#[tokio::test]
+async fn a_quadrotor_obeys_quad_rotor_commands_and_reports_its_crash() {
+    let server = empty_room().await;
+    let mut c = server.client().await;
+    c.raw_line().await.unwrap();
+    c.send("INIT {ClassName USARBot.stsQuadrotor} {Location 0,0,-2}")
+        .await;
+    let (_, hover) = c.position().await;
+    // All four rotors well below hover speed: it sinks, lands hard on the floor, crashes.
+    c.send("QUAD {Rotors 300,300,300,300}").await;
+    let crash_time = c
+        .until(|m| match m {
+            ServerMessage::Sen(s) => match &s.data {
+                SenData::Touch { name, touch: true } if name == "Crash" => {
+                    Some(s.time.unwrap().seconds)
+                }
+                _ => None,
+            },
+            _ => None,
+        })
+        .await;
+    let (t, p) = c.position().await;
+    assert!(
+        t >= crash_time && p.z > hover.z + 1.8,
+        "on the floor: {p:?}"
+    );
+    // Nothing was answered to QUAD: only STA and SEN lines arrived.
+    c.send("QUAD {Rotors 700,700,700,700}").await;
+    for _ in 0..40 {
+        let (line, _) = c.message().await;
+        assert!(
+            line.starts_with("STA ") || line.starts_with("SEN "),
+            "{line}"
+        );
+    }
+    server.stop().await;
+}

@@ -168,6 +168,12 @@ async fn write_output(
     Ok(())
 }
 
+/// Whether a command is the QUAD extension (docs/quadrotor.md): ours, not unknown; the world
+/// applies it.
+fn is_quad(command: &Command) -> bool {
+    matches!(command, Command::Other(m) if m.kind.eq_ignore_ascii_case("QUAD"))
+}
+
 /// Turns one client line into what the driver serves, logging (summarised, escaped) what a
 /// stock server would have silently tolerated or ignored.
 fn read_line(text: String, peer: SocketAddr, limits: Limits, complaints: &mut Complaints) -> Line {
@@ -196,7 +202,7 @@ fn read_line(text: String, peer: SocketAddr, limits: Limits, complaints: &mut Co
         if let Some(n) = complaints.sync.note() {
             warn!(%peer, count = n, "SYNC ignored: lockstep is off (usar-server --lockstep)");
         }
-    } else if sync.is_none() {
+    } else if sync.is_none() && !is_quad(&parsed.message) {
         for deviation in &parsed.deviations {
             if let Some(n) = complaints.deviations.note() {
                 let deviation = deviation.to_string();

@@ -9,6 +9,7 @@ use toml::Spanned;
 
 use super::obj;
 use super::scene::{Scene, V3, upright_pose, yaw_rotate};
+use super::wind::WindConfig;
 
 /// The maps built into the binary: short name, file name, text.
 const EMBEDDED: &[(&str, &str, &str)] = &[
@@ -46,12 +47,33 @@ pub const MAX_MAP_FILE: u64 = 16 << 20;
 /// The largest OBJ mesh file read (bytes).
 pub const MAX_OBJ_FILE: u64 = 64 << 20;
 
-/// Errors reading a map; each names the file, the line and what is wrong.
+/// What kind of configuration file a [`ConfigError`] is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConfigFile {
+    /// A map (docs/maps.md).
+    Map,
+    /// A robot catalog (docs/robots.md).
+    Robots,
+}
+
+impl std::fmt::Display for ConfigFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Map => "map",
+            Self::Robots => "robot catalog",
+        })
+    }
+}
+
+/// Errors reading a configuration file (a map, its meshes, a robot catalog): the one error
+/// type of the server's loaders; each names the file, the line and what is wrong.
 #[derive(Debug, thiserror::Error)]
-pub enum MapError {
+pub enum ConfigError {
     /// The file could not be read.
-    #[error("cannot read map file {path}: {error}")]
+    #[error("cannot read {file} file {path}: {error}")]
     Io {
+        /// What kind of file.
+        file: ConfigFile,
         /// The file.
         path: PathBuf,
         /// Why (shown in this error's text, so not its `source`).
@@ -75,10 +97,10 @@ pub enum MapError {
         /// The embedded maps' names, comma separated.
         known: String,
     },
-    /// The file is not a valid map.
+    /// The file is not valid.
     #[error("{path}:{line}: {message}")]
     Invalid {
-        /// The file (the map, or the OBJ file it references).
+        /// The file (a map, the OBJ file it references, or a robot catalog).
         path: PathBuf,
         /// 1-based line.
         line: usize,
@@ -137,6 +159,7 @@ pub struct Map {
     time_limit: i64,
     starts: Vec<PlayerStart>,
     solids: Vec<Solid>,
+    wind: Option<WindConfig>,
 }
 
 #[derive(Deserialize)]
@@ -153,6 +176,8 @@ struct RawMap {
     cylinder: Vec<Spanned<RawCylinder>>,
     #[serde(default)]
     mesh: Vec<Spanned<RawMesh>>,
+    #[serde(default)]
+    wind: Option<Spanned<WindConfig>>,
 }
 
 fn default_time_limit() -> i64 {
@@ -213,12 +238,12 @@ pub(crate) fn line_of(text: &str, offset: usize) -> usize {
 }
 
 /// The embedded OBJ file `file`.
-fn embedded_obj(file: &str, map: &Path) -> Result<(PathBuf, String), MapError> {
+fn embedded_obj(file: &str, map: &Path) -> Result<(PathBuf, String), ConfigError> {
     EMBEDDED_OBJ
         .iter()
         .find(|(f, _)| *f == file)
         .map(|(f, text)| (Path::new("maps").join(f), (*text).to_string()))
-        .ok_or_else(|| MapError::MeshIo {
+        .ok_or_else(|| ConfigError::MeshIo {
             path: Path::new("maps").join(file),
             map: map.to_path_buf(),
             error: std::io::ErrorKind::NotFound.into(),
@@ -226,19 +251,20 @@ fn embedded_obj(file: &str, map: &Path) -> Result<(PathBuf, String), MapError> {
 }
 
 /// A mesh loader: relative file name → (path for messages, text).
-type ObjSource<'a> = &'a dyn Fn(&str) -> Result<(PathBuf, String), MapError>;
+type ObjSource<'a> = &'a dyn Fn(&str) -> Result<(PathBuf, String), ConfigError>;
 
 impl Map {
     /// Reads a map file; OBJ files are looked up relative to it.
     /// Files past [`MAX_MAP_FILE`] (or meshes past [`MAX_OBJ_FILE`]) are refused unread.
-    pub fn from_file(path: &Path) -> Result<Self, MapError> {
-        let text = read_text(path, MAX_MAP_FILE).map_err(|e| e.into_map_error(path, None))?;
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        let text = read_text(path, MAX_MAP_FILE)
+            .map_err(|e| e.into_config_error(ConfigFile::Map, path, None))?;
         let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
         let map = path.to_path_buf();
         let load = move |file: &str| {
             let obj_path = dir.join(file);
             let text = read_text(&obj_path, MAX_OBJ_FILE)
-                .map_err(|e| e.into_map_error(&obj_path, Some(&map)))?;
+                .map_err(|e| e.into_config_error(ConfigFile::Map, &obj_path, Some(&map)))?;
             Ok((obj_path, text))
         };
         Self::parse(&text, path, &load)
@@ -246,19 +272,19 @@ impl Map {
 
     /// A map from TOML text (errors name `path`); meshes may name only the embedded OBJ
     /// files. For tools and fuzzing: nothing is read from disk.
-    pub fn from_toml(text: &str, path: &Path) -> Result<Self, MapError> {
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, ConfigError> {
         Self::parse(text, path, &|f: &str| embedded_obj(f, path))
     }
 
     /// The map a user names: an embedded map (by short name or level name, any case, so
     /// `arena`, `Arena` and `EmptyRoom` all work) or else a map file.
-    pub fn lookup(name: &str) -> Result<Self, MapError> {
+    pub fn lookup(name: &str) -> Result<Self, ConfigError> {
         if let Some(map) = Self::embedded(name) {
             return Ok(map);
         }
         let path = Path::new(name);
         if !path.exists() {
-            return Err(MapError::Unknown {
+            return Err(ConfigError::Unknown {
                 name: name.to_owned(),
                 known: Self::embedded_names().join(", "),
             });
@@ -295,7 +321,13 @@ impl Map {
             time_limit: 20,
             starts: Vec::new(),
             solids: Vec::new(),
+            wind: None,
         })
+    }
+
+    /// The map's wind (`[wind]`), if it sets one.
+    pub fn wind(&self) -> Option<WindConfig> {
+        self.wind
     }
 
     /// The level name for the NFO line.
@@ -372,8 +404,8 @@ impl Map {
             .find(|s| s.tag.eq_ignore_ascii_case(key) || s.name.eq_ignore_ascii_case(key))
     }
 
-    fn parse(text: &str, path: &Path, load_obj: ObjSource<'_>) -> Result<Self, MapError> {
-        let invalid = |offset: usize, message: String| MapError::Invalid {
+    fn parse(text: &str, path: &Path, load_obj: ObjSource<'_>) -> Result<Self, ConfigError> {
+        let invalid = |offset: usize, message: String| ConfigError::Invalid {
             path: path.to_path_buf(),
             line: line_of(text, offset),
             message,
@@ -463,7 +495,7 @@ impl Map {
                 return Err(invalid(at, "mesh scale must be positive".into()));
             }
             let (obj_path, obj_text) = load_obj(&m.file)?;
-            let mesh = obj::parse(&obj_text).map_err(|(line, message)| MapError::Invalid {
+            let mesh = obj::parse(&obj_text).map_err(|(line, message)| ConfigError::Invalid {
                 path: obj_path,
                 line,
                 message,
@@ -490,11 +522,21 @@ impl Map {
                 triangles: mesh.triangles,
             });
         }
+        let wind = match raw.wind {
+            Some(entry) => {
+                let at = entry.span().start;
+                let wind = entry.into_inner();
+                wind.check().map_err(|m| invalid(at, m))?;
+                Some(wind)
+            }
+            None => None,
+        };
         Ok(Self {
             level: raw.level,
             time_limit: raw.time_limit,
             starts,
             solids,
+            wind,
         })
     }
 
@@ -570,13 +612,20 @@ pub(crate) enum ReadError {
 }
 
 impl ReadError {
-    fn into_map_error(self, path: &Path, map: Option<&Path>) -> MapError {
+    /// The error of reading `path`, a `file`; a mesh names the `map` that wants it.
+    pub(crate) fn into_config_error(
+        self,
+        file: ConfigFile,
+        path: &Path,
+        map: Option<&Path>,
+    ) -> ConfigError {
         let io = |error| match map {
-            None => MapError::Io {
+            None => ConfigError::Io {
+                file,
                 path: path.to_path_buf(),
                 error,
             },
-            Some(map) => MapError::MeshIo {
+            Some(map) => ConfigError::MeshIo {
                 path: path.to_path_buf(),
                 map: map.to_path_buf(),
                 error,
@@ -584,12 +633,12 @@ impl ReadError {
         };
         match self {
             Self::Io(error) => io(error),
-            Self::TooLarge { size, limit } => MapError::Invalid {
+            Self::TooLarge { size, limit } => ConfigError::Invalid {
                 path: path.to_path_buf(),
                 line: 1,
                 message: format!("file of {size} bytes is larger than the limit of {limit} bytes"),
             },
-            Self::NotText { line } => MapError::Invalid {
+            Self::NotText { line } => ConfigError::Invalid {
                 path: path.to_path_buf(),
                 line,
                 message: "not a text file (bytes that are not UTF-8)".into(),
@@ -628,9 +677,9 @@ pub(crate) fn read_text(path: &Path, limit: u64) -> Result<String, ReadError> {
 mod tests {
     use super::*;
 
-    fn parse(text: &str) -> Result<Map, MapError> {
+    fn parse(text: &str) -> Result<Map, ConfigError> {
         let no_obj = |f: &str| {
-            Err(MapError::MeshIo {
+            Err(ConfigError::MeshIo {
                 path: f.into(),
                 map: "test.toml".into(),
                 error: std::io::ErrorKind::NotFound.into(),
@@ -672,10 +721,52 @@ mod tests {
     }
 
     #[test]
+    fn wind_section() {
+        let map =
+            parse("level = \"x\"\n[wind]\nvelocity = [0.0, 2.0, 0.0]\ngusts = 0.5\n").unwrap();
+        let wind = map.wind().expect("wind");
+        assert_eq!(
+            (wind.velocity, wind.gusts, wind.gust_length),
+            ([0.0, 2.0, 0.0], 0.5, 20.0)
+        );
+        assert!(Map::default_map().wind().is_none());
+        let e = parse("level = \"x\"\n\n[wind]\ngusts = -1.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("test.toml:3:") && e.contains("gusts"), "{e}");
+        let e = parse("level = \"x\"\n[wind]\nspeed = 3.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("speed"), "{e}");
+    }
+
+    #[test]
     fn start_names_default_to_playerstart_index() {
         let map =
             parse("level = \"x\"\n[[start]]\ntag = \"PlayerStart\"\nlocation = [1,2,3]\n").unwrap();
         assert_eq!(map.starts()[0].name, "PlayerStart_0");
         assert!(map.find_start("playerstart_0").is_some());
+    }
+}
+
+#[cfg(test)]
+mod config_error_tests {
+    use super::{ConfigError, ConfigFile, Map};
+    use crate::sim::RobotCatalog;
+    use std::path::Path;
+
+    /// One error type for every configuration file, telling which kind it was.
+    #[test]
+    fn maps_and_robot_catalogs_fail_with_the_same_error_type() {
+        let missing = Path::new("/nonexistent/file.toml");
+        let map = Map::from_file(missing).unwrap_err();
+        let robots = RobotCatalog::from_file(missing).unwrap_err();
+        for (error, kind, text) in [
+            (map, ConfigFile::Map, "cannot read map file"),
+            (robots, ConfigFile::Robots, "cannot read robot catalog file"),
+        ] {
+            assert!(matches!(&error, ConfigError::Io { file, .. } if *file == kind));
+            assert!(error.to_string().starts_with(text), "{error}");
+        }
     }
 }

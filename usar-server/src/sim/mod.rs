@@ -27,20 +27,26 @@
 //! assert!(!out.is_empty());
 //! ```
 
+mod dynamics;
 pub mod map;
 mod noise;
 mod obj;
+pub mod quadrotor;
 mod robot;
 pub mod robots;
 mod scene;
 pub mod sensors;
+pub mod wind;
 mod world;
 
 #[cfg(test)]
+mod quadrotor_tests;
+#[cfg(test)]
 mod tests;
 
-pub use map::{Map, MapError, PlayerStart};
-pub use robots::{RobotCatalog, RobotClass, RobotConfigError};
+pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
+pub use robots::{RobotCatalog, RobotClass};
+pub use wind::WindConfig;
 pub use world::World;
 
 /// A connection as the simulation knows it.
@@ -54,6 +60,8 @@ pub struct SimConfig {
     pub seed: u64,
     /// Seconds per physics step (USARSim: 1/200).
     pub dt: f64,
+    /// The wind for this run; `None`: the map's `[wind]` (calm when it has none).
+    pub wind: Option<WindConfig>,
     /// Robots one connection may spawn (USARSim: one); further INITs are ignored (logged).
     pub robots_per_connection: usize,
 }
@@ -63,6 +71,7 @@ impl Default for SimConfig {
         Self {
             seed: 0,
             dt: 1.0 / 200.0,
+            wind: None,
             robots_per_connection: 1,
         }
     }

@@ -1,42 +1,20 @@
 //! Robot classes: a TOML catalog in the spirit of USARSim's ini sections (see
 //! `docs/robots.md`). A new robot is a configuration entry, not code.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::map::{ReadError, line_of, read_text};
+use super::map::{ConfigError, ConfigFile, line_of, read_text};
 
 /// The largest robot file read (bytes).
 pub const MAX_ROBOT_FILE: u64 = 1 << 20;
+use super::quadrotor::QuadrotorConfig;
 use super::sensors;
 
 /// The embedded catalog (`usar-server/robots.toml`).
 const EMBEDDED: &str = include_str!("../../robots.toml");
-
-/// Errors reading a robot catalog; each names the file, the line and what is wrong.
-#[derive(Debug, thiserror::Error)]
-pub enum RobotConfigError {
-    /// The file could not be read.
-    #[error("cannot read robot file {path}: {error}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// Why (shown in this error's text, so not its `source`).
-        error: std::io::Error,
-    },
-    /// The file is not a valid catalog.
-    #[error("{path}:{line}: {message}")]
-    Invalid {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
-}
 
 /// Flight limits and behaviour (AerialVehicle / AirRobot defaults).
 #[derive(Debug, Clone, Deserialize)]
@@ -78,6 +56,40 @@ impl Default for FlightConfig {
             speed_limit: 50.0,
             rotation_limit: 1800.0,
             tilt_limit: 90.0,
+        }
+    }
+}
+
+/// The flight model of a robot class (`dynamics = ..`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DynamicsKind {
+    /// UDK's AerialVehicle: velocities imposed, byte-compatible with USARSim.
+    #[default]
+    Kinematic,
+    /// A rigid-body quadrotor with motors, drag, wind and an onboard controller
+    /// (`[robot.quadrotor]`, docs/quadrotor.md).
+    Quadrotor,
+}
+
+/// When a contact is a crash (`[robot.crash]`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CrashConfig {
+    /// m/s into a surface above which a contact is a crash (quadrotor).
+    pub speed: f64,
+    /// Degrees of tilt above which a contact is a crash (quadrotor).
+    pub tilt: f64,
+    /// Kinematic model: any contact with the map or another robot is a crash.
+    pub on_contact: bool,
+}
+
+impl Default for CrashConfig {
+    fn default() -> Self {
+        Self {
+            speed: 1.0,
+            tilt: 60.0,
+            on_contact: false,
         }
     }
 }
@@ -177,6 +189,12 @@ pub struct RobotClass {
     pub class: String,
     /// Flight limits.
     pub flight: FlightConfig,
+    /// The flight model.
+    pub dynamics: DynamicsKind,
+    /// The quadrotor's parameters (used when `dynamics` is `Quadrotor`).
+    pub quadrotor: QuadrotorConfig,
+    /// When a contact is a crash.
+    pub crash: CrashConfig,
     /// Collision shape.
     pub collision: CollisionConfig,
     /// Battery life in simulated seconds; `None` = no battery part (`Battery 99999`).
@@ -207,6 +225,12 @@ struct RawRobot {
     #[serde(default)]
     flight: FlightConfig,
     #[serde(default)]
+    dynamics: DynamicsKind,
+    #[serde(default)]
+    quadrotor: Option<QuadrotorConfig>,
+    #[serde(default)]
+    crash: CrashConfig,
+    #[serde(default)]
     collision: CollisionConfig,
     #[serde(default)]
     battery: Option<f64>,
@@ -224,30 +248,14 @@ pub struct RobotCatalog {
 
 impl RobotCatalog {
     /// Reads a catalog file; files past [`MAX_ROBOT_FILE`] bytes are refused unread.
-    pub fn from_file(path: &Path) -> Result<Self, RobotConfigError> {
-        let invalid = |line, message| RobotConfigError::Invalid {
-            path: path.to_path_buf(),
-            line,
-            message,
-        };
-        let text = read_text(path, MAX_ROBOT_FILE).map_err(|e| match e {
-            ReadError::Io(error) => RobotConfigError::Io {
-                path: path.to_path_buf(),
-                error,
-            },
-            ReadError::TooLarge { size, limit } => invalid(
-                1,
-                format!("file of {size} bytes is larger than the limit of {limit} bytes"),
-            ),
-            ReadError::NotText { line } => {
-                invalid(line, "not a text file (bytes that are not UTF-8)".into())
-            }
-        })?;
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        let text = read_text(path, MAX_ROBOT_FILE)
+            .map_err(|e| e.into_config_error(ConfigFile::Robots, path, None))?;
         Self::parse(&text, path)
     }
 
     /// A catalog from TOML text (errors name `path`).
-    pub fn from_toml(text: &str, path: &Path) -> Result<Self, RobotConfigError> {
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, ConfigError> {
         Self::parse(text, path)
     }
 
@@ -279,8 +287,8 @@ impl RobotCatalog {
             .find(|r| r.class.eq_ignore_ascii_case(class))
     }
 
-    fn parse(text: &str, path: &Path) -> Result<Self, RobotConfigError> {
-        let invalid = |offset: usize, message: String| RobotConfigError::Invalid {
+    fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        let invalid = |offset: usize, message: String| ConfigError::Invalid {
             path: path.to_path_buf(),
             line: line_of(text, offset),
             message,
@@ -328,6 +336,9 @@ impl RobotCatalog {
             robots.push(RobotClass {
                 class: r.class,
                 flight: r.flight,
+                dynamics: r.dynamics,
+                quadrotor: r.quadrotor.unwrap_or_default(),
+                crash: r.crash,
                 collision: r.collision,
                 battery: r.battery,
                 parts,
@@ -395,6 +406,18 @@ fn check_flight(r: &RawRobot) -> Result<(), String> {
     }
     if let Some(b) = r.battery {
         at_most("battery", b, 1e9)?;
+    }
+    positive("crash.speed", r.crash.speed)?;
+    positive("crash.tilt", r.crash.tilt)?;
+    match (&r.quadrotor, r.dynamics) {
+        (Some(_), DynamicsKind::Kinematic) => {
+            return Err(
+                "[robot.quadrotor] needs `dynamics = \"quadrotor\"` (the robot is kinematic)"
+                    .into(),
+            );
+        }
+        (Some(q), DynamicsKind::Quadrotor) => q.check()?,
+        (None, _) => {}
     }
     Ok(())
 }
@@ -488,6 +511,14 @@ mod tests {
         ] {
             assert!(names.contains(&n), "{n} missing");
         }
+        let quad = catalog.get("USARBot.stsQuadrotor").expect("stsQuadrotor");
+        assert_eq!(quad.dynamics, DynamicsKind::Quadrotor);
+        assert_eq!(
+            quad.parts.len(),
+            sts.parts.len() + 1,
+            "the sts parts plus Crash"
+        );
+        assert_eq!(sts.dynamics, DynamicsKind::Kinematic);
         let air = catalog.get("USARBot.AirRobot").expect("AirRobot");
         assert_eq!(air.battery, None);
         assert_eq!(air.actuators[0].name, "cam");
@@ -519,5 +550,27 @@ mod tests {
         assert!(e.contains("package"), "{e}");
         let e = parse("[[robot]]\nclass = \"USARBot.X\"\nbattery = -3.0\n");
         assert!(e.starts_with("r.toml:1:") && e.contains("battery"), "{e}");
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\n[robot.quadrotor]\nmass = 2.0\n");
+        assert!(e.contains("needs `dynamics = \"quadrotor\"`"), "{e}");
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\ndynamics = \"quadrotor\"\n\
+             [robot.quadrotor]\nmass = 20.0\n",
+        );
+        assert!(
+            e.starts_with("r.toml:1:") && e.contains("cannot hover"),
+            "{e}"
+        );
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\ndynamics = \"helicopter\"\n");
+        assert!(
+            e.starts_with("r.toml:3:") && e.contains("helicopter"),
+            "{e}"
+        );
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\ndynamics = \"quadrotor\"\n\
+             [robot.quadrotor]\nconfiguration = \"y\"\n",
+        );
+        assert!(e.contains("configuration") || e.contains("`y`"), "{e}");
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\n[robot.crash]\nspeed = 0.0\n");
+        assert!(e.contains("crash.speed"), "{e}");
     }
 }

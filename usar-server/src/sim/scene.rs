@@ -234,13 +234,16 @@ impl Scene {
 
     /// Moves the body `handle` from `centre` by `motion`, stopping in front of the first
     /// obstacle and sliding along it (up to three contacts). Returns the new centre.
-    pub(crate) fn sweep(
+    /// Also returns the normal of the first surface hit (pointing out of it, towards the
+    /// robot), if any.
+    pub(crate) fn sweep_contact(
         &mut self,
         handle: ColliderHandle,
         shape: BodyShape,
         centre: V3,
         motion: V3,
-    ) -> V3 {
+    ) -> (V3, Option<V3>) {
+        let mut contact = None;
         // The world ends at ±LIMIT on every axis (docs/limits.md): no motion leaves it.
         let limit = super::map::LIMIT;
         let motion: V3 =
@@ -278,6 +281,7 @@ impl Scene {
             // Slide: keep the part of the remaining motion that is tangent to the surface.
             let n = hit.normal1;
             let n = [f64::from(n.x), f64::from(n.y), f64::from(n.z)];
+            contact.get_or_insert(n);
             let left = scale(rest, 1.0 - toi);
             let into = left[0] * n[0] + left[1] * n[1] + left[2] * n[2];
             rest = if into < 0.0 {
@@ -293,7 +297,7 @@ impl Scene {
             collider.set_position(upright_pose(pos));
         }
         self.reindex(handle);
-        pos
+        (pos, contact)
     }
 }
 

@@ -9,6 +9,7 @@ use super::map::{self, Map};
 use super::robot::{Robot, Spawn};
 use super::robots::RobotCatalog;
 use super::scene::{Scene, V3};
+use super::wind::WindConfig;
 use super::{ClientId, SimConfig};
 use crate::shown::{Repeats, Shown};
 
@@ -22,6 +23,8 @@ pub struct World {
     tick: u64,
     dt: f64,
     seed: u64,
+    /// The wind robots with physics feel.
+    wind: WindConfig,
     map: Map,
     catalog: RobotCatalog,
     scene: Scene,
@@ -79,6 +82,16 @@ impl World {
             warn!(dt = config.dt, "invalid dt, using 1/200 s");
             SimConfig::default().dt
         };
+        let wind = match config.wind.or(map.wind()) {
+            Some(wind) => match wind.check() {
+                Ok(()) => wind,
+                Err(error) => {
+                    warn!(%error, "invalid wind, flying in calm air");
+                    WindConfig::default()
+                }
+            },
+            None => WindConfig::default(),
+        };
         let mut scene = Scene::new();
         map.build(&mut scene);
         scene.refit();
@@ -86,6 +99,7 @@ impl World {
             tick: 0,
             dt,
             seed: config.seed,
+            wind,
             map,
             catalog: robots,
             scene,
@@ -247,6 +261,7 @@ impl World {
             tick: self.tick,
             dt: self.dt,
             seed: self.seed,
+            wind: self.wind,
         };
         let Some(robot) = Robot::spawn(spawn, &mut self.scene) else {
             if let Some(n) = complain(&mut self.complaints, client) {
@@ -287,6 +302,14 @@ impl World {
         }
         match command {
             Command::Drive(drive) => robot.drive(&drive),
+            // The QUAD extension (docs/quadrotor.md): lower-level commands for robots with
+            // physics; a stock USARSim ignores it like any unknown command.
+            Command::Other(message) if message.kind.eq_ignore_ascii_case("QUAD") => {
+                match super::dynamics::parse_quad(&message) {
+                    Ok(command) => robot.low_level(command),
+                    Err(error) => warn!(?client, %error, "QUAD ignored"),
+                }
+            }
             Command::GetConf(query) => return conf(robot, &query).into_iter().collect(),
             Command::GetGeo(query) => return geo(robot, &query).into_iter().collect(),
             Command::Set(set) => robot.set(&set.kind, set.name.as_deref(), &set.opcode),
@@ -308,6 +331,14 @@ impl World {
     #[cfg(test)]
     pub(crate) fn scene_ray(&self, origin: V3, dir: V3, max: f64) -> Option<f64> {
         self.scene.cast_ray(origin, dir, max, None)
+    }
+
+    /// Whether the robot `client` controls has crashed.
+    pub fn crashed(&self, client: ClientId) -> bool {
+        let serial = self.clients.get(&client).copied().flatten();
+        self.robots
+            .iter()
+            .any(|r| Some(r.serial) == serial && r.crashed())
     }
 
     #[cfg(test)]

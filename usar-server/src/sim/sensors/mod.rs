@@ -15,6 +15,7 @@ mod mission_time;
 mod position;
 mod range_scanner;
 mod sonar;
+mod touch;
 mod velocity;
 
 pub use altitude::AltitudeConfig;
@@ -27,15 +28,17 @@ pub use mission_time::MissionTimeConfig;
 pub use position::PositionConfig;
 pub use range_scanner::RangeScannerConfig;
 pub use sonar::{SonarConfig, SonarModel};
+pub use touch::{TouchConfig, TouchEvent};
 pub use velocity::VelocityConfig;
 
 use rapier3d::prelude::ColliderHandle;
 use serde::de::DeserializeOwned;
 use usar_proto::{ConfItem, SenData};
 
+use super::dynamics::{ImuTruth, M3, mul, mul_t};
 use super::noise::Noise;
 use super::robots::PartConfig;
-use super::scene::{Scene, V3};
+use super::scene::{Scene, V3, yaw_rotate};
 
 /// What a sensor sees when it takes a reading.
 pub(crate) struct Reading<'a> {
@@ -64,12 +67,37 @@ pub(crate) struct Reading<'a> {
     pub(crate) yaw: f64,
     /// The mount's pitch (+ = up), rad.
     pub(crate) pitch: f64,
+    /// The body's tilt (its rotation without the yaw) for models with physics: directions
+    /// built from `pitch` and `yaw` are turned by it before tracing. `None`: level.
+    pub(crate) tilt: Option<M3>,
+    /// What the IMU measures, for models with physics (`None`: the engine's finite
+    /// differences).
+    pub(crate) imu: Option<ImuTruth>,
+    /// Whether the body touched something in the last tick.
+    pub(crate) contact: bool,
+    /// Whether the robot has crashed.
+    pub(crate) crashed: bool,
 }
 
 impl Reading<'_> {
-    /// Distance to the first surface along a direction, or `None` within `max`.
+    /// Distance to the first surface along a direction of the level (yaw-only) frame, or
+    /// `None` within `max`; the body's tilt turns the direction first.
     pub(crate) fn trace(&self, dir: V3, max: f64) -> Option<f64> {
+        let dir = match &self.tilt {
+            Some(t) => mul(t, dir),
+            None => dir,
+        };
         self.scene.cast_ray(self.origin, dir, max, Some(self.me))
+    }
+
+    /// A world-frame vector in the body frame (x forward, y right, z down): yaw only for the
+    /// kinematic model, the full attitude for models with physics.
+    pub(crate) fn to_body(&self, v: V3) -> V3 {
+        let level = match &self.tilt {
+            Some(t) => mul_t(t, v),
+            None => v,
+        };
+        yaw_rotate(-self.rotation[2], level)
     }
 }
 
@@ -118,6 +146,7 @@ pub(crate) const REGISTRY: &[SensorKind] = &[
     kind("Camera", 0.1, camera::build),
     kind("GroundTruth", 0.1, ground_truth::build),
     kind("INS", 0.2, ins::build),
+    kind("Touch", 0.1, touch::build),
 ];
 
 const fn kind(
@@ -226,6 +255,10 @@ pub(crate) mod testing {
             origin: [0.0; 3],
             yaw: 0.0,
             pitch: 0.0,
+            tilt: None,
+            imu: None,
+            contact: false,
+            crashed: false,
         }
     }
 
