@@ -202,20 +202,56 @@ impl Scene {
                     return None;
                 }
                 let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
-                match collider.shape().as_cylinder() {
-                    Some(c) => upright_cylinder_toi(
-                        &ray,
-                        collider.translation(),
-                        c.radius,
-                        c.half_height,
-                        best,
-                    ),
-                    None => collider
-                        .shape()
-                        .cast_ray(collider.position(), &ray, best, true),
-                }
+                leaf_toi(collider, &ray, best)
             })
             .map(|(_, toi)| f64::from(toi))
+    }
+
+    /// Gathers, once, every solid (but `exclude`) whose BVH box meets the box spanned by
+    /// `origin` and `ends` (the far ends of the rays to come): one tree query instead of a
+    /// tree walk per ray. [`RayBatch::cast`] and [`RayBatch::cast_fan`] then give exactly
+    /// what [`Scene::cast_ray`] gives for rays from `origin` whose segments lie in that box.
+    pub(crate) fn ray_batch(
+        &self,
+        origin: V3,
+        ends: impl IntoIterator<Item = V3>,
+        exclude: Option<ColliderHandle>,
+    ) -> RayBatch<'_> {
+        let o = to_vector(origin);
+        let (mut lo, mut hi) = (o, o);
+        for end in ends {
+            let e = to_vector(end);
+            lo = lo.min(e);
+            hi = hi.max(e);
+        }
+        // f32 rounding of the segments' points: a generous pad keeps the gather conservative.
+        let pad = Vector::splat(BATCH_PAD + 1e-5 * (hi - lo).max_element());
+        let reach = Aabb::new(lo - pad, hi + pad);
+        let skip = exclude.map(|h| h.into_raw_parts().0);
+        let candidates = self
+            .bvh
+            .intersect_aabb(&reach)
+            .filter(|&leaf| Some(leaf) != skip)
+            .filter_map(|leaf| {
+                let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
+                let aabb = self.bvh.leaf_node(leaf)?.aabb();
+                let clipped = Aabb::new(aabb.mins.max(reach.mins), aabb.maxs.min(reach.maxs));
+                let cylinder = collider
+                    .shape()
+                    .as_cylinder()
+                    .map(|c| (collider.translation(), c.radius, c.half_height));
+                Some(Candidate {
+                    collider,
+                    cylinder,
+                    aabb,
+                    clipped,
+                })
+            })
+            .collect();
+        RayBatch {
+            origin,
+            candidates,
+        }
     }
 
     /// Whether a body of `shape` at `centre` would overlap anything but `exclude`.
@@ -290,6 +326,165 @@ impl Scene {
         }
         self.reindex(handle);
         pos
+    }
+}
+
+/// Pad (m) of a batch's gathering box.
+const BATCH_PAD: f32 = 0.01;
+
+/// The time of impact of `ray` on `collider` within `best` (the leaf test of every cast).
+fn leaf_toi(collider: &Collider, ray: &Ray, best: f32) -> Option<f32> {
+    match collider.shape().as_cylinder() {
+        Some(c) => upright_cylinder_toi(ray, collider.translation(), c.radius, c.half_height, best),
+        None => collider
+            .shape()
+            .cast_ray(collider.position(), ray, best, true),
+    }
+}
+
+/// A solid gathered for a batch of rays.
+struct Candidate<'s> {
+    collider: &'s Collider,
+    /// Centre, radius and half height of an upright cylinder (intersected in closed form).
+    cylinder: Option<(Vector, f32, f32)>,
+    /// Its box in the BVH (what a tree walk tests before the solid).
+    aabb: Aabb,
+    /// That box within the batch's reach (for the angular bound of a fan).
+    clipped: Aabb,
+}
+
+impl Candidate<'_> {
+    /// The leaf test of [`Scene::cast_ray`]: a hit strictly closer than `best`.
+    fn toi(&self, ray: &Ray, best: f32) -> Option<f32> {
+        let t = match self.cylinder {
+            Some((centre, radius, half_height)) => {
+                upright_cylinder_toi(ray, centre, radius, half_height, best)
+            }
+            None => {
+                // The tree's box test first (parry's shape casts cost far more); a NaN of a
+                // ray grazing a face keeps the solid in.
+                if !slab_may_hit(&self.aabb, ray, best) {
+                    return None;
+                }
+                self.collider
+                    .shape()
+                    .cast_ray(self.collider.position(), ray, best, true)
+            }
+        };
+        t.filter(|&t| t < best)
+    }
+}
+
+/// Whether `ray` may meet `aabb` before `best` (conservative: true when unsure).
+fn slab_may_hit(aabb: &Aabb, ray: &Ray, best: f32) -> bool {
+    let (mut tmin, mut tmax) = (f32::NEG_INFINITY, f32::INFINITY);
+    for i in 0..3 {
+        let inv = 1.0 / ray.dir[i];
+        let t1 = (aabb.mins[i] - ray.origin[i]) * inv;
+        let t2 = (aabb.maxs[i] - ray.origin[i]) * inv;
+        if t1.is_nan() || t2.is_nan() {
+            continue;
+        }
+        tmin = tmin.max(t1.min(t2));
+        tmax = tmax.min(t1.max(t2));
+    }
+    // A little slack: the tree's own (SIMD) test must never be the stricter one.
+    let slack = 1e-4 * (1.0 + tmax.abs().min(1e6));
+    tmax + slack >= tmin && tmax + slack >= 0.0 && tmin - slack < best
+}
+
+/// The solids near one origin, gathered once for many rays ([`Scene::ray_batch`]).
+pub(crate) struct RayBatch<'s> {
+    origin: V3,
+    candidates: Vec<Candidate<'s>>,
+}
+
+impl RayBatch<'_> {
+    /// Exactly [`Scene::cast_ray`] from the batch's origin (for a ray within its reach).
+    pub(crate) fn cast(&self, dir: V3, max: f64) -> Option<f64> {
+        let ray = Ray::new(to_vector(self.origin), to_vector(dir));
+        let mut best = max as f32;
+        let mut hit = None;
+        for c in &self.candidates {
+            if let Some(t) = c.toi(&ray, best) {
+                best = t;
+                hit = Some(t);
+            }
+        }
+        hit.map(f64::from)
+    }
+
+    /// A fan of rays: `dirs[k]` has azimuth `base + offsets[k]` about the axis of the
+    /// orthonormal pair (`e1`, `e2`) (its angle from `e1` towards `e2`), `offsets` sorted
+    /// from largest to smallest and spanning at most a turn. Writes what
+    /// [`RayBatch::cast`] gives for each ray into `out`; each solid is tried only on the
+    /// rays whose azimuth falls within the angle it covers as seen from the origin.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn cast_fan(
+        &self,
+        dirs: &[V3],
+        base: f64,
+        offsets: &[f64],
+        (e1, e2): (V3, V3),
+        max: f64,
+        out: &mut Vec<Option<f64>>,
+    ) {
+        debug_assert_eq!(dirs.len(), offsets.len());
+        let origin = to_vector(self.origin);
+        let rays: Vec<Ray> = dirs
+            .iter()
+            .map(|&d| Ray::new(origin, to_vector(d)))
+            .collect();
+        let mut best = vec![max as f32; dirs.len()];
+        let mut hit = vec![false; dirs.len()];
+        let dot = |a: V3, b: V3| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let mut test = |c: &Candidate<'_>, k: usize| {
+            if let Some(t) = c.toi(&rays[k], best[k]) {
+                best[k] = t;
+                hit[k] = true;
+            }
+        };
+        for c in &self.candidates {
+            // The sphere around the solid's part within reach, seen along the axis.
+            let centre = c.clipped.center();
+            let radius = f64::from(c.clipped.half_extents().length()) + f64::from(BATCH_PAD);
+            let u = [
+                f64::from(centre.x) - self.origin[0],
+                f64::from(centre.y) - self.origin[1],
+                f64::from(centre.z) - self.origin[2],
+            ];
+            let (u1, u2) = (dot(u, e1), dot(u, e2));
+            let across = u1.hypot(u2);
+            if !(across > radius * 1.001 + 1e-6) {
+                // The axis passes through it: any azimuth may hit.
+                for k in 0..dirs.len() {
+                    test(c, k);
+                }
+                continue;
+            }
+            let half = (radius / across).asin() + 1e-6 + 1e-12 * base.abs();
+            // Within (−π, π]; the offsets are too.
+            let mut centre_offset = (u2.atan2(u1) - base).rem_euclid(std::f64::consts::TAU);
+            if centre_offset > std::f64::consts::PI {
+                centre_offset -= std::f64::consts::TAU;
+            }
+            // The covered range of offsets, and its copies a turn either side.
+            for turn in [-1.0, 0.0, 1.0] {
+                let mid = centre_offset + turn * std::f64::consts::TAU;
+                let (lo, hi) = (mid - half, mid + half);
+                let first = offsets.partition_point(|&o| o > hi);
+                let end = offsets.partition_point(|&o| o >= lo);
+                for k in first..end.max(first) {
+                    test(c, k);
+                }
+            }
+        }
+        out.clear();
+        out.extend(
+            best.iter()
+                .zip(&hit)
+                .map(|(&t, &h)| h.then_some(f64::from(t))),
+        );
     }
 }
 
@@ -411,6 +606,96 @@ mod tests {
             }
         }
         assert!(checked > 50, "only {checked} hits checked");
+    }
+
+    /// A random scene: yawed boxes, upright cylinders (solids and robot bodies), a small
+    /// triangle mesh, all within a few metres of the origin.
+    fn random_scene(solids: &[(u8, [f32; 3], [f32; 3], f32)]) -> Scene {
+        let mut scene = Scene::new();
+        for &(kind, c, s, yaw) in solids {
+            let s = s.map(|v| 0.05 + v.abs());
+            let pose = Pose::new(Vector::new(c[0], c[1], c[2]), Vector::new(0.0, 0.0, yaw));
+            match kind % 4 {
+                0 => {
+                    scene.insert(ColliderBuilder::cuboid(s[0], s[1], s[2]).position(pose));
+                }
+                1 => {
+                    scene.insert(
+                        ColliderBuilder::cylinder(s[2], s[0]).position(upright_pose(c.map(f64::from))),
+                    );
+                }
+                2 => {
+                    let body = BodyShape {
+                        radius: f64::from(s[0]),
+                        half_height: f64::from(s[2]),
+                    };
+                    let handle = scene.insert_body(body, c.map(f64::from));
+                    // Moved a little: its tree box then carries the margin.
+                    let motion = [f64::from(s[1]) * 0.01, 0.0, 0.0];
+                    scene.sweep(handle, body, c.map(f64::from), motion);
+                }
+                _ => {
+                    let v = |x: f32, y: f32, z: f32| Vector::new(c[0] + x, c[1] + y, c[2] + z);
+                    let vertices = vec![
+                        v(0.0, 0.0, 0.0),
+                        v(s[0], 0.0, 0.0),
+                        v(0.0, s[1], 0.0),
+                        v(0.0, 0.0, -s[2]),
+                    ];
+                    let triangles = vec![[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]];
+                    scene.insert(ColliderBuilder::trimesh(vertices, triangles).expect("mesh"));
+                }
+            }
+        }
+        scene.refit();
+        scene
+    }
+
+    proptest::proptest! {
+        /// A laser fan cast in one batch gives, beam for beam and bit for bit, what one
+        /// tree walk per beam gives; so do the batch's single casts (sonar cones).
+        #[test]
+        fn batched_fans_equal_per_beam_casts(
+            solids in proptest::collection::vec(
+                (0u8..4, proptest::array::uniform3(-4.0f32..4.0),
+                 proptest::array::uniform3(0.0f32..1.5), -3.2f32..3.2),
+                0..24,
+            ),
+            origin in proptest::array::uniform3(-3.0f64..3.0),
+            yaw in -20.0f64..20.0,
+            pitch in prop_oneof_pitch(),
+            max in 0.5f64..8.0,
+            beams in 1usize..240,
+            fov in 0.1f64..6.28,
+        ) {
+            let scene = random_scene(&solids);
+            let offsets: Vec<f64> = (0..beams)
+                .map(|k| fov / 2.0 - fov * k as f64 / beams as f64)
+                .collect();
+            let dirs: Vec<V3> = offsets.iter().map(|o| direction(pitch, yaw + o)).collect();
+            let ends = dirs.iter().map(|&d| add(origin, scale(d, max)));
+            let batch = scene.ray_batch(origin, ends, None);
+            let mut fan = Vec::new();
+            let axes = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+            batch.cast_fan(&dirs, yaw, &offsets, axes, max, &mut fan);
+            for (k, &dir) in dirs.iter().enumerate() {
+                let walk = scene.cast_ray(origin, dir, max, None);
+                proptest::prop_assert_eq!(fan[k].map(f64::to_bits), walk.map(f64::to_bits),
+                    "beam {} dir {:?}: fan {:?} walk {:?}", k, dir, fan[k], walk);
+                proptest::prop_assert_eq!(batch.cast(dir, max), walk);
+            }
+        }
+    }
+
+    /// Level scans mostly, tilted ones and straight up or down now and then.
+    fn prop_oneof_pitch() -> impl proptest::strategy::Strategy<Value = f64> {
+        use proptest::prelude::*;
+        prop_oneof![
+            3 => Just(0.0),
+            3 => -1.6f64..1.6,
+            1 => Just(std::f64::consts::FRAC_PI_2),
+            1 => Just(-std::f64::consts::FRAC_PI_2),
+        ]
     }
 
     #[test]

@@ -35,7 +35,7 @@ use usar_proto::{ConfItem, SenData};
 
 use super::noise::Noise;
 use super::robots::PartConfig;
-use super::scene::{Scene, V3};
+use super::scene::{Scene, V3, add, scale};
 
 /// What a sensor sees when it takes a reading.
 pub(crate) struct Reading<'a> {
@@ -70,6 +70,35 @@ impl Reading<'_> {
     /// Distance to the first surface along a direction, or `None` within `max`.
     pub(crate) fn trace(&self, dir: V3, max: f64) -> Option<f64> {
         self.scene.cast_ray(self.origin, dir, max, Some(self.me))
+    }
+
+    /// [`Reading::trace`] of each direction (same results; many rays share one tree query).
+    pub(crate) fn trace_many(&self, dirs: &[V3], max: f64, out: &mut Vec<Option<f64>>) {
+        out.clear();
+        if dirs.len() < 4 {
+            out.extend(dirs.iter().map(|&d| self.trace(d, max)));
+            return;
+        }
+        let ends = dirs.iter().map(|&d| add(self.origin, scale(d, max)));
+        let batch = self.scene.ray_batch(self.origin, ends, Some(self.me));
+        out.extend(dirs.iter().map(|&d| batch.cast(d, max)));
+    }
+
+    /// [`Reading::trace`] of a fan of directions at once (same results, one tree query):
+    /// `dirs[k]` must point at azimuth `base + offsets[k]` (yaw, + = clockwise from above),
+    /// `offsets` sorted from largest to smallest within ±π. Writes the hits into `out`.
+    pub(crate) fn trace_fan(
+        &self,
+        dirs: &[V3],
+        base: f64,
+        offsets: &[f64],
+        max: f64,
+        out: &mut Vec<Option<f64>>,
+    ) {
+        let ends = dirs.iter().map(|&d| add(self.origin, scale(d, max)));
+        let batch = self.scene.ray_batch(self.origin, ends, Some(self.me));
+        let level = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        batch.cast_fan(dirs, base, offsets, level, max, out);
     }
 }
 
