@@ -75,7 +75,7 @@ impl Reading<'_> {
     /// [`Reading::trace`] of each direction (same results; many rays share one tree query).
     pub(crate) fn trace_many(&self, dirs: &[V3], max: f64, out: &mut Vec<Option<f64>>) {
         out.clear();
-        if dirs.len() < 4 {
+        if dirs.len() < 4 || !self.scene.shortcuts {
             out.extend(dirs.iter().map(|&d| self.trace(d, max)));
             return;
         }
@@ -95,6 +95,11 @@ impl Reading<'_> {
         max: f64,
         out: &mut Vec<Option<f64>>,
     ) {
+        if !self.scene.shortcuts {
+            out.clear();
+            out.extend(dirs.iter().map(|&d| self.trace(d, max)));
+            return;
+        }
         let ends = dirs.iter().map(|&d| add(self.origin, scale(d, max)));
         let batch = self.scene.ray_batch(self.origin, ends, Some(self.me));
         let level = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
