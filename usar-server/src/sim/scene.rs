@@ -493,27 +493,41 @@ impl RayBatch<'_> {
         let mut best = vec![max as f32; dirs.len()];
         let mut hit = vec![false; dirs.len()];
         let dot = |a: V3, b: V3| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-        let mut test = |c: &Candidate<'_>, k: usize| {
+        let mut test = |c: &Candidate<'_>, near: f32, k: usize| {
+            // No hit can be nearer than the sphere: beams that already hit something
+            // nearer skip the solid.
+            if near >= best[k] {
+                return;
+            }
             if let Some(t) = c.toi(&rays[k], best[k]) {
                 best[k] = t;
                 hit[k] = true;
             }
         };
-        for c in &self.candidates {
-            // The sphere around the solid's part within reach, seen along the axis.
-            let centre = c.clipped.center();
-            let radius = f64::from(c.clipped.half_extents().length()) + f64::from(BATCH_PAD);
-            let u = [
-                f64::from(centre.x) - self.origin[0],
-                f64::from(centre.y) - self.origin[1],
-                f64::from(centre.z) - self.origin[2],
-            ];
+        // Each solid's bounding sphere (around its part within reach), nearest first.
+        let mut spheres: Vec<(f32, V3, f64, &Candidate<'_>)> = self
+            .candidates
+            .iter()
+            .map(|c| {
+                let centre = c.clipped.center();
+                let radius = f64::from(c.clipped.half_extents().length()) + f64::from(BATCH_PAD);
+                let u = [
+                    f64::from(centre.x) - self.origin[0],
+                    f64::from(centre.y) - self.origin[1],
+                    f64::from(centre.z) - self.origin[2],
+                ];
+                let near = ((norm(u) - radius) * (1.0 - 1e-6) - 1e-3).max(0.0) as f32;
+                (near, u, radius, c)
+            })
+            .collect();
+        spheres.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for &(near, u, radius, c) in &spheres {
             let (u1, u2) = (dot(u, e1), dot(u, e2));
             let across = u1.hypot(u2);
             if !(across > radius * 1.001 + 1e-6) {
                 // The axis passes through it: any azimuth may hit.
                 for k in 0..dirs.len() {
-                    test(c, k);
+                    test(c, near, k);
                 }
                 continue;
             }
@@ -530,7 +544,7 @@ impl RayBatch<'_> {
                 let first = offsets.partition_point(|&o| o > hi);
                 let end = offsets.partition_point(|&o| o >= lo);
                 for k in first..end.max(first) {
-                    test(c, k);
+                    test(c, near, k);
                 }
             }
         }
