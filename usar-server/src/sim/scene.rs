@@ -509,8 +509,12 @@ impl RayBatch<'_> {
             .candidates
             .iter()
             .map(|c| {
-                let centre = c.clipped.center();
-                let radius = f64::from(c.clipped.half_extents().length()) + f64::from(BATCH_PAD);
+                // An upright cylinder's own sphere is tighter than its box's.
+                let (centre, radius) = match c.cylinder {
+                    Some((centre, r, h)) => (centre, r.hypot(h)),
+                    None => (c.clipped.center(), c.clipped.half_extents().length()),
+                };
+                let radius = f64::from(radius) + f64::from(BATCH_PAD);
                 let u = [
                     f64::from(centre.x) - self.origin[0],
                     f64::from(centre.y) - self.origin[1],
