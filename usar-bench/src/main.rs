@@ -245,6 +245,8 @@ fn print(args: &Args, r: &Report) {
 struct SimCost {
     step: f64,
     print: f64,
+    /// CPU time of the whole process (all threads), µs per tick (10 ms resolution).
+    cpu: f64,
 }
 
 /// The scaling curve (--sim-only --scaling): each count --runs times, a table of
@@ -264,8 +266,12 @@ fn scaling(args: &Args) -> anyhow::Result<()> {
         rows.push((n, costs));
     }
     println!(
-        "{:>6} {:>26} {:>26} {:>14}",
-        "N", "step µs/tick min/med/max", "print µs/tick min/med/max", "RTF (median)"
+        "{:>6} {:>26} {:>26} {:>26} {:>14}",
+        "N",
+        "step µs/tick min/med/max",
+        "print µs/tick min/med/max",
+        "CPU µs/tick min/med/max",
+        "RTF (median)"
     );
     let mut curve = Vec::new();
     for (n, costs) in &rows {
@@ -277,13 +283,15 @@ fn scaling(args: &Args) -> anyhow::Result<()> {
         let step = stat(|c| c.step);
         let print = stat(|c| c.print);
         let total = stat(|c| c.step + c.print);
+        let cpu = stat(|c| c.cpu);
         println!(
-            "{n:>6} {:>26} {:>26} {:>14.2}",
+            "{n:>6} {:>26} {:>26} {:>26} {:>14.2}",
             format!("{:.0}/{:.0}/{:.0}", step.0, step.1, step.2),
             format!("{:.0}/{:.0}/{:.0}", print.0, print.1, print.2),
+            format!("{:.0}/{:.0}/{:.0}", cpu.0, cpu.1, cpu.2),
             5000.0 / total.1
         );
-        curve.push((*n, step, total));
+        curve.push((*n, step, total, cpu));
     }
     plot_scaling(&args.plot, &curve)?;
     println!("plot: {}", args.plot.display());
@@ -297,7 +305,7 @@ type Stat = (f64, f64, f64);
 
 /// Draws µs per tick against robots (log-log): the step and step + printing (medians with
 /// min–max bars), and the real-time budget of a 5 ms tick.
-fn plot_scaling(path: &std::path::Path, curve: &[(usize, Stat, Stat)]) -> anyhow::Result<()> {
+fn plot_scaling(path: &std::path::Path, curve: &[(usize, Stat, Stat, Stat)]) -> anyhow::Result<()> {
     use plotters::prelude::*;
     plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
         .map_err(|_| anyhow::anyhow!("the embedded font is invalid"))?;
@@ -308,7 +316,7 @@ fn plot_scaling(path: &std::path::Path, curve: &[(usize, Stat, Stat)]) -> anyhow
         let n_min = curve.iter().map(|c| c.0).min().unwrap_or(1) as f64 / 1.3;
         let y_max = curve
             .iter()
-            .map(|c| c.2.2)
+            .map(|c| c.2.2.max(c.3.2))
             .fold(6000.0, f64::max)
             * 1.5;
         let y_min = curve.iter().map(|c| c.1.0).fold(f64::MAX, f64::min).max(1.0) / 1.5;
@@ -327,7 +335,7 @@ fn plot_scaling(path: &std::path::Path, curve: &[(usize, Stat, Stat)]) -> anyhow
         chart
             .configure_mesh()
             .x_desc("robots")
-            .y_desc("µs of wall clock per 5 ms tick")
+            .y_desc("µs per 5 ms tick")
             .label_style(("sans-serif", 15))
             .x_label_formatter(&|v| format!("{v:.0}"))
             .y_label_formatter(&|v| format!("{v:.0}"))
@@ -341,10 +349,15 @@ fn plot_scaling(path: &std::path::Path, curve: &[(usize, Stat, Stat)]) -> anyhow
             .label("real time (5000 µs per tick)")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], RED.stroke_width(2)));
         for (index, name, colour) in [
-            (1usize, "step (fly + sensors)", BLUE),
-            (2, "step + printing", BLACK),
+            (1usize, "wall: step (fly + sensors)", BLUE),
+            (2, "wall: step + printing", BLACK),
+            (3, "CPU, all threads: step + printing", GREEN),
         ] {
-            let pick = |c: &(usize, Stat, Stat)| if index == 1 { c.1 } else { c.2 };
+            let pick = move |c: &(usize, Stat, Stat, Stat)| match index {
+                1 => c.1,
+                2 => c.2,
+                _ => c.3,
+            };
             chart
                 .draw_series(LineSeries::new(
                     curve.iter().map(|c| (c.0 as f64, pick(c).1)),
@@ -409,6 +422,7 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     let (mut messages, mut bytes) = (0u64, 0u64);
     let mut text = String::new();
     let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
+    let cpu_before = process_usage(std::process::id()).0.unwrap_or(0.0);
     let began = Instant::now();
     let mut step_time = Duration::ZERO;
     for tick in 0..ticks {
@@ -441,6 +455,7 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
         }
     }
     let wall = began.elapsed().as_secs_f64();
+    let cpu = process_usage(std::process::id()).0.unwrap_or(0.0) - cpu_before;
     println!(
         "sim only: {} robots ({} in the world), {:.1} simulated s in {wall:.2} s wall: real-time factor {:.2}; \
          step {:.1} µs/tick, printing {:.1} µs/tick; {messages} messages, {:.1} MB",
@@ -458,6 +473,7 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     Ok(SimCost {
         step: step_time.as_secs_f64() * 1e6 / ticks as f64,
         print: (wall - step_time.as_secs_f64()) * 1e6 / ticks as f64,
+        cpu: cpu * 1e6 / ticks as f64,
     })
 }
 
