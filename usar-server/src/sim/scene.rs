@@ -541,8 +541,14 @@ impl RayBatch<'_> {
             if centre_offset > std::f64::consts::PI {
                 centre_offset -= std::f64::consts::TAU;
             }
-            // The covered range of offsets, and its copies a turn either side.
+            // The covered range of offsets, and its copies a turn either side where they
+            // can reach the offsets (within ±π).
+            let wraps_low = centre_offset - half < -std::f64::consts::PI + 1e-3;
+            let wraps_high = centre_offset + half > std::f64::consts::PI - 1e-3;
             for turn in [-1.0, 0.0, 1.0] {
+                if (turn < 0.0 && !wraps_high) || (turn > 0.0 && !wraps_low) {
+                    continue;
+                }
                 let mid = centre_offset + turn * std::f64::consts::TAU;
                 let (lo, hi) = (mid - half, mid + half);
                 let first = offsets.partition_point(|&o| o > hi);
