@@ -319,7 +319,12 @@ fn plot_scaling(path: &std::path::Path, curve: &[(usize, Stat, Stat, Stat)]) -> 
             .map(|c| c.2.2.max(c.3.2))
             .fold(6000.0, f64::max)
             * 1.5;
-        let y_min = curve.iter().map(|c| c.1.0).fold(f64::MAX, f64::min).max(1.0) / 1.5;
+        let y_min = curve
+            .iter()
+            .map(|c| c.1.0)
+            .fold(f64::MAX, f64::min)
+            .max(1.0)
+            / 1.5;
         let mut chart = ChartBuilder::on(&root)
             .caption(
                 "usar-bench --sim-only: the world alone, stsAirRobots (city)",
@@ -328,10 +333,7 @@ fn plot_scaling(path: &std::path::Path, curve: &[(usize, Stat, Stat, Stat)]) -> 
             .margin(15)
             .x_label_area_size(45)
             .y_label_area_size(70)
-            .build_cartesian_2d(
-                (n_min..n_max).log_scale(),
-                (y_min..y_max).log_scale(),
-            )?;
+            .build_cartesian_2d((n_min..n_max).log_scale(), (y_min..y_max).log_scale())?;
         chart
             .configure_mesh()
             .x_desc("robots")
@@ -398,7 +400,9 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     };
     let start = map.starts().first().context("no start pose")?.location;
     let config = SimConfig {
-        threads: args.threads.unwrap_or_else(usar_server::sim::default_threads),
+        threads: args
+            .threads
+            .unwrap_or_else(usar_server::sim::default_threads),
         ..SimConfig::default()
     };
     let mut world = World::new(map, RobotCatalog::embedded(), config);
@@ -445,10 +449,9 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
             text.clear();
             m.write_to(&mut text);
             if args.digest {
-                digest = text
-                    .bytes()
-                    .chain(*b"\r\n")
-                    .fold(digest, |h, b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3));
+                digest = text.bytes().chain(*b"\r\n").fold(digest, |h, b| {
+                    (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
+                });
             }
             messages += 1;
             bytes += text.len() as u64 + 2;

@@ -286,10 +286,7 @@ impl Scene {
                 })
             })
             .collect();
-        RayBatch {
-            origin,
-            candidates,
-        }
+        RayBatch { origin, candidates }
     }
 
     /// Whether a body of `shape` at `centre` would overlap anything but `exclude`.
@@ -528,7 +525,8 @@ impl RayBatch<'_> {
         for &(near, u, radius, c) in &spheres {
             let (u1, u2) = (dot(u, e1), dot(u, e2));
             let across = u1.hypot(u2);
-            if !(across > radius * 1.001 + 1e-6) {
+            // (NaN counts as through.)
+            if across.is_nan() || across <= radius * 1.001 + 1e-6 {
                 // The axis passes through it: any azimuth may hit.
                 for k in 0..dirs.len() {
                     test(c, near, k);
@@ -700,7 +698,8 @@ mod tests {
                 }
                 1 => {
                     scene.insert(
-                        ColliderBuilder::cylinder(s[2], s[0]).position(upright_pose(c.map(f64::from))),
+                        ColliderBuilder::cylinder(s[2], s[0])
+                            .position(upright_pose(c.map(f64::from))),
                     );
                 }
                 2 => {
@@ -744,7 +743,7 @@ mod tests {
             pitch in prop_oneof_pitch(),
             max in 0.5f64..8.0,
             beams in 1usize..240,
-            fov in 0.1f64..6.28,
+            fov in 0.1f64..std::f64::consts::TAU,
         ) {
             let mut scene = random_scene(&solids);
             // The scanning robot's own body, excluded as the sensors exclude it.

@@ -821,9 +821,7 @@ fn crowd_output(threads: usize, shortcuts: bool) -> String {
     for _ in 0..(1.5 / w.dt()) as u64 {
         w.step(&mut out);
     }
-    out.iter()
-        .map(|(c, m)| format!("{} {m}\n", c.0))
-        .collect()
+    out.iter().map(|(c, m)| format!("{} {m}\n", c.0)).collect()
 }
 
 #[test]
