@@ -231,6 +231,15 @@ impl Flight {
             let time = self.uav.time.unwrap_or(0.0);
             self.fail(RunError::BatteryEmpty { time });
         }
+        if let Some(crash) = &self.uav.crash
+            && self.phase == Phase::Flying
+        {
+            let error = RunError::Crashed {
+                time: crash.time,
+                reason: crash.value.clone(),
+            };
+            self.fail(error);
+        }
     }
 
     /// Ends the open frame now: the driver saw the input go quiet (see the module docs).

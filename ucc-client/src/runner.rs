@@ -84,6 +84,14 @@ pub enum RunError {
         /// Simulated seconds.
         time: f64,
     },
+    /// The UAV crashed (its crash sensor fired, docs/quadrotor.md).
+    #[error("crashed at t={time:.2}s: {reason}")]
+    Crashed {
+        /// Simulated seconds.
+        time: f64,
+        /// What the UAV state knew then (speed before the impact, tilt, position).
+        reason: String,
+    },
     /// A mission took too long.
     #[error("mission {number} ({mission}) not done after {seconds} simulated seconds")]
     MissionTimeout {

@@ -81,7 +81,9 @@ pub struct UavState {
     pub velocity: Option<Reading<Coordinates>>,
     /// Body-frame velocity (x forward, y right, z down), m/s.
     pub relative_velocity: Option<Reading<Coordinates>>,
-    /// IMU linear acceleration, m/s², gravity excluded.
+    /// IMU linear acceleration, m/s², body frame, z up: gravity excluded on USARSim's IMU;
+    /// the specific force (gravity included, hovering reads +9.81 on z) on robots with physics
+    /// such as the stsQuadrotor.
     pub acceleration: Option<Reading<Coordinates>>,
     /// IMU angular velocity (roll, pitch, yaw rates), rad/s.
     pub angular_velocity: Option<Reading<Coordinates>>,
@@ -97,6 +99,9 @@ pub struct UavState {
     pub free_above: Option<Reading<f64>>,
     /// Free space below (SonarBottom), metres.
     pub free_below: Option<Reading<f64>>,
+    /// Why the UAV crashed, once its crash sensor (a `Touch` part named `Crash`, as the
+    /// stsQuadrotor has) reads `True`; the reason says what was known then.
+    pub crash: Option<Reading<String>>,
     /// Height above the spawn point (an AltitudeSensor's `relativeAltitude`), metres, + = up.
     pub altitude: Option<Reading<f64>>,
     /// The speed command in force and when it was sent (for dead reckoning).
@@ -105,6 +110,9 @@ pub struct UavState {
     reckoning_origin_z: Option<f64>,
     /// The battery value taken as "full".
     first_battery: Option<i64>,
+    /// The velocity reading before the latest one (a crash report gives the speed before
+    /// the impact, not after it).
+    earlier_velocity: Option<Reading<Coordinates>>,
     position_source: Option<Source>,
     orientation_source: Option<Source>,
     velocity_source: Option<Source>,
@@ -119,6 +127,11 @@ impl UavState {
     /// The yaw in radians (0 when unknown).
     pub fn yaw(&self) -> f64 {
         self.orientation.as_ref().map_or(0.0, |o| o.value.z)
+    }
+
+    /// Whether the UAV has reported a crash.
+    pub fn crashed(&self) -> bool {
+        self.crash.is_some()
     }
 
     /// Whether the battery is known to be empty.
@@ -193,10 +206,13 @@ impl UavState {
                 absolute, relative, ..
             } => {
                 self.velocity_source = Some(Source::Sts);
-                self.velocity = Some(Reading {
+                let earlier = self.velocity.replace(Reading {
                     value: from_wire(*absolute),
                     time,
                 });
+                if earlier.as_ref().is_some_and(|e| e.time < time) {
+                    self.earlier_velocity = earlier;
+                }
                 self.relative_velocity = Some(Reading {
                     value: from_wire(*relative),
                     time,
@@ -231,6 +247,15 @@ impl UavState {
                     self.set_sonar(r, time);
                 }
             }
+            SenData::Touch { name, touch } => {
+                if *touch && name.eq_ignore_ascii_case("Crash") && self.crash.is_none() {
+                    self.crash = Some(Reading {
+                        value: self.crash_reason(name),
+                        time,
+                    });
+                }
+                return false;
+            }
             SenData::RangeScanner(Scan {
                 ranges,
                 resolution,
@@ -249,6 +274,30 @@ impl UavState {
             _ => return false,
         }
         true
+    }
+
+    /// What the state knew when the crash sensor fired: the last speed and tilt.
+    fn crash_reason(&self, sensor: &str) -> String {
+        let mut reason = format!("crash sensor {sensor} fired");
+        // The fastest of the last two readings: the one of the crash tick may be after the
+        // impact.
+        let speed = [&self.earlier_velocity, &self.velocity]
+            .into_iter()
+            .flatten()
+            .map(|v| v.value.norm())
+            .reduce(f64::max);
+        if let Some(speed) = speed {
+            reason.push_str(&format!(", speed before impact {speed:.2} m/s"));
+        }
+        if let Some(o) = &self.orientation {
+            let tilt = (o.value.x.cos() * o.value.y.cos()).clamp(-1.0, 1.0).acos();
+            reason.push_str(&format!(", tilt {:.0}°", tilt.to_degrees()));
+        }
+        if let Some(p) = &self.position {
+            let p = p.value;
+            reason.push_str(&format!(" at ({:.2}, {:.2}, {:.2})", p.x, p.y, p.z));
+        }
+        reason
     }
 
     fn set_sonar(&mut self, reading: &NamedRange, time: f64) {
@@ -545,6 +594,50 @@ mod tests {
         let p = uav.position.clone().unwrap();
         assert_eq!(p.time, 3.0);
         assert_eq!(uav.yaw(), 0.5);
+    }
+
+    #[test]
+    fn a_crash_sensor_that_fires_marks_the_state_crashed_with_a_reason() {
+        let mut uav = UavState::new();
+        let crash = |t: f64, touch: bool| {
+            sen(
+                Some(t),
+                SenData::Touch {
+                    name: "Crash".into(),
+                    touch,
+                },
+            )
+        };
+        uav.apply(&sen(
+            Some(1.0),
+            SenData::Velocity {
+                name: "Velocity".into(),
+                absolute: Vec3::new(3.0, 0.0, 0.0),
+                relative: Vec3::new(3.0, 0.0, 0.0),
+            },
+        ));
+        assert!(!uav.apply(&crash(1.0, false)));
+        assert!(!uav.crashed());
+        // Another touch sensor (a bumper) is no crash.
+        uav.apply(&sen(
+            Some(1.05),
+            SenData::Touch {
+                name: "Bumper".into(),
+                touch: true,
+            },
+        ));
+        assert!(!uav.crashed());
+        uav.apply(&crash(1.1, true));
+        let report = uav.crash.clone().expect("crashed");
+        assert_eq!(report.time, 1.1);
+        assert!(
+            report.value.contains("speed before impact 3.00 m/s"),
+            "{}",
+            report.value
+        );
+        // Later lines keep the first report.
+        uav.apply(&crash(1.2, true));
+        assert_eq!(uav.crash.unwrap().time, 1.1);
     }
 
     #[test]

@@ -352,6 +352,17 @@ fn bad_arguments_are_usage_errors() {
             "--mission-timeout",
             "inf",
         ],
+        // Finite but absurd: Duration::from_secs_f64 panicked on these.
+        &[
+            "run",
+            "--start",
+            "0,0,-1",
+            "--goto",
+            "1,0,-1",
+            "--stream-timeout",
+            "1e300",
+        ],
+        &["demo", "--speed", "1e-300"],
     ] {
         let (code, _, err) = ucc_output(args);
         assert_eq!(code, Some(2), "{args:?}: {err}");
@@ -451,6 +462,9 @@ fn a_local_run_is_the_same_every_time() {
                 out.contains("in lockstep") || !out.contains("sensor time"),
                 "{out}"
             );
+            // The defect: the overlay of one iteration was titled "1 iterations".
+            let overlay = std::fs::read_to_string(dir.join("UCCLOG-overlay.svg")).unwrap();
+            assert!(overlay.contains("UCCLOG — 1 iteration\n"), "title");
             std::fs::read_to_string(dir.join("UCCLOG-01-trajectory.csv")).unwrap()
         })
         .collect();

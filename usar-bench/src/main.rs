@@ -14,7 +14,8 @@ use serde::Serialize;
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpStream;
 
-/// Scale benchmark for usar-server: N stsAirRobots, each on its own TCP connection.
+/// Scale benchmark for usar-server: N UAVs (stsAirRobot by default), each on its own TCP
+/// connection.
 #[derive(Debug, Clone, Parser)]
 #[command(version, about)]
 struct Args {
@@ -81,6 +82,32 @@ struct Args {
     /// delivered), doubling from --uavs and then bisecting.
     #[arg(long)]
     sweep: bool,
+    /// Robot class to fly: `stsAirRobot` (kinematic) or `stsQuadrotor` (rigid-body
+    /// quadrotor with the same parts plus a Crash touch sensor), or `Package.Class`.
+    #[arg(long, default_value = "stsAirRobot")]
+    robot: String,
+}
+
+impl Args {
+    /// The INIT class name.
+    fn class(&self) -> String {
+        if self.robot.contains('.') {
+            self.robot.clone()
+        } else {
+            format!("USARBot.{}", self.robot)
+        }
+    }
+
+    /// The parts whose rates are checked: the stsAirRobot's, plus the quadrotor's Crash.
+    fn nominal(&self) -> Vec<(&'static str, f64)> {
+        let mut parts = NOMINAL.to_vec();
+        if self.robot.eq_ignore_ascii_case("stsQuadrotor")
+            || self.robot.eq_ignore_ascii_case("USARBot.stsQuadrotor")
+        {
+            parts.push(("Crash", 10.0));
+        }
+        parts
+    }
 }
 
 /// A spawn grid spacing that leaves room for the benchmark's own motion.
@@ -414,7 +441,7 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
         world.command(
             c,
             Command::Init(Init {
-                class_name: "USARBot.stsAirRobot".into(),
+                class_name: args.class(),
                 location: Some(Vec3::new(x, y, z)),
                 ..Init::default()
             }),
@@ -578,6 +605,11 @@ fn start_server(args: &Args) -> anyhow::Result<(Server, SocketAddr)> {
     command
         .args(["--port", "0", "--time-scale", &args.time_scale])
         .args(["--max-connections", &(args.uavs * 2 + 16).to_string()])
+        // Every simulated UAV connects from this machine's loopback address.
+        .args([
+            "--max-connections-per-address",
+            &(args.uavs * 2 + 16).to_string(),
+        ])
         .env("RUST_LOG", "warn")
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit());
@@ -648,7 +680,7 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
     for i in 0..uavs {
         let location = spawn_point(args, start, i);
         let seconds = args.seconds;
-        tasks.push(tokio::spawn(fly(addr, i, location, seconds)));
+        tasks.push(tokio::spawn(fly(addr, i, location, seconds, args.class())));
     }
     let mut all = Vec::new();
     for task in tasks {
@@ -676,13 +708,13 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
         _ => (wall, span),
     };
     let mut delivered = BTreeMap::new();
-    for (name, hz) in NOMINAL {
+    for (name, hz) in args.nominal() {
         let total: u64 = all
             .iter()
-            .map(|c| c.counts.get(*name).copied().unwrap_or(0))
+            .map(|c| c.counts.get(name).copied().unwrap_or(0))
             .sum();
         let per_robot = total as f64 / all.len().max(1) as f64;
-        delivered.insert((*name).to_owned(), per_robot / (span * hz));
+        delivered.insert(name.to_owned(), per_robot / (span * hz));
     }
     let mut latencies: Vec<f64> = all
         .iter()
@@ -749,6 +781,7 @@ async fn fly(
     index: usize,
     [x, y, z]: [f64; 3],
     seconds: f64,
+    class: String,
 ) -> anyhow::Result<ClientStats> {
     let stream = TcpStream::connect(addr)
         .await
@@ -758,7 +791,7 @@ async fn fly(
     let mut lines = BufReader::new(read).lines();
     write
         .write_all(
-            format!("INIT {{ClassName USARBot.stsAirRobot}} {{Name UAV{index}}} {{Location {x},{y},{z}}}\r\n")
+            format!("INIT {{ClassName {class}}} {{Name UAV{index}}} {{Location {x},{y},{z}}}\r\n")
                 .as_bytes(),
         )
         .await?;

@@ -112,6 +112,12 @@ impl LineCodec {
     pub fn max_len(&self) -> usize {
         self.max_len
     }
+
+    /// Whether a too-long line is being skipped (its end has not arrived yet). With the
+    /// framed reader's buffer, this tells a half-sent line from silence between lines.
+    pub fn skipping(&self) -> bool {
+        self.discarding
+    }
 }
 
 impl Decoder for LineCodec {
@@ -348,8 +354,10 @@ mod tests {
         buf.extend_from_slice(b"more junk without end");
         assert_eq!(codec.decode(&mut buf).unwrap(), None);
         assert!(buf.is_empty());
+        assert!(codec.skipping(), "still inside the long line");
         buf.extend_from_slice(b"junk\nNEXT\n");
         assert_eq!(codec.decode(&mut buf).unwrap(), Some(Ok("NEXT".into())));
+        assert!(!codec.skipping());
         assert_eq!(
             LineError::TooLong { limit: 8 }.to_string(),
             "line longer than the limit of 8 bytes skipped"

@@ -35,6 +35,15 @@ pub struct Message {
     pub kind: String,
     /// The brace groups in order.
     pub groups: Vec<Group>,
+    /// The exact line, for a server line read in the generic form whose spacing differs
+    /// from the canonical `KIND {k v} {k v}` (a typed line with fields missing, such as
+    /// `GEO {Type Camera} {Name c} {Orientation ..}{Mount m}`): printing gives it back byte
+    /// for byte. `None` otherwise (always for messages built in code).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
+    pub verbatim: Option<String>,
 }
 
 /// One `{...}` group: usually one key/value pair; UT2004 lines put several in one group
@@ -234,8 +243,13 @@ impl Message {
             .map(|p| p.value.as_str())
     }
 
-    /// Appends the canonical form: `KIND {k v} {k v k v}` (no terminator).
+    /// Appends the canonical form: `KIND {k v} {k v k v}` (no terminator), or the
+    /// [`verbatim`](Self::verbatim) line when there is one.
     pub fn write_to(&self, out: &mut impl crate::format::WireBuf) {
+        if let Some(line) = &self.verbatim {
+            out.push_text(line);
+            return;
+        }
         out.push_text(&self.kind);
         write_groups(out, &self.groups);
     }
@@ -417,6 +431,7 @@ impl<'a> Raw<'a> {
         Message {
             kind: self.kind.to_owned(),
             groups: groups_of(&self.pairs),
+            verbatim: None,
         }
     }
 }

@@ -42,7 +42,7 @@ pub enum RecordError {
     /// The line has no time stamp or no direction.
     #[error("expected `<time> <C|S> <line>`")]
     Shape,
-    /// The time stamp is not a number.
+    /// The time stamp is not a finite number.
     #[error("bad time stamp '{0}'")]
     Time(String),
     /// The direction is neither `C` nor `S`.
@@ -125,7 +125,9 @@ pub fn parse_entry(line: &str) -> Result<Option<Entry<'_>>, RecordError> {
     let (time, rest) = line.split_once(' ').ok_or(RecordError::Shape)?;
     let time: f64 = time
         .parse()
-        .map_err(|_| RecordError::Time(time.to_owned()))?;
+        .ok()
+        .filter(|t: &f64| t.is_finite())
+        .ok_or_else(|| RecordError::Time(time.to_owned()))?;
     let (direction, text) = rest.split_once(' ').unwrap_or((rest, ""));
     let direction = match direction {
         "C" => Direction::Client,
@@ -186,6 +188,10 @@ mod tests {
     fn comments_are_skipped_and_bad_lines_explained() {
         assert_eq!(parse_entry(HEADER), Ok(None));
         assert_eq!(parse_entry("x S STA"), Err(RecordError::Time("x".into())));
+        for t in ["NaN", "inf", "-inf", "1e999"] {
+            let line = format!("{t} S STA");
+            assert_eq!(parse_entry(&line), Err(RecordError::Time(t.into())), "{t}");
+        }
         assert_eq!(
             parse_entry("1.0 X STA"),
             Err(RecordError::Direction("X".into()))

@@ -242,3 +242,35 @@ fn parser_regression_chunks_through_the_codec() {
     assert_eq!(got, expected);
     assert!(codec.decode_eof(&mut buf).unwrap().is_none());
 }
+
+/// Lines real servers print that do not fit our typed layouts: fields missing, glued groups,
+/// odd spacing. Each must read (typed or generic) and print back exactly.
+const SHORT_LINES: &[&str] = &[
+    "SEN {Time 12.5000} {Type IMU}",
+    "SEN {Time 12.5000} {Type Sonar} ",
+    "SEN {Time 12.5000} {Type RangeScanner} {Name Scanner}",
+    "SEN {Type INS} {Name InsTest} {Location 0.00,0.00,-0.20}",
+    "GEO {Type GroundVehicle} {Name P3AT} {Orientation 0.00,0.00,0.00}{Mount P3AT}",
+    "GEO  {Name P3AT} {Type GroundVehicle} {Dimensions 0.2480,0.3600,0.0000}",
+    "CONF {Type Sonar} {Name F1} {MaxRange 5.0000}",
+    "STA {Time 477.7582}",
+    "ASTA {Time 1.0000} {Link 1} {Value 0.5000}",
+    "NFO {Gametype BotDeathMatch}",
+    "SEN {Time 1.0} {Type Sonar} {Name S} {Range 1,2}",
+];
+
+#[test]
+fn every_valid_server_line_reads_and_prints_back_exactly() {
+    for line in SHORT_LINES {
+        let m = server(line);
+        assert_eq!(m.to_string(), *line, "{m:?}");
+    }
+    // What did not fit is the generic form, with what the line holds.
+    let ServerMessage::Other(m) = server("SEN {Time 12.5000} {Type IMU}") else {
+        panic!()
+    };
+    assert_eq!((m.kind.as_str(), m.get("Type")), ("SEN", Some("IMU")));
+    // Strict reading still says what did not fit.
+    let e = ServerMessage::parse_strict("SEN {Time 12.5000} {Type IMU}").unwrap_err();
+    assert!(e.to_string().contains("Name"), "{e}");
+}

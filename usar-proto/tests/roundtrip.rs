@@ -145,7 +145,11 @@ fn command() -> impl Strategy<Value = Command> {
                     g
                 })
                 .collect();
-            Command::Other(Message { kind, groups })
+            Command::Other(Message {
+                kind,
+                groups,
+                verbatim: None,
+            })
         }),
     ]
 }
@@ -444,8 +448,13 @@ fn server_message() -> impl Strategy<Value = ServerMessage> {
             killer,
             damage_type
         })),
-        ("ZQ[A-Z]{0,6}", groups())
-            .prop_map(|(kind, groups)| ServerMessage::Other(Message { kind, groups })),
+        ("ZQ[A-Z]{0,6}", groups()).prop_map(|(kind, groups)| {
+            ServerMessage::Other(Message {
+                kind,
+                groups,
+                verbatim: None,
+            })
+        }),
     ]
 }
 

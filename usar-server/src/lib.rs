@@ -35,6 +35,7 @@
 mod local;
 pub mod net;
 pub mod replay;
+mod shown;
 pub mod sim;
 
 pub use local::LocalServer;

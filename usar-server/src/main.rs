@@ -13,7 +13,8 @@ use usar_server::sim::robots::RobotCatalog;
 use usar_server::{ServerConfig, TimeScale};
 
 /// A USARSim (UDK) stand-in: speaks the Gamebots text protocol and flies simulated
-/// quadrotors (USARBot.stsAirRobot, USARBot.AirRobot) headless, with rapier3d.
+/// quadrotors (USARBot.stsAirRobot, USARBot.AirRobot, USARBot.stsQuadrotor) headless, with
+/// rapier3d.
 ///
 /// When ready it prints one line on stdout: `usar-server listening on ADDRESS:PORT map LEVEL`.
 /// Ctrl-C or SIGTERM shut it down cleanly. Log level: RUST_LOG (default `info`), on stderr.
@@ -47,17 +48,39 @@ struct Args {
     /// Connections served at once; more are closed on accept.
     #[arg(long, default_value_t = 64)]
     max_connections: usize,
-    /// Record every connection (both directions, stamped with simulated time) into DIR,
-    /// one file per connection (docs/recording.md).
-    #[arg(long, value_name = "DIR")]
-    record: Option<PathBuf>,
+    /// Connections served at once from one IP address; more are closed on accept.
+    #[arg(long, default_value_t = 16, value_name = "N")]
+    max_connections_per_address: usize,
+    /// Robots one connection may spawn (USARSim: 1); further INITs are ignored.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    robots_per_connection: usize,
     /// Offer lockstep to clients that ask (`SYNC`, docs/lockstep.md): reproducible runs at any
     /// speed. Off by default, so that no client can hold the world for the others.
     #[arg(long)]
     lockstep: bool,
+    /// Wall-clock seconds a lockstep client may take to send its next SYNC before it leaves
+    /// the barrier (with a warning) and the world goes on without it.
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = seconds)]
+    lockstep_timeout: f64,
+    /// Record every connection (both directions, stamped with simulated time) into DIR,
+    /// one file per connection (docs/recording.md).
+    #[arg(long, value_name = "DIR")]
+    record: Option<PathBuf>,
     /// List the embedded maps and exit.
     #[arg(long)]
     list_maps: bool,
+    /// Mean wind for this run, `vx,vy[,vz]` m/s (x north, y east, z down; where the air
+    /// goes), overriding the map's `[wind]`. Felt by robots with physics (stsQuadrotor).
+    #[arg(long, value_name = "VX,VY[,VZ]", allow_hyphen_values = true,
+          value_parser = usar_server::sim::wind::parse_velocity)]
+    wind: Option<[f64; 3]>,
+    /// Gust intensity for this run: standard deviation of the horizontal gusts, m/s
+    /// (Dryden-type, seeded by --seed).
+    #[arg(long, value_name = "M/S", allow_hyphen_values = true)]
+    gusts: Option<f64>,
+    /// Gust length scale for this run, m (default 20).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    gust_length: Option<f64>,
 }
 
 #[derive(Debug, clap::Subcommand)]
@@ -77,8 +100,8 @@ enum Sub {
         /// Send as fast as the client reads instead of following the time stamps.
         #[arg(long)]
         fast: bool,
-        /// Speed-up of the time-stamp pacing (2 = twice as fast).
-        #[arg(long, default_value_t = 1.0)]
+        /// Speed-up of the time-stamp pacing (2 = twice as fast), 0.001 to 1000000.
+        #[arg(long, default_value_t = 1.0, value_parser = speed)]
         speed: f64,
     },
 }
@@ -91,6 +114,8 @@ fn main() -> ExitCode {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
         )
         .with_writer(std::io::stderr)
+        // Colours only on a terminal: a log file gets no escape sequences at all.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     if let Some(Sub::Replay {
         file,
@@ -139,6 +164,13 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         None => RobotCatalog::embedded(),
         Some(path) => RobotCatalog::from_file(path)?,
     };
+    let wind = usar_server::sim::WindConfig::overridden(
+        map.wind(),
+        args.wind,
+        args.gusts,
+        args.gust_length,
+    )
+    .map_err(|e| anyhow::anyhow!("--wind/--gusts/--gust-length: {e}"))?;
     Ok(ServerConfig {
         map,
         robots,
@@ -147,12 +179,16 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
             threads: args
                 .threads
                 .map_or_else(usar_server::sim::default_threads, usize::from),
+            wind,
+            robots_per_connection: args.robots_per_connection,
             ..SimConfig::default()
         },
         time_scale: args.time_scale,
         max_connections: args.max_connections,
-        record: args.record.clone(),
+        max_connections_per_address: args.max_connections_per_address,
         lockstep: args.lockstep,
+        lockstep_timeout: std::time::Duration::from_secs_f64(args.lockstep_timeout),
+        record: args.record.clone(),
         ..ServerConfig::default()
     })
 }
@@ -176,11 +212,28 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
     })
 }
 
+/// A number of seconds from 0.001 to one day.
+fn seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (1e-3..=86_400.0).contains(&v) => Ok(v),
+        _ => Err(format!("expected seconds from 0.001 to 86400, not '{s}'")),
+    }
+}
+
+/// A replay speed factor, in the range of `--time-scale`.
+fn speed(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (TimeScale::MIN_FACTOR..=TimeScale::MAX_FACTOR).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "expected a number from {} to {}, not '{s}'",
+            TimeScale::MIN_FACTOR,
+            TimeScale::MAX_FACTOR
+        )),
+    }
+}
+
 fn replay(file: &Path, bind: &str, port: u16, fast: bool, speed: f64) -> anyhow::Result<()> {
     use usar_server::replay::{self, Pace};
-    if !(speed.is_finite() && speed > 0.0) {
-        anyhow::bail!("--speed must be a positive number, not {speed}");
-    }
     let lines = replay::load(file)?;
     let pace = if fast {
         Pace::Fast

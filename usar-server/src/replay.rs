@@ -5,7 +5,6 @@
 //! and logged, never answered.
 
 use std::path::Path;
-use std::time::Duration;
 
 use futures::StreamExt;
 use tokio::io::AsyncWriteExt;
@@ -17,6 +16,9 @@ use tracing::{info, warn};
 use usar_proto::codec::LineCodec;
 use usar_proto::record::{self, Direction};
 use usar_proto::{Message, ServerMessage};
+
+/// The largest recording or capture `load` reads (bytes): 256 MiB.
+pub const MAX_REPLAY_FILE: u64 = 256 << 20;
 
 /// One server line of a recording and the simulated time it was sent at.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,12 +42,20 @@ pub enum Pace {
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     /// The file could not be read.
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}: {error}")]
     Io {
         /// The file.
         path: String,
-        /// Why.
-        source: std::io::Error,
+        /// Why (shown in this error's text, so not its `source`).
+        error: std::io::Error,
+    },
+    /// The file is larger than [`MAX_REPLAY_FILE`].
+    #[error("{path}: {size} bytes is more than the limit of {MAX_REPLAY_FILE} bytes")]
+    TooLarge {
+        /// The file.
+        path: String,
+        /// Its size.
+        size: u64,
     },
     /// A recording line is malformed.
     #[error("{path}:{line}: {what}")]
@@ -69,20 +79,41 @@ pub enum ReplayError {
 /// text is taken as a capture, one line per line, of which the server messages (NFO, STA,
 /// SEN, CONF, GEO, ASTA, EFF, DIE, …) are kept, timed by their `{Time t}` (lines without one
 /// keep the previous time). Blank lines, `#` comments and client commands are skipped.
+///
+/// Files past [`MAX_REPLAY_FILE`] bytes are refused unread; time stamps must be finite.
 pub fn load(path: &Path) -> Result<Vec<ReplayLine>, ReplayError> {
+    use std::io::Read;
     let name = path.display().to_string();
-    let text = std::fs::read(path).map_err(|source| ReplayError::Io {
+    let io = |error| ReplayError::Io {
         path: name.clone(),
-        source,
-    })?;
-    let text = String::from_utf8_lossy(&text);
+        error,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let size = file.metadata().map_err(io)?.len();
+    let mut text = Vec::new();
+    file.take(MAX_REPLAY_FILE + 1)
+        .read_to_end(&mut text)
+        .map_err(io)?;
+    if size.max(text.len() as u64) > MAX_REPLAY_FILE {
+        return Err(ReplayError::TooLarge {
+            path: name,
+            size: size.max(text.len() as u64),
+        });
+    }
+    parse(&String::from_utf8_lossy(&text), &name)
+}
+
+/// Reads the text of a recording or capture (as [`load`] does; errors name `path`).
+pub fn parse(text: &str, path: &str) -> Result<Vec<ReplayLine>, ReplayError> {
     let lines = if text.starts_with(record::HEADER) {
-        parse_record(&text, &name)?
+        parse_record(text, path)?
     } else {
-        parse_capture(&text)
+        parse_capture(text)
     };
     if lines.is_empty() {
-        return Err(ReplayError::Empty { path: name });
+        return Err(ReplayError::Empty {
+            path: path.to_owned(),
+        });
     }
     Ok(lines)
 }
@@ -113,10 +144,12 @@ fn parse_capture(text: &str) -> Vec<ReplayLine> {
         .map(|l| l.trim_end_matches('\r'))
         .filter(|l| !l.starts_with('#') && ServerMessage::is_server_word(Message::word(l)))
         .map(|l| {
-            if let Some(t) = Message::parse(l)
-                .ok()
-                .and_then(|p| p.message.get("Time").and_then(|t| t.trim().parse().ok()))
-            {
+            if let Some(t) = Message::parse(l).ok().and_then(|p| {
+                p.message
+                    .get("Time")
+                    .and_then(|t| t.trim().parse::<f64>().ok())
+                    .filter(|t| t.is_finite())
+            }) {
                 time = Some(t);
             }
             ReplayLine {
@@ -179,7 +212,8 @@ async fn replay_to(stream: TcpStream, lines: &[ReplayLine], pace: Pace) -> std::
     let mut batch = Vec::new();
     for line in lines {
         if let (Pace::Timestamps(factor), Some(t)) = (pace, line.time) {
-            let due = start + Duration::from_secs_f64(((t - first) / factor).max(0.0));
+            let offset = crate::net::wait_of((t - first) / factor);
+            let due = start.checked_add(offset).unwrap_or(start);
             if due > tokio::time::Instant::now() {
                 write.write_all(&batch).await?;
                 batch.clear();

@@ -4,6 +4,7 @@ mod common;
 
 use common::{Client, TestServer};
 use usar_proto::{Nfo, SenData, ServerMessage};
+use usar_server::sim::WindConfig;
 use usar_server::{ServerConfig, TimeScale};
 
 /// Reads until the `SYNC` answer; returns every line read, in order, and the answer's time.
@@ -22,12 +23,23 @@ async fn until_sync(c: &mut Client) -> (Vec<String>, f64) {
 /// A small closed-loop flight: fly towards x = start + 1.5 while reading Position, in
 /// 0.1 s lockstep intervals. Returns every byte the client received.
 async fn flight(scale: TimeScale, seed: u64) -> Vec<String> {
+    flight_of("USARBot.stsAirRobot", None, scale, seed).await
+}
+
+/// [`flight`] with a robot class and a wind.
+async fn flight_of(
+    class: &str,
+    wind: Option<WindConfig>,
+    scale: TimeScale,
+    seed: u64,
+) -> Vec<String> {
     let mut config = ServerConfig {
         time_scale: scale,
         lockstep: true,
         ..ServerConfig::default()
     };
     config.sim.seed = seed;
+    config.sim.wind = wind;
     let server = TestServer::with(config).await;
     let mut c = server.client().await;
     let mut seen = vec![c.raw_line().await.unwrap()];
@@ -43,7 +55,7 @@ async fn flight(scale: TimeScale, seed: u64) -> Vec<String> {
     let (lines, t) = until_sync(&mut c).await;
     seen.extend(lines);
     c.send(&format!(
-        "INIT {{ClassName USARBot.stsAirRobot}} {{Location {},{},{}}}",
+        "INIT {{ClassName {class}}} {{Location {},{},{}}}",
         s.x, s.y, s.z
     ))
     .await;
@@ -90,6 +102,27 @@ async fn lockstep_runs_are_byte_identical_at_any_time_scale() {
 }
 
 #[tokio::test]
+async fn a_quadrotor_in_gusty_wind_is_byte_identical_in_lockstep() {
+    let wind = Some(WindConfig {
+        velocity: [0.5, 1.5, 0.0],
+        gusts: 1.0,
+        gust_length: 15.0,
+    });
+    let quad = "USARBot.stsQuadrotor";
+    let fast = flight_of(quad, wind, TimeScale::Max, 9).await;
+    let again = flight_of(quad, wind, TimeScale::Max, 9).await;
+    let paced = flight_of(quad, wind, TimeScale::Factor(4.0), 9).await;
+    let other_seed = flight_of(quad, wind, TimeScale::Max, 10).await;
+    assert!(
+        fast.iter()
+            .any(|l| l.contains("{Type Touch} {Name Crash} {Touch False}"))
+    );
+    assert_eq!(fast, again, "two runs differ");
+    assert_eq!(fast, paced, "the time scale changed the run");
+    assert_ne!(fast, other_seed, "the seed drives the gusts");
+}
+
+#[tokio::test]
 async fn a_client_that_never_syncs_is_never_waited_for() {
     let server = TestServer::with(ServerConfig {
         time_scale: TimeScale::Factor(10.0),
@@ -132,6 +165,20 @@ async fn a_client_that_never_syncs_is_never_waited_for() {
     server.stop().await;
 }
 
+/// Reads the STA lines of `c` until one reaches `until`; returns its time.
+async fn sta_until(c: &mut Client, until: f64) -> f64 {
+    let mut last = 0.0;
+    while last < until {
+        last = c
+            .until(|m| match m {
+                ServerMessage::Sta(s) => Some(s.time.seconds),
+                _ => None,
+            })
+            .await;
+    }
+    last
+}
+
 /// Lockstep is opt-in: without it a `SYNC` is an unknown command, never answered, and holds
 /// nobody (the defect: one `SYNC {Time 0}` froze the world for every client).
 #[tokio::test]
@@ -150,5 +197,33 @@ async fn without_lockstep_a_sync_holds_nobody() {
             last = s.time.seconds;
         }
     }
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn a_lockstep_client_that_stops_syncing_leaves_the_barrier() {
+    let server = TestServer::with(ServerConfig {
+        time_scale: TimeScale::Factor(10.0),
+        lockstep: true,
+        lockstep_timeout: std::time::Duration::from_millis(300),
+        ..ServerConfig::default()
+    })
+    .await;
+    let mut stuck = server.client().await;
+    stuck.raw_line().await.unwrap();
+    stuck.send("SYNC {Time 0.5}").await;
+    let mut free = server.client().await;
+    free.raw_line().await.unwrap();
+    free.spawn_at([0.0, 0.0, -1.0], 0.0).await;
+    // The world reaches the barrier, answers, and waits; the stuck client never syncs
+    // again: after the timeout the world goes on without it.
+    let (_, t) = until_sync(&mut stuck).await;
+    assert!((t - 0.5).abs() < 0.006, "answered at {t}");
+    let last = sta_until(&mut free, 2.0).await;
+    assert!(last >= 2.0);
+    // A later SYNC joins the barrier again.
+    stuck.send("SYNC {Time 3.0}").await;
+    let (_, t) = until_sync(&mut stuck).await;
+    assert!(t >= 2.0, "answered at {t}");
     server.stop().await;
 }

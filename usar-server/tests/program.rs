@@ -70,9 +70,234 @@ fn bad_flags_exit_2() {
         &["--time-scale", "fast"][..],
         &["--map", "no-such-map"],
         &["--bogus"],
+        &["--wind", "3"],
+        &["--gusts", "-1"],
+        &["--wind", "1e300,0"],
     ] {
         let out = server().args(args).output().unwrap();
         assert_eq!(out.status.code(), Some(2), "{args:?}");
         assert!(!out.stderr.is_empty());
     }
+}
+
+/// A scratch folder for one test.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("usar-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs the server with `args`; it must exit 2 at once, with `expected` on stderr.
+fn refused(args: &[&std::ffi::OsStr], expected: &[&str]) -> String {
+    let out = server().args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+    for e in expected {
+        assert!(stderr.contains(e), "{args:?}: {e:?} not in {stderr}");
+    }
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    stderr
+}
+
+#[test]
+fn maps_with_numbers_beyond_the_world_are_refused() {
+    // The panic: a box of 1e39 (finite as f64, infinite as f32) crashed parry.
+    let dir = scratch("huge-map");
+    for (name, solid) in [
+        (
+            "box",
+            "[[box]]\ncenter = [0.0, 0.0, 0.0]\nsize = [1e39, 1.0, 1.0]\n",
+        ),
+        (
+            "cylinder",
+            "[[cylinder]]\ncenter = [0.0, 0.0, 0.0]\nradius = 1e39\nheight = 1.0\n",
+        ),
+        (
+            "start",
+            "[[start]]\ntag = \"S\"\nlocation = [1e300, 0.0, 0.0]\n",
+        ),
+    ] {
+        let map = dir.join(format!("{name}.toml"));
+        std::fs::write(&map, format!("level = \"X\"\n{solid}")).unwrap();
+        refused(
+            &["--map".as_ref(), map.as_os_str()],
+            &[&format!("{}:2:", map.display()), "out of range"],
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn mesh_errors_say_which_file_and_line_once() {
+    let dir = scratch("mesh");
+    let map = dir.join("m.toml");
+    std::fs::write(&map, "level = \"X\"\n[[mesh]]\nfile = \"missing.obj\"\n").unwrap();
+    let stderr = refused(
+        &["--map".as_ref(), map.as_os_str()],
+        &["cannot read mesh file", "missing.obj", "m.toml"],
+    );
+    assert!(!stderr.contains("map file"), "{stderr}");
+    assert_eq!(stderr.matches("No such file").count(), 1, "{stderr}");
+    // A binary file given as an OBJ: the line of the first bad byte.
+    std::fs::write(&map, "level = \"X\"\n[[mesh]]\nfile = \"bad.obj\"\n").unwrap();
+    std::fs::write(
+        dir.join("bad.obj"),
+        b"v 0 0 0\nv 1 0 0\n\xff\xfe\x00garbage\n",
+    )
+    .unwrap();
+    refused(
+        &["--map".as_ref(), map.as_os_str()],
+        &[
+            &format!("{}:3:", dir.join("bad.obj").display()),
+            "not a text file",
+        ],
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn files_past_the_size_limits_are_refused_unread() {
+    let dir = scratch("large");
+    let big = dir.join("big.toml");
+    // Sparse: nothing is written to disk, and nothing may be read.
+    std::fs::File::create(&big)
+        .unwrap()
+        .set_len(1 << 30)
+        .unwrap();
+    refused(
+        &["--map".as_ref(), big.as_os_str()],
+        &["larger than the limit"],
+    );
+    refused(
+        &["--robots".as_ref(), big.as_os_str()],
+        &["larger than the limit"],
+    );
+    refused(
+        &[
+            "replay".as_ref(),
+            big.as_os_str(),
+            "--port".as_ref(),
+            "0".as_ref(),
+        ],
+        &["more than the limit"],
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn absurd_options_are_refused_not_panicked_on() {
+    for args in [
+        &["--time-scale", "1e-300"][..],
+        &["--time-scale", "1e300"],
+        &["replay", "x.usarlog", "--speed", "1e-300"],
+        &["--lockstep-timeout", "inf"],
+    ] {
+        let out = server().args(args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+}
+
+#[test]
+fn replay_time_stamps_are_checked() {
+    let dir = scratch("replay-times");
+    for bad in ["NaN", "inf"] {
+        let file = dir.join(format!("{bad}.usarlog"));
+        std::fs::write(
+            &file,
+            format!("# usar-record 1\n0.0000 S NFO {{Level X}}\n{bad} S STA {{Time 1.0000}} {{Battery 1}}\n"),
+        )
+        .unwrap();
+        refused(
+            &[
+                "replay".as_ref(),
+                file.as_os_str(),
+                "--port".as_ref(),
+                "0".as_ref(),
+            ],
+            &[&format!("{}:3: bad time stamp", file.display())],
+        );
+    }
+    // 1e300 is a number: served (the wait is capped), never a panic.
+    let file = dir.join("far.usarlog");
+    std::fs::write(
+        &file,
+        "# usar-record 1\n0.0000 S NFO {Level X}\n1e300 S STA {Time 1.0000} {Battery 1}\n",
+    )
+    .unwrap();
+    let mut child = server()
+        .args([
+            "replay".as_ref(),
+            file.as_os_str(),
+            "--port".as_ref(),
+            "0".as_ref(),
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    stdout.read_line(&mut line).unwrap();
+    let addr = line.trim_end().rsplit(' ').next().unwrap().to_owned();
+    let mut client = std::net::TcpStream::connect(addr).unwrap();
+    let mut first = [0u8; 3];
+    client.read_exact(&mut first).unwrap();
+    assert_eq!(&first, b"NFO");
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_client_cannot_flood_the_log_or_write_control_bytes_into_it() {
+    // The attack: 30 MB of garbage wrote 356 MB of log, with raw ESC and NUL bytes.
+    let mut child = server()
+        .args(["--port", "0"])
+        .env("RUST_LOG", "info")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    stdout.read_line(&mut line).unwrap();
+    let addr = line.split_whitespace().nth(3).unwrap().to_owned();
+    let stderr = child.stderr.take().unwrap();
+    let log = std::thread::spawn(move || {
+        let mut text = Vec::new();
+        BufReader::new(stderr).read_to_end(&mut text).unwrap();
+        text
+    });
+    let mut client = std::net::TcpStream::connect(&addr).unwrap();
+    let mut sink = client.try_clone().unwrap();
+    std::thread::spawn(move || std::io::copy(&mut sink, &mut std::io::sink()));
+    let garbage = "\u{1b}[2J\0{{{ }}} DRIVE {LinearVelocity x} {Bogus 1}\r\nFOO {Bar \u{1b}]0;pwned\u{7}}\r\n";
+    let mut sent = 0;
+    while sent < 4 << 20 {
+        std::io::Write::write_all(&mut client, garbage.repeat(1000).as_bytes()).unwrap();
+        sent += garbage.len() * 1000;
+    }
+    drop(client);
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(child.wait().unwrap().success());
+    let log = log.join().unwrap();
+    println!("{sent} bytes of garbage gave {} bytes of log", log.len());
+    assert!(log.len() < 64 * 1024, "{} bytes of log", log.len());
+    assert!(
+        !log.contains(&0x1b) && !log.contains(&0),
+        "raw control bytes in the log"
+    );
 }

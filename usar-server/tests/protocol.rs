@@ -472,7 +472,9 @@ async fn sta_times(c: &mut Client, count: usize) -> Vec<f64> {
 async fn a_client_that_never_reads_does_not_slow_the_others() {
     let server = TestServer::with(usar_server::ServerConfig {
         time_scale: usar_server::TimeScale::Factor(50.0),
-        client_queue: 4,
+        // Small enough that the sleeper's output is dropped early, large enough (about half
+        // a simulated second) that a reader on a busy machine is never 4 ticks behind.
+        client_buffer: 64 * 1024,
         ..usar_server::ServerConfig::default()
     })
     .await;
@@ -505,12 +507,13 @@ async fn a_client_that_never_reads_does_not_slow_the_others() {
 async fn sixty_four_connections_are_served_and_the_next_is_refused() {
     let server = TestServer::start().await;
     let mut clients = Vec::new();
-    for _ in 0..64 {
-        let mut c = server.client().await;
+    for i in 0..64 {
+        // 16 connections per address is the default limit.
+        let mut c = Client::connect_from(server.addr, 2 + i / 16).await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO "));
         clients.push(c);
     }
-    let mut extra = server.client().await;
+    let mut extra = Client::connect_from(server.addr, 100).await;
     assert_eq!(
         extra.raw_line().await,
         None,
@@ -527,7 +530,45 @@ async fn sixty_four_connections_are_served_and_the_next_is_refused() {
     // A slot freed is a slot to reuse.
     drop(clients.pop());
     tokio::time::sleep(std::time::Duration::from_millis(100)).await;
-    let mut again = server.client().await;
+    let mut again = Client::connect_from(server.addr, 100).await;
     assert!(again.raw_line().await.unwrap().starts_with("NFO "));
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn a_quadrotor_obeys_quad_rotor_commands_and_reports_its_crash() {
+    let server = empty_room().await;
+    let mut c = server.client().await;
+    c.raw_line().await.unwrap();
+    c.send("INIT {ClassName USARBot.stsQuadrotor} {Location 0,0,-2}")
+        .await;
+    let (_, hover) = c.position().await;
+    // All four rotors well below hover speed: it sinks, lands hard on the floor, crashes.
+    c.send("QUAD {Rotors 300,300,300,300}").await;
+    let crash_time = c
+        .until(|m| match m {
+            ServerMessage::Sen(s) => match &s.data {
+                SenData::Touch { name, touch: true } if name == "Crash" => {
+                    Some(s.time.unwrap().seconds)
+                }
+                _ => None,
+            },
+            _ => None,
+        })
+        .await;
+    let (t, p) = c.position().await;
+    assert!(
+        t >= crash_time && p.z > hover.z + 1.8,
+        "on the floor: {p:?}"
+    );
+    // Nothing was answered to QUAD: only STA and SEN lines arrived.
+    c.send("QUAD {Rotors 700,700,700,700}").await;
+    for _ in 0..40 {
+        let (line, _) = c.message().await;
+        assert!(
+            line.starts_with("STA ") || line.starts_with("SEN "),
+            "{line}"
+        );
+    }
     server.stop().await;
 }

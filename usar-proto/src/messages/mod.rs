@@ -8,10 +8,11 @@
 //!   and its byte-exact printing, with tests.
 //!
 //! Server lines are read by key (case-insensitive, first occurrence wins; CONF and GEO parts
-//! and UT2004 sonar readings start at each `Name` key). A line of a known word whose keys or
-//! numbers cannot be read gives a [`ParseError`] saying what and where; unknown words give
-//! [`ServerMessage::Other`], unknown sensor types [`SenData::Other`], CONF parts of unknown
-//! layout [`ConfItem::Other`].
+//! and UT2004 sonar readings start at each `Name` key). Unknown words, and lines of a known
+//! word that do not fit its typed layout (fields missing, numbers unreadable: real servers
+//! print such lines), give [`ServerMessage::Other`], which prints them back byte for byte;
+//! unknown sensor types give [`SenData::Other`], CONF parts of unknown layout
+//! [`ConfItem::Other`]. Only an empty line is an error.
 
 pub mod command;
 pub mod common;
@@ -52,6 +53,8 @@ impl ServerMessage {
     /// Parses a server line (any generation's layout).
     ///
     /// The only deviation reported is [`Deviation::GroupedPairs`] (a UT2004-era layout).
+    /// A line that does not fit its word's typed layout reads in the generic form
+    /// ([`ServerMessage::Other`]) and prints back exactly; only an empty line fails.
     ///
     /// ```
     /// use usar_proto::{ServerMessage, Sta};
@@ -60,35 +63,59 @@ impl ServerMessage {
     /// assert_eq!(battery, 1200);
     /// ```
     pub fn parse(line: &str) -> Result<Parsed<Self>, ParseError> {
+        Self::read(line, false)
+    }
+
+    /// Like [`ServerMessage::parse`], but a line of a known word that does not fit its typed
+    /// layout is an error saying what and where (for tools that check a server's output).
+    pub fn parse_strict(line: &str) -> Result<Parsed<Self>, ParseError> {
+        Self::read(line, true)
+    }
+
+    fn read(line: &str, strict: bool) -> Result<Parsed<Self>, ParseError> {
         let mut devs = Vec::new();
         let raw = Raw::parse(line, true, &mut devs)?;
         devs.retain(|d| *d == Deviation::GroupedPairs);
         let word = raw.kind;
         let is = |w: &str| word.eq_ignore_ascii_case(w);
         let r = |what| Reader::new(what, &raw.pairs);
-        let typed = if is("NFO") {
-            Nfo::read(r("nfo"))?.map(Self::Nfo)
+        let typed: Result<Option<Self>, ParseError> = if is("NFO") {
+            Nfo::read(r("nfo")).map(|m| m.map(Self::Nfo))
         } else if is("STA") {
-            Some(Self::Sta(Sta::read(r("sta"))?))
+            Sta::read(r("sta")).map(|m| Some(Self::Sta(m)))
         } else if is("SEN") {
-            Some(Self::Sen(Sen::read(r("sen"))?))
+            Sen::read(r("sen")).map(|m| Some(Self::Sen(m)))
         } else if is("CONF") {
-            Conf::read(r("conf"))?.map(Self::Conf)
+            Conf::read(r("conf")).map(|m| m.map(Self::Conf))
         } else if is("GEO") {
-            Geo::read(r("geo"))?.map(Self::Geo)
+            Geo::read(r("geo")).map(|m| m.map(Self::Geo))
         } else if is("ASTA") {
-            Some(Self::Asta(Asta::read(r("asta"))?))
+            Asta::read(r("asta")).map(|m| Some(Self::Asta(m)))
         } else if is("EFF") {
-            Some(Self::Eff(Eff::read(r("eff"))?))
+            Eff::read(r("eff")).map(|m| Some(Self::Eff(m)))
         } else if is("DIE") {
-            Some(Self::Die(Die::read(r("die"))?))
+            Die::read(r("die")).map(|m| Some(Self::Die(m)))
         } else if is(SYNC_WORD) {
-            Some(Self::Sync(Barrier::read(r("sync"))?))
+            Barrier::read(r("sync")).map(|m| Some(Self::Sync(m)))
         } else {
-            None
+            Ok(None)
+        };
+        // A line of a known word that does not fit its typed layout (fields missing, a
+        // number unreadable) is still a valid line: it reads in the generic form, which
+        // prints it back exactly.
+        let message = match typed {
+            Ok(Some(typed)) => typed,
+            Err(error) if strict => return Err(error),
+            Ok(None) | Err(_) => {
+                let mut generic = raw.to_message();
+                if generic.to_string() != line {
+                    generic.verbatim = Some(line.to_owned());
+                }
+                Self::Other(generic)
+            }
         };
         Ok(Parsed {
-            message: typed.unwrap_or_else(|| Self::Other(raw.to_message())),
+            message,
             deviations: devs,
         })
     }

@@ -553,10 +553,10 @@ mod tests {
 
     #[test]
     fn unreadable_known_sensor_is_an_error() {
-        let e = ServerMessage::parse("SEN {Time 1.0} {Type IMU} {Name IMU}").unwrap_err();
+        let e = ServerMessage::parse_strict("SEN {Time 1.0} {Type IMU} {Name IMU}").unwrap_err();
         assert_eq!(e.to_string(), "sen IMU: missing {XYZAcceleration ..}");
-        let e =
-            ServerMessage::parse("SEN {Time 1.0} {Type Sonar} {Name S} {Range 1,2}").unwrap_err();
+        let e = ServerMessage::parse_strict("SEN {Time 1.0} {Type Sonar} {Name S} {Range 1,2}")
+            .unwrap_err();
         assert_eq!(e.to_string(), "sen Sonar: bad number \"1,2\" in {Range ..}");
     }
 }

@@ -143,9 +143,9 @@ mod tests {
 
     #[test]
     fn errors_say_what_and_where() {
-        let e = ServerMessage::parse("STA {Time 1.0000} {Battery x}").unwrap_err();
+        let e = ServerMessage::parse_strict("STA {Time 1.0000} {Battery x}").unwrap_err();
         assert_eq!(e.to_string(), "sta: bad integer \"x\" in {Battery ..}");
-        let e = ServerMessage::parse("STA {Battery 1}").unwrap_err();
+        let e = ServerMessage::parse_strict("STA {Battery 1}").unwrap_err();
         assert_eq!(e.to_string(), "sta: missing {Time ..}");
     }
 }

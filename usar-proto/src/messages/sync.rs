@@ -69,6 +69,10 @@ mod tests {
             Command::parse("SYNC").unwrap().message,
             Command::Other(_)
         ));
-        assert!(ServerMessage::parse("SYNC {Foo 1}").is_err());
+        assert!(ServerMessage::parse_strict("SYNC {Foo 1}").is_err());
+        // Still a valid line: the generic form, printed back as it came.
+        let m = ServerMessage::parse("SYNC {Foo 1}").unwrap().message;
+        assert!(matches!(m, ServerMessage::Other(_)));
+        assert_eq!(m.to_string(), "SYNC {Foo 1}");
     }
 }

@@ -12,17 +12,27 @@
 //! bursting to catch up, like tokio's `MissedTickBehavior::Delay`: simulated time then runs
 //! slower than requested, but steps are never skipped, so results do not depend on load.
 //!
-//! Lockstep (docs/lockstep.md): a client that sends `SYNC {Time t}` joins the barrier; the
-//! world does not step past `t` until that client syncs again, and the client is answered
-//! `SYNC {Time now}` once the world has reached `t`. Clients that never sync are never
-//! waited for.
+//! Fairness: each loop turn serves at most `requests_per_tick` lines of each client (in
+//! connection order), so the world steps on time whatever one client sends; lines beyond the
+//! budget wait in that client's backlog, which its session keeps short by not reading the
+//! socket (TCP back-pressure). A client's output is bounded twice: `client_queue` ticks and
+//! `client_buffer` bytes; past either, whole ticks are dropped for that client and counted.
+//!
+//! Lockstep (docs/lockstep.md, only with `ServerConfig::lockstep`): a client that sends
+//! `SYNC {Time t}` joins the barrier; the world does not step past `t` until that client
+//! syncs again, and the client is answered `SYNC {Time now}` once the world has reached `t`.
+//! Clients that never sync are never waited for, and a client that does not send its next
+//! `SYNC` within `lockstep_timeout` (wall clock) of its answer leaves the barrier.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
 use bytes::{Bytes, BytesMut};
-use tokio::sync::{mpsc, oneshot};
+use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
 use usar_proto::record::{Direction, RecordWriter};
@@ -37,6 +47,9 @@ const MAX_LAG: Duration = Duration::from_millis(250);
 /// Slack when comparing simulated times (ticks are multiples of dt, barriers are decimals).
 const TIME_EPSILON: f64 = 1e-6;
 
+/// The longest the driver sleeps or waits in one go (it also bounds any computed wait).
+const MAX_WAIT: Duration = Duration::from_secs(3600);
+
 /// What sessions ask of the simulation.
 #[derive(Debug)]
 pub(super) enum Request {
@@ -44,26 +57,48 @@ pub(super) enum Request {
     Connect {
         peer: String,
         queue: mpsc::Sender<Bytes>,
+        /// Bytes in `queue` not yet written to the socket (the session subtracts them).
+        queued: Arc<AtomicUsize>,
         reply: oneshot::Sender<ClientId>,
     },
-    /// A command read from a connection, with its text when recording.
-    Command {
+    /// A line read from a connection; `permit` is the session's back-pressure token, given
+    /// back once the line is served.
+    Line {
         client: ClientId,
-        command: Box<Command>,
-        line: Option<String>,
+        line: Line,
+        permit: OwnedSemaphorePermit,
     },
-    /// A lockstep barrier: `SYNC {Time t}`.
-    Sync {
-        client: ClientId,
-        time: f64,
-        line: Option<String>,
-    },
-    /// A line that was read but could not be understood (recorded only).
-    Unreadable { client: ClientId, line: String },
     /// The connection ended.
     Disconnect { client: ClientId },
     /// Wakes the driver so that it notices the shutdown.
     Wake,
+}
+
+/// A client line, read.
+#[derive(Debug)]
+pub(super) enum Line {
+    /// A command, with its text when recording.
+    Command {
+        command: Box<Command>,
+        text: Option<String>,
+    },
+    /// A lockstep barrier: `SYNC {Time t}`.
+    Sync { time: f64, text: Option<String> },
+    /// A line that was read but could not be understood (recorded only).
+    Unreadable { text: String },
+    /// Makes the driver panic (tests of what happens when the simulation dies).
+    #[cfg(test)]
+    Crash,
+}
+
+/// The driver's fixed settings.
+#[derive(Debug, Clone)]
+pub(super) struct Settings {
+    pub(super) scale: TimeScale,
+    pub(super) record_dir: Option<PathBuf>,
+    pub(super) requests_per_tick: usize,
+    pub(super) client_buffer: usize,
+    pub(super) lockstep_timeout: Duration,
 }
 
 /// The `NFO` game-info line sent on accept.
@@ -83,21 +118,56 @@ fn sync_reply(time: f64) -> ServerMessage {
     ServerMessage::Sync(Barrier::at(time))
 }
 
+/// A duration of `seconds`, whatever the number (NaN and negatives are 0, huge is capped).
+pub(crate) fn wait_of(seconds: f64) -> Duration {
+    if seconds > 0.0 {
+        Duration::try_from_secs_f64(seconds)
+            .unwrap_or(MAX_WAIT)
+            .min(MAX_WAIT)
+    } else {
+        Duration::ZERO
+    }
+}
+
 /// One connected client's outbound side.
 struct Client {
     peer: String,
     queue: mpsc::Sender<Bytes>,
+    /// Bytes handed to `queue` and not yet written.
+    queued: Arc<AtomicUsize>,
+    /// The most bytes `queued` may reach.
+    buffer: usize,
     /// Text of this tick not yet handed to the queue.
     pending: BytesMut,
     dropped: u64,
+    /// Lines read and not yet served (at most the session's backlog).
+    backlog: VecDeque<(Line, OwnedSemaphorePermit)>,
     /// Lockstep target time, once the client has joined the barrier.
     barrier: Option<f64>,
     /// Whether the client has been told that the world reached its barrier.
     answered: bool,
+    /// When the world reached the barrier (the lockstep timeout runs from then).
+    answered_at: Option<Instant>,
     record: Option<RecordWriter>,
 }
 
 impl Client {
+    fn new(peer: String, queue: mpsc::Sender<Bytes>, queued: Arc<AtomicUsize>) -> Self {
+        Self {
+            peer,
+            queue,
+            queued,
+            buffer: usize::MAX,
+            pending: BytesMut::new(),
+            dropped: 0,
+            backlog: VecDeque::new(),
+            barrier: None,
+            answered: false,
+            answered_at: None,
+            record: None,
+        }
+    }
+
     fn push(&mut self, message: &ServerMessage, time: f64) {
         let start = self.pending.len();
         message.write_to(&mut self.pending);
@@ -113,17 +183,25 @@ impl Client {
             return;
         }
         let chunk = self.pending.split().freeze();
-        match self.queue.try_send(chunk) {
-            Ok(()) => {}
-            Err(mpsc::error::TrySendError::Full(_)) => {
-                self.dropped += 1;
-                if self.dropped.is_power_of_two() {
-                    warn!(peer = %self.peer, dropped_ticks = self.dropped,
-                        "client is not reading; dropping its output");
+        let len = chunk.len();
+        let room = self.queued.load(Ordering::Relaxed).saturating_add(len) <= self.buffer;
+        let sent = room && {
+            self.queued.fetch_add(len, Ordering::Relaxed);
+            match self.queue.try_send(chunk) {
+                Ok(()) => true,
+                Err(e) => {
+                    self.queued.fetch_sub(len, Ordering::Relaxed);
+                    // Closed: the session is gone; its Disconnect request is on the way.
+                    matches!(e, mpsc::error::TrySendError::Closed(_))
                 }
             }
-            // The session is gone; its Disconnect request is on the way.
-            Err(mpsc::error::TrySendError::Closed(_)) => {}
+        };
+        if !sent {
+            self.dropped += 1;
+            if self.dropped.is_power_of_two() {
+                warn!(peer = %self.peer, dropped_ticks = self.dropped,
+                    "client is not reading; dropping its output");
+            }
         }
     }
 
@@ -137,54 +215,62 @@ impl Client {
 pub(super) struct Driver {
     world: World,
     clients: BTreeMap<ClientId, Client>,
-    record_dir: Option<PathBuf>,
+    settings: Settings,
     connections: u64,
 }
 
 impl Driver {
-    pub(super) fn new(world: World, record_dir: Option<PathBuf>) -> Self {
+    pub(super) fn new(world: World, settings: Settings) -> Self {
         Self {
             world,
             clients: BTreeMap::new(),
-            record_dir,
+            settings,
             connections: 0,
         }
     }
 
     /// Runs the world until `shutdown` is cancelled or every request sender is gone.
-    pub(super) fn run(
-        mut self,
-        mut inbox: mpsc::Receiver<Request>,
-        scale: TimeScale,
-        shutdown: CancellationToken,
-    ) {
+    pub(super) fn run(mut self, inbox: Receiver<Request>, shutdown: CancellationToken) {
         let mut out = Vec::new();
         let mut anchor = Instant::now();
         let mut ticks_since_anchor: u64 = 0;
         loop {
-            // Apply what is queued; wait for requests while the world may not step.
+            // Take what is queued; serve each client's share; wait while the world may not
+            // step and nothing is waiting.
             loop {
-                let request = match inbox.try_recv() {
-                    Ok(request) => request,
-                    Err(mpsc::error::TryRecvError::Empty) if self.may_step() => break,
-                    Err(mpsc::error::TryRecvError::Empty) => {
-                        self.flush_all();
-                        match inbox.blocking_recv() {
-                            Some(request) => {
-                                // Time stood still: do not burst to catch up afterwards.
-                                anchor = Instant::now();
-                                ticks_since_anchor = 0;
-                                request
-                            }
-                            None => return,
-                        }
+                loop {
+                    match inbox.try_recv() {
+                        Ok(request) => self.take(request),
+                        Err(TryRecvError::Empty) => break,
+                        Err(TryRecvError::Disconnected) => return,
                     }
-                    Err(mpsc::error::TryRecvError::Disconnected) => return,
-                };
+                }
                 if shutdown.is_cancelled() {
                     return;
                 }
-                self.handle(request);
+                let served = self.serve_backlogs();
+                self.release_stuck_barriers();
+                if self.may_step() {
+                    break;
+                }
+                if served > 0 {
+                    continue;
+                }
+                self.flush_all();
+                let request = match self.barrier_deadline() {
+                    None => inbox.recv().map_err(|_| RecvTimeoutError::Disconnected),
+                    Some(deadline) => {
+                        inbox.recv_timeout(deadline.saturating_duration_since(Instant::now()))
+                    }
+                };
+                match request {
+                    Ok(request) => self.take(request),
+                    Err(RecvTimeoutError::Timeout) => {}
+                    Err(RecvTimeoutError::Disconnected) => return,
+                }
+                // Time stood still: do not burst to catch up afterwards.
+                anchor = Instant::now();
+                ticks_since_anchor = 0;
             }
             if shutdown.is_cancelled() {
                 return;
@@ -201,16 +287,16 @@ impl Driver {
             self.flush_all();
             trace!(time, "tick");
 
-            let factor = match scale {
+            let factor = match self.settings.scale {
                 TimeScale::Max => continue,
                 TimeScale::Factor(k) => k,
             };
             ticks_since_anchor += 1;
-            let due = anchor
-                + Duration::from_secs_f64(ticks_since_anchor as f64 * self.world.dt() / factor);
+            let offset = wait_of(ticks_since_anchor as f64 * self.world.dt() / factor);
+            let due = anchor.checked_add(offset).unwrap_or(anchor);
             let now = Instant::now();
             if due > now {
-                std::thread::sleep(due - now);
+                std::thread::sleep((due - now).min(MAX_WAIT));
             } else if now - due > MAX_LAG {
                 debug!(
                     lag_ms = (now - due).as_millis() as u64,
@@ -222,10 +308,76 @@ impl Driver {
         }
     }
 
+    /// Files a request: connection changes at once, lines into the client's backlog.
+    fn take(&mut self, request: Request) {
+        match request {
+            Request::Line {
+                client,
+                line,
+                permit,
+            } => match self.clients.get_mut(&client) {
+                Some(c) => c.backlog.push_back((line, permit)),
+                None => drop(permit),
+            },
+            other => self.handle(other),
+        }
+    }
+
+    /// Serves up to `requests_per_tick` waiting lines of each client; returns how many.
+    fn serve_backlogs(&mut self) -> usize {
+        let ids: Vec<ClientId> = self.clients.keys().copied().collect();
+        let mut served = 0;
+        for id in ids {
+            for _ in 0..self.settings.requests_per_tick {
+                let Some((line, permit)) = self
+                    .clients
+                    .get_mut(&id)
+                    .and_then(|c| c.backlog.pop_front())
+                else {
+                    break;
+                };
+                self.serve(id, line);
+                drop(permit);
+                served += 1;
+            }
+        }
+        served
+    }
+
     /// The world steps only when it holds a robot and no lockstep client holds it back.
     fn may_step(&self) -> bool {
         let (time, dt) = (self.world.time(), self.world.dt());
         self.world.robot_count() > 0 && !self.clients.values().any(|c| c.holds_at(time, dt))
+    }
+
+    /// When the earliest lockstep client that holds the world runs out of time.
+    fn barrier_deadline(&self) -> Option<Instant> {
+        let (time, dt) = (self.world.time(), self.world.dt());
+        self.clients
+            .values()
+            .filter(|c| c.holds_at(time, dt))
+            .filter_map(|c| c.answered_at)
+            .min()
+            .map(|at| at.checked_add(self.settings.lockstep_timeout).unwrap_or(at))
+    }
+
+    /// Removes from the barrier every client that has held the world for longer than the
+    /// lockstep timeout without sending its next `SYNC`.
+    fn release_stuck_barriers(&mut self) {
+        let (time, dt) = (self.world.time(), self.world.dt());
+        let timeout = self.settings.lockstep_timeout;
+        let now = Instant::now();
+        for c in self.clients.values_mut() {
+            let late = c
+                .answered_at
+                .is_some_and(|at| now.duration_since(at) >= timeout);
+            if late && c.holds_at(time, dt) && c.backlog.is_empty() {
+                warn!(peer = %c.peer, barrier = c.barrier, timeout_s = timeout.as_secs_f64(),
+                    "lockstep client sent no SYNC in time; it leaves the barrier");
+                c.barrier = None;
+                c.answered_at = None;
+            }
+        }
     }
 
     fn flush_all(&mut self) {
@@ -240,13 +392,14 @@ impl Driver {
         for c in self.clients.values_mut() {
             if !c.answered && c.holds_at(time, dt) {
                 c.answered = true;
+                c.answered_at = Some(Instant::now());
                 c.push(&sync_reply(time), time);
             }
         }
     }
 
     fn open_record(&mut self) -> Option<RecordWriter> {
-        let dir = self.record_dir.as_ref()?;
+        let dir = self.settings.record_dir.as_ref()?;
         let path = dir.join(format!("connection-{:04}.usarlog", self.connections));
         RecordWriter::create(&path)
             .inspect_err(
@@ -264,9 +417,47 @@ impl Driver {
         }
     }
 
+    /// Serves one client line.
+    fn serve(&mut self, client: ClientId, line: Line) {
+        match line {
+            Line::Command { command, text } => {
+                self.record_client_line(client, text.as_deref());
+                let replies = self.world.command(client, *command);
+                let time = self.world.time();
+                if let Some(c) = self.clients.get_mut(&client) {
+                    for reply in &replies {
+                        c.push(reply, time);
+                    }
+                }
+            }
+            Line::Sync { time, text } => {
+                self.record_client_line(client, text.as_deref());
+                let (now, dt) = (self.world.time(), self.world.dt());
+                if let Some(c) = self.clients.get_mut(&client) {
+                    c.barrier = Some(time);
+                    c.answered = false;
+                    c.answered_at = None;
+                    if c.holds_at(now, dt) {
+                        c.answered = true;
+                        c.answered_at = Some(Instant::now());
+                        c.push(&sync_reply(now), now);
+                    }
+                }
+            }
+            Line::Unreadable { text } => self.record_client_line(client, Some(&text)),
+            #[cfg(test)]
+            Line::Crash => panic!("crash requested by a test"),
+        }
+    }
+
     fn handle(&mut self, request: Request) {
         match request {
-            Request::Connect { peer, queue, reply } => {
+            Request::Connect {
+                peer,
+                queue,
+                queued,
+                reply,
+            } => {
                 self.connections += 1;
                 let mut record = self.open_record();
                 if let Some(file) = &mut record {
@@ -276,52 +467,27 @@ impl Driver {
                 }
                 let id = self.world.connect();
                 debug!(%peer, client = ?id, "joined the simulation");
-                self.clients.insert(
-                    id,
-                    Client {
-                        peer,
-                        queue,
-                        pending: BytesMut::new(),
-                        dropped: 0,
-                        barrier: None,
-                        answered: false,
-                        record,
-                    },
-                );
+                let mut client = Client::new(peer, queue, queued);
+                client.buffer = self.settings.client_buffer;
+                client.record = record;
+                self.clients.insert(id, client);
                 // The session may already be gone; then its Disconnect never comes, so undo.
                 if reply.send(id).is_err() {
                     self.world.disconnect(id);
                     self.clients.remove(&id);
                 }
             }
-            Request::Command {
-                client,
-                command,
-                line,
-            } => {
-                self.record_client_line(client, line.as_deref());
-                let replies = self.world.command(client, *command);
-                let time = self.world.time();
-                if let Some(c) = self.clients.get_mut(&client) {
-                    for reply in &replies {
-                        c.push(reply, time);
-                    }
-                }
-            }
-            Request::Sync { client, time, line } => {
-                self.record_client_line(client, line.as_deref());
-                let (now, dt) = (self.world.time(), self.world.dt());
-                if let Some(c) = self.clients.get_mut(&client) {
-                    c.barrier = Some(time);
-                    c.answered = false;
-                    if c.holds_at(now, dt) {
-                        c.answered = true;
-                        c.push(&sync_reply(now), now);
-                    }
-                }
-            }
-            Request::Unreadable { client, line } => self.record_client_line(client, Some(&line)),
+            Request::Line { client, line, .. } => self.serve(client, line),
             Request::Disconnect { client } => {
+                // What the client sent before it left is applied (and recorded) first, as
+                // if it had all been served at once.
+                while let Some((line, _permit)) = self
+                    .clients
+                    .get_mut(&client)
+                    .and_then(|c| c.backlog.pop_front())
+                {
+                    self.serve(client, line);
+                }
                 self.world.disconnect(client);
                 if let Some(mut c) = self.clients.remove(&client)
                     && let Some(file) = &mut c.record
@@ -351,15 +517,7 @@ mod tests {
     #[test]
     fn a_full_queue_drops_whole_ticks_without_waiting() {
         let (queue, mut output) = mpsc::channel(2);
-        let mut client = Client {
-            peer: "test".into(),
-            queue,
-            pending: BytesMut::new(),
-            dropped: 0,
-            barrier: None,
-            answered: false,
-            record: None,
-        };
+        let mut client = Client::new("test".into(), queue, Arc::default());
         for tick in 1..=5 {
             client.push(&sta(f64::from(tick) / 10.0), 0.0);
             client.push(&sta(f64::from(tick) / 10.0 + 0.05), 0.0);
@@ -377,15 +535,32 @@ mod tests {
     }
 
     #[test]
+    fn a_full_byte_buffer_drops_whole_ticks_too() {
+        let (queue, mut output) = mpsc::channel(1000);
+        let queued = Arc::new(AtomicUsize::new(0));
+        let mut client = Client::new("test".into(), queue, queued.clone());
+        client.buffer = 100; // bytes: two ticks of 2 × 34 bytes do not fit
+        for tick in 1..=5 {
+            client.push(&sta(f64::from(tick) / 10.0), 0.0);
+            client.push(&sta(f64::from(tick) / 10.0 + 0.05), 0.0);
+            client.flush();
+        }
+        assert_eq!(client.dropped, 4);
+        assert_eq!(queued.load(Ordering::Relaxed), 68);
+        // Written: its bytes are given back, and the next tick fits.
+        let first = output.try_recv().unwrap();
+        queued.fetch_sub(first.len(), Ordering::Relaxed);
+        client.push(&sta(0.6), 0.0);
+        client.flush();
+        assert_eq!(client.dropped, 4);
+        assert!(output.try_recv().unwrap().starts_with(b"STA {Time 0.6000}"));
+    }
+
+    #[test]
     fn barriers_hold_the_world_until_the_next_sync() {
         let client = |barrier| Client {
-            peer: "test".into(),
-            queue: mpsc::channel(1).0,
-            pending: BytesMut::new(),
-            dropped: 0,
             barrier,
-            answered: false,
-            record: None,
+            ..Client::new("test".into(), mpsc::channel(1).0, Arc::default())
         };
         let dt = 0.005;
         assert!(

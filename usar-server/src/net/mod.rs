@@ -3,7 +3,7 @@
 //! lines; it never touches rapier types.
 //!
 //! ```text
-//! TCP ─CommandCodec─▶ session ─Request (bounded mpsc)─▶ driver thread: World::command / step
+//! TCP ─CommandCodec─▶ session ─Request (mpsc, per-client permits)─▶ driver thread: World::command / step
 //!  ▲                                                                │
 //!  └── write_all ◀── session ◀── bounded per-client queue of Bytes ◀┘ (one chunk per tick)
 //! ```
@@ -11,10 +11,15 @@
 mod driver;
 mod session;
 
-use std::sync::Arc;
+pub(crate) use driver::wait_of;
+
+use std::collections::HashMap;
+use std::net::IpAddr;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use tokio::net::TcpListener;
-use tokio::sync::{Semaphore, mpsc};
+use tokio::sync::Semaphore;
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
@@ -32,6 +37,13 @@ pub enum TimeScale {
     Max,
 }
 
+impl TimeScale {
+    /// The slowest accepted factor (a thousandth of real time).
+    pub const MIN_FACTOR: f64 = 1e-3;
+    /// The fastest accepted factor (faster than any machine steps; use `max` beyond).
+    pub const MAX_FACTOR: f64 = 1e6;
+}
+
 impl std::str::FromStr for TimeScale {
     type Err = String;
 
@@ -40,9 +52,11 @@ impl std::str::FromStr for TimeScale {
             return Ok(Self::Max);
         }
         match s.parse::<f64>() {
-            Ok(k) if k.is_finite() && k > 0.0 => Ok(Self::Factor(k)),
+            Ok(k) if (Self::MIN_FACTOR..=Self::MAX_FACTOR).contains(&k) => Ok(Self::Factor(k)),
             _ => Err(format!(
-                "invalid time scale '{s}': expected a positive number or 'max'"
+                "invalid time scale '{s}': expected a number from {} to {} or 'max'",
+                Self::MIN_FACTOR,
+                Self::MAX_FACTOR
             )),
         }
     }
@@ -61,16 +75,32 @@ pub struct ServerConfig {
     pub time_scale: TimeScale,
     /// Connections served at once (USARSim: 64); more are closed on accept.
     pub max_connections: usize,
+    /// Connections served at once from one IP address; more are closed on accept.
+    pub max_connections_per_address: usize,
     /// Longest accepted client line in bytes; longer lines are dropped with a warning.
     pub max_line_length: usize,
     /// Ticks of output buffered per client; when a client does not read and its queue is
     /// full, whole ticks of its output are dropped (counted and logged), never the others'.
     pub client_queue: usize,
-    /// Record every connection's lines, both directions, into this folder (docs/recording.md).
-    pub record: Option<std::path::PathBuf>,
+    /// Bytes of output buffered per client (all its queued ticks together); past it, whole
+    /// ticks are dropped by the same rule as a full `client_queue`.
+    pub client_buffer: usize,
+    /// Requests (lines) of one client the simulation serves per tick; the rest wait for the
+    /// next tick, and a client with this many waiting is not read from until they are served
+    /// (TCP back-pressure), so no client can hold up the world or grow the server's memory.
+    pub requests_per_tick: usize,
+    /// A new connection that has not sent one complete line within this time is closed.
+    pub idle_timeout: Duration,
+    /// A connection that has started a line and not ended it within this time is closed.
+    pub line_timeout: Duration,
     /// Offer lockstep (`SYNC`, docs/lockstep.md) to clients that ask. Off by default: then a
     /// `SYNC` is an unknown command like any other, and no client can hold the world.
     pub lockstep: bool,
+    /// Wall-clock time a lockstep client may take to send its next `SYNC` before it is
+    /// removed from the barrier (with a warning) and the world goes on without it.
+    pub lockstep_timeout: Duration,
+    /// Record every connection's lines, both directions, into this folder (docs/recording.md).
+    pub record: Option<std::path::PathBuf>,
 }
 
 impl Default for ServerConfig {
@@ -81,10 +111,16 @@ impl Default for ServerConfig {
             sim: SimConfig::default(),
             time_scale: TimeScale::Factor(1.0),
             max_connections: 64,
+            max_connections_per_address: 16,
             max_line_length: 64 * 1024,
             client_queue: 256,
-            record: None,
+            client_buffer: 4 << 20,
+            requests_per_tick: 32,
+            idle_timeout: Duration::from_secs(30),
+            line_timeout: Duration::from_secs(30),
             lockstep: false,
+            lockstep_timeout: Duration::from_secs(10),
+            record: None,
         }
     }
 }
@@ -101,7 +137,8 @@ pub enum ServerError {
 }
 
 /// Serves the protocol on an already-bound listener until `shutdown` is cancelled; then
-/// closes every connection (clients see EOF) and returns.
+/// closes every connection (clients see EOF) and returns. If the simulation thread dies,
+/// every connection is closed and the error is returned at once.
 pub async fn run(
     listener: TcpListener,
     config: ServerConfig,
@@ -112,28 +149,50 @@ pub async fn run(
     }
     let world = World::new(config.map, config.robots, config.sim);
     let game_info = driver::game_info(&world);
-    let (requests, inbox) = mpsc::channel(4096);
+    let (requests, inbox) = std::sync::mpsc::channel();
     let sim_shutdown = shutdown.child_token();
+    // Cancelled by the simulation thread if it unwinds (a bug): the server then stops.
+    let sim_died = CancellationToken::new();
     let sim = {
         let token = sim_shutdown.clone();
-        let scale = config.time_scale;
-        let driver = driver::Driver::new(world, config.record.clone());
+        let died = sim_died.clone();
+        let driver = driver::Driver::new(
+            world,
+            driver::Settings {
+                scale: config.time_scale,
+                record_dir: config.record.clone(),
+                requests_per_tick: config.requests_per_tick.max(1),
+                client_buffer: config.client_buffer.max(1),
+                lockstep_timeout: config.lockstep_timeout,
+            },
+        );
         std::thread::Builder::new()
             .name("usar-sim".into())
-            .spawn(move || driver.run(inbox, scale, token))?
+            .spawn(move || {
+                let _alarm = DeathAlarm(died);
+                driver.run(inbox, token);
+            })?
     };
 
     let tracker = TaskTracker::new();
     let slots = Arc::new(Semaphore::new(config.max_connections));
+    let per_address: Arc<Mutex<HashMap<IpAddr, usize>>> = Arc::default();
     let limits = session::Limits {
         max_line_length: config.max_line_length,
         client_queue: config.client_queue.max(1),
-        record: config.record.is_some(),
+        backlog: config.requests_per_tick.max(1) * 2,
+        idle_timeout: config.idle_timeout,
+        line_timeout: config.line_timeout,
         lockstep: config.lockstep,
+        record: config.record.is_some(),
     };
     let result = loop {
         tokio::select! {
             _ = shutdown.cancelled() => break Ok(()),
+            _ = sim_died.cancelled() => {
+                tracing::error!("the simulation thread died; stopping the server");
+                break Err(ServerError::Simulation("the simulation thread panicked".into()));
+            }
             accepted = listener.accept() => {
                 let (stream, peer) = match accepted {
                     Ok(x) => x,
@@ -143,6 +202,15 @@ pub async fn run(
                         continue;
                     }
                     Err(e) => break Err(ServerError::Io(e)),
+                };
+                let Some(address_slot) = AddressSlot::take(
+                    &per_address,
+                    peer.ip(),
+                    config.max_connections_per_address.max(1),
+                ) else {
+                    warn!(%peer, max = config.max_connections_per_address,
+                        "too many connections from this address, closing");
+                    continue;
                 };
                 let Ok(permit) = slots.clone().try_acquire_owned() else {
                     warn!(%peer, max = config.max_connections, "too many connections, closing");
@@ -157,7 +225,7 @@ pub async fn run(
                     requests.clone(),
                     limits,
                     shutdown.child_token(),
-                    permit,
+                    (permit, address_slot),
                 ));
             }
         }
@@ -166,13 +234,58 @@ pub async fn run(
     shutdown.cancel();
     tracker.wait().await;
     sim_shutdown.cancel();
-    let _ = requests.send(driver::Request::Wake).await;
+    let _ = requests.send(driver::Request::Wake);
     drop(requests);
-    tokio::task::spawn_blocking(move || sim.join())
+    let joined = tokio::task::spawn_blocking(move || sim.join())
         .await
-        .map_err(|e| ServerError::Simulation(e.to_string()))?
-        .map_err(|_| ServerError::Simulation("the simulation thread panicked".into()))?;
-    result
+        .map_err(|e| ServerError::Simulation(e.to_string()))?;
+    result?;
+    joined.map_err(|_| ServerError::Simulation("the simulation thread panicked".into()))
+}
+
+/// Cancels its token when dropped during a panic (the simulation thread unwinding).
+struct DeathAlarm(CancellationToken);
+
+impl Drop for DeathAlarm {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.cancel();
+        }
+    }
+}
+
+/// One connection's share of its address's limit; given back when dropped.
+#[derive(Debug)]
+struct AddressSlot {
+    counts: Arc<Mutex<HashMap<IpAddr, usize>>>,
+    ip: IpAddr,
+}
+
+impl AddressSlot {
+    fn take(counts: &Arc<Mutex<HashMap<IpAddr, usize>>>, ip: IpAddr, max: usize) -> Option<Self> {
+        let mut map = counts.lock().unwrap_or_else(|e| e.into_inner());
+        let n = map.entry(ip).or_insert(0);
+        if *n >= max {
+            return None;
+        }
+        *n += 1;
+        Some(Self {
+            counts: counts.clone(),
+            ip,
+        })
+    }
+}
+
+impl Drop for AddressSlot {
+    fn drop(&mut self) {
+        let mut map = self.counts.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(n) = map.get_mut(&self.ip) {
+            *n -= 1;
+            if *n == 0 {
+                map.remove(&self.ip);
+            }
+        }
+    }
 }
 
 /// Accept errors that concern one connection only (the listener stays usable).
@@ -182,4 +295,42 @@ fn is_transient(e: &std::io::Error) -> bool {
         e.kind(),
         ConnectionAborted | ConnectionReset | Interrupted | WouldBlock
     ) || e.raw_os_error() == Some(24) // EMFILE: too many open files; retry later
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+
+    #[tokio::test]
+    async fn the_server_stops_with_an_error_when_the_simulation_dies() {
+        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap();
+        let shutdown = CancellationToken::new();
+        let server = tokio::spawn(run(listener, ServerConfig::default(), shutdown.clone()));
+        let stream = tokio::net::TcpStream::connect(addr).await.unwrap();
+        let (read, mut write) = stream.into_split();
+        let mut read = BufReader::new(read);
+        let mut line = String::new();
+        read.read_line(&mut line).await.unwrap();
+        write
+            .write_all(b"__CRASH_THE_SIMULATION__\r\n")
+            .await
+            .unwrap();
+        // Without anyone cancelling: the server ends on its own, with the error.
+        let result = tokio::time::timeout(Duration::from_secs(60), server)
+            .await
+            .expect("the server lingers after its simulation died")
+            .unwrap();
+        assert!(
+            matches!(result, Err(ServerError::Simulation(_))),
+            "{result:?}"
+        );
+        line.clear();
+        assert_eq!(
+            read.read_line(&mut line).await.unwrap(),
+            0,
+            "clients see EOF"
+        );
+    }
 }

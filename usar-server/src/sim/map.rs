@@ -9,6 +9,7 @@ use toml::Spanned;
 
 use super::obj;
 use super::scene::{Scene, V3, upright_pose, yaw_rotate};
+use super::wind::WindConfig;
 
 /// The maps built into the binary: short name, file name, text.
 const EMBEDDED: &[(&str, &str, &str)] = &[
@@ -31,16 +32,62 @@ const EMBEDDED_OBJ: &[(&str, &str)] = &[("tower.obj", include_str!("../../../map
 /// The short name of the default map.
 const DEFAULT_MAP: &str = "empty_room";
 
-/// Errors reading a map; each names the file, the line and what is wrong.
+/// Metres: every coordinate and size in a map (and every robot position) lies within
+/// ±`LIMIT` of the origin on each axis. The world ends there: no motion goes further
+/// (`Scene::sweep`); f32 (the physics' precision) still resolves centimetres at this
+/// distance.
+pub const LIMIT: f64 = 100_000.0;
+
+/// Metres: INIT locations are held this far inside [`LIMIT`].
+pub const EDGE_MARGIN: f64 = 10.0;
+
+/// The largest map file read (bytes); larger files are refused before reading.
+pub const MAX_MAP_FILE: u64 = 16 << 20;
+
+/// The largest OBJ mesh file read (bytes).
+pub const MAX_OBJ_FILE: u64 = 64 << 20;
+
+/// What kind of configuration file a [`ConfigError`] is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConfigFile {
+    /// A map (docs/maps.md).
+    Map,
+    /// A robot catalog (docs/robots.md).
+    Robots,
+}
+
+impl std::fmt::Display for ConfigFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Map => "map",
+            Self::Robots => "robot catalog",
+        })
+    }
+}
+
+/// Errors reading a configuration file (a map, its meshes, a robot catalog): the one error
+/// type of the server's loaders; each names the file, the line and what is wrong.
 #[derive(Debug, thiserror::Error)]
-pub enum MapError {
+pub enum ConfigError {
     /// The file could not be read.
-    #[error("cannot read map file {path}: {source}")]
+    #[error("cannot read {file} file {path}: {error}")]
     Io {
+        /// What kind of file.
+        file: ConfigFile,
         /// The file.
         path: PathBuf,
+        /// Why (shown in this error's text, so not its `source`).
+        error: std::io::Error,
+    },
+    /// An OBJ mesh file that a map names could not be read.
+    #[error("cannot read mesh file {path} (named by {map}): {error}")]
+    MeshIo {
+        /// The OBJ file.
+        path: PathBuf,
+        /// The map that names it.
+        map: PathBuf,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A name that is neither an embedded map nor a file.
     #[error("no map {name:?}: not an embedded map ({known}) and no such file")]
@@ -50,10 +97,10 @@ pub enum MapError {
         /// The embedded maps' names, comma separated.
         known: String,
     },
-    /// The file is not a valid map.
+    /// The file is not valid.
     #[error("{path}:{line}: {message}")]
     Invalid {
-        /// The file (the map, or the OBJ file it references).
+        /// The file (a map, the OBJ file it references, or a robot catalog).
         path: PathBuf,
         /// 1-based line.
         line: usize,
@@ -112,6 +159,7 @@ pub struct Map {
     time_limit: i64,
     starts: Vec<PlayerStart>,
     solids: Vec<Solid>,
+    wind: Option<WindConfig>,
 }
 
 #[derive(Deserialize)]
@@ -128,6 +176,8 @@ struct RawMap {
     cylinder: Vec<Spanned<RawCylinder>>,
     #[serde(default)]
     mesh: Vec<Spanned<RawMesh>>,
+    #[serde(default)]
+    wind: Option<Spanned<WindConfig>>,
 }
 
 fn default_time_limit() -> i64 {
@@ -187,31 +237,54 @@ pub(crate) fn line_of(text: &str, offset: usize) -> usize {
         + 1
 }
 
+/// The embedded OBJ file `file`.
+fn embedded_obj(file: &str, map: &Path) -> Result<(PathBuf, String), ConfigError> {
+    EMBEDDED_OBJ
+        .iter()
+        .find(|(f, _)| *f == file)
+        .map(|(f, text)| (Path::new("maps").join(f), (*text).to_string()))
+        .ok_or_else(|| ConfigError::MeshIo {
+            path: Path::new("maps").join(file),
+            map: map.to_path_buf(),
+            error: std::io::ErrorKind::NotFound.into(),
+        })
+}
+
 /// A mesh loader: relative file name → (path for messages, text).
-type ObjSource<'a> = &'a dyn Fn(&str) -> Result<(PathBuf, String), MapError>;
+type ObjSource<'a> = &'a dyn Fn(&str) -> Result<(PathBuf, String), ConfigError>;
 
 impl Map {
     /// Reads a map file; OBJ files are looked up relative to it.
-    pub fn from_file(path: &Path) -> Result<Self, MapError> {
-        let text = read(path)?;
+    /// Files past [`MAX_MAP_FILE`] (or meshes past [`MAX_OBJ_FILE`]) are refused unread.
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        let text = read_text(path, MAX_MAP_FILE)
+            .map_err(|e| e.into_config_error(ConfigFile::Map, path, None))?;
         let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        let map = path.to_path_buf();
         let load = move |file: &str| {
             let obj_path = dir.join(file);
-            let text = read(&obj_path)?;
+            let text = read_text(&obj_path, MAX_OBJ_FILE)
+                .map_err(|e| e.into_config_error(ConfigFile::Map, &obj_path, Some(&map)))?;
             Ok((obj_path, text))
         };
         Self::parse(&text, path, &load)
     }
 
+    /// A map from TOML text (errors name `path`); meshes may name only the embedded OBJ
+    /// files. For tools and fuzzing: nothing is read from disk.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        Self::parse(text, path, &|f: &str| embedded_obj(f, path))
+    }
+
     /// The map a user names: an embedded map (by short name or level name, any case, so
     /// `arena`, `Arena` and `EmptyRoom` all work) or else a map file.
-    pub fn lookup(name: &str) -> Result<Self, MapError> {
+    pub fn lookup(name: &str) -> Result<Self, ConfigError> {
         if let Some(map) = Self::embedded(name) {
             return Ok(map);
         }
         let path = Path::new(name);
         if !path.exists() {
-            return Err(MapError::Unknown {
+            return Err(ConfigError::Unknown {
                 name: name.to_owned(),
                 known: Self::embedded_names().join(", "),
             });
@@ -225,17 +298,8 @@ impl Map {
         let (_, file, text) = EMBEDDED
             .iter()
             .find(|(short, ..)| squash(short) == squash(name))?;
-        let load = |file: &str| {
-            EMBEDDED_OBJ
-                .iter()
-                .find(|(f, _)| *f == file)
-                .map(|(f, text)| (Path::new("maps").join(f), (*text).to_string()))
-                .ok_or_else(|| MapError::Io {
-                    path: Path::new("maps").join(file),
-                    source: std::io::ErrorKind::NotFound.into(),
-                })
-        };
-        match Self::parse(text, &Path::new("maps").join(file), &load) {
+        let path = Path::new("maps").join(file);
+        match Self::parse(text, &path, &|f: &str| embedded_obj(f, &path)) {
             Ok(map) => Some(map),
             Err(e) => {
                 // Guarded by a unit test; never happens in a released binary.
@@ -257,7 +321,13 @@ impl Map {
             time_limit: 20,
             starts: Vec::new(),
             solids: Vec::new(),
+            wind: None,
         })
+    }
+
+    /// The map's wind (`[wind]`), if it sets one.
+    pub fn wind(&self) -> Option<WindConfig> {
+        self.wind
     }
 
     /// The level name for the NFO line.
@@ -334,8 +404,8 @@ impl Map {
             .find(|s| s.tag.eq_ignore_ascii_case(key) || s.name.eq_ignore_ascii_case(key))
     }
 
-    fn parse(text: &str, path: &Path, load_obj: ObjSource<'_>) -> Result<Self, MapError> {
-        let invalid = |offset: usize, message: String| MapError::Invalid {
+    fn parse(text: &str, path: &Path, load_obj: ObjSource<'_>) -> Result<Self, ConfigError> {
+        let invalid = |offset: usize, message: String| ConfigError::Invalid {
             path: path.to_path_buf(),
             line: line_of(text, offset),
             message,
@@ -357,6 +427,8 @@ impl Map {
             let at = entry.span().start;
             let s = entry.get_ref();
             finite(&[&s.location, &s.rotation]).map_err(|m| invalid(at, m))?;
+            within(&[&s.location], LIMIT - EDGE_MARGIN).map_err(|m| invalid(at, m))?;
+            within(&[&s.rotation], 1000.0).map_err(|m| invalid(at, m))?;
             let name = s.name.clone().unwrap_or_else(|| format!("PlayerStart_{i}"));
             if let Some(dup) = starts
                 .iter()
@@ -382,6 +454,8 @@ impl Map {
             let b = entry.get_ref();
             let at = entry.span().start;
             finite(&[&b.center, &b.size, &[b.yaw; 3]]).map_err(|m| invalid(at, m))?;
+            within(&[&b.center, &b.size], LIMIT).map_err(|m| invalid(at, m))?;
+            within(&[&[b.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
             if b.size.iter().any(|&s| s <= 0.0) {
                 return Err(invalid(
                     at,
@@ -398,6 +472,7 @@ impl Map {
             let c = entry.get_ref();
             let at = entry.span().start;
             finite(&[&c.center, &[c.radius, c.height, 0.0]]).map_err(|m| invalid(at, m))?;
+            within(&[&c.center, &[c.radius, c.height, 0.0]], LIMIT).map_err(|m| invalid(at, m))?;
             if c.radius <= 0.0 || c.height <= 0.0 {
                 return Err(invalid(
                     at,
@@ -414,16 +489,18 @@ impl Map {
             let m = entry.get_ref();
             let at = entry.span().start;
             finite(&[&m.offset, &[m.yaw, m.scale, 0.0]]).map_err(|e| invalid(at, e))?;
+            within(&[&m.offset, &[m.scale, 0.0, 0.0]], LIMIT).map_err(|e| invalid(at, e))?;
+            within(&[&[m.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
             if m.scale <= 0.0 {
                 return Err(invalid(at, "mesh scale must be positive".into()));
             }
             let (obj_path, obj_text) = load_obj(&m.file)?;
-            let mesh = obj::parse(&obj_text).map_err(|(line, message)| MapError::Invalid {
+            let mesh = obj::parse(&obj_text).map_err(|(line, message)| ConfigError::Invalid {
                 path: obj_path,
                 line,
                 message,
             })?;
-            let vertices = mesh
+            let vertices: Vec<V3> = mesh
                 .vertices
                 .iter()
                 .map(|&v| {
@@ -431,16 +508,35 @@ impl Map {
                     [r[0] + m.offset[0], r[1] + m.offset[1], r[2] + m.offset[2]]
                 })
                 .collect();
+            if let Some(v) = vertices.iter().find(|v| v.iter().any(|x| x.abs() > LIMIT)) {
+                return Err(invalid(
+                    at,
+                    format!(
+                        "mesh `{}` reaches {v:?}, beyond the world's limit of ±{LIMIT} m",
+                        m.file
+                    ),
+                ));
+            }
             solids.push(Solid::Mesh {
                 vertices,
                 triangles: mesh.triangles,
             });
         }
+        let wind = match raw.wind {
+            Some(entry) => {
+                let at = entry.span().start;
+                let wind = entry.into_inner();
+                wind.check().map_err(|m| invalid(at, m))?;
+                Some(wind)
+            }
+            None => None,
+        };
         Ok(Self {
             level: raw.level,
             time_limit: raw.time_limit,
             starts,
             solids,
+            wind,
         })
     }
 
@@ -491,10 +587,89 @@ fn finite(values: &[&[f64; 3]]) -> Result<(), String> {
     }
 }
 
-fn read(path: &Path) -> Result<String, MapError> {
-    std::fs::read_to_string(path).map_err(|source| MapError::Io {
-        path: path.to_path_buf(),
-        source,
+fn within(values: &[&[f64; 3]], limit: f64) -> Result<(), String> {
+    match values
+        .iter()
+        .flat_map(|v| v.iter())
+        .find(|x| x.abs() > limit)
+    {
+        None => Ok(()),
+        Some(x) => Err(format!(
+            "{x} is out of range: numbers must be within ±{limit}"
+        )),
+    }
+}
+
+/// Why a text file could not be read.
+#[derive(Debug)]
+pub(crate) enum ReadError {
+    /// The file system said no.
+    Io(std::io::Error),
+    /// Larger than the limit (bytes).
+    TooLarge { size: u64, limit: u64 },
+    /// Not UTF-8 text; the 1-based line of the first bad byte.
+    NotText { line: usize },
+}
+
+impl ReadError {
+    /// The error of reading `path`, a `file`; a mesh names the `map` that wants it.
+    pub(crate) fn into_config_error(
+        self,
+        file: ConfigFile,
+        path: &Path,
+        map: Option<&Path>,
+    ) -> ConfigError {
+        let io = |error| match map {
+            None => ConfigError::Io {
+                file,
+                path: path.to_path_buf(),
+                error,
+            },
+            Some(map) => ConfigError::MeshIo {
+                path: path.to_path_buf(),
+                map: map.to_path_buf(),
+                error,
+            },
+        };
+        match self {
+            Self::Io(error) => io(error),
+            Self::TooLarge { size, limit } => ConfigError::Invalid {
+                path: path.to_path_buf(),
+                line: 1,
+                message: format!("file of {size} bytes is larger than the limit of {limit} bytes"),
+            },
+            Self::NotText { line } => ConfigError::Invalid {
+                path: path.to_path_buf(),
+                line,
+                message: "not a text file (bytes that are not UTF-8)".into(),
+            },
+        }
+    }
+}
+
+/// Reads a UTF-8 text file of at most `limit` bytes (checked before reading).
+pub(crate) fn read_text(path: &Path, limit: u64) -> Result<String, ReadError> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(ReadError::Io)?;
+    let size = file.metadata().map_err(ReadError::Io)?.len();
+    if size > limit {
+        return Err(ReadError::TooLarge { size, limit });
+    }
+    let mut bytes = Vec::new();
+    // `take` also bounds files that grow, or report no size (pipes, /dev/zero).
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(ReadError::Io)?;
+    if bytes.len() as u64 > limit {
+        return Err(ReadError::TooLarge {
+            size: bytes.len() as u64,
+            limit,
+        });
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        let good = e.utf8_error().valid_up_to();
+        let line = e.as_bytes()[..good].iter().filter(|&&b| b == b'\n').count() + 1;
+        ReadError::NotText { line }
     })
 }
 
@@ -502,11 +677,12 @@ fn read(path: &Path) -> Result<String, MapError> {
 mod tests {
     use super::*;
 
-    fn parse(text: &str) -> Result<Map, MapError> {
+    fn parse(text: &str) -> Result<Map, ConfigError> {
         let no_obj = |f: &str| {
-            Err(MapError::Io {
+            Err(ConfigError::MeshIo {
                 path: f.into(),
-                source: std::io::ErrorKind::NotFound.into(),
+                map: "test.toml".into(),
+                error: std::io::ErrorKind::NotFound.into(),
             })
         };
         Map::parse(text, Path::new("test.toml"), &no_obj)
@@ -545,10 +721,52 @@ mod tests {
     }
 
     #[test]
+    fn wind_section() {
+        let map =
+            parse("level = \"x\"\n[wind]\nvelocity = [0.0, 2.0, 0.0]\ngusts = 0.5\n").unwrap();
+        let wind = map.wind().expect("wind");
+        assert_eq!(
+            (wind.velocity, wind.gusts, wind.gust_length),
+            ([0.0, 2.0, 0.0], 0.5, 20.0)
+        );
+        assert!(Map::default_map().wind().is_none());
+        let e = parse("level = \"x\"\n\n[wind]\ngusts = -1.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("test.toml:3:") && e.contains("gusts"), "{e}");
+        let e = parse("level = \"x\"\n[wind]\nspeed = 3.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("speed"), "{e}");
+    }
+
+    #[test]
     fn start_names_default_to_playerstart_index() {
         let map =
             parse("level = \"x\"\n[[start]]\ntag = \"PlayerStart\"\nlocation = [1,2,3]\n").unwrap();
         assert_eq!(map.starts()[0].name, "PlayerStart_0");
         assert!(map.find_start("playerstart_0").is_some());
+    }
+}
+
+#[cfg(test)]
+mod config_error_tests {
+    use super::{ConfigError, ConfigFile, Map};
+    use crate::sim::RobotCatalog;
+    use std::path::Path;
+
+    /// One error type for every configuration file, telling which kind it was.
+    #[test]
+    fn maps_and_robot_catalogs_fail_with_the_same_error_type() {
+        let missing = Path::new("/nonexistent/file.toml");
+        let map = Map::from_file(missing).unwrap_err();
+        let robots = RobotCatalog::from_file(missing).unwrap_err();
+        for (error, kind, text) in [
+            (map, ConfigFile::Map, "cannot read map file"),
+            (robots, ConfigFile::Robots, "cannot read robot catalog file"),
+        ] {
+            assert!(matches!(&error, ConfigError::Io { file, .. } if *file == kind));
+            assert!(error.to_string().starts_with(text), "{error}");
+        }
     }
 }

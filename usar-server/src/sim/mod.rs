@@ -27,20 +27,26 @@
 //! assert!(!out.is_empty());
 //! ```
 
+mod dynamics;
 pub mod map;
 mod noise;
 mod obj;
+pub mod quadrotor;
 mod robot;
 pub mod robots;
 mod scene;
 pub mod sensors;
+pub mod wind;
 mod world;
 
 #[cfg(test)]
+mod quadrotor_tests;
+#[cfg(test)]
 mod tests;
 
-pub use map::{Map, MapError, PlayerStart};
-pub use robots::{RobotCatalog, RobotClass, RobotConfigError};
+pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
+pub use robots::{RobotCatalog, RobotClass};
+pub use wind::WindConfig;
 pub use world::World;
 
 /// A connection as the simulation knows it.
@@ -57,6 +63,10 @@ pub struct SimConfig {
     /// Threads that read the robots' sensors (robots move on one thread). The output is the
     /// same, byte for byte, at any count. Default: the machine's cores; 0 counts as 1.
     pub threads: usize,
+    /// The wind for this run; `None`: the map's `[wind]` (calm when it has none).
+    pub wind: Option<WindConfig>,
+    /// Robots one connection may spawn (USARSim: one); further INITs are ignored (logged).
+    pub robots_per_connection: usize,
 }
 
 impl Default for SimConfig {
@@ -65,6 +75,8 @@ impl Default for SimConfig {
             seed: 0,
             dt: 1.0 / 200.0,
             threads: default_threads(),
+            wind: None,
+            robots_per_connection: 1,
         }
     }
 }

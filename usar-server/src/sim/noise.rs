@@ -32,6 +32,11 @@ impl Noise {
         value + self.std_dev * self.gaussian()
     }
 
+    /// A standard normal sample, whatever the standard deviation (wind gusts).
+    pub(crate) fn draw(&mut self) -> f64 {
+        self.gaussian()
+    }
+
     /// A standard normal sample (Box–Muller).
     fn gaussian(&mut self) -> f64 {
         // 53 random bits → (0, 1]; never 0 so the logarithm is finite.

@@ -1,17 +1,20 @@
 //! A spawned robot: AerialVehicle flight, parts with their timers, battery, actuators.
 
 use rapier3d::prelude::ColliderHandle;
-use tracing::warn;
+use tracing::{debug, warn};
 use usar_proto::{
     ActuatorJoint, Asta, ConfItem, Drive, GeoItem, LinkValue, Sen, ServerMessage, Sta, StaLayout,
     Time,
 };
 
 use super::ClientId;
+use super::dynamics::{self, Crash, Dynamics, Flight, LowLevel, M3, SetPoints};
 use super::noise::Noise;
-use super::robots::{ActuatorConfig, FlightConfig, RobotClass};
+use super::quadrotor::{self, Quadrotor};
+use super::robots::{ActuatorConfig, CrashConfig, DynamicsKind, FlightConfig, RobotClass};
 use super::scene::{BodyShape, Scene, V3, add, scale, yaw_rotate};
 use super::sensors::{self, Reading, Sensor};
+use super::wind::WindConfig;
 
 /// STA period, s (`StatusTimer`).
 const STATUS_INTERVAL: f64 = 0.1;
@@ -25,14 +28,14 @@ fn ticks(seconds: f64, dt: f64) -> u64 {
     ((seconds / dt).round() as u64).max(1)
 }
 
-/// A finite number, or 0 (logged) for NaN and infinities.
-fn finite(value: f64, key: &str) -> f64 {
-    if value.is_finite() {
-        value
-    } else {
-        warn!(key, value, "non-finite DRIVE value treated as 0");
-        0.0
+/// A DRIVE number within `±limit`; NaN is 0 (logged at debug level: a client could send
+/// it on every line).
+fn limited(value: f64, limit: f64, key: &str) -> f64 {
+    if value.is_nan() {
+        debug!(key, "NaN DRIVE value treated as 0");
+        return 0.0;
     }
+    value.clamp(-limit, limit)
 }
 
 /// A periodic output: interval and next due tick.
@@ -85,20 +88,6 @@ struct Actuator {
     timer: Timer,
 }
 
-/// The flight set-points of §2.3 (sticky).
-#[derive(Debug, Default, Clone, Copy)]
-struct SetPoints {
-    /// m/s forward, right, up.
-    linear: f64,
-    lateral: f64,
-    altitude: f64,
-    /// rad/s, + = clockwise from above.
-    yaw_rate: f64,
-    /// rad.
-    pitch: f64,
-    roll: f64,
-}
-
 /// Where and how a robot spawns.
 pub(crate) struct Spawn<'a> {
     pub(crate) class: &'a RobotClass,
@@ -109,7 +98,12 @@ pub(crate) struct Spawn<'a> {
     pub(crate) tick: u64,
     pub(crate) dt: f64,
     pub(crate) seed: u64,
+    /// The wind robots with physics feel.
+    pub(crate) wind: WindConfig,
 }
+
+/// A crashed kinematic robot falls at this speed, m/s.
+const KINEMATIC_FALL_SPEED: f64 = 2.0;
 
 /// A robot in the world.
 #[derive(Debug)]
@@ -128,6 +122,13 @@ pub(crate) struct Robot {
     /// roll, pitch, yaw, rad.
     rotation: V3,
     set: SetPoints,
+    /// The physics model; `None` for the kinematic AerialVehicle flight.
+    dynamics: Option<Box<dyn Dynamics>>,
+    crash_config: CrashConfig,
+    /// Set once the robot crashed (it then falls, stops and ignores commands).
+    crashed: Option<Crash>,
+    /// Whether the body touched something in the last tick.
+    contact: bool,
     spawn_tick: u64,
     spawn_z: f64,
     battery: Option<f64>,
@@ -145,7 +146,6 @@ impl Robot {
             half_height: class.collision.height / 2.0,
         };
         if scene.overlaps(shape, spawn.position, None) {
-            warn!(client = ?spawn.owner, class = %class.class, position = ?spawn.position, "spawn failed: place is occupied");
             return None;
         }
         let mut parts = Vec::new();
@@ -188,6 +188,23 @@ impl Robot {
             })
             .collect();
         let body = scene.insert_body(shape, spawn.position);
+        let dynamics: Option<Box<dyn Dynamics>> = match class.dynamics {
+            DynamicsKind::Kinematic => None,
+            DynamicsKind::Quadrotor => Some(Box::new(Quadrotor::new(
+                class.quadrotor.clone(),
+                quadrotor::Limits {
+                    max_tilt: class.flight.max_tilt.abs().to_radians().clamp(0.01, 1.4),
+                    max_climb: class.flight.max_altitude_speed,
+                    crash_speed: class.crash.speed,
+                    crash_tilt: class.crash.tilt.to_radians(),
+                },
+                spawn.rotation,
+                spawn.wind,
+                spawn.seed,
+                spawn.serial,
+                spawn.dt,
+            ))),
+        };
         Some(Self {
             serial: spawn.serial,
             owner: Some(spawn.owner),
@@ -200,6 +217,10 @@ impl Robot {
             velocity: [0.0; 3],
             rotation: spawn.rotation,
             set: SetPoints::default(),
+            dynamics,
+            crash_config: class.crash.clone(),
+            crashed: None,
+            contact: false,
             spawn_tick: spawn.tick,
             spawn_z: spawn.position[2],
             battery: class.battery,
@@ -235,8 +256,38 @@ impl Robot {
         self.battery_left(tick, dt) == 0
     }
 
-    /// Applies a DRIVE (§2.3).
+    /// Applies a DRIVE (§2.3). Every value is held to the robot's limits (normalized values
+    /// to ±100 %, absolute ones to `speed_limit`, `rotation_limit` and `tilt_limit`), so no
+    /// number a client sends can make the state non-finite.
     pub(crate) fn drive(&mut self, d: &Drive) {
+        if self.crashed.is_some() {
+            return;
+        }
+        self.drive_set_points(d);
+        if let Some(dynamics) = &mut self.dynamics {
+            dynamics.drive(&self.set);
+        }
+    }
+
+    /// Applies a `QUAD` command (docs/quadrotor.md); kinematic robots ignore it.
+    pub(crate) fn low_level(&mut self, command: LowLevel) {
+        match &mut self.dynamics {
+            Some(dynamics) if self.crashed.is_none() => dynamics.low_level(command),
+            Some(_) => {}
+            None => warn!(
+                class = %self.class_name,
+                "QUAD ignored: the robot is kinematic (dynamics = \"quadrotor\" in its class)"
+            ),
+        }
+    }
+
+    /// Whether the robot has crashed.
+    pub(crate) fn crashed(&self) -> bool {
+        self.crashed.is_some()
+    }
+
+    /// The DRIVE set-points (sticky).
+    fn drive_set_points(&mut self, d: &Drive) {
         let f = &self.flight;
         let normalized = d.normalized == Some(true);
         let scaled = |v: f64, max: f64| {
@@ -246,6 +297,18 @@ impl Robot {
                 v
             }
         };
+        let speed = |v: f64, key: &str| {
+            let limit = if normalized { 100.0 } else { f.speed_limit };
+            limited(v, limit, key)
+        };
+        let rate = |v: f64, key: &str| {
+            let limit = if normalized { 100.0 } else { f.rotation_limit };
+            limited(v, limit, key)
+        };
+        let angle = |v: f64, key: &str| {
+            let limit = if normalized { 100.0 } else { f.tilt_limit };
+            limited(v, limit, key)
+        };
         // The tilt that comes with a translation: ±max_tilt, scaled again when normalized.
         let tilt = |v: f64| {
             (-v.signum() * scaled(f.max_tilt, f.max_tilt))
@@ -253,48 +316,88 @@ impl Robot {
                 .to_radians()
         };
         if let Some(v) = d.linear_velocity {
-            let v = finite(v, "LinearVelocity");
+            let v = speed(v, "LinearVelocity");
             self.set.linear = scaled(v, f.max_linear_speed);
             self.set.pitch = if v == 0.0 { 0.0 } else { tilt(v) };
         }
         if let Some(v) = d.lateral_velocity {
-            let v = finite(v, "LateralVelocity");
+            let v = speed(v, "LateralVelocity");
             self.set.lateral = scaled(v, f.max_lateral_speed);
             self.set.roll = if v == 0.0 { 0.0 } else { -tilt(v) };
         }
         if let Some(v) = d.altitude_velocity {
-            self.set.altitude = scaled(finite(v, "AltitudeVelocity"), f.max_altitude_speed);
+            self.set.altitude = scaled(speed(v, "AltitudeVelocity"), f.max_altitude_speed);
         }
         if let Some(v) = d.rotational_velocity {
-            let degrees = scaled(finite(v, "RotationalVelocity"), f.max_rotation_speed);
+            let degrees = scaled(rate(v, "RotationalVelocity"), f.max_rotation_speed);
             self.set.yaw_rate = degrees.trunc().to_radians();
         }
         if let Some(v) = d.pitch_angle {
-            self.set.pitch = scaled(finite(v, "PitchAngle"), f.max_tilt)
+            self.set.pitch = scaled(angle(v, "PitchAngle"), f.max_tilt)
                 .trunc()
                 .to_radians();
         }
         if let Some(v) = d.roll_angle {
-            self.set.roll = scaled(finite(v, "RollAngle"), f.max_tilt)
+            self.set.roll = scaled(angle(v, "RollAngle"), f.max_tilt)
                 .trunc()
                 .to_radians();
         }
     }
 
-    /// One tick of flight: sweep the body along the commanded velocity, turn, tilt.
+    /// One tick of flight: the physics model's step, or the kinematic flight.
     pub(crate) fn fly(&mut self, scene: &mut Scene, tick: u64, dt: f64) {
-        if self.is_dead(tick, dt) {
+        let dead = self.is_dead(tick, dt);
+        if let Some(dynamics) = &mut self.dynamics {
+            if dead && self.crashed.is_none() {
+                dynamics.crash(); // an empty battery stops the motors
+            }
+            let crash = dynamics.step(Flight {
+                scene,
+                body: self.body,
+                shape: self.shape,
+                position: &mut self.position,
+                velocity: &mut self.velocity,
+                rotation: &mut self.rotation,
+                dt,
+            });
+            self.contact = dynamics.contact();
+            if let Some(crash) = crash.filter(|_| self.crashed.is_none()) {
+                dynamics.crash();
+                self.report_crash(crash, tick, dt);
+            }
+            return;
+        }
+        if dead || self.crashed.is_some() {
             self.set = SetPoints::default();
         }
         let s = self.set;
         let horizontal = yaw_rotate(self.rotation[2], [s.linear, s.lateral, 0.0]);
-        let motion = scale(add(horizontal, [0.0, 0.0, -s.altitude]), dt);
+        let mut motion = scale(add(horizontal, [0.0, 0.0, -s.altitude]), dt);
+        if self.crashed.is_some() {
+            motion = [0.0, 0.0, KINEMATIC_FALL_SPEED * dt];
+        }
         let start = self.position;
+        self.contact = false;
         if motion != [0.0; 3] {
-            self.position = scene.sweep(self.body, self.shape, start, motion);
+            let (position, hit) = scene.sweep_contact(self.body, self.shape, start, motion);
+            self.position = position;
+            self.contact = hit.is_some();
+            if hit.is_some() && self.crash_config.on_contact && self.crashed.is_none() {
+                let speed = dynamics::norm(motion) / dt;
+                let reason = format!("touched an obstacle at {speed:.2} m/s (crash on contact)");
+                self.report_crash(
+                    Crash {
+                        speed,
+                        tilt: 0.0,
+                        reason,
+                    },
+                    tick,
+                    dt,
+                );
+            }
         }
         self.velocity = std::array::from_fn(|i| (self.position[i] - start[i]) / dt);
-        self.rotation[2] += s.yaw_rate * dt;
+        self.rotation[2] = super::world::bounded_angle(self.rotation[2] + s.yaw_rate * dt);
         let step = self.flight.tilt_rate * dt;
         for (angle, target) in [(0, s.roll), (1, s.pitch)] {
             let error = target - self.rotation[angle];
@@ -302,6 +405,30 @@ impl Robot {
                 self.rotation[angle] += error.clamp(-step, step);
             }
         }
+    }
+
+    fn report_crash(&mut self, crash: Crash, tick: u64, dt: f64) {
+        tracing::info!(
+            serial = self.serial,
+            class = %self.class_name,
+            time = tick as f64 * dt,
+            speed = crash.speed,
+            tilt_deg = crash.tilt.to_degrees(),
+            "crash: {}",
+            crash.reason
+        );
+        self.crashed = Some(crash);
+        self.set = SetPoints::default();
+    }
+
+    /// The tilt of the sensors: body rotation without its yaw (`None` for the kinematic
+    /// model, whose pitch and roll are visual only).
+    fn tilt(&self) -> Option<M3> {
+        let attitude = self.dynamics.as_ref()?.attitude();
+        Some(dynamics::mat_mul(
+            &attitude,
+            &dynamics::transpose(&dynamics::yaw_matrix(self.rotation[2])),
+        ))
     }
 
     /// Appends the output due at `tick` (STA, then sensors in part order, then ASTA).
@@ -329,6 +456,8 @@ impl Robot {
         }
         if !self.is_dead(tick, dt) {
             let yaw = self.rotation[2];
+            let tilt = self.tilt();
+            let imu = self.dynamics.as_ref().map(|d| d.imu());
             for part in &mut self.parts {
                 let due = part.timer.fire(tick);
                 if !(due || std::mem::take(&mut part.forced)) {
@@ -344,9 +473,16 @@ impl Robot {
                     velocity: self.velocity,
                     rotation: self.rotation,
                     spawn_z: self.spawn_z,
-                    origin: add(self.position, yaw_rotate(yaw, part.position)),
+                    origin: add(self.position, {
+                        let level = yaw_rotate(yaw, part.position);
+                        tilt.as_ref().map_or(level, |t| dynamics::mul(t, level))
+                    }),
                     yaw: yaw + part.direction[2],
                     pitch: part.direction[1],
+                    tilt,
+                    imu,
+                    contact: self.contact,
+                    crashed: self.crashed.is_some(),
                 };
                 let data = part.sensor.read(&reading, &mut part.noise);
                 let time = part.sensor.timestamped().then_some(Time::udk(time));
@@ -428,7 +564,7 @@ impl Robot {
     /// ACT/MISPKG: sets joint `index` (0-based) of actuator `name`.
     pub(crate) fn actuate(&mut self, name: &str, index: i64, value: f64) {
         if !value.is_finite() {
-            warn!(actuator = name, value, "non-finite ACT value ignored");
+            debug!(actuator = name, value, "non-finite ACT value ignored");
             return;
         }
         let actuator = self
@@ -467,6 +603,11 @@ impl Robot {
     #[cfg(test)]
     pub(crate) fn pose(&self) -> (V3, V3) {
         (self.position, self.rotation)
+    }
+
+    #[cfg(test)]
+    pub(crate) fn velocity(&self) -> V3 {
+        self.velocity
     }
 }
 

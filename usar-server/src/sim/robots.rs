@@ -1,39 +1,20 @@
 //! Robot classes: a TOML catalog in the spirit of USARSim's ini sections (see
 //! `docs/robots.md`). A new robot is a configuration entry, not code.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::map::line_of;
+use super::map::{ConfigError, ConfigFile, line_of, read_text};
+
+/// The largest robot file read (bytes).
+pub const MAX_ROBOT_FILE: u64 = 1 << 20;
+use super::quadrotor::QuadrotorConfig;
 use super::sensors;
 
 /// The embedded catalog (`usar-server/robots.toml`).
 const EMBEDDED: &str = include_str!("../../robots.toml");
-
-/// Errors reading a robot catalog; each names the file, the line and what is wrong.
-#[derive(Debug, thiserror::Error)]
-pub enum RobotConfigError {
-    /// The file could not be read.
-    #[error("cannot read robot file {path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// The file is not a valid catalog.
-    #[error("{path}:{line}: {message}")]
-    Invalid {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
-}
 
 /// Flight limits and behaviour (AerialVehicle / AirRobot defaults).
 #[derive(Debug, Clone, Deserialize)]
@@ -53,6 +34,13 @@ pub struct FlightConfig {
     pub tilt_rate: f64,
     /// Pitch/roll dead band, rad (200 UU).
     pub tilt_margin: f64,
+    /// m/s: the most an absolute (not normalized) `LinearVelocity`, `LateralVelocity` or
+    /// `AltitudeVelocity` sets; larger values are clamped.
+    pub speed_limit: f64,
+    /// deg/s: the most an absolute `RotationalVelocity` sets.
+    pub rotation_limit: f64,
+    /// Degrees: the most an absolute `PitchAngle` or `RollAngle` sets.
+    pub tilt_limit: f64,
 }
 
 impl Default for FlightConfig {
@@ -65,6 +53,43 @@ impl Default for FlightConfig {
             max_tilt: 25.0,
             tilt_rate: 7000.0 / 10_430.378,
             tilt_margin: 200.0 / 10_430.378,
+            speed_limit: 50.0,
+            rotation_limit: 1800.0,
+            tilt_limit: 90.0,
+        }
+    }
+}
+
+/// The flight model of a robot class (`dynamics = ..`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DynamicsKind {
+    /// UDK's AerialVehicle: velocities imposed, byte-compatible with USARSim.
+    #[default]
+    Kinematic,
+    /// A rigid-body quadrotor with motors, drag, wind and an onboard controller
+    /// (`[robot.quadrotor]`, docs/quadrotor.md).
+    Quadrotor,
+}
+
+/// When a contact is a crash (`[robot.crash]`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CrashConfig {
+    /// m/s into a surface above which a contact is a crash (quadrotor).
+    pub speed: f64,
+    /// Degrees of tilt above which a contact is a crash (quadrotor).
+    pub tilt: f64,
+    /// Kinematic model: any contact with the map or another robot is a crash.
+    pub on_contact: bool,
+}
+
+impl Default for CrashConfig {
+    fn default() -> Self {
+        Self {
+            speed: 1.0,
+            tilt: 60.0,
+            on_contact: false,
         }
     }
 }
@@ -164,6 +189,12 @@ pub struct RobotClass {
     pub class: String,
     /// Flight limits.
     pub flight: FlightConfig,
+    /// The flight model.
+    pub dynamics: DynamicsKind,
+    /// The quadrotor's parameters (used when `dynamics` is `Quadrotor`).
+    pub quadrotor: QuadrotorConfig,
+    /// When a contact is a crash.
+    pub crash: CrashConfig,
     /// Collision shape.
     pub collision: CollisionConfig,
     /// Battery life in simulated seconds; `None` = no battery part (`Battery 99999`).
@@ -194,6 +225,12 @@ struct RawRobot {
     #[serde(default)]
     flight: FlightConfig,
     #[serde(default)]
+    dynamics: DynamicsKind,
+    #[serde(default)]
+    quadrotor: Option<QuadrotorConfig>,
+    #[serde(default)]
+    crash: CrashConfig,
+    #[serde(default)]
     collision: CollisionConfig,
     #[serde(default)]
     battery: Option<f64>,
@@ -210,13 +247,16 @@ pub struct RobotCatalog {
 }
 
 impl RobotCatalog {
-    /// Reads a catalog file.
-    pub fn from_file(path: &Path) -> Result<Self, RobotConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| RobotConfigError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+    /// Reads a catalog file; files past [`MAX_ROBOT_FILE`] bytes are refused unread.
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        let text = read_text(path, MAX_ROBOT_FILE)
+            .map_err(|e| e.into_config_error(ConfigFile::Robots, path, None))?;
         Self::parse(&text, path)
+    }
+
+    /// A catalog from TOML text (errors name `path`).
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        Self::parse(text, path)
     }
 
     /// The built-in catalog: `USARBot.stsAirRobot` and `USARBot.AirRobot`.
@@ -247,8 +287,8 @@ impl RobotCatalog {
             .find(|r| r.class.eq_ignore_ascii_case(class))
     }
 
-    fn parse(text: &str, path: &Path) -> Result<Self, RobotConfigError> {
-        let invalid = |offset: usize, message: String| RobotConfigError::Invalid {
+    fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        let invalid = |offset: usize, message: String| ConfigError::Invalid {
             path: path.to_path_buf(),
             line: line_of(text, offset),
             message,
@@ -296,6 +336,9 @@ impl RobotCatalog {
             robots.push(RobotClass {
                 class: r.class,
                 flight: r.flight,
+                dynamics: r.dynamics,
+                quadrotor: r.quadrotor.unwrap_or_default(),
+                crash: r.crash,
                 collision: r.collision,
                 battery: r.battery,
                 parts,
@@ -322,25 +365,59 @@ fn all_finite(what: &str, v: &[f64]) -> Result<(), String> {
     }
 }
 
+/// The largest speed (m/s), rate (deg/s), angle (deg) and size (m) a robot file may give.
+const MAX_SPEED: f64 = 1000.0;
+const MAX_RATE: f64 = 36_000.0;
+const MAX_ANGLE: f64 = 180.0;
+const MAX_SIZE: f64 = 100.0;
+
+fn at_most(what: &str, v: f64, max: f64) -> Result<(), String> {
+    positive(what, v)?;
+    if v > max {
+        return Err(format!("{what} must be at most {max}, got {v}"));
+    }
+    Ok(())
+}
+
 fn check_flight(r: &RawRobot) -> Result<(), String> {
     let f = &r.flight;
-    for (what, v) in [
-        ("flight.max_linear_speed", f.max_linear_speed),
-        ("flight.max_lateral_speed", f.max_lateral_speed),
-        ("flight.max_altitude_speed", f.max_altitude_speed),
-        ("flight.max_rotation_speed", f.max_rotation_speed),
-        ("flight.tilt_rate", f.tilt_rate),
-        ("collision.radius", r.collision.radius),
-        ("collision.height", r.collision.height),
+    for (what, v, max) in [
+        ("flight.max_linear_speed", f.max_linear_speed, MAX_SPEED),
+        ("flight.max_lateral_speed", f.max_lateral_speed, MAX_SPEED),
+        ("flight.max_altitude_speed", f.max_altitude_speed, MAX_SPEED),
+        ("flight.speed_limit", f.speed_limit, MAX_SPEED),
+        ("flight.max_rotation_speed", f.max_rotation_speed, MAX_RATE),
+        ("flight.rotation_limit", f.rotation_limit, MAX_RATE),
+        ("flight.tilt_limit", f.tilt_limit, MAX_ANGLE),
+        ("flight.tilt_rate", f.tilt_rate, MAX_RATE),
+        ("collision.radius", r.collision.radius, MAX_SIZE),
+        ("collision.height", r.collision.height, MAX_SIZE),
     ] {
-        positive(what, v)?;
+        at_most(what, v, max)?;
     }
     all_finite(
         "flight.max_tilt and flight.tilt_margin",
         &[f.max_tilt, f.tilt_margin],
     )?;
+    if f.max_tilt.abs() > MAX_ANGLE || f.tilt_margin.abs() > MAX_ANGLE {
+        return Err(format!(
+            "flight.max_tilt and flight.tilt_margin must be within ±{MAX_ANGLE}"
+        ));
+    }
     if let Some(b) = r.battery {
-        positive("battery", b)?;
+        at_most("battery", b, 1e9)?;
+    }
+    positive("crash.speed", r.crash.speed)?;
+    positive("crash.tilt", r.crash.tilt)?;
+    match (&r.quadrotor, r.dynamics) {
+        (Some(_), DynamicsKind::Kinematic) => {
+            return Err(
+                "[robot.quadrotor] needs `dynamics = \"quadrotor\"` (the robot is kinematic)"
+                    .into(),
+            );
+        }
+        (Some(q), DynamicsKind::Quadrotor) => q.check()?,
+        (None, _) => {}
     }
     Ok(())
 }
@@ -364,26 +441,46 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
         "position and direction",
         &[part.position, part.direction].concat(),
     )?;
-    if let Some(interval) = part.interval {
-        positive("interval", interval)?;
+    if [part.position, part.direction]
+        .concat()
+        .iter()
+        .any(|x| x.abs() > MAX_SIZE)
+    {
+        return Err(format!("position and direction must be within ±{MAX_SIZE}"));
     }
-    if !(part.noise.is_finite() && part.noise >= 0.0) {
+    if let Some(interval) = part.interval {
+        at_most("interval", interval, 1e6)?;
+    }
+    if !(part.noise.is_finite() && (0.0..=100.0).contains(&part.noise)) {
         return Err(format!("noise must be >= 0, got {}", part.noise));
     }
     (kind.build)(part).map(drop)
 }
 
 fn check_actuator(a: &ActuatorConfig) -> Result<(), String> {
-    positive("interval", a.interval)?;
+    at_most("interval", a.interval, 1e6)?;
     all_finite(
         "position and direction",
         &[a.position, a.direction].concat(),
     )?;
+    if [a.position, a.direction]
+        .concat()
+        .iter()
+        .any(|x| x.abs() > MAX_SIZE)
+    {
+        return Err(format!("position and direction must be within ±{MAX_SIZE}"));
+    }
     if a.joints.is_empty() {
         return Err(format!("actuator `{}` needs at least one joint", a.name));
     }
     for j in &a.joints {
         all_finite("joint limits", &[j.min, j.max, j.max_torque])?;
+        if [j.min, j.max, j.max_torque].iter().any(|x| x.abs() > 1e6) {
+            return Err(format!(
+                "actuator `{}`: joint numbers must be within ±1e6",
+                a.name
+            ));
+        }
         if j.min > j.max {
             return Err(format!("actuator `{}`: joint min > max", a.name));
         }
@@ -414,6 +511,14 @@ mod tests {
         ] {
             assert!(names.contains(&n), "{n} missing");
         }
+        let quad = catalog.get("USARBot.stsQuadrotor").expect("stsQuadrotor");
+        assert_eq!(quad.dynamics, DynamicsKind::Quadrotor);
+        assert_eq!(
+            quad.parts.len(),
+            sts.parts.len() + 1,
+            "the sts parts plus Crash"
+        );
+        assert_eq!(sts.dynamics, DynamicsKind::Kinematic);
         let air = catalog.get("USARBot.AirRobot").expect("AirRobot");
         assert_eq!(air.battery, None);
         assert_eq!(air.actuators[0].name, "cam");
@@ -445,5 +550,27 @@ mod tests {
         assert!(e.contains("package"), "{e}");
         let e = parse("[[robot]]\nclass = \"USARBot.X\"\nbattery = -3.0\n");
         assert!(e.starts_with("r.toml:1:") && e.contains("battery"), "{e}");
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\n[robot.quadrotor]\nmass = 2.0\n");
+        assert!(e.contains("needs `dynamics = \"quadrotor\"`"), "{e}");
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\ndynamics = \"quadrotor\"\n\
+             [robot.quadrotor]\nmass = 20.0\n",
+        );
+        assert!(
+            e.starts_with("r.toml:1:") && e.contains("cannot hover"),
+            "{e}"
+        );
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\ndynamics = \"helicopter\"\n");
+        assert!(
+            e.starts_with("r.toml:3:") && e.contains("helicopter"),
+            "{e}"
+        );
+        let e = parse(
+            "[[robot]]\nclass = \"USARBot.X\"\ndynamics = \"quadrotor\"\n\
+             [robot.quadrotor]\nconfiguration = \"y\"\n",
+        );
+        assert!(e.contains("configuration") || e.contains("`y`"), "{e}");
+        let e = parse("[[robot]]\nclass = \"USARBot.X\"\n[robot.crash]\nspeed = 0.0\n");
+        assert!(e.contains("crash.speed"), "{e}");
     }
 }

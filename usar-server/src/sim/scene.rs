@@ -387,13 +387,20 @@ impl Scene {
 
     /// Moves the body `handle` from `centre` by `motion`, stopping in front of the first
     /// obstacle and sliding along it (up to three contacts). Returns the new centre.
-    pub(crate) fn sweep(
+    /// Also returns the normal of the first surface hit (pointing out of it, towards the
+    /// robot), if any.
+    pub(crate) fn sweep_contact(
         &mut self,
         handle: ColliderHandle,
         shape: BodyShape,
         centre: V3,
         motion: V3,
-    ) -> V3 {
+    ) -> (V3, Option<V3>) {
+        let mut contact = None;
+        // The world ends at ±LIMIT on every axis (docs/limits.md): no motion leaves it.
+        let limit = super::map::LIMIT;
+        let motion: V3 =
+            std::array::from_fn(|i| (centre[i] + motion[i]).clamp(-limit, limit) - centre[i]);
         let cylinder = shape.cylinder();
         let mut pos = centre;
         let length = norm(motion);
@@ -434,6 +441,7 @@ impl Scene {
             // Slide: keep the part of the remaining motion that is tangent to the surface.
             let n = hit.normal1;
             let n = [f64::from(n.x), f64::from(n.y), f64::from(n.z)];
+            contact.get_or_insert(n);
             let left = scale(rest, 1.0 - toi);
             let into = left[0] * n[0] + left[1] * n[1] + left[2] * n[2];
             rest = if into < 0.0 {
@@ -449,7 +457,7 @@ impl Scene {
             collider.set_position(upright_pose(pos));
         }
         self.reindex(handle);
-        pos
+        (pos, contact)
     }
 }
 
@@ -782,7 +790,7 @@ mod tests {
                     let handle = scene.insert_body(body, c.map(f64::from));
                     // Moved a little: its tree box then carries the margin.
                     let motion = [f64::from(s[1]) * 0.01, 0.0, 0.0];
-                    scene.sweep(handle, body, c.map(f64::from), motion);
+                    scene.sweep_contact(handle, body, c.map(f64::from), motion);
                 }
                 _ => {
                     let v = |x: f32, y: f32, z: f32| Vector::new(c[0] + x, c[1] + y, c[2] + z);
@@ -816,6 +824,8 @@ mod tests {
             max in 0.5f64..8.0,
             beams in 1usize..240,
             fov in 0.1f64..std::f64::consts::TAU,
+            (roll, tilt) in (-0.6f64..0.6, -0.6f64..0.6),
+            tilted in proptest::bool::ANY,
         ) {
             let mut scene = random_scene(&solids);
             // The scanning robot's own body, excluded as the sensors exclude it.
@@ -824,11 +834,23 @@ mod tests {
             let offsets: Vec<f64> = (0..beams)
                 .map(|k| fov / 2.0 - fov * k as f64 / beams as f64)
                 .collect();
-            let dirs: Vec<V3> = offsets.iter().map(|o| direction(pitch, yaw + o)).collect();
+            // A body tilted by roll about x, then pitch about y (a quadrotor's sensors): the
+            // directions and the azimuth axes turn together.
+            let turn = |v: V3| -> V3 {
+                if !tilted {
+                    return v;
+                }
+                let (sr, cr) = roll.sin_cos();
+                let (sp, cp) = tilt.sin_cos();
+                let v = [v[0], cr * v[1] - sr * v[2], sr * v[1] + cr * v[2]];
+                [cp * v[0] + sp * v[2], v[1], -sp * v[0] + cp * v[2]]
+            };
+            let dirs: Vec<V3> =
+                offsets.iter().map(|o| turn(direction(pitch, yaw + o))).collect();
             let ends = dirs.iter().map(|&d| add(origin, scale(d, max)));
             let batch = scene.ray_batch(origin, ends, me);
             let mut fan = Vec::new();
-            let axes = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+            let axes = (turn([1.0, 0.0, 0.0]), turn([0.0, 1.0, 0.0]));
             batch.cast_fan(&dirs, yaw, &offsets, axes, max, &mut fan);
             for (k, &dir) in dirs.iter().enumerate() {
                 let walk = scene.cast_ray(origin, dir, max, me);
@@ -880,8 +902,8 @@ mod tests {
                     if m == [0.0; 3] {
                         continue;
                     }
-                    *pa = fast.sweep(*a, shape, *pa, m);
-                    *pb = slow.sweep(*b, shape, *pb, m);
+                    *pa = fast.sweep_contact(*a, shape, *pa, m).0;
+                    *pb = slow.sweep_contact(*b, shape, *pb, m).0;
                     proptest::prop_assert_eq!(pa.map(f64::to_bits), pb.map(f64::to_bits));
                 }
             }
@@ -922,7 +944,7 @@ mod tests {
             for (step, (handle, centre)) in bodies.iter_mut().enumerate() {
                 let a = step as f64 * 0.7;
                 let motion = [0.01 * a.cos(), 0.01 * a.sin(), 0.001 * (a * 3.0).sin()];
-                *centre = scene.sweep(*handle, shape, *centre, motion);
+                *centre = scene.sweep_contact(*handle, shape, *centre, motion).0;
             }
         }
         scene.refresh();

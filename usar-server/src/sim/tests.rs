@@ -386,8 +386,61 @@ fn non_finite_numbers_do_not_poison_the_world() {
         }),
     );
     let out = run(&mut w, 1.0);
-    assert_eq!(pose(&w, c), ([0.0, 0.0, -1.0], [0.0; 3]));
+    // NaN reads as 0; infinities are held to the robot's limits: it circles at 50 m/s,
+    // turning at -1800 deg/s, inside the room.
+    let (p, r) = pose(&w, c);
+    assert!(p.iter().chain(&r).all(|x| x.is_finite()), "{p:?} {r:?}");
+    assert!(
+        p[0].abs() < 10.0 && p[1].abs() < 10.0 && p[2] == -1.0,
+        "{p:?}"
+    );
     assert!(!out.is_empty());
+}
+
+#[test]
+fn huge_drive_and_init_numbers_are_held_to_the_limits() {
+    let mut w = world();
+    let c = w.connect();
+    w.command(c, init(STS, [1e308, -1e308, 1e308], 1e308));
+    let (p, r) = pose(&w, c);
+    let edge = map::LIMIT - map::EDGE_MARGIN;
+    assert_eq!(p, [edge, -edge, edge]);
+    assert!((0.0..std::f64::consts::TAU).contains(&r[2]), "{r:?}");
+    // The attack: a NaN position at once, printed as -0.0000 and NaN.
+    let d = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    drive(
+        &mut w,
+        d,
+        Drive {
+            linear_velocity: Some(1.5e308),
+            lateral_velocity: Some(-1.5e308),
+            rotational_velocity: Some(1e308),
+            ..Drive::default()
+        },
+    );
+    let out = run(&mut w, 2.0);
+    let (p, r) = pose(&w, d);
+    assert!(p.iter().chain(&r).all(|x| x.is_finite()), "{p:?} {r:?}");
+    for (_, m) in &out {
+        let line = m.to_string();
+        assert!(!line.contains("NaN") && !line.contains("inf"), "{line}");
+        assert!(!line.contains("2147483647"), "{line}");
+    }
+    // DRIVE 0 stops it.
+    drive(
+        &mut w,
+        d,
+        Drive {
+            linear_velocity: Some(0.0),
+            lateral_velocity: Some(0.0),
+            rotational_velocity: Some(0.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 0.1);
+    let before = pose(&w, d);
+    run(&mut w, 0.5);
+    assert_eq!(pose(&w, d).0, before.0);
 }
 
 #[test]
@@ -434,8 +487,42 @@ fn default_map_start_has_room_to_fly() {
 }
 
 #[test]
-fn second_init_rebinds_and_disconnect_removes_all() {
+fn nothing_flies_past_the_end_of_the_world() {
     let mut w = world();
+    let c = spawn(&mut w, STS, [map::LIMIT - 30.0, 0.0, -1.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1e9),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 2.0);
+    assert_eq!(pose(&w, c).0, [map::LIMIT, 0.0, -1.0]);
+}
+
+#[test]
+fn a_second_init_is_ignored_like_usarsim() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    for i in 0..100 {
+        w.command(c, init(AIR, [-5.0, f64::from(i) * 0.1 - 5.0, -1.0], 0.0));
+    }
+    assert_eq!(w.robot_count(), 1);
+    assert_eq!(pose(&w, c).0, [0.0, 0.0, -1.0]);
+}
+
+#[test]
+fn second_init_rebinds_and_disconnect_removes_all() {
+    let mut w = World::new(
+        Map::default_map(),
+        RobotCatalog::embedded(),
+        SimConfig {
+            robots_per_connection: 2,
+            ..SimConfig::default()
+        },
+    );
     let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
     let other = spawn(&mut w, AIR, [-5.0, -5.0, -1.0], 0.0);
     w.command(c, init(AIR, [5.0, 0.0, -1.0], 0.0));
@@ -779,7 +866,8 @@ fn deterministic_with_noise() {
     assert!(x.contains("Sonar"));
 }
 
-/// 200 noisy robots packed in the city's plaza, flying into each other and the buildings,
+/// 200 noisy robots (a third of them quadrotors) packed in the city's plaza, flying into
+/// each other and the buildings,
 /// stepped with `threads` sensor threads (and, if `shortcuts` is off, with one tree walk per
 /// ray and a shape cast per move): the whole output as text.
 fn crowd_output(threads: usize, shortcuts: bool) -> String {
@@ -801,7 +889,13 @@ fn crowd_output(threads: usize, shortcuts: bool) -> String {
     for i in 0..200 {
         let (x, y, z) = ((i % 10) as f64, ((i / 10) % 10) as f64, (i / 100) as f64);
         let location = [x * 1.0 - 5.0, y * 1.0 - 5.0, -2.0 - 0.5 * z];
-        clients.push(spawn(&mut w, STS, location, 0.3 * i as f64));
+        // Every third one a quadrotor: its sensors tilt with its body.
+        let class = if i % 3 == 0 {
+            "USARBot.stsQuadrotor"
+        } else {
+            STS
+        };
+        clients.push(spawn(&mut w, class, location, 0.3 * i as f64));
     }
     assert_eq!(w.robot_count(), 200);
     let mut out = Vec::new();

@@ -5,11 +5,13 @@ use std::collections::BTreeMap;
 use tracing::{debug, warn};
 use usar_proto::{Command, Conf, Geo, Init, ItemQuery, Nfo, ServerMessage, StartPose};
 
-use super::map::Map;
+use super::map::{self, Map};
 use super::robot::{Robot, Spawn};
 use super::robots::RobotCatalog;
 use super::scene::{Scene, V3};
+use super::wind::WindConfig;
 use super::{ClientId, SimConfig};
+use crate::shown::{Repeats, Shown};
 
 /// Ticks between BVH refits (leaf updates only ever grow the tree's inner boxes).
 const REFIT_EVERY: u64 = 200;
@@ -24,6 +26,8 @@ pub struct World {
     tick: u64,
     dt: f64,
     seed: u64,
+    /// The wind robots with physics feel.
+    wind: WindConfig,
     map: Map,
     catalog: RobotCatalog,
     scene: Scene,
@@ -35,15 +39,43 @@ pub struct World {
     next_serial: u64,
     /// Threads that read sensors ([`SimConfig::threads`]).
     threads: usize,
+    robots_per_connection: usize,
+    /// Warnings about each connection's commands (summarised past the first few).
+    complaints: BTreeMap<ClientId, Repeats>,
 }
 
-/// The vector with non-finite components replaced by 0 (logged).
-fn finite_or_zero(v: usar_proto::Vec3, key: &str) -> V3 {
-    let a: V3 = v.into();
-    if !a.iter().all(|x| x.is_finite()) {
-        warn!(key, value = ?a, "non-finite INIT component treated as 0");
+/// Whether to log a warning about `client`'s command: the first few in full, then a
+/// summary now and then (a flood of bad commands must not flood the log).
+fn complain(complaints: &mut BTreeMap<ClientId, Repeats>, client: ClientId) -> Option<u64> {
+    complaints.entry(client).or_default().note()
+}
+
+/// An INIT location: non-finite components are 0, the rest within the map's limits.
+fn spawn_location(v: usar_proto::Vec3) -> V3 {
+    let limit = map::LIMIT - map::EDGE_MARGIN;
+    V3::from(v).map(|x| {
+        if x.is_finite() {
+            x.clamp(-limit, limit)
+        } else {
+            0.0
+        }
+    })
+}
+
+/// An INIT rotation: non-finite components are 0, the rest bounded by [`bounded_angle`].
+fn spawn_rotation(v: usar_proto::Vec3) -> V3 {
+    V3::from(v).map(|x| if x.is_finite() { bounded_angle(x) } else { 0.0 })
+}
+
+/// Angles past a thousand turns are reduced to one turn, [0, 2π): the same direction,
+/// printed as a sensible number (smaller angles are kept as given, as USARSim does).
+pub(crate) fn bounded_angle(a: f64) -> f64 {
+    const MAX_ANGLE: f64 = 1000.0 * std::f64::consts::TAU;
+    if a.abs() > MAX_ANGLE {
+        a.rem_euclid(std::f64::consts::TAU)
+    } else {
+        a
     }
-    a.map(|x| if x.is_finite() { x } else { 0.0 })
 }
 
 impl World {
@@ -55,6 +87,16 @@ impl World {
             warn!(dt = config.dt, "invalid dt, using 1/200 s");
             SimConfig::default().dt
         };
+        let wind = match config.wind.or(map.wind()) {
+            Some(wind) => match wind.check() {
+                Ok(()) => wind,
+                Err(error) => {
+                    warn!(%error, "invalid wind, flying in calm air");
+                    WindConfig::default()
+                }
+            },
+            None => WindConfig::default(),
+        };
         let mut scene = Scene::new();
         map.build(&mut scene);
         scene.refit();
@@ -62,6 +104,7 @@ impl World {
             tick: 0,
             dt,
             seed: config.seed,
+            wind,
             map,
             catalog: robots,
             scene,
@@ -70,6 +113,8 @@ impl World {
             next_client: 0,
             next_serial: 0,
             threads: config.threads.max(1),
+            robots_per_connection: config.robots_per_connection,
+            complaints: BTreeMap::new(),
         }
     }
 
@@ -109,6 +154,7 @@ impl World {
     /// Removes a connection and every robot it spawned.
     pub fn disconnect(&mut self, client: ClientId) {
         self.clients.remove(&client);
+        self.complaints.remove(&client);
         let (gone, kept) = std::mem::take(&mut self.robots)
             .into_iter()
             .partition(|r| r.spawned_by == client);
@@ -179,27 +225,43 @@ impl World {
     }
 
     fn init(&mut self, client: ClientId, init: &Init) {
+        let spawned = self
+            .robots
+            .iter()
+            .filter(|r| r.spawned_by == client)
+            .count();
+        if spawned >= self.robots_per_connection {
+            if let Some(n) = complain(&mut self.complaints, client) {
+                warn!(
+                    ?client,
+                    limit = self.robots_per_connection,
+                    count = n,
+                    "INIT ignored: this connection has spawned its robots already"
+                );
+            }
+            return;
+        }
         let Some(class) = self.catalog.get(&init.class_name) else {
-            warn!(?client, class = %init.class_name, "spawn failed: unknown robot class");
+            if let Some(n) = complain(&mut self.complaints, client) {
+                warn!(?client, class = %Shown(&init.class_name), count = n,
+                    "spawn failed: unknown robot class");
+            }
             return;
         };
         let (position, rotation) = match init.start.as_deref().filter(|s| !s.is_empty()) {
             Some(tag) => match self.map.find_start(tag) {
                 Some(start) => (start.location, start.rotation),
                 None => {
-                    warn!(
-                        ?client,
-                        start = tag,
-                        "no such PlayerStart, spawning at 0,0,0"
-                    );
+                    if let Some(n) = complain(&mut self.complaints, client) {
+                        warn!(?client, start = %Shown(tag), count = n,
+                            "no such PlayerStart, spawning at 0,0,0");
+                    }
                     ([0.0; 3], [0.0; 3])
                 }
             },
             None => (
-                init.location
-                    .map_or([0.0; 3], |v| finite_or_zero(v, "Location")),
-                init.rotation
-                    .map_or([0.0; 3], |v| finite_or_zero(v, "Rotation")),
+                init.location.map_or([0.0; 3], spawn_location),
+                init.rotation.map_or([0.0; 3], spawn_rotation),
             ),
         };
         let spawn = Spawn {
@@ -211,8 +273,17 @@ impl World {
             tick: self.tick,
             dt: self.dt,
             seed: self.seed,
+            wind: self.wind,
         };
         let Some(robot) = Robot::spawn(spawn, &mut self.scene) else {
+            if let Some(n) = complain(&mut self.complaints, client) {
+                warn!(
+                    ?client,
+                    ?position,
+                    count = n,
+                    "spawn failed: place is occupied"
+                );
+            }
             return;
         };
         self.next_serial += 1;
@@ -243,6 +314,14 @@ impl World {
         }
         match command {
             Command::Drive(drive) => robot.drive(&drive),
+            // The QUAD extension (docs/quadrotor.md): lower-level commands for robots with
+            // physics; a stock USARSim ignores it like any unknown command.
+            Command::Other(message) if message.kind.eq_ignore_ascii_case("QUAD") => {
+                match super::dynamics::parse_quad(&message) {
+                    Ok(command) => robot.low_level(command),
+                    Err(error) => warn!(?client, %error, "QUAD ignored"),
+                }
+            }
             Command::GetConf(query) => return conf(robot, &query).into_iter().collect(),
             Command::GetGeo(query) => return geo(robot, &query).into_iter().collect(),
             Command::Set(set) => robot.set(&set.kind, set.name.as_deref(), &set.opcode),
@@ -264,6 +343,14 @@ impl World {
     #[cfg(test)]
     pub(crate) fn scene_ray(&self, origin: V3, dir: V3, max: f64) -> Option<f64> {
         self.scene.cast_ray(origin, dir, max, None)
+    }
+
+    /// Whether the robot `client` controls has crashed.
+    pub fn crashed(&self, client: ClientId) -> bool {
+        let serial = self.clients.get(&client).copied().flatten();
+        self.robots
+            .iter()
+            .any(|r| Some(r.serial) == serial && r.crashed())
     }
 
     #[cfg(test)]

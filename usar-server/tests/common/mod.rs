@@ -61,6 +61,19 @@ impl Client {
         }
     }
 
+    /// Connects from another loopback address (`127.0.0.N`): the per-address limit counts
+    /// each separately.
+    pub async fn connect_from(addr: SocketAddr, n: u8) -> Self {
+        let socket = tokio::net::TcpSocket::new_v4().unwrap();
+        socket.bind(SocketAddr::from(([127, 0, 0, n], 0))).unwrap();
+        let stream = socket.connect(addr).await.unwrap();
+        let (r, w) = stream.into_split();
+        Self {
+            reader: BufReader::new(r),
+            writer: w,
+        }
+    }
+
     pub async fn send(&mut self, line: &str) {
         self.writer.write_all(line.as_bytes()).await.unwrap();
         self.writer.write_all(b"\r\n").await.unwrap();

@@ -105,7 +105,20 @@ struct RunArgs {
     /// With --local: simulated seconds per wall second, or `max` (lockstep either way).
     #[arg(long, requires = "local", default_value = "max", value_name = "K|max")]
     time_scale: TimeScale,
-    /// Robot class (`stsAirRobot`, `AirRobot`, or `Package.Class`).
+    /// With --local: mean wind `vx,vy[,vz]` m/s (x north, y east, z down), felt by robots
+    /// with physics such as stsQuadrotor.
+    #[arg(long, requires = "local", value_name = "VX,VY[,VZ]", allow_hyphen_values = true,
+          value_parser = usar_server::sim::wind::parse_velocity)]
+    wind: Option<[f64; 3]>,
+    /// With --local: gust intensity (standard deviation, m/s; seeded by --seed).
+    #[arg(
+        long,
+        requires = "local",
+        value_name = "M/S",
+        allow_hyphen_values = true
+    )]
+    gusts: Option<f64>,
+    /// Robot class (`stsAirRobot`, `stsQuadrotor`, `AirRobot`, or `Package.Class`).
     #[arg(long, default_value = "stsAirRobot")]
     robot: String,
     /// Robot name in the world.
@@ -187,10 +200,13 @@ fn agent_name(name: &str) -> Result<&'static AgentInfo, String> {
 }
 
 /// A positive, finite number of seconds (or a positive speed).
+/// From 0.001 to 1 000 000: beyond, a Duration or the server's pacing would overflow.
 fn positive_seconds(text: &str) -> Result<f64, String> {
     match text.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!("expected a positive number, not {text:?}")),
+        Ok(v) if (1e-3..=1e6).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "expected a number from 0.001 to 1000000, not {text:?}"
+        )),
     }
 }
 
@@ -344,6 +360,9 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
         ..ServerConfig::default()
     };
     config.sim.seed = args.seed;
+    config.sim.wind =
+        usar_server::sim::WindConfig::overridden(config.map.wind(), args.wind, args.gusts, None)
+            .map_err(|e| anyhow::anyhow!("--wind/--gusts: {e}"))?;
     let settings_probe = RunSettings {
         robot: args.robot.clone(),
         ..RunSettings::default()

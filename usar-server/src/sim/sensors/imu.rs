@@ -1,8 +1,11 @@
 //! `IMU`: finite differences over the scan interval (USARSim `IMU.uc`); gravity excluded.
+//! On a robot with physics (the quadrotor) it measures the truth instead: specific force
+//! (gravity included) and body rates.
 
 use usar_proto::{SenData, Vec3};
 
 use super::{NoSettings, Reading, Sensor, settings};
+use crate::sim::dynamics::ImuTruth;
 use crate::sim::noise::Noise;
 use crate::sim::robots::PartConfig;
 use crate::sim::scene::{V3, yaw_rotate};
@@ -31,8 +34,36 @@ fn angle_diff(a: f64, b: f64) -> f64 {
     }
 }
 
+impl Imu {
+    /// A model with physics: specific force (gravity included, as an accelerometer measures
+    /// it; hovering reads +g on z) and body rates; the angular acceleration is the rates'
+    /// difference over the interval.
+    fn read_truth(&mut self, at: &Reading<'_>, truth: ImuTruth) -> SenData {
+        let f = truth.specific_force;
+        let rates = truth.body_rates;
+        let rate_accel = match self.last {
+            Some((t, _, _, w)) if at.time > t => {
+                std::array::from_fn(|i| (rates[i] - w[i]) / (at.time - t))
+            }
+            _ => [0.0; 3],
+        };
+        self.last = Some((at.time, at.velocity, at.rotation, rates));
+        SenData::Imu {
+            name: at.name.to_string(),
+            // Body frame, z negated as the engine reports it (+ = up).
+            acceleration: [f[0], f[1], -f[2]].into(),
+            angular_vel: rates.into(),
+            angular_accel: rate_accel.into(),
+            rotation: Vec3::from(at.rotation),
+        }
+    }
+}
+
 impl Sensor for Imu {
     fn read(&mut self, at: &Reading<'_>, _noise: &mut Noise) -> SenData {
+        if let Some(truth) = at.imu {
+            return self.read_truth(at, truth);
+        }
         let (accel, rates, rate_accel) = match self.last {
             Some((t, v, r, w)) if at.time > t => {
                 let dt = at.time - t;

@@ -15,6 +15,7 @@ mod mission_time;
 mod position;
 mod range_scanner;
 mod sonar;
+mod touch;
 mod velocity;
 
 pub use altitude::AltitudeConfig;
@@ -27,15 +28,17 @@ pub use mission_time::MissionTimeConfig;
 pub use position::PositionConfig;
 pub use range_scanner::RangeScannerConfig;
 pub use sonar::{SonarConfig, SonarModel};
+pub use touch::{TouchConfig, TouchEvent};
 pub use velocity::VelocityConfig;
 
 use rapier3d::prelude::ColliderHandle;
 use serde::de::DeserializeOwned;
 use usar_proto::{ConfItem, SenData};
 
+use super::dynamics::{ImuTruth, M3, mul, mul_t};
 use super::noise::Noise;
 use super::robots::PartConfig;
-use super::scene::{Scene, V3, add, scale};
+use super::scene::{Scene, V3, add, scale, yaw_rotate};
 
 /// What a sensor sees when it takes a reading.
 pub(crate) struct Reading<'a> {
@@ -64,12 +67,32 @@ pub(crate) struct Reading<'a> {
     pub(crate) yaw: f64,
     /// The mount's pitch (+ = up), rad.
     pub(crate) pitch: f64,
+    /// The body's tilt (its rotation without the yaw) for models with physics: directions
+    /// built from `pitch` and `yaw` are turned by it before tracing. `None`: level.
+    pub(crate) tilt: Option<M3>,
+    /// What the IMU measures, for models with physics (`None`: the engine's finite
+    /// differences).
+    pub(crate) imu: Option<ImuTruth>,
+    /// Whether the body touched something in the last tick.
+    pub(crate) contact: bool,
+    /// Whether the robot has crashed.
+    pub(crate) crashed: bool,
 }
 
 impl Reading<'_> {
-    /// Distance to the first surface along a direction, or `None` within `max`.
+    /// Distance to the first surface along a direction of the level (yaw-only) frame, or
+    /// `None` within `max`; the body's tilt turns the direction first.
     pub(crate) fn trace(&self, dir: V3, max: f64) -> Option<f64> {
-        self.scene.cast_ray(self.origin, dir, max, Some(self.me))
+        self.scene
+            .cast_ray(self.origin, self.tilted(dir), max, Some(self.me))
+    }
+
+    /// A direction of the level (yaw-only) frame turned by the body's tilt.
+    fn tilted(&self, dir: V3) -> V3 {
+        match &self.tilt {
+            Some(t) => mul(t, dir),
+            None => dir,
+        }
     }
 
     /// [`Reading::trace`] of each direction (same results; many rays share one tree query).
@@ -79,6 +102,7 @@ impl Reading<'_> {
             out.extend(dirs.iter().map(|&d| self.trace(d, max)));
             return;
         }
+        let dirs: Vec<V3> = dirs.iter().map(|&d| self.tilted(d)).collect();
         let ends = dirs.iter().map(|&d| add(self.origin, scale(d, max)));
         let batch = self.scene.ray_batch(self.origin, ends, Some(self.me));
         out.extend(dirs.iter().map(|&d| batch.cast(d, max)));
@@ -86,7 +110,8 @@ impl Reading<'_> {
 
     /// [`Reading::trace`] of a fan of directions at once (same results, one tree query):
     /// `dirs[k]` must point at azimuth `base + offsets[k]` (yaw, + = clockwise from above),
-    /// `offsets` sorted from largest to smallest within ±π. Writes the hits into `out`.
+    /// `offsets` sorted from largest to smallest within ±π, in the level frame (the body's
+    /// tilt turns them, as in [`Reading::trace`]). Writes the hits into `out`.
     pub(crate) fn trace_fan(
         &self,
         dirs: &[V3],
@@ -100,10 +125,23 @@ impl Reading<'_> {
             out.extend(dirs.iter().map(|&d| self.trace(d, max)));
             return;
         }
+        // A tilted fan: the directions and the axes their azimuths are measured about turn
+        // together (the azimuths stay the same).
+        let dirs: Vec<V3> = dirs.iter().map(|&d| self.tilted(d)).collect();
+        let axes = (self.tilted([1.0, 0.0, 0.0]), self.tilted([0.0, 1.0, 0.0]));
         let ends = dirs.iter().map(|&d| add(self.origin, scale(d, max)));
         let batch = self.scene.ray_batch(self.origin, ends, Some(self.me));
-        let level = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
-        batch.cast_fan(dirs, base, offsets, level, max, out);
+        batch.cast_fan(&dirs, base, offsets, axes, max, out);
+    }
+
+    /// A world-frame vector in the body frame (x forward, y right, z down): yaw only for the
+    /// kinematic model, the full attitude for models with physics.
+    pub(crate) fn to_body(&self, v: V3) -> V3 {
+        let level = match &self.tilt {
+            Some(t) => mul_t(t, v),
+            None => v,
+        };
+        yaw_rotate(-self.rotation[2], level)
     }
 }
 
@@ -152,6 +190,7 @@ pub(crate) const REGISTRY: &[SensorKind] = &[
     kind("Camera", 0.1, camera::build),
     kind("GroundTruth", 0.1, ground_truth::build),
     kind("INS", 0.2, ins::build),
+    kind("Touch", 0.1, touch::build),
 ];
 
 const fn kind(
@@ -260,6 +299,10 @@ pub(crate) mod testing {
             origin: [0.0; 3],
             yaw: 0.0,
             pitch: 0.0,
+            tilt: None,
+            imu: None,
+            contact: false,
+            crashed: false,
         }
     }
 

@@ -59,6 +59,13 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
             part.name
         ));
     }
+    if config.max_range > crate::sim::map::LIMIT {
+        return Err(format!(
+            "part `{}`: max_range must be at most {} m",
+            part.name,
+            crate::sim::map::LIMIT
+        ));
+    }
     let fov_uu = to_uu(config.fov);
     let res_uu = to_uu(config.resolution);
     if !(1..=65_536).contains(&fov_uu) || !(1..=fov_uu).contains(&res_uu) {

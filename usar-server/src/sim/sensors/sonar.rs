@@ -69,6 +69,21 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
             part.name
         ));
     }
+    if config.max_range > crate::sim::map::LIMIT {
+        return Err(format!(
+            "part `{}`: max_range must be at most {} m",
+            part.name,
+            crate::sim::map::LIMIT
+        ));
+    }
+    if !((0.0..=std::f64::consts::PI).contains(&config.beam_angle)
+        && config.max_angle_of_incidence.is_finite())
+    {
+        return Err(format!(
+            "part `{}`: need 0 <= beam_angle <= π and a finite max_angle_of_incidence",
+            part.name
+        ));
+    }
     let mut traces = vec![(0.0, 0.0)];
     if config.model == SonarModel::Cone {
         let cones = config.number_of_cones.min(100);

@@ -5,7 +5,6 @@ use usar_proto::{ConfItem, SenData};
 use super::{NoSettings, Reading, Sensor, interval_conf, settings};
 use crate::sim::noise::Noise;
 use crate::sim::robots::PartConfig;
-use crate::sim::scene::yaw_rotate;
 
 /// Velocity settings: none.
 pub type VelocityConfig = NoSettings;
@@ -24,7 +23,7 @@ impl Sensor for Velocity {
         SenData::Velocity {
             name: at.name.to_string(),
             absolute: absolute.into(),
-            relative: yaw_rotate(-at.rotation[2], absolute).into(),
+            relative: at.to_body(absolute).into(),
         }
     }
 

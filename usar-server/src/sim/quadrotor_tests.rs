@@ -1,0 +1,642 @@
+//! The quadrotor against physics: hover, tilt to accelerate, rotor-speed differences, wind,
+//! crashes, sensors on the tilted body, determinism.
+
+use usar_proto::{Command, Drive, Init, SenData, ServerMessage};
+
+use super::dynamics::GRAVITY;
+use super::*;
+
+const QUAD: &str = "USARBot.stsQuadrotor";
+
+fn world_with(catalog: RobotCatalog, wind: Option<WindConfig>, seed: u64) -> World {
+    World::new(
+        Map::default_map(),
+        catalog,
+        SimConfig {
+            seed,
+            wind,
+            ..SimConfig::default()
+        },
+    )
+}
+
+fn world() -> World {
+    world_with(RobotCatalog::embedded(), None, 0)
+}
+
+/// The embedded catalog with the stsQuadrotor's drag set to zero.
+fn without_drag() -> RobotCatalog {
+    let mut catalog = RobotCatalog::embedded();
+    let q = catalog.get_mut(QUAD).expect("stsQuadrotor");
+    q.quadrotor.drag_linear = 0.0;
+    q.quadrotor.drag_quadratic = 0.0;
+    catalog
+}
+
+fn spawn(world: &mut World, location: [f64; 3], yaw: f64) -> ClientId {
+    let client = world.connect();
+    world.command(
+        client,
+        Command::Init(Init {
+            class_name: QUAD.into(),
+            name: Some("Q".into()),
+            location: Some(location.into()),
+            rotation: Some([0.0, 0.0, yaw].into()),
+            start: None,
+        }),
+    );
+    assert!(world.robot(client).is_some(), "spawned");
+    client
+}
+
+fn step(world: &mut World, out: &mut Vec<(ClientId, ServerMessage)>) {
+    world.step(out);
+}
+
+fn run(world: &mut World, seconds: f64) -> Vec<(ClientId, ServerMessage)> {
+    let mut out = Vec::new();
+    for _ in 0..(seconds / world.dt()).round() as u64 {
+        step(world, &mut out);
+    }
+    out
+}
+
+fn drive(world: &mut World, client: ClientId, d: Drive) {
+    world.command(client, Command::Drive(d));
+}
+
+fn command(world: &mut World, client: ClientId, line: &str) {
+    let parsed = Command::parse(line).expect("a command").message;
+    world.command(client, parsed);
+}
+
+/// (position, velocity, rotation).
+fn state(world: &World, client: ClientId) -> ([f64; 3], [f64; 3], [f64; 3]) {
+    let robot = world.robot(client).expect("robot");
+    let (p, r) = robot.pose();
+    (p, robot.velocity(), r)
+}
+
+fn imu_lines(out: &[(ClientId, ServerMessage)]) -> Vec<(usar_proto::Vec3, usar_proto::Vec3)> {
+    out.iter()
+        .filter_map(|(_, m)| match m {
+            ServerMessage::Sen(sen) => match &sen.data {
+                SenData::Imu {
+                    acceleration,
+                    angular_vel,
+                    ..
+                } => Some((*acceleration, *angular_vel)),
+                _ => None,
+            },
+            _ => None,
+        })
+        .collect()
+}
+
+fn touch(out: &[(ClientId, ServerMessage)], name: &str) -> Vec<bool> {
+    out.iter()
+        .filter_map(|(_, m)| match m {
+            ServerMessage::Sen(sen) => match &sen.data {
+                SenData::Touch { name: n, touch } if n == name => Some(*touch),
+                _ => None,
+            },
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn hover_holds_altitude_for_thirty_seconds_with_thrust_equal_to_weight() {
+    let mut w = world();
+    let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.3);
+    let mut out = Vec::new();
+    let mut worst: f64 = 0.0;
+    for _ in 0..(30.0 / w.dt()) as u64 {
+        step(&mut w, &mut out);
+        let (p, _, r) = state(&w, c);
+        worst = worst
+            .max((p[2] + 2.0).abs())
+            .max(p[0].abs())
+            .max(p[1].abs());
+        assert!(r[0].abs() < 1e-6 && r[1].abs() < 1e-6, "stays level: {r:?}");
+    }
+    assert!(worst < 0.02, "drifted {worst} m in 30 s");
+    // The accelerometer reads the specific force: thrust/mass = g, straight up.
+    let imu = imu_lines(&out);
+    assert!(imu.len() >= 299, "{} IMU lines", imu.len());
+    for (a, rates) in &imu[10..] {
+        assert!((a.z - GRAVITY).abs() < 0.01 * GRAVITY, "{a:?}");
+        assert!(a.x.abs() < 0.01 && a.y.abs() < 0.01, "{a:?}");
+        assert!(rates.x.abs() < 1e-3 && rates.y.abs() < 1e-3, "{rates:?}");
+    }
+    assert!(!w.crashed(c));
+}
+
+#[test]
+fn the_accelerometer_reads_only_idle_thrust_and_drag_in_free_fall() {
+    let catalog = RobotCatalog::embedded();
+    let q = catalog.get(QUAD).expect("class").quadrotor.clone();
+    let mut w = world_with(catalog, None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -4.5], 0.0);
+    // Idle rotors (the command is clamped to rotor_speed_min).
+    command(&mut w, c, "QUAD {Rotors 0,0,0,0}");
+    run(&mut w, 0.3);
+    let idle = 4.0 * q.thrust_coefficient * q.rotor_speed_min.powi(2);
+    let mut checked = 0;
+    for _ in 0..140 {
+        let mut out = Vec::new();
+        step(&mut w, &mut out);
+        let (_, v, _) = state(&w, c);
+        if let Some((a, _)) = imu_lines(&out).pop() {
+            // Falling level: idle thrust and drag push up; gravity does not show.
+            let speed = v[2];
+            let drag = (q.drag_linear + q.drag_quadratic * speed) * speed;
+            let expected = (idle + drag) / q.mass;
+            assert!(a.x.abs() < 1e-9 && a.y.abs() < 1e-9, "{a:?}");
+            assert!(
+                (a.z - expected).abs() < 0.03 * expected,
+                "{a:?} vs {expected}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 6, "{checked} readings");
+    assert!(state(&w, c).1[2] > 4.0, "fell fast");
+}
+
+#[test]
+fn forward_step_pitches_and_accelerates_at_g_tan_theta_without_climbing() {
+    // Without drag, thrust alone accelerates the body: a = g·tan θ when it holds altitude.
+    let mut w = world_with(without_drag(), None, 0);
+    let c = spawn(&mut w, [-8.0, 0.0, -2.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(2.0),
+            ..Drive::default()
+        },
+    );
+    let dt = w.dt();
+    let mut out = Vec::new();
+    let (mut last_v, mut last_pitch) = (state(&w, c).1, state(&w, c).2[1]);
+    let mut checked = 0;
+    let mut max_climb: f64 = 0.0;
+    let mut min_pitch: f64 = 0.0;
+    let mut speeds = Vec::new();
+    for _ in 0..(8.0 / dt) as u64 {
+        step(&mut w, &mut out);
+        let (_, v, r) = state(&w, c);
+        let pitch = 0.5 * (r[1] + last_pitch);
+        let accel = (v[0] - last_v[0]) / dt;
+        let accel_up = -(v[2] - last_v[2]) / dt;
+        max_climb = max_climb.max(v[2].abs());
+        min_pitch = min_pitch.min(r[1]);
+        if pitch.abs() > 0.15 {
+            // Nose down to go forward; the thrust along the tilted axis gives
+            // a = (g + a_up)·tan θ at every tick ...
+            assert!(pitch < 0.0, "nose down, pitch {pitch}");
+            let tan = (-pitch).tan();
+            let expected = (GRAVITY + accel_up) * tan;
+            assert!(
+                (accel - expected).abs() < 0.03 * expected,
+                "a = {accel:.3} m/s², (g + a_up)·tan θ = {expected:.3} m/s² (θ = {:.1}°)",
+                pitch.to_degrees()
+            );
+            // ... and g·tan θ while the altitude is held.
+            if accel_up.abs() < 0.1 {
+                let level = GRAVITY * tan;
+                assert!(
+                    (accel - level).abs() < 0.03 * level,
+                    "a = {accel:.3} m/s², g·tan θ = {level:.3} m/s²"
+                );
+                checked += 1;
+            }
+        }
+        assert!(
+            r[0].abs() < 1e-6 && v[1].abs() < 1e-6,
+            "no roll, no sideways motion"
+        );
+        (last_v, last_pitch) = (v, r[1]);
+        speeds.push(v[0]);
+    }
+    assert!(
+        checked > 20,
+        "only {checked} ticks with a real tilt and no climb"
+    );
+    assert!(
+        min_pitch < -15f64.to_radians(),
+        "pitches visibly: {}°",
+        min_pitch.to_degrees()
+    );
+    assert!(max_climb < 0.08, "climb rate up to {max_climb} m/s");
+    // Some overshoot, then it settles at 2 m/s without sustained oscillation.
+    let peak = speeds.iter().copied().fold(0.0, f64::max);
+    assert!(peak > 2.0 && peak < 2.6, "peak {peak}");
+    let tail = &speeds[speeds.len() - 600..];
+    for v in tail {
+        assert!((v - 2.0).abs() < 0.03, "not settled: {v}");
+    }
+    let crossings = tail
+        .windows(2)
+        .filter(|p| (p[0] - 2.0).signum() != (p[1] - 2.0).signum())
+        .count();
+    assert!(
+        crossings <= 1,
+        "oscillates around the target: {crossings} crossings"
+    );
+}
+
+/// Attitude after 0.3 s of rotor speeds `delta` around hover (rotors 1 front-right,
+/// 2 rear-right, 3 rear-left, 4 front-left; 1 and 3 turn counter-clockwise from above).
+fn attitude_after(delta: [f64; 4]) -> [f64; 3] {
+    attitude_after_in(RobotCatalog::embedded(), delta)
+}
+
+fn attitude_after_in(catalog: RobotCatalog, delta: [f64; 4]) -> [f64; 3] {
+    let hover = catalog.get(QUAD).expect("class").quadrotor.hover_speed();
+    let mut w = world_with(catalog, None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -2.5], 0.0);
+    let w4 = delta.map(|d| hover + d);
+    command(
+        &mut w,
+        c,
+        &format!("QUAD {{Rotors {},{},{},{}}}", w4[0], w4[1], w4[2], w4[3]),
+    );
+    run(&mut w, 0.3);
+    state(&w, c).2
+}
+
+#[test]
+fn rotor_speed_differences_roll_pitch_and_yaw_as_in_x_mode() {
+    let small = 1e-3;
+    // Left rotors faster than the right ones: roll to the right (right side down).
+    let r = attitude_after([-10.0, -10.0, 10.0, 10.0]);
+    assert!(
+        r[0] > 0.1 && r[1].abs() < small && r[2].abs() < small,
+        "{r:?}"
+    );
+    // Front rotors faster than the rear ones: nose up.
+    let r = attitude_after([10.0, -10.0, -10.0, 10.0]);
+    assert!(
+        r[1] > 0.1 && r[0].abs() < small && r[2].abs() < small,
+        "{r:?}"
+    );
+    // The counter-clockwise pair faster: its drag torque turns the body clockwise (yaw +).
+    let r = attitude_after([60.0, -60.0, 60.0, -60.0]);
+    assert!(
+        r[2] > 0.02 && r[0].abs() < small && r[1].abs() < small,
+        "{r:?}"
+    );
+    let r = attitude_after([-60.0, 60.0, -60.0, 60.0]);
+    assert!(r[2] < -0.02, "{r:?}");
+}
+
+#[test]
+fn plus_mode_rotors_sit_on_the_axes() {
+    let plus = || {
+        let mut catalog = RobotCatalog::embedded();
+        catalog
+            .get_mut(QUAD)
+            .expect("class")
+            .quadrotor
+            .configuration = super::quadrotor::Configuration::Plus;
+        catalog
+    };
+    let small = 1e-3;
+    // 1 front, 2 right, 3 rear, 4 left: the front faster than the rear lifts the nose only.
+    let r = attitude_after_in(plus(), [15.0, 0.0, -15.0, 0.0]);
+    assert!(
+        r[1] > 0.1 && r[0].abs() < small && r[2].abs() < small,
+        "{r:?}"
+    );
+    // The left faster than the right rolls right only.
+    let r = attitude_after_in(plus(), [0.0, -15.0, 0.0, 15.0]);
+    assert!(
+        r[0] > 0.1 && r[1].abs() < small && r[2].abs() < small,
+        "{r:?}"
+    );
+}
+
+#[test]
+fn wind_drifts_an_uncommanded_quadrotor_downwind() {
+    let wind = WindConfig {
+        velocity: [0.0, 3.0, 0.0], // blowing east
+        ..WindConfig::default()
+    };
+    let mut w = world_with(RobotCatalog::embedded(), Some(wind), 0);
+    let c = spawn(&mut w, [0.0, -6.0, -2.0], 0.0);
+    run(&mut w, 4.0);
+    let (p, v, _) = state(&w, c);
+    assert!(p[1] > -6.0 + 1.0 && v[1] > 0.5, "drifted east: {p:?} {v:?}");
+    assert!(p[0].abs() < 0.05 && (p[2] + 2.0).abs() < 0.05, "{p:?}");
+}
+
+#[test]
+fn holds_ground_speed_against_the_wind_leaning_into_it() {
+    let wind = WindConfig {
+        velocity: [0.0, 3.0, 0.0],
+        ..WindConfig::default()
+    };
+    let catalog = RobotCatalog::embedded();
+    let q = catalog.get(QUAD).expect("class").quadrotor.clone();
+    let mut w = world_with(catalog, Some(wind), 0);
+    let c = spawn(&mut w, [-8.0, 0.0, -2.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 12.0);
+    let (p, v, r) = state(&w, c);
+    assert!(
+        (v[0] - 1.0).abs() < 0.02 && v[1].abs() < 0.02,
+        "ground velocity {v:?}"
+    );
+    assert!(p[0] < 9.0, "still in the room: {p:?}");
+    // Leaning west (left side down) into the east wind, by the tilt whose thrust balances
+    // the drag: tan(tilt) = |D| / (m g).
+    let air = [v[0], v[1] - 3.0, v[2]]; // ground velocity minus the wind
+    let speed = (air[0] * air[0] + air[1] * air[1]).sqrt();
+    let drag = (q.drag_linear + q.drag_quadratic * speed) * speed;
+    let tilt = (r[0].cos() * r[1].cos()).acos();
+    let expected = (drag / (q.mass * GRAVITY)).atan();
+    assert!(r[0] < 0.0, "leans upwind: roll {}", r[0]);
+    assert!(
+        (tilt - expected).abs() < 0.05 * expected,
+        "tilt {:.2}°, drag balance needs {:.2}°",
+        tilt.to_degrees(),
+        expected.to_degrees()
+    );
+}
+
+/// Flies north into the room's north wall (inner face x = 10) at `speed`.
+fn fly_into_wall(speed: f64) -> (World, ClientId, Vec<(ClientId, ServerMessage)>) {
+    let mut w = world();
+    let c = spawn(&mut w, [7.0, 0.0, -2.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(speed),
+            ..Drive::default()
+        },
+    );
+    let out = run(&mut w, 2.0 + 4.0 / speed);
+    (w, c, out)
+}
+
+#[test]
+fn three_metres_per_second_into_a_wall_is_a_crash() {
+    let (mut w, c, out) = fly_into_wall(3.0);
+    assert!(w.crashed(c));
+    let crash = touch(&out, "Crash");
+    assert!(crash.first() == Some(&false) && crash.last() == Some(&true));
+    // It fell to the floor (z = 0, the body 0.1 m high) and stays there, commands ignored.
+    run(&mut w, 3.0);
+    let (p, v, _) = state(&w, c);
+    assert!(
+        p[2] > -0.15 && p[0] < 9.56,
+        "on the floor by the wall: {p:?}"
+    );
+    drive(
+        &mut w,
+        c,
+        Drive {
+            altitude_velocity: Some(1.0),
+            ..Drive::default()
+        },
+    );
+    let out = run(&mut w, 2.0);
+    let (q, _, _) = state(&w, c);
+    assert!(
+        (q[2] - p[2]).abs() < 1e-3 && v[0].abs() < 1e-3,
+        "{p:?} → {q:?}"
+    );
+    assert!(touch(&out, "Crash").iter().all(|&t| t));
+}
+
+#[test]
+fn a_slow_touch_is_no_crash() {
+    let (w, c, out) = fly_into_wall(0.2);
+    assert!(!w.crashed(c));
+    let (p, _, _) = state(&w, c);
+    assert!(
+        p[0] > 9.5 && (p[2] + 2.0).abs() < 0.05,
+        "at the wall, flying: {p:?}"
+    );
+    assert!(touch(&out, "Crash").iter().all(|&t| !t));
+}
+
+#[test]
+fn kinematic_robot_can_count_contact_as_a_crash() {
+    let mut catalog = RobotCatalog::embedded();
+    let sts = catalog.get_mut("USARBot.stsAirRobot").expect("sts");
+    sts.crash.on_contact = true;
+    let mut w = world_with(catalog, None, 0);
+    let c = w.connect();
+    w.command(
+        c,
+        Command::Init(Init {
+            class_name: "USARBot.stsAirRobot".into(),
+            location: Some([9.0, 0.0, -2.0].into()),
+            ..Init::default()
+        }),
+    );
+    run(&mut w, 0.5);
+    assert!(!w.crashed(c));
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 2.0);
+    assert!(w.crashed(c));
+    run(&mut w, 2.0);
+    let (p, _) = w.robot(c).unwrap().pose();
+    assert!(p[2] > -0.15, "fell to the floor: {p:?}");
+}
+
+#[test]
+fn sonars_and_laser_are_cast_from_the_tilted_body() {
+    // Hold a 30° nose-down attitude for a moment: the forward sonar (0.4 m ahead of the
+    // centre, 2 m above the floor) then sees the floor ahead instead of the far wall.
+    let mut w = world();
+    let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+    let weight = 1.3 * GRAVITY;
+    let pitch: f64 = -0.5;
+    command(
+        &mut w,
+        c,
+        &format!(
+            "QUAD {{Attitude 0,{pitch},0}} {{Thrust {}}}",
+            weight / pitch.cos()
+        ),
+    );
+    let out = run(&mut w, 1.0);
+    let (p, _, r) = state(&w, c);
+    assert!((r[1] - pitch).abs() < 0.02, "pitch {r:?}");
+    let last_sonar = out
+        .iter()
+        .rev()
+        .find_map(|(_, m)| match m {
+            ServerMessage::Sen(sen) => match &sen.data {
+                SenData::Sonar { readings, .. } if readings[0].name == "Sonar0" => {
+                    Some(readings[0].range)
+                }
+                _ => None,
+            },
+            _ => None,
+        })
+        .expect("sonar");
+    // The sonar sits 0.4 m ahead along the tilted body axis; its beam meets the floor at
+    // height / sin(pitch) (a level sonar would read 5 m: the north wall is 10 m away).
+    let height = -p[2] - 0.4 * (-pitch).sin();
+    let expected = height / (-pitch).sin();
+    assert!(
+        (last_sonar - expected).abs() < 0.15,
+        "sonar {last_sonar}, floor at {expected}"
+    );
+}
+
+#[test]
+fn quad_on_a_kinematic_robot_and_bad_quad_lines_are_ignored() {
+    let mut w = world();
+    let c = w.connect();
+    w.command(
+        c,
+        Command::Init(Init {
+            class_name: "USARBot.stsAirRobot".into(),
+            location: Some([0.0, 0.0, -2.0].into()),
+            ..Init::default()
+        }),
+    );
+    command(&mut w, c, "QUAD {Rotors 0,0,0,0}");
+    run(&mut w, 1.0);
+    assert_eq!(w.robot(c).unwrap().pose().0, [0.0, 0.0, -2.0]);
+    let q = spawn(&mut w, [3.0, 3.0, -2.0], 0.0);
+    command(&mut w, q, "QUAD {Rotors 0,0,NaN,0}");
+    command(&mut w, q, "QUAD {Thrust 3}");
+    run(&mut w, 1.0);
+    let (p, _, _) = state(&w, q);
+    assert!((p[2] + 2.0).abs() < 0.01, "still hovering: {p:?}");
+}
+
+#[test]
+fn absurd_commands_keep_every_number_finite() {
+    let mut w = world();
+    let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(1e300),
+            lateral_velocity: Some(-1e300),
+            altitude_velocity: Some(1e300),
+            rotational_velocity: Some(1e300),
+            ..Drive::default()
+        },
+    );
+    let mut out = run(&mut w, 2.0);
+    command(
+        &mut w,
+        c,
+        "QUAD {Attitude 1e300,-1e300,1e300} {Thrust 1e300}",
+    );
+    out.extend(run(&mut w, 1.0));
+    command(&mut w, c, "QUAD {Rotors 1e300,-1e300,0,1e300}");
+    out.extend(run(&mut w, 1.0));
+    let (p, v, r) = state(&w, c);
+    assert!(
+        p.iter().chain(&v).chain(&r).all(|x| x.is_finite()),
+        "{p:?} {v:?} {r:?}"
+    );
+    let text = printed(&out);
+    assert!(
+        !text.contains("NaN") && !text.contains("inf"),
+        "non-finite output"
+    );
+}
+
+#[test]
+fn parameters_the_integration_cannot_follow_stop_the_robot_instead_of_nan() {
+    // Within the checked bounds but far from any vehicle: 10 g with 1000 N·s/m of drag.
+    let mut catalog = RobotCatalog::embedded();
+    let q = &mut catalog.get_mut(QUAD).expect("class").quadrotor;
+    q.mass = 0.01;
+    q.thrust_coefficient = 1e-6;
+    q.drag_linear = 1000.0;
+    q.check().expect("accepted by the catalog checks");
+    // High above the city: nothing near to stop it.
+    let mut w = World::new(
+        Map::lookup("city").expect("city"),
+        catalog,
+        SimConfig::default(),
+    );
+    let c = spawn(&mut w, [0.0, 0.0, -2000.0], 0.0);
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(2.0),
+            ..Drive::default()
+        },
+    );
+    let out = run(&mut w, 1.0);
+    let (p, v, r) = state(&w, c);
+    assert!(
+        p.iter().chain(&v).chain(&r).all(|x| x.is_finite()),
+        "{p:?} {v:?} {r:?}"
+    );
+    assert!(!printed(&out).contains("NaN"));
+    assert!(w.crashed(c), "stopped and reported");
+}
+
+fn printed(out: &[(ClientId, ServerMessage)]) -> String {
+    out.iter().map(|(c, m)| format!("{c:?} {m}\n")).collect()
+}
+
+fn gusty_flight(seed: u64) -> String {
+    let wind = WindConfig {
+        velocity: [1.0, 2.0, 0.0],
+        gusts: 1.0,
+        gust_length: 15.0,
+    };
+    let mut w = world_with(RobotCatalog::embedded(), Some(wind), seed);
+    let a = spawn(&mut w, [-5.0, -5.0, -2.0], 0.0);
+    let b = spawn(&mut w, [5.0, 5.0, -2.0], 3.0);
+    let mut out = run(&mut w, 1.0);
+    drive(
+        &mut w,
+        a,
+        Drive {
+            linear_velocity: Some(1.5),
+            rotational_velocity: Some(20.0),
+            ..Drive::default()
+        },
+    );
+    drive(
+        &mut w,
+        b,
+        Drive {
+            lateral_velocity: Some(-1.0),
+            altitude_velocity: Some(0.5),
+            ..Drive::default()
+        },
+    );
+    out.extend(run(&mut w, 4.0));
+    printed(&out)
+}
+
+#[test]
+fn gusts_are_seeded_and_repeat_bit_for_bit() {
+    let first = gusty_flight(5);
+    assert_eq!(first, gusty_flight(5));
+    assert_ne!(first, gusty_flight(6), "the seed drives the gusts");
+}

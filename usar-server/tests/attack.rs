@@ -1,0 +1,366 @@
+//! The attack suite (docs/limits.md): each attack of issue #14, on loopback, against a fresh
+//! `usar-server` process at real time, while a healthy client flies. Asserts that the healthy
+//! client keeps at least 90 % of its baseline message rate and that the server's peak memory
+//! stays under [`MEMORY_BOUND_MIB`]; prints the figures.
+//!
+//! Bounded: every attack runs for [`ATTACK`] wall seconds (the whole suite takes about half a
+//! minute), with bounded counts of connections and bytes.
+
+use std::io::BufRead;
+use std::net::SocketAddr;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
+use tokio::net::TcpStream;
+use tokio_util::sync::CancellationToken;
+
+/// How long the healthy client's rate is measured during each attack.
+const ATTACK: Duration = Duration::from_secs(3);
+
+/// Head start of the attack before the measurement begins (the attack goes on until the
+/// measurement ends, which is at most `2 × ATTACK + 1 s` later).
+const HEAD_START: Duration = Duration::from_millis(700);
+
+/// The healthy client must keep this share of its baseline rate.
+const MIN_SHARE: f64 = 0.9;
+
+/// The server's peak resident memory (VmHWM) during any attack, MiB (docs/limits.md).
+const MEMORY_BOUND_MIB: f64 = 64.0;
+
+struct Server {
+    child: Child,
+    addr: SocketAddr,
+}
+
+impl Server {
+    fn start(args: &[&str]) -> Self {
+        // USAR_SERVER_BIN runs the suite against another build (an older one, to compare).
+        let bin = std::env::var_os("USAR_SERVER_BIN")
+            .unwrap_or_else(|| env!("CARGO_BIN_EXE_usar-server").into());
+        let mut child = Command::new(bin)
+            .args(["--port", "0"])
+            .args(args)
+            .env("RUST_LOG", "error")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        std::io::BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let addr = line.split_whitespace().nth(3).unwrap().parse().unwrap();
+        Self { child, addr }
+    }
+
+    /// Peak resident memory, MiB.
+    fn peak_mib(&self) -> f64 {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id()))
+            .unwrap_or_default();
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix("VmHWM:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
+            .map_or(f64::NAN, |kib| kib / 1024.0)
+    }
+
+    /// Whether the process is still running.
+    fn alive(&mut self) -> bool {
+        self.child.try_wait().unwrap().is_none()
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Connects from loopback address `127.0.0.n`.
+async fn connect(addr: SocketAddr, n: u8) -> std::io::Result<TcpStream> {
+    let socket = tokio::net::TcpSocket::new_v4()?;
+    socket.bind(SocketAddr::from(([127, 0, 0, n], 0)))?;
+    socket.connect(addr).await
+}
+
+/// The healthy client: an stsAirRobot at the first start, reading everything. Returns its
+/// rate in lines per wall second over [`ATTACK`], after [`HEAD_START`].
+async fn healthy_rate(addr: SocketAddr) -> f64 {
+    let stream = connect(addr, 1).await.expect("the healthy client connects");
+    let (read, mut write) = stream.into_split();
+    let mut lines = BufReader::new(read);
+    let mut line = String::new();
+    if !matches!(read_line(&mut lines, &mut line).await, Ok(Ok(n)) if n > 0)
+        || !line.starts_with("NFO")
+    {
+        return 0.0; // locked out
+    }
+    write
+        .write_all(b"INIT {ClassName USARBot.stsAirRobot} {Name Healthy} {Start Start1}\r\n")
+        .await
+        .unwrap();
+    // Whole simulated seconds (from one STA to the STA ATTACK later), so that the sensors'
+    // different intervals do not change the count per period.
+    let sta_time = |line: &str| {
+        line.strip_prefix("STA {Time ")
+            .and_then(|rest| rest.split('}').next())
+            .and_then(|t| t.parse::<f64>().ok())
+    };
+    // The attack goes on until the measurement ends; a world that stalls is measured as
+    // such: the measurement ends at `deadline` whatever happens.
+    let begin = Instant::now() + HEAD_START;
+    let deadline = begin + 2 * ATTACK + Duration::from_secs(1);
+    let next = async |lines: &mut BufReader<_>, line: &mut String| {
+        line.clear();
+        let wait = deadline.saturating_duration_since(Instant::now());
+        matches!(
+            tokio::time::timeout(wait, lines.read_line(line)).await,
+            Ok(Ok(n)) if n > 0
+        )
+    };
+    let (first, t0) = loop {
+        if !next(&mut lines, &mut line).await {
+            return 0.0;
+        }
+        if let Some(t) = sta_time(&line).filter(|_| Instant::now() >= begin) {
+            break (Instant::now(), t);
+        }
+    };
+    let mut count = 1u64;
+    loop {
+        if !next(&mut lines, &mut line).await {
+            break; // past the deadline (or the server closed)
+        }
+        if sta_time(&line).is_some_and(|t| t >= t0 + ATTACK.as_secs_f64() - 1e-3) {
+            break;
+        }
+        count += 1;
+    }
+    count as f64 / (Instant::now() - first).as_secs_f64()
+}
+
+/// Reads one line (cleared first), failing after 30 s.
+async fn read_line(
+    lines: &mut BufReader<tokio::net::tcp::OwnedReadHalf>,
+    line: &mut String,
+) -> Result<std::io::Result<usize>, tokio::time::error::Elapsed> {
+    line.clear();
+    tokio::time::timeout(Duration::from_secs(30), lines.read_line(line)).await
+}
+
+/// Writes `chunk` again and again until stopped, never reading.
+async fn flood(mut stream: TcpStream, chunk: Vec<u8>, stop: CancellationToken) {
+    while !stop.is_cancelled() {
+        let write = tokio::time::timeout(Duration::from_millis(200), stream.write_all(&chunk));
+        if let Ok(Err(_)) = write.await {
+            return;
+        }
+    }
+}
+
+/// Reads and discards everything until stopped.
+async fn drain(mut read: tokio::net::tcp::OwnedReadHalf, stop: CancellationToken) {
+    let mut buf = vec![0u8; 64 * 1024];
+    while !stop.is_cancelled() {
+        let read = tokio::time::timeout(Duration::from_millis(200), read.read(&mut buf));
+        if let Ok(Ok(0) | Err(_)) = read.await {
+            return;
+        }
+    }
+}
+
+/// One attack: its name, the server's extra flags and what it does until the deadline.
+type Attack = (
+    &'static str,
+    fn(SocketAddr, CancellationToken) -> tokio::task::JoinHandle<String>,
+);
+
+fn valid_command_flood(
+    addr: SocketAddr,
+    stop: CancellationToken,
+) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let mut s = connect(addr, 2).await.unwrap();
+        s.write_all(b"INIT {ClassName USARBot.stsAirRobot} {Location 3,3,-1}\r\n")
+            .await
+            .unwrap();
+        let chunk = "DRIVE {LinearVelocity 0.1}\r\nGETCONF {Type Sonar}\r\nGETGEO {Type Sonar}\r\n"
+            .repeat(1000)
+            .into_bytes();
+        flood(s, chunk, stop).await;
+        "valid commands as fast as possible, never reading".into()
+    })
+}
+
+fn start_poses_flood(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let s = connect(addr, 2).await.unwrap();
+        let (read, mut write) = s.into_split();
+        let reader = tokio::spawn(drain(read, stop.clone()));
+        let chunk = "GETSTARTPOSES\r\n".repeat(1000);
+        while !stop.is_cancelled() {
+            let sent = tokio::time::timeout(
+                Duration::from_millis(200),
+                write.write_all(chunk.as_bytes()),
+            );
+            if let Ok(Err(_)) = sent.await {
+                break;
+            }
+        }
+        let _ = reader.await;
+        "GETSTARTPOSES as fast as possible, reading".into()
+    })
+}
+
+fn idle_connections(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let mut held = Vec::new();
+        for _ in 0..64 {
+            if let Ok(mut s) = connect(addr, 2).await {
+                let mut nfo = [0u8; 3];
+                let greeted = tokio::time::timeout(Duration::from_secs(1), s.read_exact(&mut nfo));
+                if matches!(greeted.await, Ok(Ok(_))) {
+                    held.push(s);
+                }
+            }
+        }
+        stop.cancelled().await;
+        format!(
+            "64 idle connections from one address ({} served)",
+            held.len()
+        )
+    })
+}
+
+fn init_flood(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let s = connect(addr, 2).await.unwrap();
+        let chunk: String = (0..20_000)
+            .map(|i| {
+                // A grid of free places outside the room, 1 m apart.
+                format!(
+                    "INIT {{ClassName USARBot.stsAirRobot}} {{Location {},{},{}}}\r\n",
+                    20 + i % 28,
+                    i / 28 % 28,
+                    -(i / 784) - 1
+                )
+            })
+            .collect();
+        let (read, mut write) = s.into_split();
+        let reader = tokio::spawn(drain(read, stop.clone()));
+        let _ = write.write_all(chunk.as_bytes()).await;
+        let _ = reader.await;
+        "20,000 INITs on one connection".into()
+    })
+}
+
+fn huge_numbers(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let s = connect(addr, 2).await.unwrap();
+        let (read, mut write) = s.into_split();
+        let reader = tokio::spawn(drain(read, stop.clone()));
+        let _ = write
+            .write_all(
+                b"INIT {ClassName USARBot.stsAirRobot} {Location 1e308,1e308,-1e308}\r\n\
+                  DRIVE {LinearVelocity 1.5e308} {LateralVelocity -1.5e308} {RotationalVelocity 1e308}\r\n",
+            )
+            .await;
+        let _ = reader.await;
+        "DRIVE and INIT numbers of 1e308".into()
+    })
+}
+
+fn garbage(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let s = connect(addr, 2).await.unwrap();
+        let mut chunk = Vec::new();
+        let mut x: u32 = 12345;
+        for i in 0..(256 * 1024) {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            chunk.push(if i % 97 == 0 { b'\n' } else { x as u8 });
+        }
+        chunk.extend_from_slice(&[b'A'; 200 * 1024]); // a line past the length limit
+        chunk.push(b'\n');
+        flood(s, chunk, stop).await;
+        "random bytes and over-long lines as fast as possible".into()
+    })
+}
+
+fn long_lines(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let mut s = connect(addr, 2).await.unwrap();
+        s.write_all(b"INIT {ClassName USARBot.stsAirRobot} {Location 3,3,-1}\r\n")
+            .await
+            .unwrap();
+        let line = format!("GETCONF {{Type {}}}\r\n", "Sonar".repeat(12_000));
+        flood(s, line.repeat(16).into_bytes(), stop).await;
+        "60 KB commands (just under the line limit) as fast as possible, never reading".into()
+    })
+}
+
+fn sync_zero(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let mut s = connect(addr, 2).await.unwrap();
+        s.write_all(b"SYNC {Time 0}\r\nINIT {ClassName USARBot.AirRobot} {Location 3,-3,-1}\r\n")
+            .await
+            .unwrap();
+        let (read, _write) = s.into_split();
+        drain(read, stop).await;
+        "SYNC {Time 0}, then silence".into()
+    })
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
+    let baseline = {
+        let server = Server::start(&[]);
+        healthy_rate(server.addr).await
+    };
+    println!("baseline: healthy client {baseline:.1} lines/s");
+    assert!(baseline > 50.0, "the healthy client gets its readings");
+    let attacks: &[Attack] = &[
+        ("valid-command flood", valid_command_flood),
+        ("GETSTARTPOSES flood", start_poses_flood),
+        ("idle connections", idle_connections),
+        ("INIT flood", init_flood),
+        ("huge numbers", huge_numbers),
+        ("garbage", garbage),
+        ("long lines", long_lines),
+        ("SYNC {Time 0}", sync_zero),
+    ];
+    let mut failures = Vec::new();
+    println!(
+        "{:<22} {:>10} {:>8} {:>12}  what",
+        "attack", "lines/s", "share", "peak MiB"
+    );
+    for (name, attack) in attacks {
+        let mut server = Server::start(&[]);
+        let stop = CancellationToken::new();
+        let attacker = attack(server.addr, stop.clone());
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        let rate = healthy_rate(server.addr).await;
+        let peak = server.peak_mib();
+        stop.cancel();
+        let what = attacker.await.unwrap();
+        let share = rate / baseline;
+        println!(
+            "{name:<22} {rate:>10.1} {:>7.0}% {peak:>12.1}  {what}",
+            share * 100.0
+        );
+        if share < MIN_SHARE {
+            failures.push(format!("{name}: healthy client at {:.0} %", share * 100.0));
+        }
+        // NaN (no /proc) fails too.
+        if peak.partial_cmp(&MEMORY_BOUND_MIB) != Some(std::cmp::Ordering::Less) {
+            failures.push(format!("{name}: server peak memory {peak:.1} MiB"));
+        }
+        if !server.alive() {
+            failures.push(format!("{name}: the server died"));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
