@@ -296,7 +296,8 @@ fn clip_polygon(points: &[(f64, f64)], (x0, x1, y0, y1): (f64, f64, f64, f64)) -
 }
 
 /// The side view and the time plots of one iteration: altitude over x (north), and altitude,
-/// speed and battery over simulated time.
+/// speed, battery, attitude (roll and pitch: the tilt of a vehicle with physics) and the
+/// horizontal position (drift) over simulated time.
 #[derive(Debug, Clone, Default)]
 pub struct Plots {
     /// The caption.
@@ -310,14 +311,14 @@ pub struct Plots {
 impl Plots {
     /// Writes `<base>.svg` and `<base>.png`; returns their paths.
     pub fn write(&self, base: &Path) -> Result<[PathBuf; 2], PictureError> {
-        write_both(base, (1000, 760), |a| self.draw(a), |a| self.draw(a))
+        write_both(base, (1000, 1120), |a| self.draw(a), |a| self.draw(a))
     }
 
     fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), String> {
         let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
         root.fill(&WHITE).map_err(err)?;
         let root = root.titled(&self.title, ("sans-serif", 22)).map_err(err)?;
-        let panels = root.split_evenly((2, 2));
+        let panels = root.split_evenly((3, 2));
         let t: Vec<f64> = self.trajectory.iter().map(|p| p.time).collect();
         let altitude: Vec<(f64, f64)> = self
             .trajectory
@@ -345,7 +346,7 @@ impl Plots {
             &panels[0],
             "side view: altitude over x",
             ("x, north (m)", "altitude, -z (m)"),
-            &side,
+            &[("", &side)],
             &waypoints,
             range(side.iter().chain(&waypoints).map(|p| p.0), 2.0),
         )
@@ -354,7 +355,7 @@ impl Plots {
             &panels[1],
             "altitude",
             ("simulated time (s)", "altitude, -z (m)"),
-            &altitude,
+            &[("", &altitude)],
             &[],
             time_range.clone(),
         )
@@ -363,7 +364,7 @@ impl Plots {
             &panels[2],
             "speed",
             ("simulated time (s)", "speed (m/s)"),
-            &speed,
+            &[("", &speed)],
             &[],
             time_range.clone(),
         )
@@ -372,7 +373,39 @@ impl Plots {
             &panels[3],
             "battery",
             ("simulated time (s)", "battery (%)"),
-            &battery,
+            &[("", &battery)],
+            &[],
+            time_range.clone(),
+        )
+        .map_err(err)?;
+        let attitude = |pick: fn(&Coordinates) -> f64| -> Vec<(f64, f64)> {
+            self.trajectory
+                .iter()
+                .filter_map(|p| p.orientation.map(|o| (p.time, pick(&o).to_degrees())))
+                .collect()
+        };
+        let (roll, pitch) = (attitude(|o| o.x), attitude(|o| o.y));
+        line_panel(
+            &panels[4],
+            "attitude",
+            ("simulated time (s)", "angle (deg)"),
+            &[("roll", &roll), ("pitch", &pitch)],
+            &[],
+            time_range.clone(),
+        )
+        .map_err(err)?;
+        let along = |pick: fn(&Coordinates) -> f64| -> Vec<(f64, f64)> {
+            self.trajectory
+                .iter()
+                .map(|p| (p.time, pick(&p.position)))
+                .collect()
+        };
+        let (north, east) = (along(|p| p.x), along(|p| p.y));
+        line_panel(
+            &panels[5],
+            "horizontal position",
+            ("simulated time (s)", "position (m)"),
+            &[("x, north", &north), ("y, east", &east)],
             &[],
             time_range,
         )
@@ -393,16 +426,18 @@ fn range(values: impl Iterator<Item = f64>, min_width: f64) -> std::ops::Range<f
     lo - pad..hi + pad
 }
 
-/// One panel: a line of `(x, y)` points, red squares at `marks`.
+/// One panel: lines of `(x, y)` points (labelled when there are several), red squares at
+/// `marks`.
 fn line_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     caption: &str,
     (x_desc, y_desc): (&str, &str),
-    points: &[(f64, f64)],
+    series: &[(&str, &[(f64, f64)])],
     marks: &[(f64, f64)],
     x: std::ops::Range<f64>,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-    let y = range(points.iter().chain(marks).map(|p| p.1), 0.5);
+    let points = series.iter().flat_map(|(_, points)| points.iter());
+    let y = range(points.chain(marks).map(|p| p.1), 0.5);
     let mut chart = ChartBuilder::on(area)
         .caption(caption, ("sans-serif", 16))
         .margin(12)
@@ -415,15 +450,33 @@ fn line_panel<DB: DrawingBackend>(
         .y_desc(y_desc)
         .light_line_style(WHITE.mix(0.0))
         .draw()?;
-    chart.draw_series(LineSeries::new(
-        points.iter().copied(),
-        BLUE.stroke_width(2),
-    ))?;
+    let colours = [BLUE, RGBColor(230, 120, 0)];
+    for (i, (label, points)) in series.iter().enumerate() {
+        let colour = colours[i % colours.len()];
+        let drawn = chart.draw_series(LineSeries::new(
+            points.iter().copied(),
+            colour.stroke_width(2),
+        ))?;
+        if series.len() > 1 {
+            drawn.label(*label).legend(move |(x, y)| {
+                PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(2))
+            });
+        }
+    }
     chart.draw_series(
         marks.iter().map(|&p| {
             EmptyElement::at(p) + Rectangle::new([(-5, -5), (5, 5)], RED.stroke_width(2))
         }),
     )?;
+    if series.len() > 1 {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 13))
+            .draw()?;
+    }
     Ok(())
 }
 
@@ -564,7 +617,15 @@ mod tests {
         };
         let [svg, png] = plots.write(&dir.join("plots")).unwrap();
         let svg = std::fs::read_to_string(svg).unwrap();
-        for caption in ["side view", "altitude", "speed", "battery"] {
+        for caption in [
+            "side view",
+            "altitude",
+            "speed",
+            "battery",
+            "attitude",
+            "pitch",
+            "horizontal position",
+        ] {
             assert!(svg.contains(caption), "{caption}");
         }
         assert!(std::fs::metadata(png).unwrap().len() > 1000);

@@ -472,3 +472,54 @@ fn a_local_run_is_the_same_every_time() {
     assert_eq!(results[0], results[1]);
     assert_eq!(results[0], results[2]);
 }
+
+/// `ucc gui` prints the URL to open, serves the page there, and asks for a token beyond the
+/// loopback.
+#[test]
+fn gui_prints_the_url_and_serves_the_page() {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let first_line = |args: &[&str]| {
+        let mut child = ucc()
+            .arg("gui")
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut out = BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        out.read_line(&mut line).unwrap();
+        (child, line)
+    };
+    let (mut child, line) = first_line(&["--local", "--listen", "127.0.0.1:0"]);
+    let url = line
+        .trim()
+        .strip_prefix("ucc gui: open ")
+        .unwrap_or_else(|| panic!("{line}"));
+    let hostport = url
+        .strip_prefix("http://")
+        .and_then(|u| u.strip_suffix('/'))
+        .unwrap_or_else(|| panic!("{url}"));
+    let mut s = std::net::TcpStream::connect(hostport).unwrap();
+    write!(
+        s,
+        "GET / HTTP/1.1\r\nHost: {hostport}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut page = String::new();
+    s.read_to_string(&mut page).unwrap();
+    assert!(
+        page.starts_with("HTTP/1.1 200") && page.contains("data-testid=\"map\""),
+        "{page}"
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+
+    let (mut child, line) = first_line(&["--listen", "0.0.0.0:0"]);
+    assert!(line.contains("/?token=") && line.len() > 60, "{line}");
+    child.kill().unwrap();
+    child.wait().unwrap();
+
+    let out = ucc().args(["gui", "--map", "arena"]).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--local"));
+}

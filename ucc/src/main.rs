@@ -47,6 +47,12 @@ enum Cmd {
     Run(Box<RunArgs>),
     /// Start a server inside this process and fly a built-in mission; writes the pictures.
     Demo(DemoArgs),
+    /// Serve the control center in the browser: create UAVs, add waypoints, fly, watch live.
+    #[command(
+        after_help = "Example:\n  ucc gui --local          # then open the printed URL\n  \
+                            ucc gui --host usarsim-host --port 3000"
+    )]
+    Gui(GuiArgs),
     /// Read protocol lines on stdin and print them as JSON (or re-printed); exit 1 if any failed.
     Decode {
         /// Print JSON, one object per line (the default).
@@ -170,6 +176,32 @@ struct RunArgs {
 }
 
 #[derive(Args)]
+struct GuiArgs {
+    /// Address and port to serve the page on. Beyond the loopback a token is required; it is
+    /// printed in the URL.
+    #[arg(long, default_value = "127.0.0.1:8080", value_name = "ADDR:PORT")]
+    listen: std::net::SocketAddr,
+    /// USARSim server host.
+    #[arg(long, default_value = "localhost", conflicts_with = "local")]
+    host: String,
+    /// USARSim server port.
+    #[arg(long, default_value_t = 3000, conflicts_with = "local")]
+    port: u16,
+    /// Start a usar-server inside this process (lockstep; the page sets its speed).
+    #[arg(long)]
+    local: bool,
+    /// With --local: the map (an embedded name, any case, or a map file).
+    #[arg(long, requires = "local", value_name = "NAME|FILE")]
+    map: Option<String>,
+    /// With --local: the starting speed, simulated seconds per wall second, or `max`.
+    #[arg(long, requires = "local", default_value = "1", value_name = "K|max")]
+    speed: TimeScale,
+    /// Directory for the logs, trajectories, pictures and results of the runs.
+    #[arg(long, default_value = "ucc-logs")]
+    log_dir: PathBuf,
+}
+
+#[derive(Args)]
 struct DemoArgs {
     /// Folder for the log, trajectory and pictures.
     #[arg(long, default_value = "ucc-demo-output")]
@@ -241,6 +273,7 @@ fn main() -> ExitCode {
             record,
         } => runtime().and_then(|rt| rt.block_on(tap(&bind, listen, upstream, record))),
         Cmd::Demo(args) => runtime().and_then(|rt| rt.block_on(demo(args))),
+        Cmd::Gui(args) => runtime().and_then(|rt| rt.block_on(gui(args))),
     };
     match result {
         Ok(code) => code,
@@ -642,4 +675,40 @@ async fn fly_demo(
     };
     let summary = ucc_client::run(&settings, &args.agent.create, &mut print, &cancel).await?;
     Ok((summary, settings))
+}
+
+/// `ucc gui`: serve the control center until Ctrl-C.
+async fn gui(args: GuiArgs) -> anyhow::Result<ExitCode> {
+    let server = if args.local {
+        let map = match &args.map {
+            None => Map::default_map(),
+            Some(name) => Map::lookup(name).with_context(|| format!("--map {name}"))?,
+        };
+        ucc_gui::ServerChoice::Local(Box::new(ServerConfig {
+            map,
+            time_scale: args.speed,
+            lockstep: true,
+            ..ServerConfig::default()
+        }))
+    } else {
+        ucc_gui::ServerChoice::Remote(format!("{}:{}", args.host, args.port))
+    };
+    let listener = tokio::net::TcpListener::bind(args.listen)
+        .await
+        .with_context(|| format!("cannot listen on {}", args.listen))?;
+    let addr = listener.local_addr()?;
+    let token = (!addr.ip().is_loopback()).then(ucc_gui::new_token);
+    println!("ucc gui: open {}", ucc_gui::url(addr, token.as_deref()));
+    if token.is_some() {
+        println!(
+            "ucc gui: listening beyond the loopback; the page and its API need the token in that URL"
+        );
+    }
+    let config = ucc_gui::GuiConfig {
+        server,
+        log_dir: args.log_dir,
+        token,
+    };
+    ucc_gui::serve(listener, config, interrupt_token()).await?;
+    Ok(ExitCode::SUCCESS)
 }

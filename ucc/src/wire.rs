@@ -130,8 +130,8 @@ pub(crate) fn encode(
 mod tests {
     use super::*;
 
-    const CAPTURE: &str = include_str!("../../../../usar-proto/tests/data/USARcommandSample.txt");
-    const EXAMPLES: &str = include_str!("../../../../usar-proto/tests/data/protocol_examples.txt");
+    const CAPTURE: &str = include_str!("../../usar-proto/tests/data/USARcommandSample.txt");
+    const EXAMPLES: &str = include_str!("../../usar-proto/tests/data/protocol_examples.txt");
 
     fn run_decode(input: &str, print: bool) -> (String, String, usize) {
         let (mut out, mut err) = (Vec::new(), Vec::new());
