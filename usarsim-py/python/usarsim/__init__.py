@@ -1,0 +1,50 @@
+"""usarsim: Gymnasium and PettingZoo environments over the usarsim-rs quadrotor simulation.
+
+Importing the package registers ``usarsim/Waypoints-v0`` and ``usarsim/Hover-v0``::
+
+    import gymnasium, usarsim
+    env = gymnasium.make("usarsim/Waypoints-v0")
+    obs, info = env.reset(seed=1)
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+
+The world is the Rust simulation of usar-server, stepped in-process and in lockstep: the same
+seed and actions give the same observations, bit for bit.
+"""
+
+from ._core import LASER_BEAMS, SONARS, Batch, Remote
+from ._agent import Agent, fly
+from ._core import Command, State
+from ._env import UsarsimEnv, UsarsimVectorEnv, _register
+from ._task import observation_space, action_space
+
+
+def multi_uav(n: int = 2, task: str = "waypoints", **options):
+    """A PettingZoo ParallelEnv with `n` UAVs in one world (see :class:`MultiUavEnv`)."""
+    from ._multi import MultiUavEnv
+
+    return MultiUavEnv(n, task, **options)
+
+
+def vector_env(num_envs: int, task: str = "waypoints", **options) -> UsarsimVectorEnv:
+    """A Gymnasium VectorEnv of `num_envs` worlds stepped by Rust in one call."""
+    return UsarsimVectorEnv(num_envs, task, **options)
+
+
+_register()
+
+__all__ = [
+    "Agent",
+    "Command",
+    "State",
+    "fly",
+    "Batch",
+    "LASER_BEAMS",
+    "Remote",
+    "SONARS",
+    "UsarsimEnv",
+    "UsarsimVectorEnv",
+    "action_space",
+    "multi_uav",
+    "observation_space",
+    "vector_env",
+]

@@ -1,0 +1,62 @@
+"""Map geometry helpers: free-space sampling for starts and waypoints."""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Heights (z, metres, z down) where random starts and waypoints are placed.
+FLIGHT_BAND = (-3.0, -1.0)
+
+
+class MapInfo:
+    """The map seen from above, as the Rust core reports it (convex outlines and heights)."""
+
+    def __init__(self, batch) -> None:
+        self.starts = batch.start_poses()
+        self.shapes = [(np.asarray(o, dtype=np.float64), zmin, zmax) for o, zmin, zmax in batch.top_view()]
+        pts = np.concatenate([s[0] for s in self.shapes]) if self.shapes else np.zeros((1, 2))
+        for _, x, y, _, _ in self.starts:
+            pts = np.vstack([pts, [x, y]])
+        self.lo = pts.min(axis=0)
+        self.hi = pts.max(axis=0)
+        # Solids that reach into the flight band (walls, buildings; not floor or ceiling).
+        self.obstacles = [
+            (o, o.min(axis=0), o.max(axis=0))
+            for o, zmin, zmax in self.shapes
+            if zmin < FLIGHT_BAND[1] + 0.5 and zmax > FLIGHT_BAND[0] - 0.5
+        ]
+
+    def start(self, key: str):
+        """The PlayerStart with tag `key` as (x, y, z, yaw)."""
+        for tag, x, y, z, yaw in self.starts:
+            if tag.lower() == key.lower():
+                return np.array([x, y, z, yaw])
+        names = ", ".join(s[0] for s in self.starts) or "none"
+        raise ValueError(f"start: no PlayerStart {key!r} in this map (known: {names})")
+
+    def is_free(self, p, clearance: float) -> bool:
+        """Whether (x, y) is at least `clearance` from the bounding box of every obstacle."""
+        for _, lo, hi in self.obstacles:
+            if np.all(p[:2] > lo - clearance) and np.all(p[:2] < hi + clearance):
+                return False
+        return True
+
+    def sample(self, rng: np.random.Generator, n: int, clearance: float = 1.0, spacing: float = 1.2, near=None, radius=None):
+        """`n` free points (x, y, z) in the flight band, `spacing` apart; within `radius` of `near` if given."""
+        lo = self.lo + clearance + 0.5
+        hi = self.hi - clearance - 0.5
+        out: list[np.ndarray] = []
+        for _ in range(20000):
+            if len(out) == n:
+                break
+            if near is not None and radius is not None:
+                xy = near[:2] + rng.uniform(-radius, radius, size=2)
+                xy = np.clip(xy, lo, hi)
+            else:
+                xy = rng.uniform(lo, hi)
+            p = np.array([xy[0], xy[1], rng.uniform(*FLIGHT_BAND)])
+            if self.is_free(p, clearance) and all(np.linalg.norm(p[:2] - q[:2]) >= spacing for q in out):
+                out.append(p)
+        if len(out) < n:
+            raise ValueError(f"map: could not find {n} free places {spacing} m apart in the flight band")
+        return np.array(out)

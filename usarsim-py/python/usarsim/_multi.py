@@ -1,0 +1,113 @@
+"""PettingZoo ParallelEnv: N UAVs in one world, each seeing the others in its sensors."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from . import _core
+from ._env import _actions, _first, _robot, _seed
+from ._maps import MapInfo
+from ._render import TopView
+from ._task import Tasks, action_space, observation_space
+
+try:
+    from pettingzoo import ParallelEnv
+except ImportError:  # pragma: no cover - pettingzoo is an optional extra
+    ParallelEnv = object
+
+
+class MultiUavEnv(ParallelEnv):
+    """N stsAirRobots in one world, agents ``uav_0`` ... ``uav_{n-1}``.
+
+    Each agent has its own task (its waypoints, or its pose to hold); starts are seeded
+    random free places 1.2 m apart unless ``start`` lists one pose per UAV. An agent that has
+    finished is removed from ``agents`` and hovers in place (still an obstacle to the others).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "name": "usarsim_multi_uav_v0", "render_fps": 10}
+
+    def __init__(self, n: int = 2, task: str = "waypoints", *, map: str = "empty_room",
+                 robot: str = "stsAirRobot", starts=None, n_waypoints: int = 3,
+                 waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
+                 max_steps: int | None = None, render_mode: str | None = None) -> None:
+        if ParallelEnv is object:
+            raise ImportError("usarsim.multi_uav needs pettingzoo: pip install pettingzoo")
+        if not (isinstance(n, (int, np.integer)) and n >= 1):
+            raise ValueError(f"n: expected an integer >= 1, got {n!r}")
+        self.n = int(n)
+        self.render_mode = render_mode
+        self.possible_agents = [f"uav_{i}" for i in range(self.n)]
+        self.agents = []
+        first = _first(map)
+        probe = _core.Batch(map, _robot(robot), [0], first, 1, period, noise)
+        self.map = MapInfo(probe)
+        self._args = (map, _robot(robot), period, noise)
+        self._starts = None if starts is None else np.asarray(starts, dtype=np.float64)
+        if self._starts is not None and self._starts.shape != (self.n, 4):
+            raise ValueError(f"starts: expected shape ({self.n}, 4), got {self._starts.shape}")
+        self._tasks = Tasks(task, self.n, self.map, start="random", n_waypoints=n_waypoints,
+                            waypoint_radius=waypoint_radius, max_steps=max_steps)
+        self._batch = None
+        self._rng = np.random.default_rng()
+        self._view = None
+
+    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent):
+        return observation_space()
+
+    @functools.lru_cache(maxsize=None)
+    def action_space(self, agent):
+        return action_space()
+
+    def _split(self, arrays):
+        return {a: {k: v[i] for k, v in arrays.items()} for i, a in enumerate(self.possible_agents) if a in self.agents}
+
+    def reset(self, seed=None, options=None):
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        starts = self._tasks.new_starts(self._rng, range(self.n), True, options, poses=self._starts)
+        map_, robot, period, noise = self._args
+        self._batch = _core.Batch(map_, robot, [_seed(self._rng)], starts, self.n, period, noise)
+        self.agents = list(self.possible_agents)
+        self._raw = self._batch.observe()
+        self._tasks.begin(self._raw, range(self.n))
+        self._trails = [[p[:2].copy()] for p in self._raw["position"]]
+        return self._split(self._tasks.observe(self._raw)), {a: {} for a in self.agents}
+
+    def step(self, actions):
+        if self._batch is None:
+            raise ValueError("step: call reset() first")
+        a = np.zeros((self.n, 4))
+        for agent, act in actions.items():
+            if agent not in self.agents:
+                raise ValueError(f"actions: {agent!r} is not a live agent (live: {self.agents})")
+            a[self.possible_agents.index(agent)] = _actions(act, 1)[0]
+        self._batch.step(a)
+        raw = self._raw = self._batch.observe()
+        for t, p in zip(self._trails, raw["position"]):
+            t.append(p[:2].copy())
+        reward, term, trunc, info = self._tasks.reward(raw)
+        obs = self._split(self._tasks.observe(raw))
+        live = [self.possible_agents.index(a) for a in self.agents]
+        out = (
+            obs,
+            {self.possible_agents[i]: float(reward[i]) for i in live},
+            {self.possible_agents[i]: bool(term[i]) for i in live},
+            {self.possible_agents[i]: bool(trunc[i]) for i in live},
+            {self.possible_agents[i]: {k: v[i] for k, v in info.items()} for i in live},
+        )
+        self.agents = [self.possible_agents[i] for i in live if not (term[i] or trunc[i])]
+        return out
+
+    def render(self):
+        if self.render_mode != "rgb_array" or self._batch is None:
+            return None
+        if self._view is None:
+            self._view = TopView(self.map)
+        raw = self._raw
+        return self._view.draw(raw["position"], raw["attitude"][:, 2], raw["laser"], self._trails, None)
+
+    def close(self):
+        self._batch = None

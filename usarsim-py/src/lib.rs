@@ -1,0 +1,320 @@
+//! `usarsim._core`: the Rust half of the `usarsim` Python package.
+//!
+//! * [`PyBatch`] (`usarsim._core.Batch`): N worlds of the usar-server simulation with K UAVs
+//!   each, stepped in lockstep in one call (GIL released, worlds spread over the cores).
+//! * [`PyRemote`] (`usarsim._core.Remote`): one UAV flown over TCP against a usar-server
+//!   (lockstep) or a real USARSim (sensor time).
+//!
+//! The Gymnasium / PettingZoo classes, rewards and rendering are Python (`python/usarsim`).
+//! Every bad argument becomes a `ValueError` naming what and where; nothing panics.
+
+// PyO3's macros expand to `unsafe` blocks, so this crate does not forbid unsafe code the way
+// the rest of the workspace does (see Cargo.toml); it writes none itself.
+
+mod agents;
+mod core;
+mod remote;
+
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyReadonlyArray2};
+use pyo3::exceptions::PyValueError;
+use std::sync::{Mutex, PoisonError};
+
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::core::{Batch, LASER, Observations, Pose, SONARS, Settings, SimError, WorldSim};
+use crate::remote::Remote;
+
+impl From<SimError> for PyErr {
+    fn from(e: SimError) -> Self {
+        PyValueError::new_err(e.to_string())
+    }
+}
+
+/// Rows of a `(n, width)` float array, checked for shape and finiteness.
+fn rows<const W: usize>(
+    array: &PyReadonlyArray2<'_, f64>,
+    n: usize,
+    what: &str,
+) -> PyResult<Vec<[f64; W]>> {
+    let a = array.as_array();
+    if a.shape() != [n, W] {
+        return Err(PyValueError::new_err(format!(
+            "{what}: expected shape ({n}, {W}), got {:?}",
+            a.shape()
+        )));
+    }
+    let mut out = Vec::with_capacity(n);
+    for (i, row) in a.rows().into_iter().enumerate() {
+        let mut r = [0.0; W];
+        for (j, v) in row.iter().enumerate() {
+            if !v.is_finite() {
+                return Err(PyValueError::new_err(format!(
+                    "{what}: row {i}, column {j} is not finite ({v})"
+                )));
+            }
+            r[j] = *v;
+        }
+        out.push(r);
+    }
+    Ok(out)
+}
+
+fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDict>> {
+    let n = obs.battery.len();
+    let dict = PyDict::new(py);
+    let put = |name: &str, data: Vec<f64>, width: usize| -> PyResult<()> {
+        let array = Array2::from_shape_vec((n, width), data)
+            .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
+        dict.set_item(name, array.into_pyarray(py))
+    };
+    put("position", obs.position, 3)?;
+    put("velocity", obs.velocity, 3)?;
+    put("attitude", obs.attitude, 3)?;
+    put("angular_velocity", obs.angular_velocity, 3)?;
+    put("sonar", obs.sonar, SONARS)?;
+    put("laser", obs.laser, LASER)?;
+    put("battery", obs.battery, 1)?;
+    put("time", obs.time, 1)?;
+    dict.set_item("touched", obs.touched.into_pyarray(py))?;
+    Ok(dict)
+}
+
+/// N worlds with K UAVs each, stepped together one control period per call.
+///
+/// `Batch(map, robot, seeds, starts, uavs_per_world=1, period=0.1, noise=None)`: one world
+/// per seed; `starts` is a float64 array of shape `(len(seeds) * uavs_per_world, 4)` with
+/// x, y, z (metres, z down) and yaw (rad) per UAV, world-major.
+#[pyclass(name = "Batch", module = "usarsim._core")]
+struct PyBatch {
+    /// A mutex only to make the class `Sync` (Python objects may be shared between threads);
+    /// every method takes `&mut self`, so it is never contended.
+    inner: Mutex<Batch>,
+}
+
+impl PyBatch {
+    fn get(&mut self) -> &mut Batch {
+        self.inner.get_mut().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+#[pymethods]
+impl PyBatch {
+    #[new]
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None))]
+    fn new(
+        py: Python<'_>,
+        map: &str,
+        robot: &str,
+        seeds: Vec<u64>,
+        starts: PyReadonlyArray2<'_, f64>,
+        uavs_per_world: usize,
+        period: f64,
+        noise: Option<f64>,
+    ) -> PyResult<Self> {
+        if seeds.is_empty() || uavs_per_world == 0 {
+            return Err(PyValueError::new_err(
+                "Batch: needs at least one world (seed) and one UAV per world",
+            ));
+        }
+        let settings = Settings::new(map, robot, period, noise)?;
+        let poses: Vec<Pose> = rows::<4>(&starts, seeds.len() * uavs_per_world, "starts")?;
+        let worlds = py.detach(|| {
+            seeds
+                .iter()
+                .zip(poses.chunks(uavs_per_world))
+                .enumerate()
+                .map(|(i, (&seed, poses))| {
+                    WorldSim::new(&settings, seed, poses)
+                        .map_err(|e| SimError::Invalid(format!("world {i}: {e}")))
+                })
+                .collect::<Result<Vec<_>, _>>()
+        })?;
+        Ok(Self {
+            inner: Mutex::new(Batch {
+                settings,
+                worlds,
+                uavs_per_world,
+            }),
+        })
+    }
+
+    /// Total number of UAVs (worlds × UAVs per world).
+    fn __len__(&mut self) -> usize {
+        self.get().len()
+    }
+
+    /// Number of worlds.
+    #[getter]
+    fn worlds(&mut self) -> usize {
+        self.get().worlds.len()
+    }
+
+    /// The control period, seconds.
+    #[getter]
+    fn period(&mut self) -> f64 {
+        self.get().settings.period
+    }
+
+    /// The robot class (`USARBot.stsAirRobot`).
+    #[getter]
+    fn robot(&mut self) -> String {
+        self.get().settings.robot.clone()
+    }
+
+    /// Replaces world `index` by a fresh one with `seed` and `starts` (shape `(K, 4)`).
+    fn reset_world(
+        &mut self,
+        py: Python<'_>,
+        index: usize,
+        seed: u64,
+        starts: PyReadonlyArray2<'_, f64>,
+    ) -> PyResult<()> {
+        let poses = rows::<4>(&starts, self.get().uavs_per_world, "starts")?;
+        let inner = self.get();
+        py.detach(|| inner.reset_world(index, seed, &poses))?;
+        Ok(())
+    }
+
+    /// Steps every world one control period. `actions`: float64 `(len, 4)`, each row
+    /// forward, right, up, yaw in -1..=1 (clipped).
+    fn step(&mut self, py: Python<'_>, actions: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+        let actions: Vec<[f64; 4]> = rows::<4>(&actions, self.get().len(), "action")?
+            .into_iter()
+            .map(|a| a.map(|v| v.clamp(-1.0, 1.0)))
+            .collect();
+        let inner = self.get();
+        py.detach(|| inner.step(&actions));
+        Ok(())
+    }
+
+    /// Every UAV's observation as a dict of numpy arrays with one row per UAV:
+    /// position, velocity, attitude, angular_velocity (n, 3), sonar (n, 10), laser (n, 228),
+    /// battery (n, 1), time (n, 1), touched (n,) bool.
+    fn observe<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let obs = self.get().observe();
+        to_dict(py, obs)
+    }
+
+    /// Simulated seconds of world `index`.
+    fn time(&mut self, index: usize) -> PyResult<f64> {
+        self.get()
+            .worlds
+            .get(index)
+            .map(WorldSim::time)
+            .ok_or_else(|| PyValueError::new_err(format!("world index {index} out of range")))
+    }
+
+    /// The map's player starts: `(tag, x, y, z, yaw)`.
+    fn start_poses(&mut self) -> Vec<(String, f64, f64, f64, f64)> {
+        self.get()
+            .settings
+            .map
+            .starts()
+            .iter()
+            .map(|s| {
+                let [x, y, z] = s.location;
+                (s.tag.clone(), x, y, z, s.rotation[2])
+            })
+            .collect()
+    }
+
+    /// The map from above: `(outline [(x, y), ...], z_min, z_max)` per convex shape.
+    fn top_view(&mut self) -> Vec<(Vec<[f64; 2]>, f64, f64)> {
+        self.get()
+            .settings
+            .map
+            .footprints()
+            .into_iter()
+            .map(|s| (s.outline, s.z_min, s.z_max))
+            .collect()
+    }
+}
+
+/// One UAV over TCP: `Remote(server, robot, start, period=0.1)`; `start` is x, y, z, yaw.
+#[pyclass(name = "Remote", module = "usarsim._core")]
+struct PyRemote {
+    inner: Option<Remote>,
+    server: String,
+}
+
+impl PyRemote {
+    fn open(&mut self) -> PyResult<&mut Remote> {
+        self.inner.as_mut().ok_or_else(|| {
+            PyValueError::new_err(format!("server {}: the connection is closed", self.server))
+        })
+    }
+}
+
+#[pymethods]
+impl PyRemote {
+    #[new]
+    #[pyo3(signature = (server, robot, start, period = 0.1))]
+    fn new(
+        py: Python<'_>,
+        server: &str,
+        robot: &str,
+        start: [f64; 4],
+        period: f64,
+    ) -> PyResult<Self> {
+        if !(period.is_finite() && period > 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "period: must be a positive number of seconds, got {period}"
+            )));
+        }
+        let remote = py.detach(|| Remote::connect(server, robot, start, period))?;
+        Ok(Self {
+            inner: Some(remote),
+            server: server.to_string(),
+        })
+    }
+
+    /// Whether the server steps in lockstep with this client (usar-server: yes).
+    #[getter]
+    fn lockstep(&mut self) -> bool {
+        self.inner.as_ref().is_some_and(Remote::is_lockstep)
+    }
+
+    /// Sends one normalized command (forward, right, up, yaw in -1..=1) and waits a period.
+    fn step(&mut self, py: Python<'_>, action: [f64; 4]) -> PyResult<()> {
+        if let Some(j) = action.iter().position(|v| !v.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "action: component {j} is not finite ({})",
+                action[j]
+            )));
+        }
+        let action = action.map(|v| v.clamp(-1.0, 1.0));
+        let remote = self.open()?;
+        let result = py.detach(|| remote.step(action));
+        if result.is_err() {
+            self.inner = None;
+        }
+        Ok(result?)
+    }
+
+    /// The observation, as `Batch.observe` with one row.
+    fn observe<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let obs = self.open()?.observe();
+        to_dict(py, obs)
+    }
+
+    /// Closes the connection (the server removes the robot).
+    fn close(&mut self) {
+        self.inner = None;
+    }
+}
+
+/// The Rust core of the `usarsim` package.
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyBatch>()?;
+    m.add_class::<PyRemote>()?;
+    m.add_class::<agents::PyCommand>()?;
+    m.add_class::<agents::PyState>()?;
+    m.add_function(wrap_pyfunction!(agents::fly, m)?)?;
+    m.add("LASER_BEAMS", LASER)?;
+    m.add("SONARS", SONARS)?;
+    Ok(())
+}
