@@ -55,6 +55,29 @@ struct Args {
     /// Step the simulation directly, without sockets (the cost of the world alone).
     #[arg(long)]
     sim_only: bool,
+    /// Threads that read sensors, in the started server or with --sim-only (default: the
+    /// machine's cores).
+    #[arg(long, value_parser = at_least_one)]
+    threads: Option<usize>,
+    /// With --sim-only: cast every ray on its own and shape-cast every move (the slow
+    /// reference the fast paths must equal; see --digest).
+    #[arg(long)]
+    reference: bool,
+    /// With --sim-only: print a digest (FNV-1a, 64 bit) of every line the world printed, to
+    /// compare runs at different --threads or with --reference.
+    #[arg(long)]
+    digest: bool,
+    /// With --sim-only: the scaling curve. Runs the world alone at each of these robot
+    /// counts (comma-separated; `--uavs` is ignored), three times each, prints min/median/max
+    /// of the cost per tick and draws it into --plot.
+    #[arg(long, value_delimiter = ',', value_parser = at_least_one)]
+    scaling: Vec<usize>,
+    /// Runs per robot count of --scaling.
+    #[arg(long, default_value_t = 3, value_parser = at_least_one)]
+    runs: usize,
+    /// The PNG file --scaling draws its curve into.
+    #[arg(long, default_value = "scaling.png")]
+    plot: PathBuf,
     /// Find the largest N that holds real time (real-time factor ≥ 0.98, every message
     /// delivered), doubling from --uavs and then bisecting.
     #[arg(long)]
@@ -165,8 +188,11 @@ struct ClientStats {
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
+    if args.sim_only && !args.scaling.is_empty() {
+        return scaling(&args);
+    }
     if args.sim_only {
-        return sim_only(&args);
+        return sim_only(&args).map(|_| ());
     }
     let runtime = tokio::runtime::Runtime::new()?;
     if !args.sweep {
@@ -241,8 +267,155 @@ fn print(args: &Args, r: &Report) {
     println!("  delivered vs nominal: {}", rates.join(", "));
 }
 
+/// What one --sim-only run cost, µs of wall clock per tick.
+#[derive(Debug, Clone, Copy)]
+struct SimCost {
+    step: f64,
+    print: f64,
+    /// CPU time of the whole process (all threads), µs per tick (10 ms resolution).
+    cpu: f64,
+}
+
+/// The scaling curve (--sim-only --scaling): each count --runs times, a table of
+/// min/median/max, and the PNG plot.
+fn scaling(args: &Args) -> anyhow::Result<()> {
+    let mut rows = Vec::new();
+    for &n in &args.scaling {
+        let mut costs = Vec::new();
+        for _ in 0..args.runs {
+            let run = Args {
+                uavs: n,
+                layers: None,
+                ..args.clone()
+            };
+            costs.push(sim_only(&run)?);
+        }
+        rows.push((n, costs));
+    }
+    println!(
+        "{:>6} {:>26} {:>26} {:>26} {:>14}",
+        "N",
+        "step µs/tick min/med/max",
+        "print µs/tick min/med/max",
+        "CPU µs/tick min/med/max",
+        "RTF (median)"
+    );
+    let mut curve = Vec::new();
+    for (n, costs) in &rows {
+        let stat = |f: fn(&SimCost) -> f64| {
+            let mut v: Vec<f64> = costs.iter().map(f).collect();
+            v.sort_by(f64::total_cmp);
+            (v[0], v[v.len() / 2], v[v.len() - 1])
+        };
+        let step = stat(|c| c.step);
+        let print = stat(|c| c.print);
+        let total = stat(|c| c.step + c.print);
+        let cpu = stat(|c| c.cpu);
+        println!(
+            "{n:>6} {:>26} {:>26} {:>26} {:>14.2}",
+            format!("{:.0}/{:.0}/{:.0}", step.0, step.1, step.2),
+            format!("{:.0}/{:.0}/{:.0}", print.0, print.1, print.2),
+            format!("{:.0}/{:.0}/{:.0}", cpu.0, cpu.1, cpu.2),
+            5000.0 / total.1
+        );
+        curve.push((*n, step, total, cpu));
+    }
+    plot_scaling(&args.plot, &curve)?;
+    println!("plot: {}", args.plot.display());
+    Ok(())
+}
+
+/// The font of the plot's text (the one ucc-client draws with).
+const FONT: &[u8] = include_bytes!("../../ucc-client/assets/DejaVuSans.ttf");
+
+type Stat = (f64, f64, f64);
+
+/// Draws µs per tick against robots (log-log): the step and step + printing (medians with
+/// min–max bars), and the real-time budget of a 5 ms tick.
+fn plot_scaling(path: &std::path::Path, curve: &[(usize, Stat, Stat, Stat)]) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
+        .map_err(|_| anyhow::anyhow!("the embedded font is invalid"))?;
+    let draw = || -> Result<(), Box<dyn std::error::Error + '_>> {
+        let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let n_max = curve.iter().map(|c| c.0).max().unwrap_or(10) as f64 * 1.3;
+        let n_min = curve.iter().map(|c| c.0).min().unwrap_or(1) as f64 / 1.3;
+        let y_max = curve
+            .iter()
+            .map(|c| c.2.2.max(c.3.2))
+            .fold(6000.0, f64::max)
+            * 1.5;
+        let y_min = curve
+            .iter()
+            .map(|c| c.1.0)
+            .fold(f64::MAX, f64::min)
+            .max(1.0)
+            / 1.5;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                "usar-bench --sim-only: the world alone, stsAirRobots (city)",
+                ("sans-serif", 22),
+            )
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d((n_min..n_max).log_scale(), (y_min..y_max).log_scale())?;
+        chart
+            .configure_mesh()
+            .x_desc("robots")
+            .y_desc("µs per 5 ms tick")
+            .label_style(("sans-serif", 15))
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.0}"))
+            .light_line_style(WHITE)
+            .draw()?;
+        chart
+            .draw_series(LineSeries::new(
+                [(n_min, 5000.0), (n_max, 5000.0)],
+                RED.stroke_width(2),
+            ))?
+            .label("real time (5000 µs per tick)")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], RED.stroke_width(2)));
+        for (index, name, colour) in [
+            (1usize, "wall: step (fly + sensors)", BLUE),
+            (2, "wall: step + printing", BLACK),
+            (3, "CPU, all threads: step + printing", GREEN),
+        ] {
+            let pick = move |c: &(usize, Stat, Stat, Stat)| match index {
+                1 => c.1,
+                2 => c.2,
+                _ => c.3,
+            };
+            chart
+                .draw_series(LineSeries::new(
+                    curve.iter().map(|c| (c.0 as f64, pick(c).1)),
+                    colour.stroke_width(2),
+                ))?
+                .label(format!("{name}, median of 3"))
+                .legend(move |(x, y)| {
+                    PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(2))
+                });
+            chart.draw_series(curve.iter().map(|c| {
+                let (lo, mid, hi) = pick(c);
+                ErrorBar::new_vertical(c.0 as f64, lo, mid, hi, colour.filled(), 8)
+            }))?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", path.display()))
+}
+
 /// Steps a world with `--uavs` robots for `--seconds` and prints the cost per tick.
-fn sim_only(args: &Args) -> anyhow::Result<()> {
+fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     use usar_proto::{Command, Drive, Init, Vec3};
     let mut args = args.clone();
     plan_layout(&mut args)?;
@@ -253,7 +426,14 @@ fn sim_only(args: &Args) -> anyhow::Result<()> {
         Some(name) => Map::lookup(name)?,
     };
     let start = map.starts().first().context("no start pose")?.location;
-    let mut world = World::new(map, RobotCatalog::embedded(), SimConfig::default());
+    let config = SimConfig {
+        threads: args
+            .threads
+            .unwrap_or_else(usar_server::sim::default_threads),
+        ..SimConfig::default()
+    };
+    let mut world = World::new(map, RobotCatalog::embedded(), config);
+    world.set_shortcuts(!args.reference);
     let mut clients = Vec::new();
     for i in 0..args.uavs {
         let c = world.connect();
@@ -272,6 +452,8 @@ fn sim_only(args: &Args) -> anyhow::Result<()> {
     let mut out = Vec::new();
     let (mut messages, mut bytes) = (0u64, 0u64);
     let mut text = String::new();
+    let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
+    let cpu_before = process_usage(std::process::id()).0.unwrap_or(0.0);
     let began = Instant::now();
     let mut step_time = Duration::ZERO;
     for tick in 0..ticks {
@@ -293,11 +475,17 @@ fn sim_only(args: &Args) -> anyhow::Result<()> {
         for (_, m) in out.drain(..) {
             text.clear();
             m.write_to(&mut text);
+            if args.digest {
+                digest = text.bytes().chain(*b"\r\n").fold(digest, |h, b| {
+                    (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
+                });
+            }
             messages += 1;
             bytes += text.len() as u64 + 2;
         }
     }
     let wall = began.elapsed().as_secs_f64();
+    let cpu = process_usage(std::process::id()).0.unwrap_or(0.0) - cpu_before;
     println!(
         "sim only: {} robots ({} in the world), {:.1} simulated s in {wall:.2} s wall: real-time factor {:.2}; \
          step {:.1} µs/tick, printing {:.1} µs/tick; {messages} messages, {:.1} MB",
@@ -309,7 +497,14 @@ fn sim_only(args: &Args) -> anyhow::Result<()> {
         (wall - step_time.as_secs_f64()) * 1e6 / ticks as f64,
         bytes as f64 / 1e6
     );
-    Ok(())
+    if args.digest {
+        println!("digest of the output: {digest:016x}");
+    }
+    Ok(SimCost {
+        step: step_time.as_secs_f64() * 1e6 / ticks as f64,
+        print: (wall - step_time.as_secs_f64()) * 1e6 / ticks as f64,
+        cpu: cpu * 1e6 / ticks as f64,
+    })
 }
 
 /// How many of `args.uavs` UAVs the grid of `args` puts where a robot can be on `map` (a dry
@@ -420,6 +615,9 @@ fn start_server(args: &Args) -> anyhow::Result<(Server, SocketAddr)> {
         .stderr(Stdio::inherit());
     if let Some(map) = &args.map {
         command.args(["--map", map]);
+    }
+    if let Some(threads) = args.threads {
+        command.args(["--threads", &threads.to_string()]);
     }
     let mut child = command.spawn().with_context(|| {
         format!(

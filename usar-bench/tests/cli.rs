@@ -42,3 +42,48 @@ fn zero_uavs_is_a_usage_error_not_nan() {
         "{out}{err}"
     );
 }
+
+#[test]
+fn scaling_prints_the_curve_and_draws_it_and_threads_do_not_change_the_output() {
+    let dir = std::env::temp_dir().join(format!("usar-bench-scaling-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let plot = dir.join("curve.png");
+    let (code, out, err) = bench(&[
+        "--sim-only",
+        "--scaling",
+        "150,300",
+        "--runs",
+        "2",
+        "--seconds",
+        "0.1",
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("   150 ") && out.contains("   300 "), "{out}");
+    let png = std::fs::read(&plot).unwrap();
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+    // The same world stepped on 1 and 3 sensor threads and on the slow reference path
+    // prints the same lines.
+    let digest = |extra: &[&str]| {
+        let mut args = vec![
+            "--sim-only",
+            "--uavs",
+            "300",
+            "--seconds",
+            "0.5",
+            "--digest",
+        ];
+        args.extend_from_slice(extra);
+        let (code, out, err) = bench(&args);
+        assert_eq!(code, Some(0), "{err}");
+        out.lines()
+            .find_map(|l| l.strip_prefix("digest of the output: "))
+            .map(str::to_owned)
+            .expect("a digest")
+    };
+    let one = digest(&["--threads", "1"]);
+    assert_eq!(digest(&["--threads", "3"]), one);
+    assert_eq!(digest(&["--threads", "1", "--reference"]), one);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -38,6 +38,10 @@ struct Args {
     /// Seed of every noise source; the same seed and commands give the same run.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Threads that read the robots' sensors (default: the machine's cores). The output is
+    /// the same at any count.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
     /// Simulated seconds per wall second (e.g. 1, 10, 0.5), or `max` for as fast as possible.
     #[arg(long, default_value = "1", value_name = "K|max")]
     time_scale: TimeScale,
@@ -172,6 +176,9 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         robots,
         sim: SimConfig {
             seed: args.seed,
+            threads: args
+                .threads
+                .map_or_else(usar_server::sim::default_threads, usize::from),
             wind,
             robots_per_connection: args.robots_per_connection,
             ..SimConfig::default()

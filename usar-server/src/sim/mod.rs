@@ -60,6 +60,9 @@ pub struct SimConfig {
     pub seed: u64,
     /// Seconds per physics step (USARSim: 1/200).
     pub dt: f64,
+    /// Threads that read the robots' sensors (robots move on one thread). The output is the
+    /// same, byte for byte, at any count. Default: the machine's cores; 0 counts as 1.
+    pub threads: usize,
     /// The wind for this run; `None`: the map's `[wind]` (calm when it has none).
     pub wind: Option<WindConfig>,
     /// Robots one connection may spawn (USARSim: one); further INITs are ignored (logged).
@@ -71,8 +74,14 @@ impl Default for SimConfig {
         Self {
             seed: 0,
             dt: 1.0 / 200.0,
+            threads: default_threads(),
             wind: None,
             robots_per_connection: 1,
         }
     }
+}
+
+/// The machine's cores (1 when unknown).
+pub fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
 }

@@ -26,6 +26,9 @@ pub(crate) type V3 = [f64; 3];
 const LEAF_MARGIN: f32 = 0.05;
 /// Gap (m) kept between a swept robot and what it hits.
 const SKIN: f32 = 0.01;
+/// Beyond this distance (m) between tree boxes a sweep cannot touch: the gap `SKIN`,
+/// doubled for rounding.
+const SWEEP_PAD: f32 = 2.0 * SKIN + 1e-4;
 /// Longest sweep per tick (m): keeps f32 times of impact precise at absurd speeds.
 const MAX_STEP: f64 = 100.0;
 /// A slide shorter than this fraction of the blocked motion is numerical noise of the
@@ -93,6 +96,16 @@ pub(crate) struct Scene {
     soft_bodies: SoftBodySet,
     bvh: Bvh,
     workspace: BvhWorkspace,
+    /// Batched ray casts and skipped sweeps (off: one tree walk per ray and a shape cast per
+    /// move, the reference they must equal bit for bit).
+    pub(crate) shortcuts: bool,
+    /// Leaves were added or removed since the last refit (see [`Scene::refresh`]).
+    stale: bool,
+    /// By leaf: no other leaf's tree box comes within `SWEEP_PAD` of this leaf's box (kept
+    /// true only while that holds: any leaf box that grows clears the flags of the leaves
+    /// near it). A robot whose motion stays inside its own leaf box then moves without a
+    /// tree query or a shape cast.
+    clear: Vec<bool>,
 }
 
 impl std::fmt::Debug for Scene {
@@ -112,6 +125,9 @@ impl Scene {
             soft_bodies: SoftBodySet::new(),
             bvh: Bvh::new(),
             workspace: BvhWorkspace::default(),
+            shortcuts: true,
+            stale: false,
+            clear: Vec::new(),
         }
     }
 
@@ -134,7 +150,10 @@ impl Scene {
 
     /// Removes a collider.
     pub(crate) fn remove(&mut self, handle: ColliderHandle) {
-        self.bvh.remove(handle.into_raw_parts().0);
+        let leaf = handle.into_raw_parts().0;
+        self.bvh.remove(leaf);
+        self.set_clear(leaf, false);
+        self.stale = true;
         self.colliders.remove(
             handle,
             &mut self.islands,
@@ -156,14 +175,43 @@ impl Scene {
                 }
                 None => collider.compute_aabb(),
             };
-            self.bvh
-                .insert_with_change_detection(aabb, handle.into_raw_parts().0, LEAF_MARGIN);
+            let leaf = handle.into_raw_parts().0;
+            match self.bvh.leaf_node(leaf) {
+                Some(node) if node.contains_aabb(&aabb) => {}
+                Some(_) => {
+                    // The leaf grows to the box with its margin, and so do its ancestors.
+                    // (parry's `insert_with_change_detection` with a margin widens the
+                    // ancestors only to the bare box: the robot could then drift out of
+                    // them, within its leaf, and tree walks missed it until a refit.)
+                    let fat = Aabb::new(
+                        aabb.mins - Vector::splat(LEAF_MARGIN),
+                        aabb.maxs + Vector::splat(LEAF_MARGIN),
+                    );
+                    let _ = self.bvh.insert_with_change_detection(fat, leaf, 0.0);
+                    self.unclear_near(leaf, &fat);
+                }
+                None => {
+                    self.bvh.insert(aabb, leaf);
+                    self.unclear_near(leaf, &aabb);
+                    self.stale = true;
+                }
+            }
         }
     }
 
     /// Tightens the BVH (leaf updates only ever grow their ancestors). Call now and then.
     pub(crate) fn refit(&mut self) {
         self.bvh.refit(&mut self.workspace);
+        self.stale = false;
+    }
+
+    /// Refits the tree if leaves were added or removed since the last refit (insertions
+    /// rotate subtrees; a refit leaves every inner box tight and right). Called at the
+    /// start of each tick.
+    pub(crate) fn refresh(&mut self) {
+        if self.stale {
+            self.refit();
+        }
     }
 
     fn query(&self, exclude: Option<ColliderHandle>) -> QueryPipeline<'_> {
@@ -202,20 +250,53 @@ impl Scene {
                     return None;
                 }
                 let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
-                match collider.shape().as_cylinder() {
-                    Some(c) => upright_cylinder_toi(
-                        &ray,
-                        collider.translation(),
-                        c.radius,
-                        c.half_height,
-                        best,
-                    ),
-                    None => collider
-                        .shape()
-                        .cast_ray(collider.position(), &ray, best, true),
-                }
+                leaf_toi(collider, &ray, best)
             })
             .map(|(_, toi)| f64::from(toi))
+    }
+
+    /// Gathers, once, every solid (but `exclude`) whose BVH box meets the box spanned by
+    /// `origin` and `ends` (the far ends of the rays to come): one tree query instead of a
+    /// tree walk per ray. [`RayBatch::cast`] and [`RayBatch::cast_fan`] then give exactly
+    /// what [`Scene::cast_ray`] gives for rays from `origin` whose segments lie in that box.
+    pub(crate) fn ray_batch(
+        &self,
+        origin: V3,
+        ends: impl IntoIterator<Item = V3>,
+        exclude: Option<ColliderHandle>,
+    ) -> RayBatch<'_> {
+        let o = to_vector(origin);
+        let (mut lo, mut hi) = (o, o);
+        for end in ends {
+            let e = to_vector(end);
+            lo = lo.min(e);
+            hi = hi.max(e);
+        }
+        // f32 rounding of the segments' points: a generous pad keeps the gather conservative.
+        let pad = Vector::splat(BATCH_PAD + 1e-5 * (hi - lo).max_element());
+        let reach = Aabb::new(lo - pad, hi + pad);
+        let skip = exclude.map(|h| h.into_raw_parts().0);
+        let candidates = self
+            .bvh
+            .intersect_aabb(&reach)
+            .filter(|&leaf| Some(leaf) != skip)
+            .filter_map(|leaf| {
+                let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
+                let aabb = self.bvh.leaf_node(leaf)?.aabb();
+                let clipped = Aabb::new(aabb.mins.max(reach.mins), aabb.maxs.min(reach.maxs));
+                let cylinder = collider
+                    .shape()
+                    .as_cylinder()
+                    .map(|c| (collider.translation(), c.radius, c.half_height));
+                Some(Candidate {
+                    collider,
+                    cylinder,
+                    aabb,
+                    clipped,
+                })
+            })
+            .collect();
+        RayBatch { origin, candidates }
     }
 
     /// Whether a body of `shape` at `centre` would overlap anything but `exclude`.
@@ -230,6 +311,78 @@ impl Scene {
             .intersect_shape(upright_pose(centre), &cylinder)
             .next()
             .is_some()
+    }
+
+    fn set_clear(&mut self, leaf: u32, value: bool) {
+        let i = leaf as usize;
+        if i >= self.clear.len() {
+            self.clear.resize(i + 1, false);
+        }
+        self.clear[i] = value;
+    }
+
+    /// `leaf` got the new tree box `aabb`: it and every leaf whose box comes within
+    /// `SWEEP_PAD` of it are no longer known to be clear.
+    fn unclear_near(&mut self, leaf: u32, aabb: &Aabb) {
+        self.set_clear(leaf, false);
+        let near = Aabb::new(
+            aabb.mins - Vector::splat(SWEEP_PAD),
+            aabb.maxs + Vector::splat(SWEEP_PAD),
+        );
+        let hits: Vec<u32> = self.bvh.intersect_aabb(&near).collect();
+        for other in hits {
+            if let Some(flag) = self.clear.get_mut(other as usize) {
+                *flag = false;
+            }
+        }
+    }
+
+    /// Whether `handle`'s motion from `centre` by `motion` stays within its own tree box and
+    /// no other box comes within `SWEEP_PAD` of that box (then nothing can be hit). Learns
+    /// the second fact with one tree query when it is not known.
+    fn known_clear(
+        &mut self,
+        handle: ColliderHandle,
+        shape: BodyShape,
+        centre: V3,
+        motion: V3,
+    ) -> bool {
+        let leaf = handle.into_raw_parts().0;
+        let Some(own) = self.bvh.leaf_node(leaf).map(|n| n.aabb()) else {
+            return false;
+        };
+        let half = [shape.radius, shape.radius, shape.half_height];
+        // Rounded outwards by far more than f32's error.
+        let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i] - 1e-4);
+        let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i] + 1e-4);
+        let inside =
+            (0..3).all(|i| f64::from(own.mins[i]) <= lo[i] && hi[i] <= f64::from(own.maxs[i]));
+        if !inside {
+            return false;
+        }
+        if self.clear.get(leaf as usize).copied().unwrap_or(false) {
+            return true;
+        }
+        let near = Aabb::new(
+            own.mins - Vector::splat(SWEEP_PAD),
+            own.maxs + Vector::splat(SWEEP_PAD),
+        );
+        let alone = self.bvh.intersect_aabb(&near).all(|l| l == leaf);
+        self.set_clear(leaf, alone);
+        alone
+    }
+
+    /// Whether nothing but `handle` has its tree box within the gap `SKIN` (doubled, for
+    /// rounding) of the box swept by a body of `shape` moving from `centre` by `motion`: then
+    /// the shape cast cannot hit anything and is skipped (most robots, most ticks).
+    fn clear_path(&self, handle: ColliderHandle, shape: BodyShape, centre: V3, motion: V3) -> bool {
+        let half = [shape.radius, shape.radius, shape.half_height];
+        let pad = f64::from(SWEEP_PAD);
+        let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i] - pad);
+        let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i] + pad);
+        let swept = Aabb::new(to_vector(lo), to_vector(hi));
+        let me = handle.into_raw_parts().0;
+        self.bvh.intersect_aabb(&swept).all(|leaf| leaf == me)
     }
 
     /// Moves the body `handle` from `centre` by `motion`, stopping in front of the first
@@ -266,12 +419,19 @@ impl Scene {
                 stop_at_penetration: false,
                 compute_impact_geometry_on_penetration: true,
             };
-            let hit = self.query(Some(handle)).cast_shape(
-                &upright_pose(pos),
-                to_vector(rest),
-                &cylinder,
-                options,
-            );
+            let clear = self.shortcuts
+                && (self.known_clear(handle, shape, pos, rest)
+                    || self.clear_path(handle, shape, pos, rest));
+            let hit = if clear {
+                None
+            } else {
+                self.query(Some(handle)).cast_shape(
+                    &upright_pose(pos),
+                    to_vector(rest),
+                    &cylinder,
+                    options,
+                )
+            };
             let Some((_, hit)) = hit else {
                 pos = add(pos, rest);
                 break;
@@ -298,6 +458,190 @@ impl Scene {
         }
         self.reindex(handle);
         (pos, contact)
+    }
+}
+
+/// Pad (m) of a batch's gathering box.
+const BATCH_PAD: f32 = 0.01;
+
+/// The time of impact of `ray` on `collider` within `best` (the leaf test of every cast).
+fn leaf_toi(collider: &Collider, ray: &Ray, best: f32) -> Option<f32> {
+    match collider.shape().as_cylinder() {
+        Some(c) => upright_cylinder_toi(ray, collider.translation(), c.radius, c.half_height, best),
+        None => collider
+            .shape()
+            .cast_ray(collider.position(), ray, best, true),
+    }
+}
+
+/// A solid gathered for a batch of rays.
+struct Candidate<'s> {
+    collider: &'s Collider,
+    /// Centre, radius and half height of an upright cylinder (intersected in closed form).
+    cylinder: Option<(Vector, f32, f32)>,
+    /// Its box in the BVH (what a tree walk tests before the solid).
+    aabb: Aabb,
+    /// That box within the batch's reach (for the angular bound of a fan).
+    clipped: Aabb,
+}
+
+impl Candidate<'_> {
+    /// The leaf test of [`Scene::cast_ray`]: a hit strictly closer than `best`.
+    fn toi(&self, ray: &Ray, best: f32) -> Option<f32> {
+        let t = match self.cylinder {
+            Some((centre, radius, half_height)) => {
+                upright_cylinder_toi(ray, centre, radius, half_height, best)
+            }
+            None => {
+                // The tree's box test first (parry's shape casts cost far more); a NaN of a
+                // ray grazing a face keeps the solid in.
+                if !slab_may_hit(&self.aabb, ray, best) {
+                    return None;
+                }
+                self.collider
+                    .shape()
+                    .cast_ray(self.collider.position(), ray, best, true)
+            }
+        };
+        t.filter(|&t| t < best)
+    }
+}
+
+/// Whether `ray` may meet `aabb` before `best` (conservative: true when unsure).
+fn slab_may_hit(aabb: &Aabb, ray: &Ray, best: f32) -> bool {
+    let (mut tmin, mut tmax) = (f32::NEG_INFINITY, f32::INFINITY);
+    for i in 0..3 {
+        let inv = 1.0 / ray.dir[i];
+        let t1 = (aabb.mins[i] - ray.origin[i]) * inv;
+        let t2 = (aabb.maxs[i] - ray.origin[i]) * inv;
+        if t1.is_nan() || t2.is_nan() {
+            continue;
+        }
+        tmin = tmin.max(t1.min(t2));
+        tmax = tmax.min(t1.max(t2));
+    }
+    // A little slack: the tree's own (SIMD) test must never be the stricter one.
+    let slack = 1e-4 * (1.0 + tmax.abs().min(1e6));
+    tmax + slack >= tmin && tmax + slack >= 0.0 && tmin - slack < best
+}
+
+/// The solids near one origin, gathered once for many rays ([`Scene::ray_batch`]).
+pub(crate) struct RayBatch<'s> {
+    origin: V3,
+    candidates: Vec<Candidate<'s>>,
+}
+
+impl RayBatch<'_> {
+    /// Exactly [`Scene::cast_ray`] from the batch's origin (for a ray within its reach).
+    pub(crate) fn cast(&self, dir: V3, max: f64) -> Option<f64> {
+        let ray = Ray::new(to_vector(self.origin), to_vector(dir));
+        let mut best = max as f32;
+        let mut hit = None;
+        for c in &self.candidates {
+            if let Some(t) = c.toi(&ray, best) {
+                best = t;
+                hit = Some(t);
+            }
+        }
+        hit.map(f64::from)
+    }
+
+    /// A fan of rays: `dirs[k]` has azimuth `base + offsets[k]` about the axis of the
+    /// orthonormal pair (`e1`, `e2`) (its angle from `e1` towards `e2`), `offsets` sorted
+    /// from largest to smallest and spanning at most a turn. Writes what
+    /// [`RayBatch::cast`] gives for each ray into `out`; each solid is tried only on the
+    /// rays whose azimuth falls within the angle it covers as seen from the origin.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn cast_fan(
+        &self,
+        dirs: &[V3],
+        base: f64,
+        offsets: &[f64],
+        (e1, e2): (V3, V3),
+        max: f64,
+        out: &mut Vec<Option<f64>>,
+    ) {
+        debug_assert_eq!(dirs.len(), offsets.len());
+        let origin = to_vector(self.origin);
+        let rays: Vec<Ray> = dirs
+            .iter()
+            .map(|&d| Ray::new(origin, to_vector(d)))
+            .collect();
+        let mut best = vec![max as f32; dirs.len()];
+        let mut hit = vec![false; dirs.len()];
+        let dot = |a: V3, b: V3| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let mut test = |c: &Candidate<'_>, near: f32, k: usize| {
+            // No hit can be nearer than the sphere: beams that already hit something
+            // nearer skip the solid.
+            if near >= best[k] {
+                return;
+            }
+            if let Some(t) = c.toi(&rays[k], best[k]) {
+                best[k] = t;
+                hit[k] = true;
+            }
+        };
+        // Each solid's bounding sphere (around its part within reach), nearest first.
+        let mut spheres: Vec<(f32, V3, f64, &Candidate<'_>)> = self
+            .candidates
+            .iter()
+            .map(|c| {
+                // An upright cylinder's own sphere is tighter than its box's.
+                let (centre, radius) = match c.cylinder {
+                    Some((centre, r, h)) => (centre, r.hypot(h)),
+                    None => (c.clipped.center(), c.clipped.half_extents().length()),
+                };
+                let radius = f64::from(radius) + f64::from(BATCH_PAD);
+                let u = [
+                    f64::from(centre.x) - self.origin[0],
+                    f64::from(centre.y) - self.origin[1],
+                    f64::from(centre.z) - self.origin[2],
+                ];
+                let near = ((norm(u) - radius) * (1.0 - 1e-6) - 1e-3).max(0.0) as f32;
+                (near, u, radius, c)
+            })
+            .collect();
+        spheres.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for &(near, u, radius, c) in &spheres {
+            let (u1, u2) = (dot(u, e1), dot(u, e2));
+            let across = u1.hypot(u2);
+            // (NaN counts as through.)
+            if across.is_nan() || across <= radius * 1.001 + 1e-6 {
+                // The axis passes through it: any azimuth may hit.
+                for k in 0..dirs.len() {
+                    test(c, near, k);
+                }
+                continue;
+            }
+            let half = (radius / across).asin() + 1e-6 + 1e-12 * base.abs();
+            // Within (−π, π]; the offsets are too.
+            let mut centre_offset = (u2.atan2(u1) - base).rem_euclid(std::f64::consts::TAU);
+            if centre_offset > std::f64::consts::PI {
+                centre_offset -= std::f64::consts::TAU;
+            }
+            // The covered range of offsets, and its copies a turn either side where they
+            // can reach the offsets (within ±π).
+            let wraps_low = centre_offset - half < -std::f64::consts::PI + 1e-3;
+            let wraps_high = centre_offset + half > std::f64::consts::PI - 1e-3;
+            for turn in [-1.0, 0.0, 1.0] {
+                if (turn < 0.0 && !wraps_high) || (turn > 0.0 && !wraps_low) {
+                    continue;
+                }
+                let mid = centre_offset + turn * std::f64::consts::TAU;
+                let (lo, hi) = (mid - half, mid + half);
+                let first = offsets.partition_point(|&o| o > hi);
+                let end = offsets.partition_point(|&o| o >= lo);
+                for k in first..end.max(first) {
+                    test(c, near, k);
+                }
+            }
+        }
+        out.clear();
+        out.extend(
+            best.iter()
+                .zip(&hit)
+                .map(|(&t, &h)| h.then_some(f64::from(t))),
+        );
     }
 }
 
@@ -419,6 +763,213 @@ mod tests {
             }
         }
         assert!(checked > 50, "only {checked} hits checked");
+    }
+
+    /// A random scene: yawed boxes, upright cylinders (solids and robot bodies), a small
+    /// triangle mesh, all within a few metres of the origin.
+    fn random_scene(solids: &[(u8, [f32; 3], [f32; 3], f32)]) -> Scene {
+        let mut scene = Scene::new();
+        for &(kind, c, s, yaw) in solids {
+            let s = s.map(|v| 0.05 + v.abs());
+            let pose = Pose::new(Vector::new(c[0], c[1], c[2]), Vector::new(0.0, 0.0, yaw));
+            match kind % 4 {
+                0 => {
+                    scene.insert(ColliderBuilder::cuboid(s[0], s[1], s[2]).position(pose));
+                }
+                1 => {
+                    scene.insert(
+                        ColliderBuilder::cylinder(s[2], s[0])
+                            .position(upright_pose(c.map(f64::from))),
+                    );
+                }
+                2 => {
+                    let body = BodyShape {
+                        radius: f64::from(s[0]),
+                        half_height: f64::from(s[2]),
+                    };
+                    let handle = scene.insert_body(body, c.map(f64::from));
+                    // Moved a little: its tree box then carries the margin.
+                    let motion = [f64::from(s[1]) * 0.01, 0.0, 0.0];
+                    scene.sweep_contact(handle, body, c.map(f64::from), motion);
+                }
+                _ => {
+                    let v = |x: f32, y: f32, z: f32| Vector::new(c[0] + x, c[1] + y, c[2] + z);
+                    let vertices = vec![
+                        v(0.0, 0.0, 0.0),
+                        v(s[0], 0.0, 0.0),
+                        v(0.0, s[1], 0.0),
+                        v(0.0, 0.0, -s[2]),
+                    ];
+                    let triangles = vec![[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]];
+                    scene.insert(ColliderBuilder::trimesh(vertices, triangles).expect("mesh"));
+                }
+            }
+        }
+        scene
+    }
+
+    proptest::proptest! {
+        /// A laser fan cast in one batch gives, beam for beam and bit for bit, what one
+        /// tree walk per beam gives; so do the batch's single casts (sonar cones).
+        #[test]
+        fn batched_fans_equal_per_beam_casts(
+            solids in proptest::collection::vec(
+                (0u8..4, proptest::array::uniform3(-4.0f32..4.0),
+                 proptest::array::uniform3(0.0f32..1.5), -3.2f32..3.2),
+                0..24,
+            ),
+            origin in proptest::array::uniform3(-3.0f64..3.0),
+            yaw in -20.0f64..20.0,
+            pitch in prop_oneof_pitch(),
+            max in 0.5f64..8.0,
+            beams in 1usize..240,
+            fov in 0.1f64..std::f64::consts::TAU,
+            (roll, tilt) in (-0.6f64..0.6, -0.6f64..0.6),
+            tilted in proptest::bool::ANY,
+        ) {
+            let mut scene = random_scene(&solids);
+            // The scanning robot's own body, excluded as the sensors exclude it.
+            let me = BodyShape { radius: 0.45, half_height: 0.1 };
+            let me = (!scene.overlaps(me, origin, None)).then(|| scene.insert_body(me, origin));
+            let offsets: Vec<f64> = (0..beams)
+                .map(|k| fov / 2.0 - fov * k as f64 / beams as f64)
+                .collect();
+            // A body tilted by roll about x, then pitch about y (a quadrotor's sensors): the
+            // directions and the azimuth axes turn together.
+            let turn = |v: V3| -> V3 {
+                if !tilted {
+                    return v;
+                }
+                let (sr, cr) = roll.sin_cos();
+                let (sp, cp) = tilt.sin_cos();
+                let v = [v[0], cr * v[1] - sr * v[2], sr * v[1] + cr * v[2]];
+                [cp * v[0] + sp * v[2], v[1], -sp * v[0] + cp * v[2]]
+            };
+            let dirs: Vec<V3> =
+                offsets.iter().map(|o| turn(direction(pitch, yaw + o))).collect();
+            let ends = dirs.iter().map(|&d| add(origin, scale(d, max)));
+            let batch = scene.ray_batch(origin, ends, me);
+            let mut fan = Vec::new();
+            let axes = (turn([1.0, 0.0, 0.0]), turn([0.0, 1.0, 0.0]));
+            batch.cast_fan(&dirs, yaw, &offsets, axes, max, &mut fan);
+            for (k, &dir) in dirs.iter().enumerate() {
+                let walk = scene.cast_ray(origin, dir, max, me);
+                proptest::prop_assert_eq!(fan[k].map(f64::to_bits), walk.map(f64::to_bits),
+                    "beam {} dir {:?}: fan {:?} walk {:?}", k, dir, fan[k], walk);
+                proptest::prop_assert_eq!(batch.cast(dir, max), walk);
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// Robots swept around random solids and each other end where shape-casting every
+        /// move puts them, bit for bit (the skipped sweeps skip only casts that hit nothing).
+        #[test]
+        fn skipped_sweeps_equal_shape_casts(
+            solids in proptest::collection::vec(
+                (0u8..2, proptest::array::uniform3(-4.0f32..4.0),
+                 proptest::array::uniform3(0.0f32..1.5), -3.2f32..3.2),
+                0..8,
+            ),
+            robots in proptest::collection::vec(
+                ((-2.5f64..2.5, -2.5f64..2.5, -0.05f64..0.05),
+                 proptest::array::uniform3(-0.03f64..0.03)),
+                1..24,
+            ),
+            ticks in 1usize..120,
+        ) {
+            let shape = BodyShape { radius: 0.45, half_height: 0.1 };
+            let mut fast = random_scene(&solids);
+            let mut slow = random_scene(&solids);
+            slow.shortcuts = false;
+            let mut bodies = Vec::new();
+            for &((x, y, z), motion) in &robots {
+                let centre = [x, y, z];
+                if fast.overlaps(shape, centre, None) {
+                    continue;
+                }
+                let a = fast.insert_body(shape, centre);
+                let b = slow.insert_body(shape, centre);
+                bodies.push((a, b, centre, centre, motion));
+            }
+            for tick in 0..ticks {
+                fast.refresh();
+                slow.refresh();
+                for (a, b, pa, pb, motion) in &mut bodies {
+                    // Now and then a robot hovers, turns back or speeds up.
+                    let k = [1.0, 0.0, -1.0, 0.2, 4.0][(tick / 9) % 5];
+                    let m = motion.map(|v| v * k);
+                    if m == [0.0; 3] {
+                        continue;
+                    }
+                    *pa = fast.sweep_contact(*a, shape, *pa, m).0;
+                    *pb = slow.sweep_contact(*b, shape, *pb, m).0;
+                    proptest::prop_assert_eq!(pa.map(f64::to_bits), pb.map(f64::to_bits));
+                }
+            }
+        }
+    }
+
+    /// Level scans mostly, tilted ones and straight up or down now and then.
+    fn prop_oneof_pitch() -> impl proptest::strategy::Strategy<Value = f64> {
+        use proptest::prelude::*;
+        prop_oneof![
+            3 => Just(0.0),
+            3 => -1.6f64..1.6,
+            1 => Just(std::f64::consts::FRAC_PI_2),
+            1 => Just(-std::f64::consts::FRAC_PI_2),
+        ]
+    }
+
+    #[test]
+    fn moved_robots_stay_visible_to_rays() {
+        // A crowd that moves after the tree was built (parry's incremental leaf updates
+        // once left inner boxes that missed moved robots: scans looked through them).
+        let shape = BodyShape {
+            radius: 0.45,
+            half_height: 0.1,
+        };
+        let mut scene = Scene::new();
+        let mut bodies = Vec::new();
+        for i in 0..300 {
+            let centre = [
+                f64::from(i % 15) * 1.5,
+                f64::from((i / 15) % 10) * 1.5,
+                -2.0 - f64::from(i / 150),
+            ];
+            bodies.push((scene.insert_body(shape, centre), centre));
+        }
+        scene.refresh();
+        for _ in 0..30 {
+            for (step, (handle, centre)) in bodies.iter_mut().enumerate() {
+                let a = step as f64 * 0.7;
+                let motion = [0.01 * a.cos(), 0.01 * a.sin(), 0.001 * (a * 3.0).sin()];
+                *centre = scene.sweep_contact(*handle, shape, *centre, motion).0;
+            }
+        }
+        scene.refresh();
+        let mut hits = 0;
+        for (i, &(_, centre)) in bodies.iter().enumerate().step_by(7) {
+            for k in 0..90 {
+                let dir = direction(0.0, f64::from(k) * 0.0698 + i as f64);
+                let origin = [centre[0], centre[1], centre[2] + 0.05];
+                let me = Some(bodies[i].0);
+                let walk = scene.cast_ray(origin, dir, 6.0, me);
+                let mut truth = None;
+                for &(other, _) in &bodies {
+                    if Some(other) != me {
+                        let c = scene.colliders.get(other).expect("body");
+                        let ray = Ray::new(to_vector(origin), to_vector(dir));
+                        if let Some(t) = leaf_toi(c, &ray, 6.0) {
+                            truth = Some(truth.map_or(t, |b: f32| b.min(t)));
+                        }
+                    }
+                }
+                assert_eq!(walk, truth.map(f64::from), "robot {i} beam {k}");
+                hits += usize::from(walk.is_some());
+            }
+        }
+        assert!(hits > 500, "only {hits} hits");
     }
 
     #[test]

@@ -15,6 +15,9 @@ use crate::shown::{Repeats, Shown};
 
 /// Ticks between BVH refits (leaf updates only ever grow the tree's inner boxes).
 const REFIT_EVERY: u64 = 200;
+/// Fewer robots than this per thread are read on the stepping thread alone (starting a
+/// thread costs about as much as reading a few dozen robots).
+const ROBOTS_PER_THREAD: usize = 64;
 
 /// The world: map, robots, sensors. Synchronous and deterministic: the same seed and the
 /// same calls give the same output, bit for bit.
@@ -34,6 +37,8 @@ pub struct World {
     clients: BTreeMap<ClientId, Option<u64>>,
     next_client: u64,
     next_serial: u64,
+    /// Threads that read sensors ([`SimConfig::threads`]).
+    threads: usize,
     robots_per_connection: usize,
     /// Warnings about each connection's commands (summarised past the first few).
     complaints: BTreeMap<ClientId, Repeats>,
@@ -107,6 +112,7 @@ impl World {
             clients: BTreeMap::new(),
             next_client: 0,
             next_serial: 0,
+            threads: config.threads.max(1),
             robots_per_connection: config.robots_per_connection,
             complaints: BTreeMap::new(),
         }
@@ -180,15 +186,21 @@ impl World {
     pub fn step(&mut self, out: &mut Vec<(ClientId, ServerMessage)>) {
         self.tick += 1;
         let (tick, dt) = (self.tick, self.dt);
+        self.scene.refresh();
         for robot in &mut self.robots {
             robot.fly(&mut self.scene, tick, dt);
         }
         if tick % REFIT_EVERY == 0 {
             self.scene.refit();
         }
-        for robot in &mut self.robots {
-            robot.emit(&self.scene, tick, dt, out);
-        }
+        emit_all(&mut self.robots, &self.scene, tick, dt, self.threads, out);
+    }
+
+    /// Turns the batched ray casts and skipped sweeps off (on by default): the slow
+    /// reference they must equal byte for byte, for tests and `usar-bench --reference`.
+    #[doc(hidden)]
+    pub fn set_shortcuts(&mut self, on: bool) {
+        self.scene.shortcuts = on;
     }
 
     fn start_poses(&self) -> ServerMessage {
@@ -346,6 +358,51 @@ impl World {
         let serial = self.clients.get(&client).copied().flatten()?;
         self.robots.iter().find(|r| r.serial == serial)
     }
+}
+
+/// Every robot's output of this tick, in robot order. Sensors only read the scene, so
+/// robots are read on up to `threads` threads, each a contiguous run of robots into its own
+/// list; the lists are joined in order, so the output does not depend on `threads`.
+fn emit_all(
+    robots: &mut [Robot],
+    scene: &Scene,
+    tick: u64,
+    dt: f64,
+    threads: usize,
+    out: &mut Vec<(ClientId, ServerMessage)>,
+) {
+    let threads = threads.min(robots.len() / ROBOTS_PER_THREAD).max(1);
+    if threads == 1 {
+        for robot in robots {
+            robot.emit(scene, tick, dt, out);
+        }
+        return;
+    }
+    let chunk = robots.len().div_ceil(threads);
+    let mut runs = robots.chunks_mut(chunk);
+    let mine = runs.next().unwrap_or_default();
+    std::thread::scope(|scope| {
+        let others: Vec<_> = runs
+            .map(|run| {
+                scope.spawn(move || {
+                    let mut lines = Vec::new();
+                    for robot in run {
+                        robot.emit(scene, tick, dt, &mut lines);
+                    }
+                    lines
+                })
+            })
+            .collect();
+        for robot in mine {
+            robot.emit(scene, tick, dt, out);
+        }
+        for other in others {
+            match other.join() {
+                Ok(mut lines) => out.append(&mut lines),
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        }
+    });
 }
 
 fn conf(robot: &Robot, query: &ItemQuery) -> Option<ServerMessage> {

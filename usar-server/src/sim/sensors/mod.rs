@@ -38,7 +38,7 @@ use usar_proto::{ConfItem, SenData};
 use super::dynamics::{ImuTruth, M3, mul, mul_t};
 use super::noise::Noise;
 use super::robots::PartConfig;
-use super::scene::{Scene, V3, yaw_rotate};
+use super::scene::{Scene, V3, add, scale, yaw_rotate};
 
 /// What a sensor sees when it takes a reading.
 pub(crate) struct Reading<'a> {
@@ -83,11 +83,55 @@ impl Reading<'_> {
     /// Distance to the first surface along a direction of the level (yaw-only) frame, or
     /// `None` within `max`; the body's tilt turns the direction first.
     pub(crate) fn trace(&self, dir: V3, max: f64) -> Option<f64> {
-        let dir = match &self.tilt {
+        self.scene
+            .cast_ray(self.origin, self.tilted(dir), max, Some(self.me))
+    }
+
+    /// A direction of the level (yaw-only) frame turned by the body's tilt.
+    fn tilted(&self, dir: V3) -> V3 {
+        match &self.tilt {
             Some(t) => mul(t, dir),
             None => dir,
-        };
-        self.scene.cast_ray(self.origin, dir, max, Some(self.me))
+        }
+    }
+
+    /// [`Reading::trace`] of each direction (same results; many rays share one tree query).
+    pub(crate) fn trace_many(&self, dirs: &[V3], max: f64, out: &mut Vec<Option<f64>>) {
+        out.clear();
+        if dirs.len() < 4 || !self.scene.shortcuts {
+            out.extend(dirs.iter().map(|&d| self.trace(d, max)));
+            return;
+        }
+        let dirs: Vec<V3> = dirs.iter().map(|&d| self.tilted(d)).collect();
+        let ends = dirs.iter().map(|&d| add(self.origin, scale(d, max)));
+        let batch = self.scene.ray_batch(self.origin, ends, Some(self.me));
+        out.extend(dirs.iter().map(|&d| batch.cast(d, max)));
+    }
+
+    /// [`Reading::trace`] of a fan of directions at once (same results, one tree query):
+    /// `dirs[k]` must point at azimuth `base + offsets[k]` (yaw, + = clockwise from above),
+    /// `offsets` sorted from largest to smallest within ±π, in the level frame (the body's
+    /// tilt turns them, as in [`Reading::trace`]). Writes the hits into `out`.
+    pub(crate) fn trace_fan(
+        &self,
+        dirs: &[V3],
+        base: f64,
+        offsets: &[f64],
+        max: f64,
+        out: &mut Vec<Option<f64>>,
+    ) {
+        if !self.scene.shortcuts {
+            out.clear();
+            out.extend(dirs.iter().map(|&d| self.trace(d, max)));
+            return;
+        }
+        // A tilted fan: the directions and the axes their azimuths are measured about turn
+        // together (the azimuths stay the same).
+        let dirs: Vec<V3> = dirs.iter().map(|&d| self.tilted(d)).collect();
+        let axes = (self.tilted([1.0, 0.0, 0.0]), self.tilted([0.0, 1.0, 0.0]));
+        let ends = dirs.iter().map(|&d| add(self.origin, scale(d, max)));
+        let batch = self.scene.ray_batch(self.origin, ends, Some(self.me));
+        batch.cast_fan(&dirs, base, offsets, axes, max, out);
     }
 
     /// A world-frame vector in the body frame (x forward, y right, z down): yaw only for the

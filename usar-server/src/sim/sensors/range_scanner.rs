@@ -47,6 +47,8 @@ struct RangeScanner {
     /// Cosine and sine of each beam's yaw offset (+ = right); index 0 is the rightmost.
     /// Precomputed: a scan then costs one sin/cos instead of 228.
     beams: Vec<(f64, f64)>,
+    /// Each beam's yaw offset, rad (largest first, as `beams`).
+    offsets: Vec<f64>,
 }
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
@@ -72,15 +74,20 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
             part.name
         ));
     }
-    let beams = (0..)
+    let offsets: Vec<f64> = (0..)
         .map(|k| fov_uu / 2 - k * res_uu)
         .take_while(|&uu| uu >= -fov_uu / 2)
-        .map(|uu| {
-            let (sin, cos) = from_uu(uu).sin_cos();
+        .map(from_uu)
+        .collect();
+    let beams = offsets
+        .iter()
+        .map(|a| {
+            let (sin, cos) = a.sin_cos();
             (cos, sin)
         })
         .collect();
     Ok(Box::new(RangeScanner {
+        offsets,
         resolution: from_uu(res_uu),
         fov: from_uu(fov_uu),
         config,
@@ -92,15 +99,17 @@ impl Sensor for RangeScanner {
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
         let (min, max) = (self.config.min_range, self.config.max_range);
         let [cx, cy, z] = direction(at.pitch, at.yaw);
-        let ranges = self
+        // The heading's direction turned by each beam's offset about the vertical.
+        let dirs: Vec<_> = self
             .beams
             .iter()
-            .map(|&(cos, sin)| {
-                // The heading's direction turned by the beam's offset about the vertical.
-                let dir = [cx * cos - cy * sin, cy * cos + cx * sin, z];
-                let hit = at.trace(dir, max).unwrap_or(max);
-                noise.apply(hit).clamp(min, max)
-            })
+            .map(|&(cos, sin)| [cx * cos - cy * sin, cy * cos + cx * sin, z])
+            .collect();
+        let mut hits = Vec::with_capacity(dirs.len());
+        at.trace_fan(&dirs, at.yaw, &self.offsets, max, &mut hits);
+        let ranges = hits
+            .into_iter()
+            .map(|hit| noise.apply(hit.unwrap_or(max)).clamp(min, max))
             .collect();
         SenData::RangeScanner(Scan {
             kind: "RangeScanner".to_string(),

@@ -102,11 +102,19 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
 impl Sensor for Sonar {
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
         let max = self.config.max_range;
-        let hit = self
-            .traces
-            .iter()
-            .filter_map(|&(dp, dy)| at.trace(direction(at.pitch + dp, at.yaw + dy), max))
-            .fold(max, f64::min);
+        let hit = if let [(dp, dy)] = self.traces[..] {
+            at.trace(direction(at.pitch + dp, at.yaw + dy), max)
+                .unwrap_or(max)
+        } else {
+            let dirs: Vec<_> = self
+                .traces
+                .iter()
+                .map(|&(dp, dy)| direction(at.pitch + dp, at.yaw + dy))
+                .collect();
+            let mut hits = Vec::with_capacity(dirs.len());
+            at.trace_many(&dirs, max, &mut hits);
+            hits.into_iter().flatten().fold(max, f64::min)
+        };
         let range = noise.apply(hit).clamp(self.config.min_range, max);
         SenData::Sonar {
             readings: vec![NamedRange {
