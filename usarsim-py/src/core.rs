@@ -276,6 +276,9 @@ pub(crate) struct Observations {
     pub(crate) battery: Vec<f64>,
     /// Whether the body was stopped by something during the last period.
     pub(crate) touched: Vec<bool>,
+    /// Whether the UAV has crashed (a robot with physics, such as the stsQuadrotor, reports
+    /// it with its `Crash` touch sensor; docs/quadrotor.md).
+    pub(crate) crashed: Vec<bool>,
     /// Simulated seconds.
     pub(crate) time: Vec<f64>,
 }
@@ -296,6 +299,7 @@ impl Observations {
             laser: Vec::with_capacity(LASER * n),
             battery: Vec::with_capacity(n),
             touched: Vec::with_capacity(n),
+            crashed: Vec::with_capacity(n),
             time: Vec::with_capacity(n),
         }
     }
@@ -328,7 +332,8 @@ impl Observations {
         }));
         self.battery
             .push(s.battery.as_ref().map_or(1.0, |b| b.value.level));
-        self.touched.push(touched);
+        self.touched.push(touched || s.crashed());
+        self.crashed.push(s.crashed());
         self.time.push(time);
     }
 }

@@ -78,6 +78,7 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
     put("battery", obs.battery, 1)?;
     put("time", obs.time, 1)?;
     dict.set_item("touched", obs.touched.into_pyarray(py))?;
+    dict.set_item("crashed", obs.crashed.into_pyarray(py))?;
     Ok(dict)
 }
 

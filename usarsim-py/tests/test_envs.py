@@ -81,6 +81,20 @@ def test_flying_forward_moves_forward_and_a_wall_stops_it():
     assert obs["laser"][114] < 0.5  # the middle beam sees the wall
 
 
+def test_a_quadrotor_flown_into_a_wall_crashes_and_the_episode_ends():
+    env = gymnasium.make("usarsim/Waypoints-v0", robot="stsQuadrotor", start=(7, 0, -1, 0),
+                         waypoints=[[-5, 0, -1]], max_steps=1000)
+    env.reset(seed=0)
+    for step in range(200):
+        obs, reward, term, trunc, info = env.step(np.array([1, 0, 0, 0], np.float32))
+        if term:
+            break
+    assert term and not trunc, "the crash ends the episode"
+    assert bool(info["crashed"]) and bool(info["touched"])
+    assert reward < -50  # the crash penalty
+    assert obs["position"][0] < 10.0  # stopped at the wall
+
+
 def test_reaching_the_waypoints_ends_the_episode_with_bonuses():
     env = gymnasium.make("usarsim/Waypoints-v0", start=(0, 0, -1, 0), waypoints=[[2, 0, -1], [2, 2, -1]])
     obs, _ = env.reset(seed=0)

@@ -38,6 +38,7 @@ BOUNDS = {
 WAYPOINT_BONUS = 10.0
 #: Reward per control period in which the body was stopped by a wall, floor or UAV.
 TOUCH_PENALTY = 1.0
+CRASH_PENALTY = 100.0
 
 
 def observation_space() -> spaces.Dict:
@@ -156,6 +157,7 @@ class Tasks:
         """Rewards, terminated and truncated flags and info arrays after one step."""
         self.steps += 1
         touched = np.asarray(raw["touched"], dtype=bool)
+        crashed = np.asarray(raw["crashed"], dtype=bool)
         dist = np.linalg.norm(self._vector(raw), axis=1)
         if self.task == "hover":
             yaw_err = np.abs((raw["attitude"][:, 2] - self.hold_yaw + np.pi) % (2 * np.pi) - np.pi)
@@ -170,6 +172,9 @@ class Tasks:
             terminated = self.index >= self.targets.shape[1]
             dist = np.linalg.norm(self._vector(raw), axis=1)
         self.prev = dist
+        # A crash (robots with physics: docs/quadrotor.md) ends the episode with a penalty.
+        reward = reward - CRASH_PENALTY * crashed
+        terminated = terminated | crashed
         truncated = ~terminated & ((self.steps >= self.max_steps) | (raw["battery"][:, 0] <= 0.0))
-        return reward, terminated, truncated, {"touched": touched, "reached": reached,
+        return reward, terminated, truncated, {"touched": touched, "crashed": crashed, "reached": reached,
                                                "waypoints_reached": self.index.copy()}
