@@ -47,6 +47,25 @@ pub struct MapGeometry {
     pub footprints: Vec<Footprint>,
 }
 
+/// A local server's map as the pictures draw it (with the `local` feature, which brings the
+/// simulator).
+#[cfg(feature = "local")]
+impl From<&usar_server::sim::map::Map> for MapGeometry {
+    fn from(map: &usar_server::sim::map::Map) -> Self {
+        Self {
+            footprints: map
+                .footprints()
+                .into_iter()
+                .map(|f| Footprint {
+                    outline: f.outline.iter().map(|p| (p[0], p[1])).collect(),
+                    z_min: f.z_min,
+                    z_max: f.z_max,
+                })
+                .collect(),
+        }
+    }
+}
+
 /// What to draw.
 #[derive(Debug, Clone, Default)]
 pub struct MapPicture {

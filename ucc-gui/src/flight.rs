@@ -362,21 +362,6 @@ fn observe(shared: &Shared, id: u32, progress: &Progress, hits: bool) {
     }
 }
 
-/// The map's solids as the pictures draw them.
-pub fn geometry_of(map: &usar_server::sim::map::Map) -> ucc_client::picture::MapGeometry {
-    ucc_client::picture::MapGeometry {
-        footprints: map
-            .footprints()
-            .into_iter()
-            .map(|f| ucc_client::picture::Footprint {
-                outline: f.outline.iter().map(|p| (p[0], p[1])).collect(),
-                z_min: f.z_min,
-                z_max: f.z_max,
-            })
-            .collect(),
-    }
-}
-
 /// Connects to `addr` and hangs up: is a server there?
 pub async fn probe(addr: &str) -> Result<(), String> {
     let conn = ucc_client::Connection::connect(addr, Duration::from_secs(3))

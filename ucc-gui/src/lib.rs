@@ -163,7 +163,7 @@ pub async fn serve(
                     config: *c.clone(),
                     server: Some(server),
                 }),
-                Some(flight::geometry_of(&c.map)),
+                Some(ucc_client::picture::MapGeometry::from(&c.map)),
                 c.map.level().to_owned(),
                 robots,
             )

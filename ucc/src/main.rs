@@ -14,7 +14,7 @@ use clap::{Args, Parser, Subcommand};
 use tokio_util::sync::CancellationToken;
 use ucc_client::agents::{self, AgentInfo};
 use ucc_client::mission::{load_missions, parse_point};
-use ucc_client::picture::{Footprint, MapGeometry};
+use ucc_client::picture::MapGeometry;
 use ucc_client::runner::start_poses;
 use ucc_client::{Coordinates, Lockstep, Mission, Progress, RunSettings, Start, Summary};
 use usar_server::sim::map::Map;
@@ -351,21 +351,6 @@ fn interrupt_token() -> CancellationToken {
 /// The exit code of an interrupted run (as a shell reports SIGINT).
 const INTERRUPTED: u8 = 130;
 
-/// The map's solids as the pictures draw them.
-fn geometry_of(map: &Map) -> MapGeometry {
-    MapGeometry {
-        footprints: map
-            .footprints()
-            .into_iter()
-            .map(|f| Footprint {
-                outline: f.outline.iter().map(|p| (p[0], p[1])).collect(),
-                z_min: f.z_min,
-                z_max: f.z_max,
-            })
-            .collect(),
-    }
-}
-
 /// `ucc run`: against --host/--port, or against a server started here with --local.
 async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
     if !args.local {
@@ -407,7 +392,7 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
     if let Some(problem) = config.spawn_problem(&settings_probe.class_name(), tag) {
         bail!("{problem}");
     }
-    let geometry = geometry_of(&config.map);
+    let geometry = MapGeometry::from(&config.map);
     let server = LocalServer::start(config)
         .await
         .context("cannot start the local server")?;
@@ -604,7 +589,7 @@ async fn demo(args: DemoArgs) -> anyhow::Result<ExitCode> {
         lockstep: true,
         ..ServerConfig::default()
     };
-    let geometry = geometry_of(&config.map);
+    let geometry = MapGeometry::from(&config.map);
     let server = LocalServer::start(config)
         .await
         .context("cannot start the demo server")?;

@@ -9,7 +9,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use tokio_util::sync::CancellationToken;
-use ucc_client::picture::{Footprint, MapGeometry};
+use ucc_client::picture::MapGeometry;
 use ucc_client::{
     Agent, AgentEvent, Coordinates, Lockstep, Mission, MissionRefused, Progress, RunSettings,
     SpeedCommand, Start, Step, UavState,
@@ -319,17 +319,7 @@ pub(crate) fn fly<'py>(
         } else {
             Lockstep::Off
         },
-        map: Some(MapGeometry {
-            footprints: map
-                .footprints()
-                .into_iter()
-                .map(|f| Footprint {
-                    outline: f.outline.iter().map(|p| (p[0], p[1])).collect(),
-                    z_min: f.z_min,
-                    z_max: f.z_max,
-                })
-                .collect(),
-        }),
+        map: Some(MapGeometry::from(&map)),
         ..RunSettings::default()
     };
     let result = py.detach(|| run(settings, server.is_none(), map, &factory, &cancel, quiet));
