@@ -283,12 +283,12 @@ impl Flight {
         self.error.take()
     }
 
-    /// Ends the flight with `error` (a time-out seen by the driver, a lost connection).
+    /// Ends the flight with `error` (a time-out seen by the driver, a lost connection). The
+    /// driver reports it ([`run`](crate::run) as the log's last line).
     pub fn fail(&mut self, error: RunError) {
         if self.is_over() {
             return;
         }
-        self.log(format!("error: {error}"));
         self.agent.stop();
         self.phase = Phase::Failed;
         self.error = Some(error);

@@ -314,13 +314,9 @@ async fn fly(
     lockstep: Lockstep,
     observer: &mut dyn Observer,
 ) -> Result<(), RunError> {
+    // A failure ends up in the log once, as its last line (`run` writes it).
     let result = fly_inner(flight, settings, lockstep, observer).await;
     drain(flight, observer);
-    if let Err(e) = &result
-        && !flight.is_over()
-    {
-        flight.log(format!("error: {e}"));
-    }
     result
 }
 

@@ -110,6 +110,28 @@ impl Settings {
 /// A pose to spawn at: x, y, z (metres, z down) and yaw (rad).
 pub(crate) type Pose = [f64; 4];
 
+/// `INIT` of a `class` robot named `name`, level, at `pose`.
+pub(crate) fn spawn(class: &str, name: &str, pose: &Pose) -> Command {
+    Command::Init(Init {
+        class_name: class.to_owned(),
+        name: Some(name.to_owned()),
+        location: Some(Vec3::new(pose[0], pose[1], pose[2])),
+        rotation: Some(Vec3::new(0.0, 0.0, pose[3])),
+        start: None,
+    })
+}
+
+/// The normalized `DRIVE` of an action: forward, right, up, yaw in -1..=1.
+pub(crate) fn drive(action: &[f64; 4]) -> Command {
+    let command = SpeedCommand {
+        forward: action[0] * 100.0,
+        right: action[1] * 100.0,
+        up: action[2] * 100.0,
+        yaw: action[3] * 100.0,
+    };
+    Command::Drive(command.to_drive())
+}
+
 /// One UAV: its connection, what it knows, and the contact flag of the last period.
 #[derive(Debug)]
 struct Uav {
@@ -148,24 +170,7 @@ impl WorldSim {
             if i == 0 {
                 first = client.0;
             }
-            world.command(
-                client,
-                Command::Init(Init {
-                    class_name: settings.robot.clone(),
-                    name: Some(format!("UAV{i}")),
-                    location: Some(Vec3 {
-                        x: pose[0],
-                        y: pose[1],
-                        z: pose[2],
-                    }),
-                    rotation: Some(Vec3 {
-                        x: 0.0,
-                        y: 0.0,
-                        z: pose[3],
-                    }),
-                    start: None,
-                }),
-            );
+            world.command(client, spawn(&settings.robot, &format!("UAV{i}"), pose));
             uavs.push(Uav {
                 client,
                 state: UavState::new(),
@@ -195,14 +200,7 @@ impl WorldSim {
     pub(crate) fn step(&mut self, settings: &Settings, actions: &[[f64; 4]]) {
         let before: Vec<[f64; 3]> = self.uavs.iter().map(position).collect();
         for (uav, a) in self.uavs.iter().zip(actions) {
-            let command = SpeedCommand {
-                forward: a[0] * 100.0,
-                right: a[1] * 100.0,
-                up: a[2] * 100.0,
-                yaw: a[3] * 100.0,
-            };
-            self.world
-                .command(uav.client, Command::Drive(command.to_drive()));
+            self.world.command(uav.client, drive(a));
         }
         self.advance(settings.ticks());
         let max = settings.catalog.get(&settings.robot).map(|c| &c.flight);

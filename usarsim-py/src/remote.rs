@@ -6,11 +6,10 @@ use std::io::{BufRead, BufReader, ErrorKind, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::Duration;
 
-use ucc_client::SpeedCommand;
 use ucc_client::uav::UavState;
-use usar_proto::{Command, Init, ServerMessage, Vec3};
+use usar_proto::{Barrier, Command, ServerMessage};
 
-use crate::core::{Observations, Pose, SimError};
+use crate::core::{Observations, Pose, SimError, drive, spawn};
 
 /// How long a connection attempt and each read may take.
 const TIMEOUT: Duration = Duration::from_secs(10);
@@ -67,23 +66,9 @@ impl Remote {
             period,
             line: String::new(),
         };
-        remote.send_line("SYNC {Time 0}")?;
+        remote.send(&Command::Sync(Barrier::at(0.0)))?;
         remote.lockstep = remote.probe_sync()?;
-        remote.send(&Command::Init(Init {
-            class_name: robot.to_string(),
-            name: Some("UAV".into()),
-            location: Some(Vec3 {
-                x: pose[0],
-                y: pose[1],
-                z: pose[2],
-            }),
-            rotation: Some(Vec3 {
-                x: 0.0,
-                y: 0.0,
-                z: pose[3],
-            }),
-            start: None,
-        }))?;
+        remote.send(&spawn(robot, "UAV", &pose))?;
         remote.advance()?;
         if remote.state.position.is_none() {
             return Err(err(
@@ -169,7 +154,7 @@ impl Remote {
         // waits one period past the first time stamp it sees.
         let mut target = (self.lockstep || self.time > 0.0).then_some(self.time + self.period);
         if self.lockstep {
-            self.send_line(&format!("SYNC {{Time {:.4}}}", self.time + self.period))?;
+            self.send(&Command::Sync(Barrier::at(self.time + self.period)))?;
         }
         loop {
             let message = match self.read_message() {
@@ -200,13 +185,7 @@ impl Remote {
 
     /// Sends the normalized command and waits one period.
     pub(crate) fn step(&mut self, action: [f64; 4]) -> Result<(), SimError> {
-        let command = SpeedCommand {
-            forward: action[0] * 100.0,
-            right: action[1] * 100.0,
-            up: action[2] * 100.0,
-            yaw: action[3] * 100.0,
-        };
-        self.send(&Command::Drive(command.to_drive()))?;
+        self.send(&drive(&action))?;
         self.advance()
     }
 
