@@ -184,23 +184,30 @@ impl MapPicture {
                     (lo.min(p.z), hi.max(p.z))
                 });
             let at_height = |f: &&Footprint| low > high || (f.z_min <= high && f.z_max >= low);
-            for footprint in geometry.footprints.iter().filter(at_height) {
-                let outline: Vec<(f64, f64)> =
-                    footprint.outline.iter().map(|&(x, y)| (y, x)).collect();
-                let clipped = clip_polygon(&outline, clip);
-                if clipped.len() >= 3 {
-                    chart
-                        .draw_series([Polygon::new(clipped, wall.mix(0.6).filled())])
-                        .map_err(err)?;
-                }
+            let solids: Vec<Vec<(f64, f64)>> = geometry
+                .footprints
+                .iter()
+                .filter(at_height)
+                .map(|f| {
+                    let outline: Vec<(f64, f64)> = f.outline.iter().map(|&(x, y)| (y, x)).collect();
+                    clip_polygon(&outline, clip)
+                })
+                .filter(|clipped| clipped.len() >= 3)
+                .collect();
+            // Named in the legend only when some solid is in view.
+            if !solids.is_empty() {
+                chart
+                    .draw_series(
+                        solids
+                            .into_iter()
+                            .map(|points| Polygon::new(points, wall.mix(0.6).filled())),
+                    )
+                    .map_err(err)?
+                    .label("walls and obstacles")
+                    .legend(move |(x, y)| {
+                        Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], wall.mix(0.6).filled())
+                    });
             }
-            chart
-                .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
-                .map_err(err)?
-                .label("walls and obstacles")
-                .legend(move |(x, y)| {
-                    Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], wall.mix(0.6).filled())
-                });
         } else if !self.laser_hits.is_empty() {
             let hits = self.laser_hits.iter().map(top_view).filter(|p| inside(*p));
             chart
