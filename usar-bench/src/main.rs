@@ -434,6 +434,7 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     };
     let mut world = World::new(map, RobotCatalog::embedded(), config);
     world.set_shortcuts(!args.reference);
+    let live_before = live_bytes();
     let mut clients = Vec::new();
     for i in 0..args.uavs {
         let c = world.connect();
@@ -448,6 +449,8 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
         );
         clients.push(c);
     }
+    // Memory the robots hold in the world, idle (spawned, not yet stepped).
+    let per_robot = live_bytes().saturating_sub(live_before) as f64 / 1024.0 / args.uavs as f64;
     let ticks = (args.seconds / world.dt()).round() as u64;
     let mut out = Vec::new();
     let (mut messages, mut bytes) = (0u64, 0u64);
@@ -496,6 +499,9 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
         step_time.as_secs_f64() * 1e6 / ticks as f64,
         (wall - step_time.as_secs_f64()) * 1e6 / ticks as f64,
         bytes as f64 / 1e6
+    );
+    println!(
+        "memory: {per_robot:.2} KiB allocated per idle robot (spawned, before the first tick)"
     );
     if args.digest {
         println!("digest of the output: {digest:016x}");
@@ -634,6 +640,18 @@ fn start_server(args: &Args) -> anyhow::Result<(Server, SocketAddr)> {
         .and_then(|a| a.parse().ok())
         .with_context(|| format!("unexpected first line from the server: {line:?}"))?;
     Ok((Server { child }, addr))
+}
+
+/// The allocator, counting the bytes in use (the memory per robot of `--sim-only`: the
+/// process's resident size does not show it, since freed memory is reused, not returned).
+#[global_allocator]
+static ALLOCATOR: &stats_alloc::StatsAlloc<std::alloc::System> = &stats_alloc::INSTRUMENTED_SYSTEM;
+
+/// Bytes allocated and not yet freed.
+fn live_bytes() -> usize {
+    let s = ALLOCATOR.stats();
+    (s.bytes_allocated as isize - s.bytes_deallocated as isize + s.bytes_reallocated).max(0)
+        as usize
 }
 
 /// CPU seconds and peak resident memory (MiB) of a process, from /proc.

@@ -1,5 +1,7 @@
 //! A spawned robot: AerialVehicle flight, parts with their timers, battery, actuators.
 
+use std::sync::Arc;
+
 use rapier3d::prelude::ColliderHandle;
 use tracing::{debug, warn};
 use usar_proto::{
@@ -11,7 +13,7 @@ use super::ClientId;
 use super::dynamics::{self, Crash, Dynamics, Flight, LowLevel, M3, SetPoints};
 use super::noise::Noise;
 use super::quadrotor::{self, Quadrotor};
-use super::robots::{ActuatorConfig, CrashConfig, DynamicsKind, FlightConfig, RobotClass};
+use super::robots::{ActuatorConfig, DynamicsKind, RobotClass};
 use super::scene::{BodyShape, Scene, V3, add, scale, yaw_rotate};
 use super::sensors::{self, Reading, Sensor};
 use super::wind::WindConfig;
@@ -65,14 +67,75 @@ impl Timer {
     }
 }
 
-/// A sensor part on a robot.
+/// What every robot of one class shares, built once (when the class first spawns): the
+/// class, its body and each part's mount and a prototype of its sensor. Robots keep only
+/// their own state (timers, noise streams, sensor copies); a class's tables, such as a
+/// laser's beam directions, are shared.
 #[derive(Debug)]
-struct Part {
+pub(crate) struct Model {
+    class: RobotClass,
+    shape: BodyShape,
+    parts: Vec<PartModel>,
+}
+
+/// A part as its class defines it.
+#[derive(Debug)]
+struct PartModel {
     name: String,
     item_type: &'static str,
     position: V3,
     direction: V3,
     interval: f64,
+    /// Its index among the class's parts (its noise stream).
+    index: u64,
+    noise: f64,
+    sensor: Box<dyn Sensor>,
+}
+
+impl Model {
+    /// Builds the parts of `class`; a part of an unknown type or with invalid settings is
+    /// skipped with a warning.
+    pub(crate) fn new(class: &RobotClass) -> Self {
+        let mut parts = Vec::new();
+        for (index, p) in class.parts.iter().enumerate() {
+            let Some(kind) = sensors::find(&p.kind) else {
+                warn!(class = %class.class, part = %p.name, kind = %p.kind,
+                    "unknown part type, part skipped");
+                continue;
+            };
+            let sensor = match (kind.build)(p) {
+                Ok(sensor) => sensor,
+                Err(e) => {
+                    warn!(class = %class.class, part = %p.name, error = %e,
+                        "invalid part, part skipped");
+                    continue;
+                }
+            };
+            parts.push(PartModel {
+                name: p.name.clone(),
+                item_type: kind.item_type,
+                position: p.position,
+                direction: p.direction,
+                interval: p.interval.unwrap_or(kind.default_interval),
+                index: index as u64,
+                noise: p.noise,
+                sensor,
+            });
+        }
+        Self {
+            shape: BodyShape {
+                radius: class.collision.radius,
+                half_height: class.collision.height / 2.0,
+            },
+            class: class.clone(),
+            parts,
+        }
+    }
+}
+
+/// A robot's own state of one part (the same index as in its [`Model`]).
+#[derive(Debug)]
+struct Part {
     timer: Timer,
     /// SET asked for an extra reading on the next tick.
     forced: bool,
@@ -90,7 +153,7 @@ struct Actuator {
 
 /// Where and how a robot spawns.
 pub(crate) struct Spawn<'a> {
-    pub(crate) class: &'a RobotClass,
+    pub(crate) model: &'a Arc<Model>,
     pub(crate) serial: u64,
     pub(crate) owner: ClientId,
     pub(crate) position: V3,
@@ -113,10 +176,8 @@ pub(crate) struct Robot {
     pub(crate) owner: Option<ClientId>,
     /// The connection that spawned it (removes it on disconnect).
     pub(crate) spawned_by: ClientId,
-    class_name: String,
-    flight: FlightConfig,
+    model: Arc<Model>,
     body: ColliderHandle,
-    shape: BodyShape,
     position: V3,
     velocity: V3,
     /// roll, pitch, yaw, rad.
@@ -124,14 +185,12 @@ pub(crate) struct Robot {
     set: SetPoints,
     /// The physics model; `None` for the kinematic AerialVehicle flight.
     dynamics: Option<Box<dyn Dynamics>>,
-    crash_config: CrashConfig,
     /// Set once the robot crashed (it then falls, stops and ignores commands).
     crashed: Option<Crash>,
     /// Whether the body touched something in the last tick.
     contact: bool,
     spawn_tick: u64,
     spawn_z: f64,
-    battery: Option<f64>,
     status: Timer,
     parts: Vec<Part>,
     actuators: Vec<Actuator>,
@@ -140,40 +199,22 @@ pub(crate) struct Robot {
 impl Robot {
     /// Spawns into `scene`; `None` (logged) when the place is taken.
     pub(crate) fn spawn(spawn: Spawn<'_>, scene: &mut Scene) -> Option<Self> {
-        let class = spawn.class;
-        let shape = BodyShape {
-            radius: class.collision.radius,
-            half_height: class.collision.height / 2.0,
-        };
+        let model = spawn.model;
+        let class = &model.class;
+        let shape = model.shape;
         if scene.overlaps(shape, spawn.position, None) {
             return None;
         }
-        let mut parts = Vec::new();
-        for (index, p) in class.parts.iter().enumerate() {
-            let Some(kind) = sensors::find(&p.kind) else {
-                warn!(part = %p.name, kind = %p.kind, "unknown part type, part skipped");
-                continue;
-            };
-            let sensor = match (kind.build)(p) {
-                Ok(sensor) => sensor,
-                Err(e) => {
-                    warn!(part = %p.name, error = %e, "invalid part, part skipped");
-                    continue;
-                }
-            };
-            let interval = p.interval.unwrap_or(kind.default_interval);
-            parts.push(Part {
-                name: p.name.clone(),
-                item_type: kind.item_type,
-                position: p.position,
-                direction: p.direction,
-                interval,
-                timer: Timer::new(interval, spawn.tick, spawn.dt),
+        let parts = model
+            .parts
+            .iter()
+            .map(|p| Part {
+                timer: Timer::new(p.interval, spawn.tick, spawn.dt),
                 forced: false,
-                noise: Noise::new(spawn.seed, spawn.serial, index as u64, p.noise),
-                sensor,
-            });
-        }
+                noise: Noise::new(spawn.seed, spawn.serial, p.index, p.noise),
+                sensor: p.sensor.clone_box(),
+            })
+            .collect();
         let actuators = class
             .actuators
             .iter()
@@ -209,21 +250,17 @@ impl Robot {
             serial: spawn.serial,
             owner: Some(spawn.owner),
             spawned_by: spawn.owner,
-            class_name: class.short_name().to_string(),
-            flight: class.flight.clone(),
+            model: model.clone(),
             body,
-            shape,
             position: spawn.position,
             velocity: [0.0; 3],
             rotation: spawn.rotation,
             set: SetPoints::default(),
             dynamics,
-            crash_config: class.crash.clone(),
             crashed: None,
             contact: false,
             spawn_tick: spawn.tick,
             spawn_z: spawn.position[2],
-            battery: class.battery,
             status: Timer::new(STATUS_INTERVAL, spawn.tick, spawn.dt),
             parts,
             actuators,
@@ -237,12 +274,12 @@ impl Robot {
 
     /// The class name without package.
     pub(crate) fn class_name(&self) -> &str {
-        &self.class_name
+        self.model.class.short_name()
     }
 
     /// Remaining battery seconds as STA reports them (rounded up, so 0 means empty).
     fn battery_left(&self, tick: u64, dt: f64) -> i64 {
-        match self.battery {
+        match self.model.class.battery {
             None => NO_BATTERY,
             Some(capacity) => {
                 let used = (tick - self.spawn_tick) as f64 * dt;
@@ -275,7 +312,7 @@ impl Robot {
             Some(dynamics) if self.crashed.is_none() => dynamics.low_level(command),
             Some(_) => {}
             None => warn!(
-                class = %self.class_name,
+                class = %self.class_name(),
                 "QUAD ignored: the robot is kinematic (dynamics = \"quadrotor\" in its class)"
             ),
         }
@@ -288,7 +325,7 @@ impl Robot {
 
     /// The DRIVE set-points (sticky).
     fn drive_set_points(&mut self, d: &Drive) {
-        let f = &self.flight;
+        let f = &self.model.class.flight;
         let normalized = d.normalized == Some(true);
         let scaled = |v: f64, max: f64| {
             if normalized {
@@ -354,7 +391,7 @@ impl Robot {
             let crash = dynamics.step(Flight {
                 scene,
                 body: self.body,
-                shape: self.shape,
+                shape: self.model.shape,
                 position: &mut self.position,
                 velocity: &mut self.velocity,
                 rotation: &mut self.rotation,
@@ -379,10 +416,10 @@ impl Robot {
         let start = self.position;
         self.contact = false;
         if motion != [0.0; 3] {
-            let (position, hit) = scene.sweep_contact(self.body, self.shape, start, motion);
+            let (position, hit) = scene.sweep_contact(self.body, self.model.shape, start, motion);
             self.position = position;
             self.contact = hit.is_some();
-            if hit.is_some() && self.crash_config.on_contact && self.crashed.is_none() {
+            if hit.is_some() && self.model.class.crash.on_contact && self.crashed.is_none() {
                 let speed = dynamics::norm(motion) / dt;
                 let reason = format!("touched an obstacle at {speed:.2} m/s (crash on contact)");
                 self.report_crash(
@@ -398,10 +435,11 @@ impl Robot {
         }
         self.velocity = std::array::from_fn(|i| (self.position[i] - start[i]) / dt);
         self.rotation[2] = super::world::bounded_angle(self.rotation[2] + s.yaw_rate * dt);
-        let step = self.flight.tilt_rate * dt;
+        let flight = &self.model.class.flight;
+        let step = flight.tilt_rate * dt;
         for (angle, target) in [(0, s.roll), (1, s.pitch)] {
             let error = target - self.rotation[angle];
-            if error.abs() > self.flight.tilt_margin {
+            if error.abs() > flight.tilt_margin {
                 self.rotation[angle] += error.clamp(-step, step);
             }
         }
@@ -410,7 +448,7 @@ impl Robot {
     fn report_crash(&mut self, crash: Crash, tick: u64, dt: f64) {
         tracing::info!(
             serial = self.serial,
-            class = %self.class_name,
+            class = %self.class_name(),
             time = tick as f64 * dt,
             speed = crash.speed,
             tilt_deg = crash.tilt.to_degrees(),
@@ -458,13 +496,13 @@ impl Robot {
             let yaw = self.rotation[2];
             let tilt = self.tilt();
             let imu = self.dynamics.as_ref().map(|d| d.imu());
-            for part in &mut self.parts {
+            for (part, model) in self.parts.iter_mut().zip(&self.model.parts) {
                 let due = part.timer.fire(tick);
                 if !(due || std::mem::take(&mut part.forced)) {
                     continue;
                 }
                 let reading = Reading {
-                    name: &part.name,
+                    name: &model.name,
                     scene,
                     me: self.body,
                     time,
@@ -474,11 +512,11 @@ impl Robot {
                     rotation: self.rotation,
                     spawn_z: self.spawn_z,
                     origin: add(self.position, {
-                        let level = yaw_rotate(yaw, part.position);
+                        let level = yaw_rotate(yaw, model.position);
                         tilt.as_ref().map_or(level, |t| dynamics::mul(t, level))
                     }),
-                    yaw: yaw + part.direction[2],
-                    pitch: part.direction[1],
+                    yaw: yaw + model.direction[2],
+                    pitch: model.direction[1],
                     tilt,
                     imu,
                     contact: self.contact,
@@ -511,7 +549,7 @@ impl Robot {
     pub(crate) fn conf(&self, kind: &str, name: Option<&str>) -> Vec<ConfItem> {
         let mut items: Vec<ConfItem> = self
             .matching_parts(kind, name)
-            .map(|p| p.sensor.conf(&p.name, p.interval))
+            .map(|(part, model)| part.sensor.conf(&model.name, model.interval))
             .collect();
         items.extend(self.matching_actuators(kind, name).map(|a| {
             ConfItem::Actuator {
@@ -538,12 +576,12 @@ impl Robot {
             name: name.to_string(),
             location: yaw_rotate(yaw, position).into(),
             orientation: direction.into(),
-            mount: self.class_name.clone(),
+            mount: self.class_name().to_string(),
             mount_link: None,
         };
         let mut items: Vec<GeoItem> = self
             .matching_parts(kind, name)
-            .map(|p| item(&p.name, p.position, p.direction))
+            .map(|(_, model)| item(&model.name, model.position, model.direction))
             .collect();
         items.extend(
             self.matching_actuators(kind, name)
@@ -554,8 +592,8 @@ impl Robot {
 
     /// SET: passes the opcode to the matching parts.
     pub(crate) fn set(&mut self, kind: &str, name: Option<&str>, opcode: &str) {
-        for part in &mut self.parts {
-            if matches(part.item_type, &part.name, kind, name) && part.sensor.set(opcode) {
+        for (part, model) in self.parts.iter_mut().zip(&self.model.parts) {
+            if matches(model.item_type, &model.name, kind, name) && part.sensor.set(opcode) {
                 part.forced = true;
             }
         }
@@ -584,10 +622,11 @@ impl Robot {
         &'a self,
         kind: &'a str,
         name: Option<&'a str>,
-    ) -> impl Iterator<Item = &'a Part> + 'a {
+    ) -> impl Iterator<Item = (&'a Part, &'a PartModel)> + 'a {
         self.parts
             .iter()
-            .filter(move |p| matches(p.item_type, &p.name, kind, name))
+            .zip(&self.model.parts)
+            .filter(move |(_, m)| matches(m.item_type, &m.name, kind, name))
     }
 
     fn matching_actuators<'a>(

@@ -1,12 +1,13 @@
 //! The world: map geometry, robots, connections; one `step` per tick.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
+use std::sync::Arc;
 
 use tracing::{debug, warn};
 use usar_proto::{Command, Conf, Geo, Init, ItemQuery, Nfo, ServerMessage, StartPose};
 
 use super::map::{self, Map};
-use super::robot::{Robot, Spawn};
+use super::robot::{Model, Robot, Spawn};
 use super::robots::RobotCatalog;
 use super::scene::{Scene, V3};
 use super::wind::WindConfig;
@@ -30,6 +31,8 @@ pub struct World {
     wind: WindConfig,
     map: Map,
     catalog: RobotCatalog,
+    /// Each spawned class's parts, built once (keyed by the catalog's class name).
+    models: HashMap<String, Arc<Model>>,
     scene: Scene,
     /// Ordered by serial (spawn order): the order of movement and of output.
     robots: Vec<Robot>,
@@ -107,6 +110,7 @@ impl World {
             wind,
             map,
             catalog: robots,
+            models: HashMap::new(),
             scene,
             robots: Vec::new(),
             clients: BTreeMap::new(),
@@ -264,8 +268,12 @@ impl World {
                 init.rotation.map_or([0.0; 3], spawn_rotation),
             ),
         };
+        let model = self
+            .models
+            .entry(class.class.clone())
+            .or_insert_with(|| Arc::new(Model::new(class)));
         let spawn = Spawn {
-            class,
+            model,
             serial: self.next_serial,
             owner: client,
             position,

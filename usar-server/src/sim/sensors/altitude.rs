@@ -21,7 +21,7 @@ impl Default for AltitudeConfig {
     }
 }
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Altitude(AltitudeConfig);
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {

@@ -35,7 +35,7 @@ impl Default for CameraConfig {
     }
 }
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Camera(CameraConfig);
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {

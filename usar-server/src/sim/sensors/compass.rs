@@ -25,7 +25,7 @@ impl Default for CompassConfig {
     }
 }
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Compass(CompassConfig);
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {

@@ -9,7 +9,7 @@ use crate::sim::robots::PartConfig;
 /// GroundTruth settings: none.
 pub type GroundTruthConfig = NoSettings;
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct GroundTruth;
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {

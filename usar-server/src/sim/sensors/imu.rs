@@ -13,7 +13,7 @@ use crate::sim::scene::{V3, yaw_rotate};
 /// IMU settings: none (the engine adds no noise to the IMU either).
 pub type ImuConfig = NoSettings;
 
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 struct Imu {
     /// The previous reading: time, world velocity, attitude, angular rates.
     last: Option<(f64, V3, V3, V3)>,

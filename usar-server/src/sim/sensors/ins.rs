@@ -9,7 +9,7 @@ use crate::sim::robots::PartConfig;
 /// INS settings: none (drift is modelled by the part's `noise`).
 pub type InsConfig = NoSettings;
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Ins;
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {

@@ -9,7 +9,7 @@ use crate::sim::robots::PartConfig;
 /// MissionTime settings: none.
 pub type MissionTimeConfig = NoSettings;
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct MissionTime;
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {

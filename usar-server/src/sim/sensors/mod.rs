@@ -145,8 +145,20 @@ impl Reading<'_> {
     }
 }
 
+/// A copy of a sensor as a trait object (each robot of a class gets a copy of the class's
+/// sensors, built once).
+pub(crate) trait SensorClone {
+    fn clone_box(&self) -> Box<dyn Sensor>;
+}
+
+impl<T: Sensor + Clone + 'static> SensorClone for T {
+    fn clone_box(&self) -> Box<dyn Sensor> {
+        Box::new(self.clone())
+    }
+}
+
 /// A sensor instance on a robot.
-pub(crate) trait Sensor: std::fmt::Debug + Send {
+pub(crate) trait Sensor: SensorClone + std::fmt::Debug + Send + Sync {
     /// Takes one reading (the data after `{Type ..}`).
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData;
     /// The GETCONF item.

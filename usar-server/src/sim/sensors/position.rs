@@ -9,7 +9,7 @@ use crate::sim::robots::PartConfig;
 /// Position settings: none.
 pub type PositionConfig = NoSettings;
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Position;
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {

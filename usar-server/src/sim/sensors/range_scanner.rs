@@ -2,6 +2,8 @@
 //! beam angles in integer Unreal rotation units exactly as the engine computes them, index 0
 //! the rightmost.
 
+use std::sync::Arc;
+
 use serde::Deserialize;
 use usar_proto::{ConfItem, Scan, SenData};
 
@@ -38,17 +40,18 @@ impl Default for RangeScannerConfig {
     }
 }
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct RangeScanner {
     config: RangeScannerConfig,
     /// The reported `{Resolution}` and `{FOV}`: the whole-unit values, as the engine's f32.
     resolution: f64,
     fov: f64,
     /// Cosine and sine of each beam's yaw offset (+ = right); index 0 is the rightmost.
-    /// Precomputed: a scan then costs one sin/cos instead of 228.
-    beams: Vec<(f64, f64)>,
+    /// Precomputed: a scan then costs one sin/cos instead of 228. Shared by every robot of
+    /// the class.
+    beams: Arc<[(f64, f64)]>,
     /// Each beam's yaw offset, rad (largest first, as `beams`).
-    offsets: Vec<f64>,
+    offsets: Arc<[f64]>,
 }
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
@@ -74,7 +77,7 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
             part.name
         ));
     }
-    let offsets: Vec<f64> = (0..)
+    let offsets: Arc<[f64]> = (0..)
         .map(|k| fov_uu / 2 - k * res_uu)
         .take_while(|&uu| uu >= -fov_uu / 2)
         .map(from_uu)

@@ -1,5 +1,7 @@
 //! `Sonar` (USARSim SonarSensor): one range per reading, clamped to [MinRange, MaxRange].
 
+use std::sync::Arc;
+
 use serde::Deserialize;
 use usar_proto::{ConfItem, NamedRange, SenData};
 
@@ -54,11 +56,11 @@ impl Default for SonarConfig {
 }
 
 /// A sonar: its settings and the trace directions as (pitch, yaw) offsets from its axis.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Sonar {
     config: SonarConfig,
     /// (pitch, yaw) offsets of the traces; the first is the axis.
-    traces: Vec<(f64, f64)>,
+    traces: Arc<[(f64, f64)]>,
 }
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
@@ -96,7 +98,10 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
             }
         }
     }
-    Ok(Box::new(Sonar { config, traces }))
+    Ok(Box::new(Sonar {
+        config,
+        traces: traces.into(),
+    }))
 }
 
 impl Sensor for Sonar {

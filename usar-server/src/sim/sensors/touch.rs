@@ -29,7 +29,7 @@ pub struct TouchConfig {
     pub event: TouchEvent,
 }
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Touch {
     event: TouchEvent,
 }

@@ -9,7 +9,7 @@ use crate::sim::robots::PartConfig;
 /// Velocity settings: none.
 pub type VelocityConfig = NoSettings;
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Velocity;
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
