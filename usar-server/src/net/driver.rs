@@ -39,7 +39,7 @@ use usar_proto::record::{Direction, RecordWriter};
 use usar_proto::{Barrier, Command, Nfo, ServerMessage};
 
 use super::TimeScale;
-use crate::sim::{ClientId, World};
+use crate::sim::{ClientId, Printed, World};
 
 /// How far behind schedule the driver may fall before it re-anchors its clock.
 const MAX_LAG: Duration = Duration::from_millis(250);
@@ -178,6 +178,18 @@ impl Client {
         self.pending.extend_from_slice(b"\r\n");
     }
 
+    /// Appends lines the world printed (each followed by CRLF).
+    fn push_printed(&mut self, lines: &[u8], time: f64) {
+        self.pending.extend_from_slice(lines);
+        if let Some(file) = &mut self.record {
+            let lines = lines.strip_suffix(b"\r\n").unwrap_or(lines);
+            for line in lines.split(|&b| b == b'\n') {
+                let line = line.strip_suffix(b"\r").unwrap_or(line);
+                let _ = file.write_at(time, Direction::Server, &String::from_utf8_lossy(line));
+            }
+        }
+    }
+
     fn flush(&mut self) {
         if self.pending.is_empty() {
             return;
@@ -231,7 +243,7 @@ impl Driver {
 
     /// Runs the world until `shutdown` is cancelled or every request sender is gone.
     pub(super) fn run(mut self, inbox: Receiver<Request>, shutdown: CancellationToken) {
-        let mut out = Vec::new();
+        let mut out = Printed::default();
         let mut anchor = Instant::now();
         let mut ticks_since_anchor: u64 = 0;
         loop {
@@ -276,11 +288,11 @@ impl Driver {
                 return;
             }
 
-            self.world.step(&mut out);
+            self.world.step_printed(&mut out);
             let time = self.world.time();
-            for (client, message) in out.drain(..) {
+            for (client, lines) in out.robots() {
                 if let Some(c) = self.clients.get_mut(&client) {
-                    c.push(&message, time);
+                    c.push_printed(lines, time);
                 }
             }
             self.answer_barriers();

@@ -47,7 +47,7 @@ mod tests;
 pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
 pub use robots::{RobotCatalog, RobotClass};
 pub use wind::WindConfig;
-pub use world::World;
+pub use world::{Printed, World};
 
 /// A connection as the simulation knows it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]

@@ -57,6 +57,10 @@ pub(crate) fn scale(a: V3, k: f64) -> V3 {
     [a[0] * k, a[1] * k, a[2] * k]
 }
 
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
 fn norm(a: V3) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
@@ -549,11 +553,16 @@ impl RayBatch<'_> {
     /// A fan of rays: `dirs[k]` has azimuth `base + offsets[k]` about the axis of the
     /// orthonormal pair (`e1`, `e2`) (its angle from `e1` towards `e2`), `offsets` sorted
     /// from largest to smallest and spanning at most a turn. Writes what
-    /// [`RayBatch::cast`] gives for each ray into `out`; each solid is tried only on the
+    /// [`Scene::cast_ray`] gives for each ray into `out`; each solid is tried only on the
     /// rays whose azimuth falls within the angle it covers as seen from the origin.
+    ///
+    /// The rays start at the batch's origin, or, if `origins` is not empty, ray `k` at
+    /// `origins[k]` (a sonar ring: each on the rim, pointing away from the centre). The
+    /// bounds then allow for how far each ray's line passes from the batch's origin.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn cast_fan(
         &self,
+        origins: &[V3],
         dirs: &[V3],
         base: f64,
         offsets: &[f64],
@@ -562,17 +571,28 @@ impl RayBatch<'_> {
         out: &mut Vec<Option<f64>>,
     ) {
         debug_assert_eq!(dirs.len(), offsets.len());
-        let origin = to_vector(self.origin);
-        let rays: Vec<Ray> = dirs
-            .iter()
-            .map(|&d| Ray::new(origin, to_vector(d)))
+        debug_assert!(origins.is_empty() || origins.len() == dirs.len());
+        let dot = |a: V3, b: V3| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let origin_of = |k: usize| origins.get(k).copied().unwrap_or(self.origin);
+        let rays: Vec<Ray> = (0..dirs.len())
+            .map(|k| Ray::new(to_vector(origin_of(k)), to_vector(dirs[k])))
             .collect();
+        // Ray k runs along the line through the batch's origin in its direction, from
+        // `ahead[k]` on, at most `aside[k]` away from it: the bounds below are taken on that
+        // line, the spheres widened by the largest `aside`, the distances cut by both.
+        let (mut ahead, mut aside) = (vec![0.0; dirs.len()], vec![0.0; dirs.len()]);
+        for k in 0..origins.len() {
+            let d = sub(origin_of(k), self.origin);
+            ahead[k] = dot(d, dirs[k]).max(0.0);
+            aside[k] = norm(sub(d, scale(dirs[k], ahead[k]))) * (1.0 + 1e-9) + 1e-9;
+        }
+        let widen = aside.iter().copied().fold(0.0, f64::max);
         let mut best = vec![max as f32; dirs.len()];
         let mut hit = vec![false; dirs.len()];
-        let dot = |a: V3, b: V3| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-        let mut test = |c: &Candidate<'_>, near: f32, k: usize| {
+        let mut test = |c: &Candidate<'_>, near: f64, k: usize| {
             // No hit can be nearer than the sphere: beams that already hit something
             // nearer skip the solid.
+            let near = ((near - ahead[k] - aside[k]) * (1.0 - 1e-6) - 1e-3).max(0.0) as f32;
             if near >= best[k] {
                 return;
             }
@@ -582,7 +602,7 @@ impl RayBatch<'_> {
             }
         };
         // Each solid's bounding sphere (around its part within reach), nearest first.
-        let mut spheres: Vec<(f32, V3, f64, &Candidate<'_>)> = self
+        let mut spheres: Vec<(f64, V3, f64, &Candidate<'_>)> = self
             .candidates
             .iter()
             .map(|c| {
@@ -591,14 +611,13 @@ impl RayBatch<'_> {
                     Some((centre, r, h)) => (centre, r.hypot(h)),
                     None => (c.clipped.center(), c.clipped.half_extents().length()),
                 };
-                let radius = f64::from(radius) + f64::from(BATCH_PAD);
+                let radius = f64::from(radius) + f64::from(BATCH_PAD) + widen;
                 let u = [
                     f64::from(centre.x) - self.origin[0],
                     f64::from(centre.y) - self.origin[1],
                     f64::from(centre.z) - self.origin[2],
                 ];
-                let near = ((norm(u) - radius) * (1.0 - 1e-6) - 1e-3).max(0.0) as f32;
-                (near, u, radius, c)
+                (norm(u) - radius, u, radius, c)
             })
             .collect();
         spheres.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -810,7 +829,9 @@ mod tests {
 
     proptest::proptest! {
         /// A laser fan cast in one batch gives, beam for beam and bit for bit, what one
-        /// tree walk per beam gives; so do the batch's single casts (sonar cones).
+        /// tree walk per beam gives; so do the batch's single casts (sonar cones), and fans
+        /// whose rays start on a ring around the origin (the horizontal sonars, whose mounts
+        /// are rounded: a little off the radial line).
         #[test]
         fn batched_fans_equal_per_beam_casts(
             solids in proptest::collection::vec(
@@ -826,6 +847,7 @@ mod tests {
             fov in 0.1f64..std::f64::consts::TAU,
             (roll, tilt) in (-0.6f64..0.6, -0.6f64..0.6),
             tilted in proptest::bool::ANY,
+            ring in proptest::option::of((0.0f64..0.8, -0.01f64..0.01)),
         ) {
             let mut scene = random_scene(&solids);
             // The scanning robot's own body, excluded as the sensors exclude it.
@@ -847,13 +869,29 @@ mod tests {
             };
             let dirs: Vec<V3> =
                 offsets.iter().map(|o| turn(direction(pitch, yaw + o))).collect();
-            let ends = dirs.iter().map(|&d| add(origin, scale(d, max)));
+            // On the ring: `radius` out along the ray, then `off` aside (along z, turned).
+            let origins: Vec<V3> = match ring {
+                None => Vec::new(),
+                Some((radius, off)) => dirs
+                    .iter()
+                    .map(|&d| add(add(origin, scale(d, radius)), turn([0.0, 0.0, off])))
+                    .collect(),
+            };
+            let start = |k: usize| origins.get(k).copied().unwrap_or(origin);
+            let ends = (0..dirs.len())
+                .map(|k| add(start(k), scale(dirs[k], max)))
+                .chain(origins.iter().copied());
             let batch = scene.ray_batch(origin, ends, me);
             let mut fan = Vec::new();
             let axes = (turn([1.0, 0.0, 0.0]), turn([0.0, 1.0, 0.0]));
-            batch.cast_fan(&dirs, yaw, &offsets, axes, max, &mut fan);
+            batch.cast_fan(&origins, &dirs, yaw, &offsets, axes, max, &mut fan);
             for (k, &dir) in dirs.iter().enumerate() {
-                let walk = scene.cast_ray(origin, dir, max, me);
+                let walk = scene.cast_ray(start(k), dir, max, me);
+                if !origins.is_empty() {
+                    proptest::prop_assert_eq!(fan[k].map(f64::to_bits), walk.map(f64::to_bits),
+                        "ring ray {} from {:?} dir {:?}", k, start(k), dir);
+                    continue;
+                }
                 proptest::prop_assert_eq!(fan[k].map(f64::to_bits), walk.map(f64::to_bits),
                     "beam {} dir {:?}: fan {:?} walk {:?}", k, dir, fan[k], walk);
                 proptest::prop_assert_eq!(batch.cast(dir, max), walk);

@@ -869,8 +869,9 @@ fn deterministic_with_noise() {
 /// 200 noisy robots (a third of them quadrotors) packed in the city's plaza, flying into
 /// each other and the buildings,
 /// stepped with `threads` sensor threads (and, if `shortcuts` is off, with one tree walk per
-/// ray and a shape cast per move): the whole output as text.
-fn crowd_output(threads: usize, shortcuts: bool) -> String {
+/// ray and a shape cast per move; if `printed`, by [`World::step_printed`]): the whole output
+/// as text.
+fn crowd_output(threads: usize, shortcuts: bool, printed: bool) -> String {
     let mut catalog = RobotCatalog::embedded();
     for part in &mut catalog.get_mut(STS).expect("sts").parts {
         part.noise = 0.02;
@@ -912,23 +913,45 @@ fn crowd_output(threads: usize, shortcuts: bool) -> String {
             },
         );
     }
+    let mut text = String::new();
+    let mut lines = Printed::default();
     for _ in 0..(1.5 / w.dt()) as u64 {
-        w.step(&mut out);
+        if printed {
+            w.step_printed(&mut lines);
+            for (c, robot) in lines.robots() {
+                let robot = std::str::from_utf8(robot).expect("UTF-8");
+                let robot = robot.strip_suffix("\r\n").expect("ends in CRLF");
+                for line in robot.split("\r\n") {
+                    text.push_str(&format!("{} {line}\n", c.0));
+                }
+            }
+        } else {
+            w.step(&mut out);
+        }
     }
-    out.iter().map(|(c, m)| format!("{} {m}\n", c.0)).collect()
+    text.extend(out.iter().map(|(c, m)| format!("{} {m}\n", c.0)));
+    text
 }
 
 #[test]
 fn output_is_identical_at_any_thread_count_and_without_shortcuts() {
-    let reference = crowd_output(1, false);
+    let reference = crowd_output(1, false, false);
     assert!(reference.len() > 1_000_000, "{} bytes", reference.len());
     // The crowd really sees itself: some scanner beams end short of the 4 m maximum.
     assert!(reference.contains("{Name Scanner}"));
-    for (threads, shortcuts) in [(1, true), (2, true), (3, true), (8, true)] {
-        let out = crowd_output(threads, shortcuts);
+    for (threads, shortcuts, printed) in [
+        (1, true, false),
+        (2, true, false),
+        (3, true, false),
+        (8, true, false),
+        (1, true, true),
+        (2, true, true),
+        (3, false, true),
+    ] {
+        let out = crowd_output(threads, shortcuts, printed);
         assert!(
             out == reference,
-            "output differs at {threads} threads (shortcuts {shortcuts})"
+            "output differs at {threads} threads (shortcuts {shortcuts}, printed {printed})"
         );
     }
 }

@@ -188,6 +188,37 @@ impl World {
     /// Advances one tick; appends this tick's STA/SEN/ASTA per connection, robots in spawn
     /// order, each robot's lines as STA, sensors in part order, ASTA.
     pub fn step(&mut self, out: &mut Vec<(ClientId, ServerMessage)>) {
+        self.advance();
+        let (tick, dt) = (self.tick, self.dt);
+        let (robots, scene) = (&mut self.robots, &self.scene);
+        let mut parts: Vec<Vec<(ClientId, ServerMessage)>> = Vec::new();
+        let used = for_threads(robots, self.threads, &mut parts, |run, lines| {
+            for robot in run {
+                robot.emit(scene, tick, dt, lines);
+            }
+        });
+        for part in &mut parts[..used] {
+            out.append(part);
+        }
+    }
+
+    /// [`World::step`] with the output printed as the server sends it (each line followed
+    /// by CRLF), on the sensor threads: `out` holds each robot's lines of this tick. The
+    /// text is the same at any thread count.
+    pub fn step_printed(&mut self, out: &mut Printed) {
+        self.advance();
+        let (tick, dt) = (self.tick, self.dt);
+        let (robots, scene) = (&mut self.robots, &self.scene);
+        out.used = for_threads(robots, self.threads, &mut out.parts, |run, part| {
+            part.clear();
+            for robot in run {
+                part.print(robot, scene, tick, dt);
+            }
+        });
+    }
+
+    /// Moves every robot one tick.
+    fn advance(&mut self) {
         self.tick += 1;
         let (tick, dt) = (self.tick, self.dt);
         self.scene.refresh();
@@ -197,7 +228,6 @@ impl World {
         if tick % REFIT_EVERY == 0 {
             self.scene.refit();
         }
-        emit_all(&mut self.robots, &self.scene, tick, dt, self.threads, out);
     }
 
     /// Turns the batched ray casts and skipped sweeps off (on by default): the slow
@@ -368,49 +398,91 @@ impl World {
     }
 }
 
-/// Every robot's output of this tick, in robot order. Sensors only read the scene, so
-/// robots are read on up to `threads` threads, each a contiguous run of robots into its own
-/// list; the lists are joined in order, so the output does not depend on `threads`.
-fn emit_all(
-    robots: &mut [Robot],
-    scene: &Scene,
-    tick: u64,
-    dt: f64,
-    threads: usize,
-    out: &mut Vec<(ClientId, ServerMessage)>,
-) {
-    let threads = threads.min(robots.len() / ROBOTS_PER_THREAD).max(1);
-    if threads == 1 {
-        for robot in robots {
-            robot.emit(scene, tick, dt, out);
+/// One tick's output as text ([`World::step_printed`]): for each robot that has output,
+/// its lines (STA, SEN…, ASTA, each followed by CRLF), robots in spawn order. Reuse one
+/// across ticks: its buffers are kept.
+#[derive(Debug, Default)]
+pub struct Printed {
+    /// One per sensor thread, in robot order (the first `used` are this tick's).
+    parts: Vec<PrintedPart>,
+    used: usize,
+}
+
+impl Printed {
+    /// Each robot's output: the connection it goes to and its lines.
+    pub fn robots(&self) -> impl Iterator<Item = (ClientId, &[u8])> {
+        self.parts[..self.used]
+            .iter()
+            .flat_map(|p| p.robots.iter().map(|(c, r)| (*c, &p.text[r.clone()])))
+    }
+}
+
+/// What one sensor thread printed.
+#[derive(Debug, Default)]
+struct PrintedPart {
+    text: Vec<u8>,
+    robots: Vec<(ClientId, std::ops::Range<usize>)>,
+    /// One robot's messages before they are printed.
+    messages: Vec<(ClientId, ServerMessage)>,
+}
+
+impl PrintedPart {
+    fn clear(&mut self) {
+        self.text.clear();
+        self.robots.clear();
+    }
+
+    fn print(&mut self, robot: &mut Robot, scene: &Scene, tick: u64, dt: f64) {
+        robot.emit(scene, tick, dt, &mut self.messages);
+        let Some(&(owner, _)) = self.messages.first() else {
+            return;
+        };
+        let start = self.text.len();
+        for (_, message) in self.messages.drain(..) {
+            message.write_to(&mut self.text);
+            self.text.extend_from_slice(b"\r\n");
         }
-        return;
+        self.robots.push((owner, start..self.text.len()));
+    }
+}
+
+/// `work` on contiguous runs of `robots` on up to `threads` threads (at least
+/// [`ROBOTS_PER_THREAD`] robots each), each run with its own state from `states` (grown as
+/// needed, in robot order); returns how many runs there were. Sensors only read the scene,
+/// so what each run gives does not depend on the thread count.
+fn for_threads<S: Default + Send>(
+    robots: &mut [Robot],
+    threads: usize,
+    states: &mut Vec<S>,
+    work: impl Fn(&mut [Robot], &mut S) + Sync,
+) -> usize {
+    let threads = threads.min(robots.len() / ROBOTS_PER_THREAD).max(1);
+    if states.len() < threads {
+        states.resize_with(threads, S::default);
+    }
+    if threads == 1 {
+        work(robots, &mut states[0]);
+        return 1;
     }
     let chunk = robots.len().div_ceil(threads);
-    let mut runs = robots.chunks_mut(chunk);
-    let mine = runs.next().unwrap_or_default();
+    let mut runs = robots.chunks_mut(chunk).zip(states.iter_mut());
+    let Some((mine, my_state)) = runs.next() else {
+        return 0;
+    };
+    let work = &work;
     std::thread::scope(|scope| {
         let others: Vec<_> = runs
-            .map(|run| {
-                scope.spawn(move || {
-                    let mut lines = Vec::new();
-                    for robot in run {
-                        robot.emit(scene, tick, dt, &mut lines);
-                    }
-                    lines
-                })
-            })
+            .map(|(run, state)| scope.spawn(move || work(run, state)))
             .collect();
-        for robot in mine {
-            robot.emit(scene, tick, dt, out);
-        }
+        work(mine, my_state);
+        let count = 1 + others.len();
         for other in others {
-            match other.join() {
-                Ok(mut lines) => out.append(&mut lines),
-                Err(panic) => std::panic::resume_unwind(panic),
+            if let Err(panic) = other.join() {
+                std::panic::resume_unwind(panic);
             }
         }
-    });
+        count
+    })
 }
 
 fn conf(robot: &Robot, query: &ItemQuery) -> Option<ServerMessage> {

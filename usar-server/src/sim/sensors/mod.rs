@@ -77,6 +77,10 @@ pub(crate) struct Reading<'a> {
     pub(crate) contact: bool,
     /// Whether the robot has crashed.
     pub(crate) crashed: bool,
+    /// For a sensor whose reading is one ray ([`Sensor::single_ray`]): that ray's hit, when
+    /// the robot cast it together with its other parts' rays (exactly what
+    /// [`Reading::trace`] would give).
+    pub(crate) ray_hit: Option<Option<f64>>,
 }
 
 impl Reading<'_> {
@@ -131,7 +135,7 @@ impl Reading<'_> {
         let axes = (self.tilted([1.0, 0.0, 0.0]), self.tilted([0.0, 1.0, 0.0]));
         let ends = dirs.iter().map(|&d| add(self.origin, scale(d, max)));
         let batch = self.scene.ray_batch(self.origin, ends, Some(self.me));
-        batch.cast_fan(&dirs, base, offsets, axes, max, out);
+        batch.cast_fan(&[], &dirs, base, offsets, axes, max, out);
     }
 
     /// A world-frame vector in the body frame (x forward, y right, z down): yaw only for the
@@ -167,6 +171,12 @@ pub(crate) trait Sensor: SensorClone + std::fmt::Debug + Send + Sync {
         ConfItem::Plain {
             name: name.to_string(),
         }
+    }
+    /// If a reading is exactly the hit of one ray along the part's axis (pitch and yaw of
+    /// its mount, from its origin), the ray's length: the robot then casts the rays of such
+    /// parts together and hands each its hit in [`Reading::ray_hit`].
+    fn single_ray(&self) -> Option<f64> {
+        None
     }
     /// Whether the SEN line carries `{Time ..}`.
     fn timestamped(&self) -> bool {
@@ -315,6 +325,7 @@ pub(crate) mod testing {
             imu: None,
             contact: false,
             crashed: false,
+            ray_hit: None,
         }
     }
 

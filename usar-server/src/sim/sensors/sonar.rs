@@ -105,10 +105,15 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
 }
 
 impl Sensor for Sonar {
+    fn single_ray(&self) -> Option<f64> {
+        (self.traces[..] == [(0.0, 0.0)]).then_some(self.config.max_range)
+    }
+
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
         let max = self.config.max_range;
         let hit = if let [(dp, dy)] = self.traces[..] {
-            at.trace(direction(at.pitch + dp, at.yaw + dy), max)
+            at.ray_hit
+                .unwrap_or_else(|| at.trace(direction(at.pitch + dp, at.yaw + dy), max))
                 .unwrap_or(max)
         } else {
             let dirs: Vec<_> = self
