@@ -554,42 +554,53 @@ impl Robot {
     /// body ([`Sensor::single_ray`] with a level mount: the eight horizontal sonars), cast
     /// together when there are at least four of the same length: one gathering of the solids
     /// near the robot instead of a tree walk per ray. The hit of part `i` is at `i` (`None`
-    /// for parts not cast here).
+    /// for parts not cast here; empty when none is).
     fn cast_single_rays(
         &self,
         scene: &Scene,
         tick: u64,
         tilt: Option<&M3>,
-    ) -> [Option<Option<f64>>; FAN_PARTS] {
-        let mut hits = [None; FAN_PARTS];
-        if !scene.shortcuts {
-            return hits;
+    ) -> Vec<Option<Option<f64>>> {
+        let mut length = None;
+        let fan_parts = self
+            .parts
+            .iter()
+            .zip(&self.model.parts)
+            .filter(|(part, model)| {
+                let Some(range) = part.sensor.single_ray() else {
+                    return false;
+                };
+                let fits = (part.forced || part.timer.is_due(tick))
+                    && model.direction[1] == 0.0
+                    && length.is_none_or(|l| l == range);
+                if fits {
+                    length = Some(range);
+                }
+                fits
+            });
+        if !scene.shortcuts || fan_parts.count() < 4 {
+            return Vec::new();
         }
-        let mut fan = [(0, [0.0; 3], [0.0; 3], 0.0); FAN_PARTS];
-        let (mut n, mut length) = (0, None);
+        let Some(length) = length else {
+            return Vec::new();
+        };
+        let mut hits = vec![None; self.parts.len()];
+        let mut fan = Vec::with_capacity(self.parts.len());
         let yaw = self.rotation[2];
         for (i, (part, model)) in self.parts.iter().zip(&self.model.parts).enumerate() {
-            if i >= FAN_PARTS || !(part.forced || part.timer.is_due(tick)) {
+            if !(part.forced || part.timer.is_due(tick))
+                || model.direction[1] != 0.0
+                || part.sensor.single_ray() != Some(length)
+            {
                 continue;
             }
-            let Some(range) = part.sensor.single_ray() else {
-                continue;
-            };
             let (origin, ray_yaw, pitch) = mount(self.position, yaw, tilt, model);
-            if pitch != 0.0 || length.is_some_and(|l| l != range) {
-                continue;
-            }
-            length = Some(range);
             // As the sensor builds its direction (`Reading::trace` then tilts it).
             let dir = direction(pitch + 0.0, ray_yaw + 0.0);
             let dir = tilt.map_or(dir, |t| dynamics::mul(t, dir));
-            fan[n] = (i, origin, dir, ray_yaw - yaw);
-            n += 1;
+            fan.push((i, origin, dir, ray_yaw - yaw));
         }
-        let Some(length) = length.filter(|_| n >= 4) else {
-            return hits;
-        };
-        let fan = &mut fan[..n];
+        let n = fan.len();
         // Azimuths from the body's heading, within ±π, largest first (as `cast_fan` wants).
         for ray in fan.iter_mut() {
             ray.3 = (ray.3 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
@@ -606,13 +617,19 @@ impl Robot {
             ),
             None => ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
         };
-        let ends = origins
-            .iter()
-            .copied()
-            .chain(fan.iter().map(|r| add(r.1, scale(r.2, length))));
-        let batch = scene.ray_batch(self.position, ends, Some(self.body));
         let mut out = Vec::with_capacity(n);
-        batch.cast_fan(&origins, &dirs, yaw, &offsets, axes, length, &mut out);
+        scene.cast_fan(
+            self.position,
+            &origins,
+            &dirs,
+            yaw,
+            &offsets,
+            axes,
+            length,
+            Some(self.body),
+            true,
+            &mut out,
+        );
         for (ray, hit) in fan.iter().zip(out) {
             hits[ray.0] = Some(hit);
         }
@@ -723,9 +740,6 @@ impl Robot {
         self.velocity
     }
 }
-
-/// The parts among which a robot looks for rays to cast together.
-const FAN_PARTS: usize = 32;
 
 /// A part's origin in the world and its yaw and pitch (the [`Reading`] fields).
 fn mount(position: V3, yaw: f64, tilt: Option<&M3>, model: &PartModel) -> (V3, f64, f64) {

@@ -133,9 +133,18 @@ impl Reading<'_> {
         // together (the azimuths stay the same).
         let dirs: Vec<V3> = dirs.iter().map(|&d| self.tilted(d)).collect();
         let axes = (self.tilted([1.0, 0.0, 0.0]), self.tilted([0.0, 1.0, 0.0]));
-        let ends = dirs.iter().map(|&d| add(self.origin, scale(d, max)));
-        let batch = self.scene.ray_batch(self.origin, ends, Some(self.me));
-        batch.cast_fan(&[], &dirs, base, offsets, axes, max, out);
+        self.scene.cast_fan(
+            self.origin,
+            &[],
+            &dirs,
+            base,
+            offsets,
+            axes,
+            max,
+            Some(self.me),
+            false,
+            out,
+        );
     }
 
     /// A world-frame vector in the body frame (x forward, y right, z down): yaw only for the
