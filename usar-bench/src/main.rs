@@ -186,6 +186,15 @@ struct ClientStats {
     last: Option<(Instant, f64)>,
 }
 
+/// `println!` that ignores a closed stdout (`usar-bench ... | head` must not panic; the run
+/// still ends normally, stopping the server it started).
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     if args.sim_only && !args.scaling.is_empty() {
@@ -218,17 +227,17 @@ fn main() -> anyhow::Result<()> {
             break;
         }
     }
-    println!("largest N holding real time: {good}");
+    say!("largest N holding real time: {good}");
     Ok(())
 }
 
 fn print(args: &Args, r: &Report) {
     if args.json {
-        println!("{}", serde_json::to_string(r).unwrap_or_default());
+        say!("{}", serde_json::to_string(r).unwrap_or_default());
         return;
     }
     let ms = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.1}"));
-    println!(
+    say!(
         "{:>6} {:>8} {:>8} {:>6} {:>10} {:>10} {:>24} {:>8} {:>8}",
         "N",
         "sim s",
@@ -240,7 +249,7 @@ fn print(args: &Args, r: &Report) {
         "CPU s",
         "peak MiB"
     );
-    println!(
+    say!(
         "{:>6} {:>8.1} {:>8.2} {:>6.2} {:>10.0} {:>10.2} {:>24} {:>8} {:>8}",
         r.uavs,
         r.simulated_seconds,
@@ -264,7 +273,7 @@ fn print(args: &Args, r: &Report) {
         .iter()
         .map(|(k, v)| format!("{k} {:.0}%", v * 100.0))
         .collect();
-    println!("  delivered vs nominal: {}", rates.join(", "));
+    say!("  delivered vs nominal: {}", rates.join(", "));
 }
 
 /// What one --sim-only run cost, µs of wall clock per tick.
@@ -293,9 +302,12 @@ fn scaling(args: &Args) -> anyhow::Result<()> {
         }
         rows.push((n, costs));
     }
-    println!(
+    say!(
         "{:>6} {:>26} {:>26} {:>14}",
-        "N", "tick µs (wall) min/med/max", "CPU µs/tick min/med/max", "RTF (median)"
+        "N",
+        "tick µs (wall) min/med/max",
+        "CPU µs/tick min/med/max",
+        "RTF (median)"
     );
     let mut curve = Vec::new();
     for (n, costs) in &rows {
@@ -306,7 +318,7 @@ fn scaling(args: &Args) -> anyhow::Result<()> {
         };
         let tick = stat(|c| c.tick);
         let cpu = stat(|c| c.cpu);
-        println!(
+        say!(
             "{n:>6} {:>26} {:>26} {:>14.2}",
             format!("{:.0}/{:.0}/{:.0}", tick.0, tick.1, tick.2),
             format!("{:.0}/{:.0}/{:.0}", cpu.0, cpu.1, cpu.2),
@@ -315,7 +327,7 @@ fn scaling(args: &Args) -> anyhow::Result<()> {
         curve.push((*n, tick, cpu));
     }
     plot_scaling(&args.plot, &curve)?;
-    println!("plot: {}", args.plot.display());
+    say!("plot: {}", args.plot.display());
     Ok(())
 }
 
@@ -476,7 +488,7 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     let wall = began.elapsed().as_secs_f64();
     let cpu = process_usage(std::process::id()).0.unwrap_or(0.0) - cpu_before;
     let tick = step_time.as_secs_f64() * 1e6 / ticks as f64;
-    println!(
+    say!(
         "sim only: {} robots ({} in the world), {:.1} simulated s in {:.2} s of ticks: real-time factor {:.2}; \
          {tick:.1} µs per tick (moving, sensors, printing); {messages} messages, {:.1} MB; \
          {wall:.2} s wall in all",
@@ -487,11 +499,9 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
         args.seconds / step_time.as_secs_f64(),
         bytes as f64 / 1e6
     );
-    println!(
-        "memory: {per_robot:.2} KiB allocated per idle robot (spawned, before the first tick)"
-    );
+    say!("memory: {per_robot:.2} KiB allocated per idle robot (spawned, before the first tick)");
     if args.digest {
-        println!("digest of the output: {digest:016x}");
+        say!("digest of the output: {digest:016x}");
     }
     Ok(SimCost {
         tick,

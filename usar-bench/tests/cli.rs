@@ -87,3 +87,42 @@ fn scaling_prints_the_curve_and_draws_it_and_threads_do_not_change_the_output() 
     assert_eq!(digest(&["--threads", "1", "--reference"]), one);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_closed_stdout_is_not_a_panic() {
+    use std::process::Stdio;
+    // `usar-bench ... | head -1`: the reader is gone before the second line.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_usar-bench"))
+        .args([
+            "--sim-only",
+            "--uavs",
+            "20",
+            "--seconds",
+            "0.05",
+            "--digest",
+        ])
+        .env("RUST_BACKTRACE", "0")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(0), "{err}");
+}
+
+#[test]
+fn sim_only_prints_the_memory_per_idle_robot() {
+    let (code, out, err) = bench(&["--sim-only", "--uavs", "200", "--seconds", "0.05"]);
+    assert_eq!(code, Some(0), "{err}");
+    let kib: f64 = out
+        .split("memory: ")
+        .nth(1)
+        .and_then(|s| s.split(" KiB").next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no memory figure in {out}"));
+    // Robots of one class share their sensors' tables (14.6 KiB each before they did).
+    assert!(kib > 0.5 && kib < 10.0, "{kib} KiB per robot");
+}
