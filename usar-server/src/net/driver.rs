@@ -39,7 +39,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
-use bytes::{Bytes, BytesMut};
+use bytes::Bytes;
 use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
@@ -159,7 +159,7 @@ struct Client {
     /// The most bytes `queued` may reach.
     buffer: usize,
     /// Text of this tick not yet handed to the queue.
-    pending: BytesMut,
+    pending: Vec<u8>,
     dropped: u64,
     /// At `TimeScale::Max`: made no room within the reader timeout, so not waited for (its
     /// output is dropped) until its queue has room again.
@@ -182,7 +182,7 @@ impl Client {
             queue,
             queued,
             buffer: usize::MAX,
-            pending: BytesMut::new(),
+            pending: Vec::new(),
             dropped: 0,
             stalled: false,
             backlog: VecDeque::new(),
@@ -223,7 +223,8 @@ impl Client {
             self.queued.fetch_add(len, Ordering::SeqCst);
             // The driver is the only sender and saw a free slot: this fails only when the
             // session is gone, and then its Disconnect request is on the way.
-            let _ = self.queue.try_send(self.pending.split().freeze());
+            let chunk = std::mem::replace(&mut self.pending, Vec::with_capacity(len));
+            let _ = self.queue.try_send(Bytes::from(chunk));
             return false;
         }
         if pace && !self.stalled && !self.queue.is_closed() {
