@@ -1,5 +1,7 @@
-//! A connection to a USARSim server: a reader task that turns every line into a typed
-//! [`ServerMessage`], a writer for [`Command`]s, a clean disconnect.
+//! A connection to a USARSim server: a reader that turns every line into a typed
+//! [`ServerMessage`] when the caller asks for the next one (no task in between: in lockstep
+//! every hand-over between threads is a part of the barrier's round trip), a writer for
+//! [`Command`]s, a clean disconnect.
 //!
 //! Optionally it records every line in both directions (docs/recording.md). Lockstep
 //! (docs/lockstep.md) is the flight loop's business ([`crate::flight`]): here a `SYNC` is a
@@ -9,18 +11,12 @@ use std::path::Path;
 use std::time::Duration;
 
 use tokio::net::TcpStream;
-use tokio::net::tcp::OwnedWriteHalf;
-use tokio::sync::mpsc;
-use tokio_util::task::AbortOnDropHandle;
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use usar_proto::record::{Direction, RecordWriter};
 use usar_proto::{Command, ServerMessage};
 
 use crate::agent::SpeedCommand;
 use crate::lines::{LineReader, write_line};
-
-/// Messages buffered between the reader task and the consumer; when full, the reader stops
-/// reading and TCP flow control slows the server's writes to this connection.
-const CHANNEL_CAPACITY: usize = 1024;
 
 /// Why talking to the server failed.
 #[derive(Debug, thiserror::Error)]
@@ -60,31 +56,22 @@ pub enum ConnectionError {
     },
 }
 
-/// What the reader task hands over: a message (with its text when recording), or an
-/// unreadable line (when recording), or the end.
-#[derive(Debug)]
-enum Incoming {
-    Message(ServerMessage, Option<String>),
-    Unreadable(String),
-    Failed(ConnectionError),
-}
-
 /// An open connection.
 #[derive(Debug)]
 pub struct Connection {
     addr: String,
-    messages: mpsc::Receiver<Incoming>,
+    /// Read only when the caller asks; until then TCP flow control holds the server's
+    /// writes (and `LineReader` is cancel-safe: a line half read stays buffered).
+    lines: LineReader<OwnedReadHalf>,
     writer: OwnedWriteHalf,
-    /// Aborted when the connection is dropped.
-    _reader: AbortOnDropHandle<()>,
-    /// Server lines are recorded when the caller takes them, not when the reader task reads
-    /// them, so that the interleaving with the caller's commands is the order of cause and
-    /// effect (and the same in every lockstep run).
+    /// Server lines are recorded when the caller takes them, so that the interleaving with
+    /// the caller's commands is the order of cause and effect (and the same in every
+    /// lockstep run).
     recorder: Option<RecordWriter>,
 }
 
 impl Connection {
-    /// Connects to `addr` (`host:port`) within `timeout` and starts the reader task.
+    /// Connects to `addr` (`host:port`) within `timeout`.
     pub async fn connect(addr: &str, timeout: Duration) -> Result<Self, ConnectionError> {
         Self::open(addr, timeout, None).await
     }
@@ -120,14 +107,11 @@ impl Connection {
         // Commands are small and latency matters more than packet count.
         let _ = stream.set_nodelay(true);
         let (read, writer) = stream.into_split();
-        let (tx, messages) = mpsc::channel(CHANNEL_CAPACITY);
-        let reader = tokio::spawn(read_messages(LineReader::new(read), tx, recorder.is_some()));
         tracing::debug!(addr, "connected");
         Ok(Self {
             addr: addr.to_owned(),
-            messages,
+            lines: LineReader::new(read),
             writer,
-            _reader: AbortOnDropHandle::new(reader),
             recorder,
         })
     }
@@ -142,22 +126,30 @@ impl Connection {
     /// come as [`ServerMessage::Sync`] like any other message.
     pub async fn next_message(&mut self) -> Result<ServerMessage, ConnectionError> {
         loop {
-            match self.messages.recv().await {
-                None => return Err(ConnectionError::Closed),
-                Some(Incoming::Failed(error)) => return Err(error),
-                Some(Incoming::Unreadable(line)) => {
-                    if let Some(r) = &mut self.recorder {
-                        let _ = r.write(Direction::Server, &line);
+            let line = match self.lines.next_line().await {
+                Ok(None) => return Err(ConnectionError::Closed),
+                Err(e) => return Err(ConnectionError::Read(e)),
+                Ok(Some(line)) if line.trim().is_empty() => continue,
+                Ok(Some(line)) => line,
+            };
+            match ServerMessage::parse(&line) {
+                Ok(parsed) => {
+                    if !parsed.deviations.is_empty() {
+                        tracing::trace!(%line, deviations = ?parsed.deviations, "tolerated");
                     }
-                }
-                Some(Incoming::Message(message, line)) => {
-                    if let (Some(r), Some(line)) = (&mut self.recorder, line) {
-                        if let Some(time) = message.time() {
+                    if let Some(r) = &mut self.recorder {
+                        if let Some(time) = parsed.message.time() {
                             r.set_time(time);
                         }
                         let _ = r.write(Direction::Server, &line);
                     }
-                    return Ok(message);
+                    return Ok(parsed.message);
+                }
+                Err(error) => {
+                    tracing::warn!(%line, %error, "unreadable server line skipped");
+                    if let Some(r) = &mut self.recorder {
+                        let _ = r.write(Direction::Server, &line);
+                    }
                 }
             }
         }
@@ -168,6 +160,25 @@ impl Connection {
         let mut line = String::new();
         command.write_to(&mut line);
         self.send_line(&line).await
+    }
+
+    /// Sends commands in one write (a DRIVE and the next `SYNC` reach the server together).
+    pub async fn send_all(&mut self, commands: &[Command]) -> Result<(), ConnectionError> {
+        use tokio::io::AsyncWriteExt;
+        let mut text = String::new();
+        for command in commands {
+            let start = text.len();
+            command.write_to(&mut text);
+            tracing::trace!(line = %&text[start..], "send");
+            if let Some(r) = &mut self.recorder {
+                let _ = r.write(Direction::Client, &text[start..]);
+            }
+            text.push_str("\r\n");
+        }
+        self.writer
+            .write_all(text.as_bytes())
+            .await
+            .map_err(ConnectionError::Write)
     }
 
     async fn send_line(&mut self, line: &str) -> Result<(), ConnectionError> {
@@ -208,39 +219,6 @@ impl Connection {
             })?;
         }
         self.writer.shutdown().await.map_err(ConnectionError::Write)
-    }
-}
-
-async fn read_messages(
-    mut lines: LineReader<tokio::net::tcp::OwnedReadHalf>,
-    tx: mpsc::Sender<Incoming>,
-    record: bool,
-) {
-    loop {
-        let item = match lines.next_line().await {
-            Ok(None) => return, // dropping tx tells the consumer: closed
-            Err(e) => Incoming::Failed(ConnectionError::Read(e)),
-            Ok(Some(line)) if line.trim().is_empty() => continue,
-            Ok(Some(line)) => match ServerMessage::parse(&line) {
-                Ok(parsed) => {
-                    if !parsed.deviations.is_empty() {
-                        tracing::trace!(%line, deviations = ?parsed.deviations, "tolerated");
-                    }
-                    Incoming::Message(parsed.message, record.then_some(line))
-                }
-                Err(error) => {
-                    tracing::warn!(%line, %error, "unreadable server line skipped");
-                    if !record {
-                        continue;
-                    }
-                    Incoming::Unreadable(line)
-                }
-            },
-        };
-        let stop = matches!(item, Incoming::Failed(_));
-        if tx.send(item).await.is_err() || stop {
-            return;
-        }
     }
 }
 

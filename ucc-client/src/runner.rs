@@ -299,12 +299,13 @@ fn drain(flight: &mut Flight, observer: &mut dyn Observer) {
     }
 }
 
-/// Sends what the flight queued.
+/// Sends what the flight queued, in one write.
 async fn send_all(flight: &mut Flight, conn: &mut Connection) -> Result<(), ConnectionError> {
-    while let Some(command) = flight.poll_command() {
-        conn.send(&command).await?;
+    let commands: Vec<Command> = std::iter::from_fn(|| flight.poll_command()).collect();
+    if commands.is_empty() {
+        return Ok(());
     }
-    Ok(())
+    conn.send_all(&commands).await
 }
 
 /// One iteration.

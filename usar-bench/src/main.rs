@@ -861,7 +861,12 @@ async fn fly(
         }
         if first.is_some() {
             stats.messages += 1;
-            *stats.counts.entry(part.to_owned()).or_default() += 1;
+            match stats.counts.get_mut(part) {
+                Some(n) => *n += 1,
+                None => {
+                    stats.counts.insert(part.to_owned(), 1);
+                }
+            }
         }
     }
     Ok(stats)

@@ -62,6 +62,11 @@ struct Args {
     /// the barrier (with a warning) and the world goes on without it.
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = seconds)]
     lockstep_timeout: f64,
+    /// With `--time-scale max`: wall-clock seconds the world waits for a client that reads
+    /// nothing (it paces itself to its slowest reader) before it goes on without that client,
+    /// dropping its output until it reads again.
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = seconds)]
+    reader_timeout: f64,
     /// Record every connection (both directions, stamped with simulated time) into DIR,
     /// one file per connection (docs/recording.md).
     #[arg(long, value_name = "DIR")]
@@ -188,6 +193,7 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         max_connections_per_address: args.max_connections_per_address,
         lockstep: args.lockstep,
         lockstep_timeout: std::time::Duration::from_secs_f64(args.lockstep_timeout),
+        reader_timeout: std::time::Duration::from_secs_f64(args.reader_timeout),
         record: args.record.clone(),
         ..ServerConfig::default()
     })

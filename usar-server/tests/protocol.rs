@@ -572,3 +572,76 @@ async fn a_quadrotor_obeys_quad_rotor_commands_and_reports_its_crash() {
     }
     server.stop().await;
 }
+
+/// STA times among the next `lines` raw lines of `c` (read without parsing the others).
+async fn sta_times_raw(c: &mut Client, lines: usize) -> Vec<f64> {
+    let mut times = Vec::new();
+    for _ in 0..lines {
+        let line = c.raw_line().await.expect("unexpected EOF");
+        if let Some(rest) = line.strip_prefix("STA {Time ") {
+            let end = rest.find('}').unwrap();
+            times.push(rest[..end].parse().unwrap());
+        }
+    }
+    times
+}
+
+fn assert_no_sta_missing(times: &[f64]) {
+    for w in times.windows(2) {
+        assert!((w[1] - w[0] - 0.1).abs() < 0.011, "STA gap {w:?}");
+    }
+}
+
+#[tokio::test]
+async fn at_max_speed_a_slow_reader_misses_nothing() {
+    let server = TestServer::with(usar_server::ServerConfig {
+        time_scale: usar_server::TimeScale::Max,
+        // About a simulated second and a half: dropped at once if the world did not wait.
+        client_buffer: 16 * 1024,
+        ..usar_server::ServerConfig::default()
+    })
+    .await;
+    let mut reader = server.client().await;
+    reader.raw_line().await.unwrap();
+    reader.spawn_at([0.0, 0.0, -1.0], 0.0).await;
+    let mut times = Vec::new();
+    // 30 simulated seconds (about 2800 lines), read in pauses of 2 ms every 100 lines.
+    for _ in 0..28 {
+        times.extend(sta_times_raw(&mut reader, 100).await);
+        tokio::time::sleep(std::time::Duration::from_millis(2)).await;
+    }
+    assert!(times.len() > 250, "{} STA", times.len());
+    assert_no_sta_missing(&times);
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn at_max_speed_a_client_that_stops_reading_holds_the_world_only_for_the_reader_timeout() {
+    let timeout = std::time::Duration::from_millis(400);
+    let server = TestServer::with(usar_server::ServerConfig {
+        time_scale: usar_server::TimeScale::Max,
+        client_buffer: 16 * 1024,
+        reader_timeout: timeout,
+        ..usar_server::ServerConfig::default()
+    })
+    .await;
+    let began = std::time::Instant::now();
+    let mut sleeper = server.client().await;
+    sleeper.raw_line().await.unwrap();
+    sleeper.spawn_at([-2.0, 0.0, -1.0], 0.0).await;
+    let mut reader = server.client().await;
+    reader.raw_line().await.unwrap();
+    reader.spawn_at([2.0, 0.0, -1.0], 0.0).await;
+    // 1000 simulated seconds (some 11 MB to each client): far more than the sleeper's queue
+    // and socket buffers hold. The world waits for the sleeper, then goes on without it,
+    // and the reader still gets every line.
+    let times = sta_times_raw(&mut reader, 93_000).await;
+    assert!(times.len() > 9000, "{} STA", times.len());
+    assert_no_sta_missing(&times);
+    assert!(
+        began.elapsed() >= timeout,
+        "the world did not wait for the sleeper: {:?}",
+        began.elapsed()
+    );
+    server.stop().await;
+}

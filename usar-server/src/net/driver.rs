@@ -2,8 +2,16 @@
 //!
 //! Each loop turn it applies the queued requests, steps the world one tick, prints each
 //! client's output of that tick into one chunk and offers it to the client's bounded queue.
-//! A full queue drops that chunk for that client only (the rule for clients that do not read):
-//! the world never waits for a socket.
+//! At a real-time factor a full queue drops that chunk for that client only (the rule for
+//! clients that do not read): the world never waits for a socket.
+//!
+//! At `TimeScale::Max` nothing is dropped: the world paces itself to its slowest reader. A
+//! client's output is gathered over ticks and handed over in chunks of about
+//! [`GATHER_BYTES`] (or after [`GATHER_TIME`] of wall time, and always before the driver
+//! pauses); when a client's queue has no room, the driver waits until its session has written
+//! some. A client that has made no room for `reader_timeout` (wall clock) is left behind: its
+//! output is dropped by the real-time rule until its queue has room again, and the world
+//! goes on at full speed for the others.
 //!
 //! Time: simulated time runs only while the world holds at least one robot (an empty world
 //! has nothing to show, and a run that starts from an empty server starts from the same
@@ -27,11 +35,11 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
-use bytes::{Bytes, BytesMut};
+use bytes::Bytes;
 use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
@@ -49,6 +57,17 @@ const TIME_EPSILON: f64 = 1e-6;
 
 /// The longest the driver sleeps or waits in one go (it also bounds any computed wait).
 const MAX_WAIT: Duration = Duration::from_secs(3600);
+
+/// At `TimeScale::Max`, a client's output is handed to its session once this many bytes
+/// have gathered...
+const GATHER_BYTES: usize = 32 * 1024;
+
+/// ... or once this much wall time has passed since the last hand-over.
+const GATHER_TIME: Duration = Duration::from_millis(1);
+
+/// Loop turns between checks of the shutdown token when no request arrives (a request, such
+/// as the `Wake` sent on shutdown, makes the driver check at once).
+const SHUTDOWN_CHECK_TURNS: u32 = 256;
 
 /// What sessions ask of the simulation.
 #[derive(Debug)]
@@ -99,6 +118,8 @@ pub(super) struct Settings {
     pub(super) requests_per_tick: usize,
     pub(super) client_buffer: usize,
     pub(super) lockstep_timeout: Duration,
+    /// At `TimeScale::Max`: how long the world waits for a client whose queue has no room.
+    pub(super) reader_timeout: Duration,
 }
 
 /// The `NFO` game-info line sent on accept.
@@ -138,8 +159,11 @@ struct Client {
     /// The most bytes `queued` may reach.
     buffer: usize,
     /// Text of this tick not yet handed to the queue.
-    pending: BytesMut,
+    pending: Vec<u8>,
     dropped: u64,
+    /// At `TimeScale::Max`: made no room within the reader timeout, so not waited for (its
+    /// output is dropped) until its queue has room again.
+    stalled: bool,
     /// Lines read and not yet served (at most the session's backlog).
     backlog: VecDeque<(Line, OwnedSemaphorePermit)>,
     /// Lockstep target time, once the client has joined the barrier.
@@ -158,8 +182,9 @@ impl Client {
             queue,
             queued,
             buffer: usize::MAX,
-            pending: BytesMut::new(),
+            pending: Vec::new(),
             dropped: 0,
+            stalled: false,
             backlog: VecDeque::new(),
             barrier: None,
             answered: false,
@@ -190,31 +215,40 @@ impl Client {
         }
     }
 
-    fn flush(&mut self) {
+    /// Whether the queue takes `len` more bytes now: a free slot, and the bytes within the
+    /// buffer (a chunk larger than the whole buffer goes when nothing else is queued).
+    fn has_room(&self, len: usize) -> bool {
+        let queued = self.queued.load(Ordering::SeqCst);
+        (queued == 0 || queued.saturating_add(len) <= self.buffer) && self.queue.capacity() > 0
+    }
+
+    /// Hands the pending output to the queue as one chunk. Without room it is dropped and
+    /// counted, unless `pace` (`TimeScale::Max`) and the client is not stalled: then it stays
+    /// pending and `true` says that the driver should wait for this client.
+    fn flush(&mut self, pace: bool) -> bool {
         if self.pending.is_empty() {
-            return;
+            return false;
         }
-        let chunk = self.pending.split().freeze();
-        let len = chunk.len();
-        let room = self.queued.load(Ordering::Relaxed).saturating_add(len) <= self.buffer;
-        let sent = room && {
-            self.queued.fetch_add(len, Ordering::Relaxed);
-            match self.queue.try_send(chunk) {
-                Ok(()) => true,
-                Err(e) => {
-                    self.queued.fetch_sub(len, Ordering::Relaxed);
-                    // Closed: the session is gone; its Disconnect request is on the way.
-                    matches!(e, mpsc::error::TrySendError::Closed(_))
-                }
-            }
-        };
-        if !sent {
-            self.dropped += 1;
-            if self.dropped.is_power_of_two() {
-                warn!(peer = %self.peer, dropped_ticks = self.dropped,
-                    "client is not reading; dropping its output");
-            }
+        let len = self.pending.len();
+        if self.has_room(len) {
+            self.stalled = false;
+            self.queued.fetch_add(len, Ordering::SeqCst);
+            // The driver is the only sender and saw a free slot: this fails only when the
+            // session is gone, and then its Disconnect request is on the way.
+            let chunk = std::mem::replace(&mut self.pending, Vec::with_capacity(len));
+            let _ = self.queue.try_send(Bytes::from(chunk));
+            return false;
         }
+        if pace && !self.stalled && !self.queue.is_closed() {
+            return true;
+        }
+        self.pending.clear();
+        self.dropped += 1;
+        if self.dropped.is_power_of_two() {
+            warn!(peer = %self.peer, dropped_chunks = self.dropped,
+                "client is not reading; dropping its output");
+        }
+        false
     }
 
     /// Whether the next tick would take the world past this client's barrier.
@@ -229,46 +263,70 @@ pub(super) struct Driver {
     clients: BTreeMap<ClientId, Client>,
     settings: Settings,
     connections: u64,
+    /// Lines in all clients' backlogs (none: nothing to serve, no scan).
+    waiting: usize,
+    /// Clients that have joined the lockstep barrier (none: no barrier scans).
+    joined: usize,
+    /// Set by the driver when it waits for a client's queue to have room; a session that
+    /// has written output clears it and sends `Request::Wake`.
+    wants_room: Arc<AtomicBool>,
+    /// When output was last handed to the queues (gathering at `TimeScale::Max`).
+    last_flush: Instant,
 }
 
 impl Driver {
-    pub(super) fn new(world: World, settings: Settings) -> Self {
+    pub(super) fn new(world: World, settings: Settings, wants_room: Arc<AtomicBool>) -> Self {
         Self {
             world,
             clients: BTreeMap::new(),
             settings,
             connections: 0,
+            waiting: 0,
+            joined: 0,
+            wants_room,
+            last_flush: Instant::now(),
         }
     }
 
     /// Runs the world until `shutdown` is cancelled or every request sender is gone.
     pub(super) fn run(mut self, inbox: Receiver<Request>, shutdown: CancellationToken) {
+        let pace = self.settings.scale == TimeScale::Max;
         let mut out = Printed::default();
         let mut anchor = Instant::now();
         let mut ticks_since_anchor: u64 = 0;
+        let (mut turns, mut heard) = (0u32, false);
         loop {
             // Take what is queued; serve each client's share; wait while the world may not
             // step and nothing is waiting.
-            loop {
+            let served = loop {
                 loop {
                     match inbox.try_recv() {
-                        Ok(request) => self.take(request),
+                        Ok(request) => {
+                            self.take(request);
+                            heard = true;
+                        }
                         Err(TryRecvError::Empty) => break,
                         Err(TryRecvError::Disconnected) => return,
                     }
                 }
-                if shutdown.is_cancelled() {
-                    return;
+                turns = turns.wrapping_add(1);
+                if heard || turns.is_multiple_of(SHUTDOWN_CHECK_TURNS) {
+                    heard = false;
+                    if shutdown.is_cancelled() {
+                        return;
+                    }
                 }
                 let served = self.serve_backlogs();
-                self.release_stuck_barriers();
                 if self.may_step() {
-                    break;
+                    break served;
                 }
-                if served > 0 {
+                self.release_stuck_barriers();
+                if served > 0 || self.may_step() {
                     continue;
                 }
-                self.flush_all();
+                if !self.flush_all(&inbox, &shutdown) {
+                    return;
+                }
                 let request = match self.barrier_deadline() {
                     None => inbox.recv().map_err(|_| RecvTimeoutError::Disconnected),
                     Some(deadline) => {
@@ -276,27 +334,34 @@ impl Driver {
                     }
                 };
                 match request {
-                    Ok(request) => self.take(request),
+                    Ok(request) => {
+                        self.take(request);
+                        heard = true;
+                    }
                     Err(RecvTimeoutError::Timeout) => {}
                     Err(RecvTimeoutError::Disconnected) => return,
                 }
                 // Time stood still: do not burst to catch up afterwards.
                 anchor = Instant::now();
                 ticks_since_anchor = 0;
-            }
-            if shutdown.is_cancelled() {
-                return;
-            }
+            };
 
             self.world.step_printed(&mut out);
             let time = self.world.time();
+            let printed = !out.is_empty();
             for (client, lines) in out.robots() {
                 if let Some(c) = self.clients.get_mut(&client) {
                     c.push_printed(lines, time);
                 }
             }
-            self.answer_barriers();
-            self.flush_all();
+            if self.joined > 0 {
+                self.answer_barriers();
+            }
+            if (!pace || ((printed || served > 0) && self.gathered()))
+                && !self.flush_all(&inbox, &shutdown)
+            {
+                return;
+            }
             trace!(time, "tick");
 
             let factor = match self.settings.scale {
@@ -320,6 +385,16 @@ impl Driver {
         }
     }
 
+    /// At `TimeScale::Max`: whether enough output has gathered (or waited long enough) to be
+    /// handed to the sessions.
+    fn gathered(&self) -> bool {
+        self.last_flush.elapsed() >= GATHER_TIME
+            || self
+                .clients
+                .values()
+                .any(|c| c.pending.len() >= GATHER_BYTES)
+    }
+
     /// Files a request: connection changes at once, lines into the client's backlog.
     fn take(&mut self, request: Request) {
         match request {
@@ -328,7 +403,10 @@ impl Driver {
                 line,
                 permit,
             } => match self.clients.get_mut(&client) {
-                Some(c) => c.backlog.push_back((line, permit)),
+                Some(c) => {
+                    c.backlog.push_back((line, permit));
+                    self.waiting += 1;
+                }
                 None => drop(permit),
             },
             other => self.handle(other),
@@ -337,6 +415,9 @@ impl Driver {
 
     /// Serves up to `requests_per_tick` waiting lines of each client; returns how many.
     fn serve_backlogs(&mut self) -> usize {
+        if self.waiting == 0 {
+            return 0;
+        }
         let ids: Vec<ClientId> = self.clients.keys().copied().collect();
         let mut served = 0;
         for id in ids {
@@ -348,6 +429,7 @@ impl Driver {
                 else {
                     break;
                 };
+                self.waiting -= 1;
                 self.serve(id, line);
                 drop(permit);
                 served += 1;
@@ -359,7 +441,8 @@ impl Driver {
     /// The world steps only when it holds a robot and no lockstep client holds it back.
     fn may_step(&self) -> bool {
         let (time, dt) = (self.world.time(), self.world.dt());
-        self.world.robot_count() > 0 && !self.clients.values().any(|c| c.holds_at(time, dt))
+        self.world.robot_count() > 0
+            && (self.joined == 0 || !self.clients.values().any(|c| c.holds_at(time, dt)))
     }
 
     /// When the earliest lockstep client that holds the world runs out of time.
@@ -388,14 +471,63 @@ impl Driver {
                     "lockstep client sent no SYNC in time; it leaves the barrier");
                 c.barrier = None;
                 c.answered_at = None;
+                self.joined -= 1;
             }
         }
     }
 
-    fn flush_all(&mut self) {
-        for c in self.clients.values_mut() {
-            c.flush();
+    /// Hands every client's pending output to its queue. At `TimeScale::Max` this waits
+    /// while a client's queue has no room (taking requests meanwhile), for at most
+    /// `reader_timeout` per client; a client that made no room by then is stalled (its output
+    /// dropped until it has room again). Returns `false` when the driver must stop.
+    fn flush_all(&mut self, inbox: &Receiver<Request>, shutdown: &CancellationToken) -> bool {
+        let pace = self.settings.scale == TimeScale::Max;
+        let mut since = None;
+        let mut announced = false;
+        loop {
+            let mut blocked = false;
+            for c in self.clients.values_mut() {
+                blocked |= c.flush(pace);
+            }
+            if !blocked {
+                break;
+            }
+            if !announced {
+                // Ask the sessions for a wake-up, then look once more: a session that made
+                // room before seeing the request is seen here (both sides use SeqCst).
+                self.wants_room.store(true, Ordering::SeqCst);
+                announced = true;
+                continue;
+            }
+            let started = *since.get_or_insert_with(Instant::now);
+            let deadline = started
+                .checked_add(self.settings.reader_timeout)
+                .unwrap_or(started);
+            match inbox.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
+                Ok(request) => {
+                    self.take(request);
+                    if shutdown.is_cancelled() {
+                        return false;
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    for c in self.clients.values_mut() {
+                        if !c.pending.is_empty() && !c.has_room(c.pending.len()) {
+                            warn!(peer = %c.peer,
+                                timeout_s = self.settings.reader_timeout.as_secs_f64(),
+                                "client read nothing in time; the world goes on without it");
+                            c.stalled = true;
+                        }
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => return false,
+            }
+            announced = false;
         }
+        if pace {
+            self.last_flush = Instant::now();
+        }
+        true
     }
 
     /// Tells each lockstep client whose barrier the world has reached.
@@ -446,6 +578,9 @@ impl Driver {
                 self.record_client_line(client, text.as_deref());
                 let (now, dt) = (self.world.time(), self.world.dt());
                 if let Some(c) = self.clients.get_mut(&client) {
+                    if c.barrier.is_none() {
+                        self.joined += 1;
+                    }
                     c.barrier = Some(time);
                     c.answered = false;
                     c.answered_at = None;
@@ -498,13 +633,17 @@ impl Driver {
                     .get_mut(&client)
                     .and_then(|c| c.backlog.pop_front())
                 {
+                    self.waiting -= 1;
                     self.serve(client, line);
                 }
                 self.world.disconnect(client);
-                if let Some(mut c) = self.clients.remove(&client)
-                    && let Some(file) = &mut c.record
-                {
-                    let _ = file.flush();
+                if let Some(mut c) = self.clients.remove(&client) {
+                    if c.barrier.is_some() {
+                        self.joined -= 1;
+                    }
+                    if let Some(file) = &mut c.record {
+                        let _ = file.flush();
+                    }
                 }
             }
             Request::Wake => {}
@@ -533,7 +672,7 @@ mod tests {
         for tick in 1..=5 {
             client.push(&sta(f64::from(tick) / 10.0), 0.0);
             client.push(&sta(f64::from(tick) / 10.0 + 0.05), 0.0);
-            client.flush(); // never blocks
+            assert!(!client.flush(false)); // never blocks
         }
         assert_eq!(client.dropped, 3);
         // The queue holds the first two ticks, each whole, in one chunk.
@@ -555,7 +694,7 @@ mod tests {
         for tick in 1..=5 {
             client.push(&sta(f64::from(tick) / 10.0), 0.0);
             client.push(&sta(f64::from(tick) / 10.0 + 0.05), 0.0);
-            client.flush();
+            assert!(!client.flush(false));
         }
         assert_eq!(client.dropped, 4);
         assert_eq!(queued.load(Ordering::Relaxed), 68);
@@ -563,9 +702,45 @@ mod tests {
         let first = output.try_recv().unwrap();
         queued.fetch_sub(first.len(), Ordering::Relaxed);
         client.push(&sta(0.6), 0.0);
-        client.flush();
+        assert!(!client.flush(false));
         assert_eq!(client.dropped, 4);
         assert!(output.try_recv().unwrap().starts_with(b"STA {Time 0.6000}"));
+    }
+
+    #[test]
+    fn at_max_speed_a_full_queue_keeps_the_output_until_there_is_room() {
+        let (queue, mut output) = mpsc::channel(1);
+        let queued = Arc::new(AtomicUsize::new(0));
+        let mut client = Client::new("test".into(), queue, queued.clone());
+        client.push(&sta(0.1), 0.0);
+        assert!(!client.flush(true));
+        client.push(&sta(0.2), 0.0);
+        assert!(client.flush(true), "no room: the driver must wait");
+        assert_eq!(client.dropped, 0);
+        // The session writes the first chunk: room again, and the kept tick goes whole.
+        let first = output.try_recv().unwrap();
+        queued.fetch_sub(first.len(), Ordering::SeqCst);
+        client.push(&sta(0.3), 0.0);
+        assert!(!client.flush(true));
+        let second = output.try_recv().unwrap();
+        assert_eq!(
+            &second[..],
+            b"STA {Time 0.2000} {Battery 1200}\r\nSTA {Time 0.3000} {Battery 1200}\r\n"
+        );
+        client.push(&sta(0.4), 0.0);
+        assert!(!client.flush(true));
+        client.push(&sta(0.5), 0.0);
+        assert!(client.flush(true));
+        // A stalled client (the reader timeout ran out) is not waited for: dropped.
+        client.stalled = true;
+        assert!(!client.flush(true));
+        assert_eq!(client.dropped, 1);
+        // Room again: no longer stalled.
+        output.try_recv().unwrap();
+        queued.store(0, Ordering::SeqCst);
+        client.push(&sta(0.6), 0.0);
+        assert!(!client.flush(true));
+        assert!(!client.stalled);
     }
 
     #[test]

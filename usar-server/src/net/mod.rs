@@ -15,6 +15,7 @@ pub(crate) use driver::wait_of;
 
 use std::collections::HashMap;
 use std::net::IpAddr;
+use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -79,11 +80,13 @@ pub struct ServerConfig {
     pub max_connections_per_address: usize,
     /// Longest accepted client line in bytes; longer lines are dropped with a warning.
     pub max_line_length: usize,
-    /// Ticks of output buffered per client; when a client does not read and its queue is
-    /// full, whole ticks of its output are dropped (counted and logged), never the others'.
+    /// Chunks of output buffered per client (a tick each; at `TimeScale::Max` several ticks
+    /// gathered); when a client does not read and its queue is full, whole ticks of its
+    /// output are dropped (counted and logged), never the others' — except at
+    /// `TimeScale::Max`, where the world waits instead (see `reader_timeout`).
     pub client_queue: usize,
-    /// Bytes of output buffered per client (all its queued ticks together); past it, whole
-    /// ticks are dropped by the same rule as a full `client_queue`.
+    /// Bytes of output buffered per client (all its queued chunks together); past it, whole
+    /// ticks are dropped (or waited for) by the same rule as a full `client_queue`.
     pub client_buffer: usize,
     /// Requests (lines) of one client the simulation serves per tick; the rest wait for the
     /// next tick, and a client with this many waiting is not read from until they are served
@@ -99,6 +102,10 @@ pub struct ServerConfig {
     /// Wall-clock time a lockstep client may take to send its next `SYNC` before it is
     /// removed from the barrier (with a warning) and the world goes on without it.
     pub lockstep_timeout: Duration,
+    /// At `time_scale: Max` the world waits for its slowest reader instead of dropping
+    /// output; a client whose queue has had no room for this long (wall clock) is left
+    /// behind: its output is dropped, as at real time, until it reads again.
+    pub reader_timeout: Duration,
     /// Record every connection's lines, both directions, into this folder (docs/recording.md).
     pub record: Option<std::path::PathBuf>,
 }
@@ -120,6 +127,7 @@ impl Default for ServerConfig {
             line_timeout: Duration::from_secs(30),
             lockstep: false,
             lockstep_timeout: Duration::from_secs(10),
+            reader_timeout: Duration::from_secs(10),
             record: None,
         }
     }
@@ -150,6 +158,7 @@ pub async fn run(
     let world = World::new(config.map, config.robots, config.sim);
     let game_info = driver::game_info(&world);
     let (requests, inbox) = std::sync::mpsc::channel();
+    let wants_room = Arc::new(AtomicBool::new(false));
     let sim_shutdown = shutdown.child_token();
     // Cancelled by the simulation thread if it unwinds (a bug): the server then stops.
     let sim_died = CancellationToken::new();
@@ -164,7 +173,9 @@ pub async fn run(
                 requests_per_tick: config.requests_per_tick.max(1),
                 client_buffer: config.client_buffer.max(1),
                 lockstep_timeout: config.lockstep_timeout,
+                reader_timeout: config.reader_timeout,
             },
+            wants_room.clone(),
         );
         std::thread::Builder::new()
             .name("usar-sim".into())
@@ -222,7 +233,7 @@ pub async fn run(
                     stream,
                     peer,
                     game_info.clone(),
-                    requests.clone(),
+                    (requests.clone(), wants_room.clone()),
                     limits,
                     shutdown.child_token(),
                     (permit, address_slot),

@@ -9,7 +9,7 @@
 
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
 use bytes::Bytes;
@@ -56,7 +56,7 @@ pub(super) async fn serve(
     stream: TcpStream,
     peer: SocketAddr,
     game_info: Bytes,
-    requests: std::sync::mpsc::Sender<Request>,
+    (requests, wants_room): (std::sync::mpsc::Sender<Request>, Arc<AtomicBool>),
     limits: Limits,
     shutdown: CancellationToken,
     _slots: (OwnedSemaphorePermit, AddressSlot),
@@ -130,7 +130,7 @@ pub(super) async fn serve(
             }
         }
     };
-    let writer = write_output(write, output, queued);
+    let writer = write_output(write, output, queued, (wants_room, requests.clone()));
     tokio::select! {
         _ = shutdown.cancelled() => info!(%peer, "closing: server shutting down"),
         why = reader => info!(%peer, "{why}"),
@@ -154,16 +154,32 @@ pub(super) async fn serve(
     let _ = requests.send(Request::Disconnect { client });
 }
 
-/// Writes every chunk of the client's queue, one write per chunk, and gives its bytes back
-/// to the client's budget.
+/// Writes the client's queue to the socket, all chunks waiting at once in one write, and
+/// gives their bytes back to the client's budget; wakes the driver if it waits for room
+/// (`TimeScale::Max`, the driver's `flush_all`).
 async fn write_output(
     mut socket: OwnedWriteHalf,
     mut output: mpsc::Receiver<Bytes>,
     queued: Arc<AtomicUsize>,
+    (wants_room, driver): (Arc<AtomicBool>, std::sync::mpsc::Sender<Request>),
 ) -> std::io::Result<()> {
-    while let Some(chunk) = output.recv().await {
-        socket.write_all(&chunk).await?;
-        queued.fetch_sub(chunk.len(), Ordering::Relaxed);
+    let mut chunks = Vec::new();
+    let mut joined = Vec::new();
+    while output.recv_many(&mut chunks, 64).await > 0 {
+        let len = if let [chunk] = &chunks[..] {
+            socket.write_all(chunk).await?;
+            chunk.len()
+        } else {
+            joined.clear();
+            chunks.iter().for_each(|c| joined.extend_from_slice(c));
+            socket.write_all(&joined).await?;
+            joined.len()
+        };
+        chunks.clear();
+        queued.fetch_sub(len, Ordering::SeqCst);
+        if wants_room.load(Ordering::SeqCst) && wants_room.swap(false, Ordering::SeqCst) {
+            let _ = driver.send(Request::Wake);
+        }
     }
     Ok(())
 }

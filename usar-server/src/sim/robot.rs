@@ -485,6 +485,13 @@ impl Robot {
         let Some(owner) = self.owner else {
             return;
         };
+        // Most ticks nothing is due (sensors report every 0.1-0.3 s): return before any work.
+        if tick < self.status.due
+            && self.parts.iter().all(|p| tick < p.timer.due && !p.forced)
+            && self.actuators.iter().all(|a| tick < a.timer.due)
+        {
+            return;
+        }
         let time = tick as f64 * dt;
         if self.status.fire(tick) {
             out.push((

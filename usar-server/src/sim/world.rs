@@ -409,6 +409,11 @@ pub struct Printed {
 }
 
 impl Printed {
+    /// Whether no robot had output this tick.
+    pub fn is_empty(&self) -> bool {
+        self.parts[..self.used].iter().all(|p| p.robots.is_empty())
+    }
+
     /// Each robot's output: the connection it goes to and its lines.
     pub fn robots(&self) -> impl Iterator<Item = (ClientId, &[u8])> {
         self.parts[..self.used]
