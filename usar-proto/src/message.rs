@@ -360,6 +360,18 @@ impl<'a> Raw<'a> {
         multi: bool,
         devs: &mut Vec<Deviation>,
     ) -> Result<Self, ParseError> {
+        match Self::parse_canonical(line) {
+            Some(raw) => Ok(raw),
+            None => Self::parse_general(line, multi, devs),
+        }
+    }
+
+    /// The reader for every line (module docs).
+    fn parse_general(
+        line: &'a str,
+        multi: bool,
+        devs: &mut Vec<Deviation>,
+    ) -> Result<Self, ParseError> {
         let text = trim_ws(line);
         if text.is_empty() {
             return Err(ParseError {
@@ -396,6 +408,53 @@ impl<'a> Raw<'a> {
             rest = next;
         }
         Ok(raw)
+    }
+
+    /// The canonical form `WORD {Key value} {Key value}` (single spaces, at least one group,
+    /// every group a key and a value without whitespace), read in one pass with SIMD
+    /// searches; `None` for anything else. Such a line has no deviation, and the general
+    /// reader gives the same pairs (`canonical_lines_read_the_same` checks it).
+    fn parse_canonical(line: &'a str) -> Option<Self> {
+        let b = line.as_bytes();
+        let not_ws = |c: &u8| !c.is_ascii_whitespace();
+        let word_end = memchr::memchr3(b' ', b'\t', b'{', b)?;
+        let kind = &line[..word_end];
+        if !(b.first().is_some_and(not_ws)
+            && kind.as_bytes().last().is_some_and(not_ws)
+            && b[word_end] == b' '
+            && b.get(word_end + 1) == Some(&b'{'))
+        {
+            return None;
+        }
+        let mut raw = Self {
+            kind,
+            pairs: Vec::with_capacity(8),
+        };
+        let mut open = word_end + 1;
+        for group in 0.. {
+            let key_start = open + 1;
+            let key_end = key_start + memchr::memchr3(b' ', b'\t', b'}', &b[key_start..])?;
+            let key = &line[key_start..key_end];
+            if b[key_end] != b' ' || key.is_empty() || !key.bytes().all(|c| not_ws(&c)) {
+                return None;
+            }
+            let value_start = key_end + 1;
+            let close = value_start + memchr::memchr3(b' ', b'\t', b'}', &b[value_start..])?;
+            let value = &line[value_start..close];
+            let ends = value.as_bytes();
+            if b[close] != b'}'
+                || !(ends.first().is_some_and(not_ws) && ends.last().is_some_and(not_ws))
+            {
+                return None;
+            }
+            raw.pairs.push(RawPair { key, value, group });
+            match (b.get(close + 1), b.get(close + 2)) {
+                (None, _) => break,
+                (Some(b' '), Some(b'{')) => open = close + 2,
+                _ => return None,
+            }
+        }
+        Some(raw)
     }
 
     fn push_group(&mut self, body: &'a str, group: usize, multi: bool, devs: &mut Vec<Deviation>) {
@@ -530,6 +589,80 @@ mod tests {
             .unwrap()
             .message;
         assert_eq!(m.get("name"), Some("F1 Range 4.4690"));
+    }
+
+    /// Lines made of the characters that matter to the reader.
+    fn line() -> impl proptest::strategy::Strategy<Value = String> {
+        proptest::string::string_regex("[a-c1.{} \t\r]{0,24}").unwrap()
+    }
+
+    /// Canonical lines, with odd characters in keys and values.
+    fn canonical() -> impl proptest::strategy::Strategy<Value = String> {
+        use proptest::prelude::*;
+        let token = || proptest::string::string_regex("[a-c1.,{\r]{1,4}").unwrap();
+        (
+            "[A-Z\r]{1,3}",
+            proptest::collection::vec((token(), token()), 1..4),
+        )
+            .prop_map(|(word, groups)| {
+                let mut line = word;
+                for (k, v) in groups {
+                    line.push_str(&format!(" {{{k} {v}}}"));
+                }
+                line
+            })
+    }
+
+    fn general(line: &str, multi: bool) -> Option<(Vec<(&str, &str, usize)>, Vec<Deviation>)> {
+        let mut devs = Vec::new();
+        // The general reader alone: the canonical one must agree with it.
+        let raw = Raw::parse_general(line, multi, &mut devs).ok()?;
+        let pairs = raw
+            .pairs
+            .iter()
+            .map(|p| (p.key, p.value, p.group))
+            .collect();
+        Some((pairs, devs))
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(20_000))]
+
+        #[test]
+        fn canonical_lines_read_the_same(
+            line in proptest::prop_oneof![line(), canonical()],
+            multi in proptest::bool::ANY,
+        ) {
+            if let Some(raw) = Raw::parse_canonical(&line) {
+                let (pairs, devs) = general(&line, multi).expect("a canonical line reads");
+                let fast: Vec<_> = raw.pairs.iter().map(|p| (p.key, p.value, p.group)).collect();
+                proptest::prop_assert_eq!(fast, pairs);
+                proptest::prop_assert_eq!(devs, vec![]);
+                proptest::prop_assert_eq!(raw.kind, Message::word(&line));
+            }
+        }
+    }
+
+    #[test]
+    fn canonical_lines_take_the_one_pass_reader() {
+        for line in [
+            "SEN {Time 12.3456} {Type IMU} {Name IMU} {Rotation 0.0000,-1.0000,2.5000}",
+            "STA {Time 1} {Battery 9}",
+            "A {b c}",
+        ] {
+            assert!(Raw::parse_canonical(line).is_some(), "{line}");
+        }
+        for line in [
+            "A",
+            "A {b}",
+            "A {b c d}",
+            "A  {b c}",
+            "A {b c}{d e}",
+            "A {b c} ",
+            " A {b c}",
+        ] {
+            assert!(Raw::parse_canonical(line).is_none(), "{line}");
+        }
     }
 
     #[test]
