@@ -411,43 +411,38 @@ impl<'a> Raw<'a> {
     }
 
     /// The canonical form `WORD {Key value} {Key value}` (single spaces, at least one group,
-    /// every group a key and a value without whitespace), read in one pass with SIMD
-    /// searches; `None` for anything else. Such a line has no deviation, and the general
-    /// reader gives the same pairs (`canonical_lines_read_the_same` checks it).
+    /// every group a key and a non-empty value, no control character or space in the
+    /// word, keys and values), read in one pass eight bytes at a time; `None` for anything
+    /// else. Such a line has no deviation, and the general reader gives the same pairs
+    /// (`canonical_lines_read_the_same` checks it).
     fn parse_canonical(line: &'a str) -> Option<Self> {
         let b = line.as_bytes();
-        let not_ws = |c: &u8| !c.is_ascii_whitespace();
-        let word_end = memchr::memchr3(b' ', b'\t', b'{', b)?;
-        let kind = &line[..word_end];
-        if !(b.first().is_some_and(not_ws)
-            && kind.as_bytes().last().is_some_and(not_ws)
-            && b[word_end] == b' '
-            && b.get(word_end + 1) == Some(&b'{'))
-        {
+        let word_end = find_stop(b, b'{')?;
+        if word_end == 0 || b[word_end] != b' ' || b.get(word_end + 1) != Some(&b'{') {
             return None;
         }
         let mut raw = Self {
-            kind,
+            kind: &line[..word_end],
             pairs: Vec::with_capacity(8),
         };
         let mut open = word_end + 1;
         for group in 0.. {
             let key_start = open + 1;
-            let key_end = key_start + memchr::memchr3(b' ', b'\t', b'}', &b[key_start..])?;
-            let key = &line[key_start..key_end];
-            if b[key_end] != b' ' || key.is_empty() || !key.bytes().all(|c| not_ws(&c)) {
-                return None;
-            }
+            let key_end = key_start + find_stop(&b[key_start..], b'}')?;
             let value_start = key_end + 1;
-            let close = value_start + memchr::memchr3(b' ', b'\t', b'}', &b[value_start..])?;
-            let value = &line[value_start..close];
-            let ends = value.as_bytes();
-            if b[close] != b'}'
-                || !(ends.first().is_some_and(not_ws) && ends.last().is_some_and(not_ws))
+            let close = value_start + find_stop(&b[value_start..], b'}')?;
+            if key_end == key_start
+                || b[key_end] != b' '
+                || close == value_start
+                || b[close] != b'}'
             {
                 return None;
             }
-            raw.pairs.push(RawPair { key, value, group });
+            raw.pairs.push(RawPair {
+                key: &line[key_start..key_end],
+                value: &line[value_start..close],
+                group,
+            });
             match (b.get(close + 1), b.get(close + 2)) {
                 (None, _) => break,
                 (Some(b' '), Some(b'{')) => open = close + 2,
@@ -493,6 +488,32 @@ impl<'a> Raw<'a> {
             verbatim: None,
         }
     }
+}
+
+/// The index of the first byte of `s` that is a space, a control character (both below
+/// `!`) or `special`, found eight bytes at a time.
+fn find_stop(s: &[u8], special: u8) -> Option<usize> {
+    const ONES: u64 = 0x0101_0101_0101_0101;
+    const HIGH: u64 = 0x8080_8080_8080_8080;
+    let specials = ONES * u64::from(special);
+    let mut chunks = s.chunks_exact(8);
+    let mut at = 0;
+    for chunk in &mut chunks {
+        let v = u64::from_le_bytes(chunk.try_into().ok()?);
+        let x = v ^ specials;
+        // The classic "has a byte below n" and "has a zero byte" tests: borrows only run
+        // upwards, so the lowest flagged byte is the first hit.
+        let hits =
+            ((v.wrapping_sub(ONES * u64::from(b'!')) & !v) | (x.wrapping_sub(ONES) & !x)) & HIGH;
+        if hits != 0 {
+            return Some(at + hits.trailing_zeros() as usize / 8);
+        }
+        at += 8;
+    }
+    let rest = chunks.remainder();
+    rest.iter()
+        .position(|&c| c < b'!' || c == special)
+        .map(|i| at + i)
 }
 
 /// Owned groups of a run of pairs (pairs with the same group index share a group).
@@ -640,6 +661,26 @@ mod tests {
                 proptest::prop_assert_eq!(devs, vec![]);
                 proptest::prop_assert_eq!(raw.kind, Message::word(&line));
             }
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn find_stop_finds_the_first_stop(
+            s in proptest::collection::vec(
+                proptest::prop_oneof![
+                    3 => 0x21u8..=0xff,
+                    1 => proptest::num::u8::ANY,
+                    1 => proptest::prelude::Just(b'}'),
+                ],
+                0..40,
+            ),
+            special in proptest::prop_oneof![proptest::prelude::Just(b'}'), proptest::num::u8::ANY],
+        ) {
+            proptest::prop_assert_eq!(
+                find_stop(&s, special),
+                s.iter().position(|&c| c < b'!' || c == special)
+            );
         }
     }
 
