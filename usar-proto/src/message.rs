@@ -536,7 +536,16 @@ pub(crate) fn groups_of(pairs: &[RawPair<'_>]) -> Vec<Group> {
 
 /// The one key lookup: the first pair whose key matches case-insensitively.
 pub(crate) fn find<'r, 'a>(pairs: &'r [RawPair<'a>], key: &str) -> Option<&'r RawPair<'a>> {
-    pairs.iter().find(|p| p.key.eq_ignore_ascii_case(key))
+    // `eq_ignore_ascii_case` lowers both sides of every byte; keys are mostly written as
+    // expected, so equal bytes are tried first.
+    let same = |found: &str| {
+        found.len() == key.len()
+            && found
+                .bytes()
+                .zip(key.bytes())
+                .all(|(a, b)| a == b || a.eq_ignore_ascii_case(&b))
+    };
+    pairs.iter().find(|p| same(p.key))
 }
 
 #[cfg(test)]

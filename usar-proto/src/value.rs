@@ -79,12 +79,14 @@ pub(crate) fn plain_decimal_places(s: &str) -> Option<(f64, u8)> {
 /// Reads [`plain_decimal`]'s syntax at the start of `s`, up to the first byte that cannot
 /// continue it: the value, the bytes read and the number of decimals. `None` without a
 /// digit or with more than 15.
+#[inline(always)]
 fn decimal_prefix(s: &[u8]) -> Option<(f64, usize, usize)> {
     const POW10: [f64; 16] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
     ];
     /// Appends the leading digits of `s` to `mantissa` (wrapping: more than 15 digits are
     /// refused anyway); returns how many.
+    #[inline(always)]
     fn digits(s: &[u8], mantissa: &mut u64) -> usize {
         let mut count = 0;
         for &b in s {
@@ -434,19 +436,18 @@ impl<'r, 'a> Reader<'r, 'a> {
 
     /// The pairs split before every `Name` key (the parts of a CONF/GEO line, the readings
     /// of a UT2004 sonar line); pairs before the first `Name` form the first slice.
-    pub(crate) fn items(&self) -> Vec<Self> {
-        let mut out = Vec::new();
+    pub(crate) fn items(&self) -> impl Iterator<Item = Self> + use<'r, 'a> {
+        let this = *self;
         let mut start = 0;
-        for (i, p) in self.pairs.iter().enumerate() {
-            if i > start && p.key.eq_ignore_ascii_case("Name") {
-                out.push(self.sub(self.part, &self.pairs[start..i]));
-                start = i;
-            }
-        }
-        if start < self.pairs.len() {
-            out.push(self.sub(self.part, &self.pairs[start..]));
-        }
-        out
+        std::iter::from_fn(move || {
+            let rest = this.pairs.get(start..).filter(|r| !r.is_empty())?;
+            let len = rest[1..]
+                .iter()
+                .position(|p| p.key.eq_ignore_ascii_case("Name"))
+                .map_or(rest.len(), |i| i + 1);
+            start += len;
+            Some(this.sub(this.part, &rest[..len]))
+        })
     }
 
     /// Whether the keys are exactly `keys`, in order (case-insensitive).

@@ -57,8 +57,7 @@ impl SenData {
             Self::Sonar {
                 readings: d
                     .items()
-                    .iter()
-                    .map(named_range)
+                    .map(|it| named_range(&it))
                     .collect::<Result<_, _>>()?,
                 grouped: d.grouped(),
             }
@@ -107,7 +106,6 @@ impl SenData {
             Self::Encoder {
                 ticks: d
                     .items()
-                    .iter()
                     .map(|it| {
                         Ok(NamedTick {
                             name: it.string("Name")?,
