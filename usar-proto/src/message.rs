@@ -282,7 +282,7 @@ pub(crate) fn write_groups(out: &mut impl crate::format::WireBuf, groups: &[Grou
 }
 
 /// One key/value pair borrowed from the line, with the index of its group.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct RawPair<'a> {
     pub(crate) key: &'a str,
     pub(crate) value: &'a str,
@@ -360,14 +360,18 @@ impl<'a> Raw<'a> {
         multi: bool,
         devs: &mut Vec<Deviation>,
     ) -> Result<Self, ParseError> {
-        match Self::parse_canonical(line) {
-            Some(raw) => Ok(raw),
+        let mut inline = [RawPair::default(); INLINE_PAIRS];
+        match read_canonical(line, &mut inline) {
+            Some((kind, n)) => Ok(Self {
+                kind,
+                pairs: inline[..n].to_vec(),
+            }),
             None => Self::parse_general(line, multi, devs),
         }
     }
 
     /// The reader for every line (module docs).
-    fn parse_general(
+    pub(crate) fn parse_general(
         line: &'a str,
         multi: bool,
         devs: &mut Vec<Deviation>,
@@ -410,48 +414,6 @@ impl<'a> Raw<'a> {
         Ok(raw)
     }
 
-    /// The canonical form `WORD {Key value} {Key value}` (single spaces, at least one group,
-    /// every group a key and a non-empty value, no control character or space in the
-    /// word, keys and values), read in one pass eight bytes at a time; `None` for anything
-    /// else. Such a line has no deviation, and the general reader gives the same pairs
-    /// (`canonical_lines_read_the_same` checks it).
-    fn parse_canonical(line: &'a str) -> Option<Self> {
-        let b = line.as_bytes();
-        let word_end = find_stop(b, b'{')?;
-        if word_end == 0 || b[word_end] != b' ' || b.get(word_end + 1) != Some(&b'{') {
-            return None;
-        }
-        let mut raw = Self {
-            kind: &line[..word_end],
-            pairs: Vec::with_capacity(8),
-        };
-        let mut open = word_end + 1;
-        for group in 0.. {
-            let key_start = open + 1;
-            let key_end = key_start + find_stop(&b[key_start..], b'}')?;
-            let value_start = key_end + 1;
-            let close = value_start + find_stop(&b[value_start..], b'}')?;
-            if key_end == key_start
-                || b[key_end] != b' '
-                || close == value_start
-                || b[close] != b'}'
-            {
-                return None;
-            }
-            raw.pairs.push(RawPair {
-                key: &line[key_start..key_end],
-                value: &line[value_start..close],
-                group,
-            });
-            match (b.get(close + 1), b.get(close + 2)) {
-                (None, _) => break,
-                (Some(b' '), Some(b'{')) => open = close + 2,
-                _ => return None,
-            }
-        }
-        Some(raw)
-    }
-
     fn push_group(&mut self, body: &'a str, group: usize, multi: bool, devs: &mut Vec<Deviation>) {
         let content = trim_ws(body);
         if content.len() != body.len() {
@@ -488,6 +450,48 @@ impl<'a> Raw<'a> {
             verbatim: None,
         }
     }
+}
+
+/// How many pairs a canonical line is read into without allocating (sensor lines have at
+/// most 7).
+pub(crate) const INLINE_PAIRS: usize = 16;
+
+/// Reads the canonical form `WORD {Key value} {Key value}` (single spaces, at least one
+/// group, every group a key and a non-empty value, no control character or space in the
+/// word, keys and values) into `out`, in one pass eight bytes at a time: the word and the
+/// number of pairs. `None` for anything else, or for more pairs than `out` holds. Such a
+/// line has no deviation, and the general reader gives the same pairs
+/// (`canonical_lines_read_the_same` checks it).
+pub(crate) fn read_canonical<'a>(
+    line: &'a str,
+    out: &mut [RawPair<'a>],
+) -> Option<(&'a str, usize)> {
+    let b = line.as_bytes();
+    let word_end = find_stop(b, b'{')?;
+    if word_end == 0 || b[word_end] != b' ' || b.get(word_end + 1) != Some(&b'{') {
+        return None;
+    }
+    let mut open = word_end + 1;
+    for (group, slot) in out.iter_mut().enumerate() {
+        let key_start = open + 1;
+        let key_end = key_start + find_stop(&b[key_start..], b'}')?;
+        let value_start = key_end + 1;
+        let close = value_start + find_stop(&b[value_start..], b'}')?;
+        if key_end == key_start || b[key_end] != b' ' || close == value_start || b[close] != b'}' {
+            return None;
+        }
+        *slot = RawPair {
+            key: &line[key_start..key_end],
+            value: &line[value_start..close],
+            group,
+        };
+        match (b.get(close + 1), b.get(close + 2)) {
+            (None, _) => return Some((&line[..word_end], group + 1)),
+            (Some(b' '), Some(b'{')) => open = close + 2,
+            _ => return None,
+        }
+    }
+    None
 }
 
 /// The index of the first byte of `s` that is a space, a control character (both below
@@ -663,12 +667,13 @@ mod tests {
             line in proptest::prop_oneof![line(), canonical()],
             multi in proptest::bool::ANY,
         ) {
-            if let Some(raw) = Raw::parse_canonical(&line) {
+            let mut out = [RawPair::default(); 3];
+            if let Some((kind, n)) = read_canonical(&line, &mut out) {
                 let (pairs, devs) = general(&line, multi).expect("a canonical line reads");
-                let fast: Vec<_> = raw.pairs.iter().map(|p| (p.key, p.value, p.group)).collect();
+                let fast: Vec<_> = out[..n].iter().map(|p| (p.key, p.value, p.group)).collect();
                 proptest::prop_assert_eq!(fast, pairs);
                 proptest::prop_assert_eq!(devs, vec![]);
-                proptest::prop_assert_eq!(raw.kind, Message::word(&line));
+                proptest::prop_assert_eq!(kind, Message::word(&line));
             }
         }
     }
@@ -700,7 +705,10 @@ mod tests {
             "STA {Time 1} {Battery 9}",
             "A {b c}",
         ] {
-            assert!(Raw::parse_canonical(line).is_some(), "{line}");
+            assert!(
+                read_canonical(line, &mut [RawPair::default(); 7]).is_some(),
+                "{line}"
+            );
         }
         for line in [
             "A",
@@ -710,8 +718,23 @@ mod tests {
             "A {b c}{d e}",
             "A {b c} ",
             " A {b c}",
+            "A {a 1} {b 2} {c 3} {d 4} {e 5} {f 6} {g 7} {h 8}",
         ] {
-            assert!(Raw::parse_canonical(line).is_none(), "{line}");
+            assert!(
+                read_canonical(line, &mut [RawPair::default(); 7]).is_none(),
+                "{line}"
+            );
+        }
+    }
+
+    #[test]
+    fn lines_with_many_pairs_keep_them_all() {
+        for sep in [" ", "  "] {
+            let line: String = (0..30).map(|i| format!("{sep}{{k{i} {i}}}")).collect();
+            let line = format!("CONF{line}");
+            let (_, p, _) = pairs(&line);
+            assert_eq!(p.len(), 30, "{line}");
+            assert_eq!(p[29], ("k29".to_owned(), "29".to_owned()));
         }
     }
 
