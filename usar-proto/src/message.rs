@@ -647,7 +647,10 @@ mod tests {
             })
     }
 
-    fn general(line: &str, multi: bool) -> Option<(Vec<(&str, &str, usize)>, Vec<Deviation>)> {
+    /// Key, value and group of each pair.
+    type Flat<'a> = Vec<(&'a str, &'a str, usize)>;
+
+    fn general(line: &str, multi: bool) -> Option<(Flat<'_>, Vec<Deviation>)> {
         let mut devs = Vec::new();
         // The general reader alone: the canonical one must agree with it.
         let raw = Raw::parse_general(line, multi, &mut devs).ok()?;
