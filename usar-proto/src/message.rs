@@ -452,9 +452,9 @@ impl<'a> Raw<'a> {
     }
 }
 
-/// How many pairs a canonical line is read into without allocating (sensor lines have at
-/// most 7).
-pub(crate) const INLINE_PAIRS: usize = 16;
+/// How many pairs a canonical line is read into without allocating (sensor and status
+/// lines have at most 7).
+pub(crate) const INLINE_PAIRS: usize = 8;
 
 /// Reads the canonical form `WORD {Key value} {Key value}` (single spaces, at least one
 /// group, every group a key and a non-empty value, no control character or space in the
@@ -630,20 +630,23 @@ mod tests {
         proptest::string::string_regex("[a-c1.{} \t\r]{0,24}").unwrap()
     }
 
-    /// Canonical lines, with odd characters in keys and values.
+    /// Canonical lines and near misses: odd characters in keys and values, empty ones, and
+    /// now and then a separator that is not a single space.
     fn canonical() -> impl proptest::strategy::Strategy<Value = String> {
         use proptest::prelude::*;
-        let token = || proptest::string::string_regex("[a-c1.,{\r]{1,4}").unwrap();
+        let token = || proptest::string::string_regex("[a-c1.,{\r]{0,3}").unwrap();
+        let sep = || prop_oneof![8 => Just(" "), 1 => Just(""), 1 => Just("  "), 1 => Just("x ")];
         (
-            "[A-Z\r]{1,3}",
-            proptest::collection::vec((token(), token()), 1..4),
+            "[A-Z\r]{0,3}",
+            proptest::collection::vec((sep(), token(), sep(), token()), 1..4),
+            prop_oneof![8 => Just(""), 1 => Just(" "), 1 => Just("x")],
         )
-            .prop_map(|(word, groups)| {
+            .prop_map(|(word, groups, end)| {
                 let mut line = word;
-                for (k, v) in groups {
-                    line.push_str(&format!(" {{{k} {v}}}"));
+                for (before, k, between, v) in groups {
+                    line.push_str(&format!("{before}{{{k}{between}{v}}}"));
                 }
-                line
+                line + end
             })
     }
 
