@@ -54,11 +54,13 @@ impl SenData {
                 rotation: d.vec3("Rotation")?,
             }
         } else if is("Sonar") {
+            // Usually one reading per line: a loop allocates exactly one slot.
+            let mut readings = Vec::with_capacity(1);
+            for it in d.items() {
+                readings.push(named_range(&it)?);
+            }
             Self::Sonar {
-                readings: d
-                    .items()
-                    .map(|it| named_range(&it))
-                    .collect::<Result<_, _>>()?,
+                readings,
                 grouped: d.grouped(),
             }
         } else if is("RangeScanner") || is("IRScanner") {
