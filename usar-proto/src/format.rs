@@ -52,7 +52,7 @@ pub trait WireBuf {
     /// formatters' output. Byte buffers copy the whole array and cut the excess, which is
     /// faster than a copy of variable length.
     fn push_ascii_head(&mut self, buf: &[u8; 32], len: usize) {
-        self.push_ascii(&buf[..len]);
+        self.push_ascii(&buf[..len.min(32)]);
     }
     /// Appends formatted text (only used on rare slow paths).
     fn push_args(&mut self, args: std::fmt::Arguments<'_>);
