@@ -454,6 +454,15 @@ mod tests {
         assert_eq!(fixed(-0.001, 2), "-0.00");
         assert_eq!(fixed(0.209, 2), "0.21");
         assert_eq!(fixed(1e300, 2), format!("{:.2}", 1e300));
+        assert_eq!(fixed(-1e17, 0), "-100000000000000000");
+        assert_eq!(
+            fs(-1e17, 0),
+            "-2147483647",
+            "beyond the grid: the saturating f32 path"
+        );
+        let mut s = String::new();
+        push_int(&mut s, -100_000_000_000_000_000);
+        assert_eq!(s, "-100000000000000000");
         assert_eq!(fixed(f64::NAN, 4), "NaN");
         let mut s = String::new();
         push_implicit_vector(&mut s, Vec3::new(0.21, -0.0, -0.2));

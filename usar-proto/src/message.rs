@@ -725,6 +725,12 @@ mod tests {
             "A {b c} ",
             " A {b c}",
             "A {a 1} {b 2} {c 3} {d 4} {e 5} {f 6} {g 7} {h 8}",
+            // Near misses the property test once shrank to (with deliberately broken checks).
+            "A {1 ,\r}",
+            "A\r {1 ,}",
+            "A {. a}x {a ,}",
+            "A {, }",
+            "x {. 1}x",
         ] {
             assert!(
                 read_canonical(line, &mut [RawPair::default(); 7]).is_none(),
