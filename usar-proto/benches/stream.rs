@@ -2,7 +2,7 @@
 //! proportions: per 0.6 s, 6 × (STA, IMU, Position, Velocity) at 10 Hz, 3 × 10 sonars at
 //! 5 Hz and 2 laser scans of 228 ranges at 3.3 Hz.
 
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{Criterion, Throughput, criterion_group};
 use std::hint::black_box;
 use usar_proto::{NamedRange, Scan, Sen, SenData, ServerMessage, Sta, StaLayout, Time, Vec3};
 
@@ -161,5 +161,49 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
+/// `USAR_PROTO_PASSES=parse:20` (or `print:20`) runs that many plain passes over the stream
+/// instead of the benchmarks, for instruction counts under callgrind: run it with N and with
+/// 0 passes and divide the difference by N × the stream's bytes (printed on stderr).
+fn passes(spec: &str) {
+    let (what, n) = spec
+        .split_once(':')
+        .expect("USAR_PROTO_PASSES=parse:N or print:N");
+    let n: usize = n.parse().expect("a number of passes");
+    let messages = stream();
+    let mut text = String::new();
+    for m in &messages {
+        m.write_line(&mut text);
+    }
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out: Vec<u8> = Vec::with_capacity(text.len() * 2);
+    for _ in 0..n {
+        match what {
+            "parse" => {
+                for line in &lines {
+                    black_box(ServerMessage::parse(black_box(line)).ok());
+                }
+            }
+            "print" => {
+                out.clear();
+                for m in &messages {
+                    m.write_line(&mut out);
+                }
+                black_box(out.len());
+            }
+            _ => panic!("USAR_PROTO_PASSES=parse:N or print:N"),
+        }
+    }
+    eprintln!("{} lines, {} bytes", messages.len(), text.len());
+}
+
 criterion_group!(benches, bench);
-criterion_main!(benches);
+
+fn main() {
+    match std::env::var("USAR_PROTO_PASSES") {
+        Ok(spec) => passes(&spec),
+        Err(_) => {
+            benches();
+            Criterion::default().configure_from_args().final_summary();
+        }
+    }
+}

@@ -39,42 +39,82 @@ fn number(s: &str) -> Option<f64> {
 /// A laser scan's ranges, fast: plain decimals separated by single commas, read in one pass
 /// (`None` for anything else, which then takes the general path).
 fn plain_list(s: &[u8]) -> Option<Vec<f64>> {
-    let mut out = Vec::with_capacity(s.len() / 4 + 1);
-    for item in s.split(|&b| b == b',') {
-        out.push(plain_decimal(item)?);
+    // A range is at least two bytes and a comma.
+    let mut out = Vec::with_capacity(s.len() / 3 + 1);
+    let mut rest = s;
+    loop {
+        let (v, used, _) = decimal_prefix(rest)?;
+        out.push(v);
+        match rest.get(used) {
+            None => return Some(out),
+            Some(b',') => rest = &rest[used + 1..],
+            Some(_) => return None,
+        }
     }
-    Some(out)
+}
+
+/// Three plain decimals separated by commas, or `None` (the general path decides).
+fn plain_vec3(s: &[u8]) -> Option<Vec3> {
+    let (x, a, _) = decimal_prefix(s)?;
+    let s = s.get(a..)?.strip_prefix(b",")?;
+    let (y, b, _) = decimal_prefix(s)?;
+    let s = s.get(b..)?.strip_prefix(b",")?;
+    let (z, c, _) = decimal_prefix(s)?;
+    (c == s.len()).then_some(Vec3::new(x, y, z))
 }
 
 /// The common case, fast: `[+-]digits[.digits]` with at most 15 digits, read as an integer
 /// divided by a power of ten. Both are exact in f64 and IEEE division rounds correctly, so
 /// the result is bit for bit what `str::parse` gives.
 fn plain_decimal(s: &[u8]) -> Option<f64> {
+    decimal_prefix(s).and_then(|(v, used, _)| (used == s.len()).then_some(v))
+}
+
+/// A plain decimal and its number of decimals (`12.3456` → 4), or `None`.
+pub(crate) fn plain_decimal_places(s: &str) -> Option<(f64, u8)> {
+    let (v, used, places) = decimal_prefix(s.as_bytes())?;
+    (used == s.len()).then_some((v, places.min(9) as u8))
+}
+
+/// Reads [`plain_decimal`]'s syntax at the start of `s`, up to the first byte that cannot
+/// continue it: the value, the bytes read and the number of decimals. `None` without a
+/// digit or with more than 15.
+#[inline(always)]
+fn decimal_prefix(s: &[u8]) -> Option<(f64, usize, usize)> {
     const POW10: [f64; 16] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
     ];
-    let (negative, digits) = match s.first()? {
-        b'-' => (true, &s[1..]),
-        b'+' => (false, &s[1..]),
-        _ => (false, s),
-    };
-    let (mut mantissa, mut count, mut decimals, mut dot) = (0u64, 0usize, 0usize, false);
-    for &b in digits {
-        match b {
-            b'0'..=b'9' if count < 15 => {
-                mantissa = mantissa * 10 + u64::from(b - b'0');
-                count += 1;
-                decimals += usize::from(dot);
+    /// Appends the leading digits of `s` to `mantissa` (wrapping: more than 15 digits are
+    /// refused anyway); returns how many.
+    #[inline(always)]
+    fn digits(s: &[u8], mantissa: &mut u64) -> usize {
+        let mut count = 0;
+        for &b in s {
+            let d = b.wrapping_sub(b'0');
+            if d >= 10 {
+                break;
             }
-            b'.' if !dot => dot = true,
-            _ => return None,
+            *mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(d));
+            count += 1;
         }
+        count
     }
-    if count == 0 {
+    let negative = s.first() == Some(&b'-');
+    let mut i = usize::from(matches!(s.first(), Some(b'-' | b'+')));
+    let mut mantissa = 0u64;
+    let whole = digits(&s[i..], &mut mantissa);
+    i += whole;
+    let mut decimals = 0;
+    if s.get(i) == Some(&b'.') {
+        i += 1;
+        decimals = digits(&s[i..], &mut mantissa);
+        i += decimals;
+    }
+    if whole + decimals == 0 || whole + decimals > 15 {
         return None;
     }
-    let v = mantissa as f64 / POW10[decimals];
-    Some(if negative { -v } else { v })
+    let v = mantissa as i64 as f64 / POW10[decimals];
+    Some((if negative { -v } else { v }, i, decimals))
 }
 
 /// C `atof`: the longest numeric prefix after leading spaces, else 0.
@@ -368,6 +408,14 @@ impl<'r, 'a> Reader<'r, 'a> {
     }
 
     pub(crate) fn vec3_in(&self, key: &str, v: &str) -> Result<Vec3, ParseError> {
+        match plain_vec3(v.as_bytes()) {
+            Some(r) => Ok(r),
+            None => self.vec3_general(key, v),
+        }
+    }
+
+    /// [`Reader::vec3_in`] for any value: three numbers of any syntax [`number`] reads.
+    fn vec3_general(&self, key: &str, v: &str) -> Result<Vec3, ParseError> {
         let mut parts = v.split(',');
         let mut next = || {
             parts
@@ -388,19 +436,18 @@ impl<'r, 'a> Reader<'r, 'a> {
 
     /// The pairs split before every `Name` key (the parts of a CONF/GEO line, the readings
     /// of a UT2004 sonar line); pairs before the first `Name` form the first slice.
-    pub(crate) fn items(&self) -> Vec<Self> {
-        let mut out = Vec::new();
+    pub(crate) fn items(&self) -> impl Iterator<Item = Self> + use<'r, 'a> {
+        let this = *self;
         let mut start = 0;
-        for (i, p) in self.pairs.iter().enumerate() {
-            if i > start && p.key.eq_ignore_ascii_case("Name") {
-                out.push(self.sub(self.part, &self.pairs[start..i]));
-                start = i;
-            }
-        }
-        if start < self.pairs.len() {
-            out.push(self.sub(self.part, &self.pairs[start..]));
-        }
-        out
+        std::iter::from_fn(move || {
+            let rest = this.pairs.get(start..).filter(|r| !r.is_empty())?;
+            let len = rest[1..]
+                .iter()
+                .position(|p| p.key.eq_ignore_ascii_case("Name"))
+                .map_or(rest.len(), |i| i + 1);
+            start += len;
+            Some(this.sub(this.part, &rest[..len]))
+        })
     }
 
     /// Whether the keys are exactly `keys`, in order (case-insensitive).
@@ -467,6 +514,44 @@ mod tests {
     }
 
     use super::*;
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(20_000))]
+
+        /// The one-pass readers of lists, vectors and time stamps agree with reading the
+        /// items one by one (when they answer at all).
+        #[test]
+        fn one_pass_readers_agree_with_the_general_ones(v in "[-+0-9.,e ]{0,40}") {
+            let items: Option<Vec<f64>> = v.split(',').map(number).collect();
+            if let Some(list) = plain_list(v.as_bytes()) {
+                let bits = |l: &[f64]| l.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                proptest::prop_assert_eq!(Some(bits(&list)), items.as_deref().map(bits));
+            }
+            if let Some(r) = plain_vec3(v.as_bytes()) {
+                let general = Reader::new("t", &[]).vec3_general("k", &v).unwrap();
+                proptest::prop_assert_eq!(
+                    [r.x, r.y, r.z].map(f64::to_bits),
+                    [general.x, general.y, general.z].map(f64::to_bits)
+                );
+            }
+            if let Some((x, places)) = plain_decimal_places(&v) {
+                proptest::prop_assert_eq!(Some(x.to_bits()), number(&v).map(f64::to_bits));
+                proptest::prop_assert_eq!(places, decimals_of(&v));
+            }
+        }
+    }
+
+    #[test]
+    fn one_pass_readers_take_plain_numbers() {
+        assert_eq!(plain_list(b"1.25,-0.5,3"), Some(vec![1.25, -0.5, 3.0]));
+        assert_eq!(plain_list(b"1.25,,3"), None);
+        assert_eq!(
+            plain_vec3(b"1,-2.5,0.125"),
+            Some(Vec3::new(1.0, -2.5, 0.125))
+        );
+        assert_eq!(plain_vec3(b"1,2,3,4"), None);
+        assert_eq!(plain_decimal_places("477.7582"), Some((477.7582, 4)));
+    }
 
     fn vec(v: &str) -> (Vec3, Vec<Deviation>) {
         let mut d = Vec::new();

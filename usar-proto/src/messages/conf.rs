@@ -69,8 +69,7 @@ impl Conf {
                 kind: r.string("Type")?,
                 items: rest
                     .items()
-                    .iter()
-                    .map(ConfItem::read)
+                    .map(|it| ConfItem::read(&it))
                     .collect::<Result<_, _>>()?,
             }));
         }

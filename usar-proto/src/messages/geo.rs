@@ -21,7 +21,6 @@ impl Geo {
                 kind: r.string("Type")?,
                 items: rest
                     .items()
-                    .iter()
                     .map(|it| {
                         Ok(GeoItem {
                             name: it.string("Name")?,

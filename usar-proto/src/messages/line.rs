@@ -28,17 +28,17 @@ impl<'o, B: WireBuf> Line<'o, B> {
         self
     }
 
+    // Inlined so that the constant keys are copied as constants, not by memcpy calls.
+    #[inline(always)]
     fn open(&mut self, key: &str) -> &mut B {
-        if !self.glue {
-            self.out.push_text(" ");
-        }
+        self.out.push_text(if self.glue { "{" } else { " {" });
         self.glue = false;
-        self.out.push_text("{");
         self.out.push_text(key);
         self.out.push_text(" ");
         self.out
     }
 
+    #[inline(always)]
     fn with(&mut self, key: &str, value: impl FnOnce(&mut B)) -> &mut Self {
         value(self.open(key));
         self.out.push_text("}");

@@ -34,7 +34,9 @@ pub use sync::{Barrier, SYNC_WORD};
 
 use crate::error::ParseError;
 use crate::format::WireBuf;
-use crate::message::{Deviation, Parsed, Raw};
+use crate::message::{
+    Deviation, INLINE_PAIRS, Message, Parsed, Raw, RawPair, groups_of, read_canonical,
+};
 use crate::value::Reader;
 
 /// The words of server → client messages (typed or not): `NFO`, `STA`, `SEN`, `CONF`,
@@ -74,11 +76,19 @@ impl ServerMessage {
 
     fn read(line: &str, strict: bool) -> Result<Parsed<Self>, ParseError> {
         let mut devs = Vec::new();
-        let raw = Raw::parse(line, true, &mut devs)?;
-        devs.retain(|d| *d == Deviation::GroupedPairs);
-        let word = raw.kind;
+        // Canonical lines (all the engine prints) are read into the stack.
+        let mut inline = [RawPair::default(); INLINE_PAIRS];
+        let general;
+        let (word, pairs) = match read_canonical(line, &mut inline) {
+            Some((word, n)) => (word, &inline[..n]),
+            None => {
+                general = Raw::parse_general(line, true, &mut devs)?;
+                devs.retain(|d| *d == Deviation::GroupedPairs);
+                (general.kind, &general.pairs[..])
+            }
+        };
         let is = |w: &str| word.eq_ignore_ascii_case(w);
-        let r = |what| Reader::new(what, &raw.pairs);
+        let r = |what| Reader::new(what, pairs);
         let typed: Result<Option<Self>, ParseError> = if is("NFO") {
             Nfo::read(r("nfo")).map(|m| m.map(Self::Nfo))
         } else if is("STA") {
@@ -107,7 +117,11 @@ impl ServerMessage {
             Ok(Some(typed)) => typed,
             Err(error) if strict => return Err(error),
             Ok(None) | Err(_) => {
-                let mut generic = raw.to_message();
+                let mut generic = Message {
+                    kind: word.to_owned(),
+                    groups: groups_of(pairs),
+                    verbatim: None,
+                };
                 if generic.to_string() != line {
                     generic.verbatim = Some(line.to_owned());
                 }

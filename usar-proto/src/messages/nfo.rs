@@ -31,7 +31,6 @@ impl Nfo {
         if rest.has("Location") && rest.has("Orientation") {
             let poses = rest
                 .items()
-                .iter()
                 .map(|it| {
                     Ok(StartPose {
                         name: it.string("Name")?,

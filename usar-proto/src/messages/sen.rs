@@ -54,12 +54,13 @@ impl SenData {
                 rotation: d.vec3("Rotation")?,
             }
         } else if is("Sonar") {
+            // Usually one reading per line: a loop allocates exactly one slot.
+            let mut readings = Vec::with_capacity(1);
+            for it in d.items() {
+                readings.push(named_range(&it)?);
+            }
             Self::Sonar {
-                readings: d
-                    .items()
-                    .iter()
-                    .map(named_range)
-                    .collect::<Result<_, _>>()?,
+                readings,
                 grouped: d.grouped(),
             }
         } else if is("RangeScanner") || is("IRScanner") {
@@ -107,7 +108,6 @@ impl SenData {
             Self::Encoder {
                 ticks: d
                     .items()
-                    .iter()
                     .map(|it| {
                         Ok(NamedTick {
                             name: it.string("Name")?,

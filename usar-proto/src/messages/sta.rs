@@ -5,12 +5,15 @@ use super::line::Line;
 use super::server::{Sta, StaLayout, VehicleStatus};
 use crate::error::ParseError;
 use crate::format::WireBuf;
-use crate::value::{Reader, decimals_of};
+use crate::value::{Reader, decimals_of, plain_decimal_places};
 
 /// Reads `{Time t}` keeping its decimals.
 pub(crate) fn read_time(r: &Reader<'_, '_>) -> Result<Option<Time>, ParseError> {
     r.opt_text("Time")
         .map(|v| {
+            if let Some((seconds, decimals)) = plain_decimal_places(v) {
+                return Ok(Time { seconds, decimals });
+            }
             Ok(Time {
                 seconds: r.number_in("Time", v)?,
                 decimals: decimals_of(v),
