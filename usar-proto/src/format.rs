@@ -153,15 +153,15 @@ struct Decimal {
 
 /// The text of one number (and its separator), built on the stack: at most 32 bytes (a
 /// comma, a sign, 20 integer digits, a point and 9 decimals).
-struct Digits {
-    buf: [u8; 32],
+struct Digits<const N: usize = 32> {
+    buf: [u8; N],
     len: usize,
 }
 
-impl Digits {
+impl<const N: usize> Digits<N> {
     fn new() -> Self {
         Self {
-            buf: [0; 32],
+            buf: [0; N],
             len: 0,
         }
     }
@@ -233,6 +233,14 @@ impl Digits {
         }
     }
 
+    /// Hands what it holds to `out` and starts again (the buffer of a list).
+    fn flush_to(&mut self, out: &mut impl WireBuf) {
+        out.push_ascii(&self.buf[..self.len]);
+        self.len = 0;
+    }
+}
+
+impl Digits {
     fn push_to(&self, out: &mut impl WireBuf) {
         out.push_ascii_head(&self.buf, self.len);
     }
@@ -375,14 +383,19 @@ pub fn push_float_string_vector(out: &mut impl WireBuf, v: Vec3, p: u8) {
 /// Appends FloatStrings joined by commas (laser ranges).
 pub fn push_float_string_list(out: &mut impl WireBuf, values: &[f64], p: u8) {
     let p = usize::from(p.min(9));
+    // The numbers go into one buffer, handed over when it is nearly full (one number with
+    // its comma takes at most 32 bytes): one copy per ~20 laser ranges, not one per range.
+    let mut t = Digits::<512>::new();
     for (i, &v) in values.iter().enumerate() {
-        let mut t = Digits::new();
+        if t.len > 512 - 32 {
+            t.flush_to(out);
+        }
         if i > 0 {
             t.byte(b',');
         }
         t.decimal(&float_string_decimal(v, p));
-        t.push_to(out);
     }
+    t.flush_to(out);
 }
 
 /// Appends Rust's shortest round-trip form (`{}`: never exponent notation), used for the
@@ -559,6 +572,28 @@ mod tests {
             any::<u64>().prop_map(f64::from_bits),
             any::<f32>().prop_map(f64::from),
         ]
+    }
+
+    proptest::proptest! {
+        /// A laser scan's list is printed through one buffer handed over in pieces: any
+        /// length, into text or bytes, the same as the numbers one by one.
+        #[test]
+        fn long_lists_match_the_reference(
+            values in proptest::collection::vec(any_value(), 0..400),
+            d in 0u8..12,
+        ) {
+            let expected = values
+                .iter()
+                .map(|&v| reference::float_string(v, d))
+                .collect::<Vec<_>>()
+                .join(",");
+            let mut text = String::from("x");
+            push_float_string_list(&mut text, &values, d);
+            proptest::prop_assert_eq!(&text[1..], expected.as_str());
+            let mut bytes = b"x".to_vec();
+            push_float_string_list(&mut bytes, &values, d);
+            proptest::prop_assert_eq!(&bytes[1..], expected.as_bytes());
+        }
     }
 
     proptest::proptest! {
