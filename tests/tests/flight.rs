@@ -406,3 +406,112 @@ async fn the_quadrotor_completes_four_waypoints_in_gusty_wind() {
     assert!(max_tilt < 35f64.to_radians(), "tilted up to {max_tilt} rad");
     server.stop().await.unwrap();
 }
+
+/// A scratch directory for the files of a run.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("e2e-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The files of an iteration are written while the next one flies; `Written` still means
+/// they are on disk, and the run returns only when every file is.
+#[tokio::test]
+async fn files_are_written_while_the_next_iteration_flies() {
+    let server = server("empty_room").await;
+    let dir = scratch("overlap");
+    let settings = RunSettings {
+        addr: server.addr().to_string(),
+        start: pose(0.0, 0.0, -1.0),
+        missions: vec![Mission::goto(Coordinates::new(1.0, 0.0, -1.5))],
+        iterations: 3,
+        lockstep: Lockstep::Required,
+        log_dir: Some(dir.clone()),
+        ..RunSettings::default()
+    };
+    let factory = agents::info("base").unwrap().create;
+    let mut events = Vec::new();
+    let summary = ucc_client::run(
+        &settings,
+        &factory,
+        &mut |p: &Progress| {
+            if let Progress::Written { files } = p {
+                for f in files {
+                    let size = std::fs::metadata(f).map_or(0, |m| m.len());
+                    assert!(size > 0, "announced before written: {f:?}");
+                }
+            }
+            events.push(p.clone());
+        },
+        &CancellationToken::new(),
+    )
+    .await
+    .unwrap();
+    let written: Vec<&Vec<std::path::PathBuf>> = events
+        .iter()
+        .filter_map(|p| match p {
+            Progress::Written { files } => Some(files),
+            _ => None,
+        })
+        .collect();
+    // Three iterations of 6 files, then the overlay.
+    assert_eq!(written.len(), 4);
+    for (i, iteration) in summary.iterations.iter().enumerate() {
+        assert_eq!(iteration.files.len(), 6);
+        assert_eq!(&iteration.files, written[i], "iteration {}", i + 1);
+    }
+    // The first iteration's files are announced once the second has connected: they were
+    // written while it flew (the defect: the runner drew them between the flights).
+    let position = |wanted: &dyn Fn(&Progress) -> bool| events.iter().position(wanted).unwrap();
+    let first_written = position(&|p| matches!(p, Progress::Written { .. }));
+    let second_connected = position(&|p| matches!(p, Progress::Connected { iteration: 2, .. }));
+    assert!(second_connected < first_written);
+    std::fs::remove_dir_all(&dir).unwrap();
+    server.stop().await.unwrap();
+}
+
+/// A file that cannot be written still fails the run, naming it, with the files before it
+/// written and none announced after it.
+#[tokio::test]
+async fn a_file_that_cannot_be_written_fails_the_run_naming_it() {
+    let server = server("empty_room").await;
+    let dir = scratch("unwritable");
+    // A directory where the second iteration's plots go.
+    let blocked = dir.join("UCCLOG-02-plots.png");
+    std::fs::create_dir_all(&blocked).unwrap();
+    let settings = RunSettings {
+        addr: server.addr().to_string(),
+        start: pose(0.0, 0.0, -1.0),
+        missions: vec![Mission::goto(Coordinates::new(1.0, 0.0, -1.5))],
+        iterations: 3,
+        lockstep: Lockstep::Required,
+        log_dir: Some(dir.clone()),
+        ..RunSettings::default()
+    };
+    let factory = agents::info("base").unwrap().create;
+    let mut events = Vec::new();
+    let error = ucc_client::run(
+        &settings,
+        &factory,
+        &mut |p: &Progress| events.push(p.clone()),
+        &CancellationToken::new(),
+    )
+    .await
+    .unwrap_err();
+    let message = error.to_string();
+    assert!(message.contains("UCCLOG-02-plots.png"), "{message}");
+    assert!(error.is_fatal());
+    let written: Vec<_> = events
+        .iter()
+        .filter(|p| matches!(p, Progress::Written { .. }))
+        .collect();
+    assert_eq!(written.len(), 1, "only the first iteration's: {written:?}");
+    assert!(dir.join("UCCLOG-02-plots.svg").exists());
+    assert!(
+        !dir.join("UCCLOG-03.log").exists(),
+        "no iteration after the failure is written"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+    server.stop().await.unwrap();
+}

@@ -143,24 +143,56 @@ pub fn write_log(path: &Path, lines: &[String]) -> std::io::Result<()> {
     out.flush()
 }
 
+/// The files of one iteration in the log directory (none without one, or when the connection
+/// was never made): the log, the trajectory CSV and, with [`Pictures::All`], the bases of the
+/// map picture and of the plots (each written as SVG and PNG).
+struct IterationFiles {
+    log: PathBuf,
+    csv: PathBuf,
+    pictures: Option<(PathBuf, PathBuf)>,
+}
+
+impl IterationFiles {
+    fn of(settings: &RunSettings, record: &FlightRecord) -> Option<Self> {
+        if !record.connected {
+            return None;
+        }
+        let name = |suffix: &str| settings.file(&format!("{:02}{suffix}", record.iteration));
+        let pictures = match (settings.pictures, name("-map"), name("-plots")) {
+            (Pictures::All, Some(map), Some(plots)) => Some((map, plots)),
+            _ => None,
+        };
+        Some(Self {
+            log: name(".log")?,
+            csv: name("-trajectory.csv")?,
+            pictures,
+        })
+    }
+
+    /// Every path, in the order [`write_iteration`] returns them.
+    fn paths(&self) -> Vec<PathBuf> {
+        let mut files = vec![self.log.clone(), self.csv.clone()];
+        for base in self.pictures.iter().flat_map(|(map, plots)| [map, plots]) {
+            files.extend(["svg", "png"].map(|ext| base.with_extension(ext)));
+        }
+        files
+    }
+}
+
+/// The files [`write_iteration`] writes for `record`, named before they are written.
+pub fn iteration_files(settings: &RunSettings, record: &FlightRecord) -> Vec<PathBuf> {
+    IterationFiles::of(settings, record).map_or_else(Vec::new, |f| f.paths())
+}
+
 /// Writes the files of one iteration into the log directory (nothing without one): the log
 /// (with `last_line` at its end), the trajectory CSV and, with [`Pictures::All`], the map
-/// picture and the plots. Returns the files written.
+/// picture and the plots. Returns the files written ([`iteration_files`]).
 pub fn write_iteration(
     settings: &RunSettings,
     record: &FlightRecord,
     last_line: &str,
 ) -> Result<Vec<PathBuf>, RunError> {
-    if !record.connected {
-        return Ok(Vec::new());
-    }
-    let name = |suffix: &str| settings.file(&format!("{:02}{suffix}", record.iteration));
-    let (Some(log), Some(csv), Some(map), Some(plots)) = (
-        name(".log"),
-        name("-trajectory.csv"),
-        name("-map"),
-        name("-plots"),
-    ) else {
+    let Some(files) = IterationFiles::of(settings, record) else {
         return Ok(Vec::new());
     };
     let output = |path: &Path| {
@@ -169,30 +201,28 @@ pub fn write_iteration(
     };
     let mut lines = record.log.clone();
     lines.push(last_line.to_owned());
-    write_log(&log, &lines).map_err(output(&log))?;
-    write_trajectory(&csv, &record.trajectory).map_err(output(&csv))?;
-    let mut files = vec![log, csv];
-    if settings.pictures != Pictures::All {
-        return Ok(files);
+    write_log(&files.log, &lines).map_err(output(&files.log))?;
+    write_trajectory(&files.csv, &record.trajectory).map_err(output(&files.csv))?;
+    if let Some((map, plots)) = &files.pictures {
+        let picture = MapPicture {
+            title: format!("{} — iteration {}", settings.prefix, record.iteration),
+            paths: vec![record.trajectory.iter().map(|p| p.position).collect()],
+            waypoints: settings.waypoints(),
+            start: record
+                .start
+                .or_else(|| record.trajectory.first().map(|p| p.position)),
+            geometry: settings.map.clone(),
+            laser_hits: record.laser_hits.clone(),
+        };
+        picture.write(map)?;
+        let plots_picture = Plots {
+            title: format!("{} — iteration {}", settings.prefix, record.iteration),
+            trajectory: record.trajectory.clone(),
+            waypoints: settings.waypoints(),
+        };
+        plots_picture.write(plots)?;
     }
-    let picture = MapPicture {
-        title: format!("{} — iteration {}", settings.prefix, record.iteration),
-        paths: vec![record.trajectory.iter().map(|p| p.position).collect()],
-        waypoints: settings.waypoints(),
-        start: record
-            .start
-            .or_else(|| record.trajectory.first().map(|p| p.position)),
-        geometry: settings.map.clone(),
-        laser_hits: record.laser_hits.clone(),
-    };
-    files.extend(picture.write(&map)?);
-    let plots_picture = Plots {
-        title: format!("{} — iteration {}", settings.prefix, record.iteration),
-        trajectory: record.trajectory.clone(),
-        waypoints: settings.waypoints(),
-    };
-    files.extend(plots_picture.write(&plots)?);
-    Ok(files)
+    Ok(files.paths())
 }
 
 #[cfg(test)]

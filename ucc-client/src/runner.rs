@@ -8,8 +8,10 @@
 //! start and keep flowing, `mission_timeout` (simulated seconds) for each mission.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Duration;
 
+use tokio::task::JoinHandle;
 use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
 use usar_proto::{Barrier, Command, Nfo, ServerMessage, StartPose};
@@ -18,7 +20,7 @@ use crate::agent::{AgentFactory, MissionRefused};
 use crate::connection::{Connection, ConnectionError};
 use crate::flight::{Flight, Phase};
 use crate::mission::Mission;
-use crate::output::write_iteration;
+use crate::output::{iteration_files, write_iteration};
 use crate::picture::{MapPicture, PictureError};
 use crate::progress::{Observer, Progress};
 use crate::settings::{LOCKSTEP_STEP, Lockstep, Pictures, RunSettings};
@@ -149,6 +151,11 @@ impl RunError {
 /// `cancel` is cancelled: then the iteration in flight is marked interrupted and, like
 /// every other, its log, trajectory and pictures are written, then the overlay and the
 /// results table ([`Summary::interrupted`] tells).
+///
+/// An iteration's files are written on a blocking thread while the next iteration flies (one
+/// iteration's files at a time); [`Progress::Written`] announces them once they are written,
+/// so it may come after the next iteration's first events, and `run` returns only when every
+/// file is written.
 pub async fn run(
     settings: &RunSettings,
     agents: &dyn AgentFactory,
@@ -168,6 +175,9 @@ pub async fn run(
     let mut summary = Summary::default();
     let mut lockstep = settings.lockstep;
     let mut failure = None;
+    // The files of the last iteration flown, being written.
+    let mut writing = None;
+    let shared = Arc::new(settings.clone());
     for iteration in 1..=settings.iterations.max(1) {
         if cancel.is_cancelled() {
             summary.interrupted = true;
@@ -202,20 +212,21 @@ pub async fn run(
         }
         drain(&mut flight, observer);
         let record = flight.into_record();
-        let files = write_iteration(settings, &record, &last_line)?;
-        if !files.is_empty() {
-            observer.progress(&Progress::Written {
-                files: files.clone(),
-            });
-        }
+        // The files are written on another thread while the next iteration flies: one
+        // iteration's at a time, so the previous one's must be done first.
+        written(writing.take(), observer).await?;
         let iteration_summary = IterationSummary {
             status,
             missions_done: record.missions_done,
             duration: record.duration(),
             distance: record.distance(),
-            trajectory: record.trajectory,
-            files,
+            trajectory: record.trajectory.clone(),
+            files: iteration_files(settings, &record),
         };
+        let shared = Arc::clone(&shared);
+        writing = Some(tokio::task::spawn_blocking(move || {
+            write_iteration(&shared, &record, &last_line)
+        }));
         observer.progress(&match &iteration_summary.status {
             IterationStatus::Done => Progress::IterationDone {
                 iteration,
@@ -230,6 +241,7 @@ pub async fn run(
         summary.iterations.push(iteration_summary);
         match failure.take() {
             Some(e) if !settings.keep_going || e.is_fatal() => {
+                written(writing.take(), observer).await?;
                 finish(settings, &mut summary, observer)?;
                 return Err(e);
             }
@@ -237,8 +249,26 @@ pub async fn run(
             _ => {}
         }
     }
+    written(writing.take(), observer).await?;
     finish(settings, &mut summary, observer)?;
     Ok(summary)
+}
+
+/// Waits for the files of an iteration to be written (see `run`), then announces them.
+async fn written(
+    writing: Option<JoinHandle<Result<Vec<PathBuf>, RunError>>>,
+    observer: &mut dyn Observer,
+) -> Result<(), RunError> {
+    let Some(writing) = writing else {
+        return Ok(());
+    };
+    let files = writing
+        .await
+        .unwrap_or_else(|e| std::panic::resume_unwind(e.into_panic()))?;
+    if !files.is_empty() {
+        observer.progress(&Progress::Written { files });
+    }
+    Ok(())
 }
 
 /// Writes the overlay and the results table.
