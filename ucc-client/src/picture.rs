@@ -117,14 +117,15 @@ fn write_both(
 }
 
 /// Encodes RGB `pixels` as a PNG file. Fast deflate and one filter for every row: the
-/// adaptive filter (five filters tried on every row) took most of the time of a picture, and
-/// "up" turns the charts' many blank and repeated rows into zeros.
+/// adaptive filter (five filters tried on every row) took most of the time of a picture.
+/// "Paeth" predicts the charts' flat areas and lines from their neighbours: files about the
+/// size the adaptive filter gave ("up" or "sub" made them 2.5–3× larger, for ~2 % speed).
 fn write_png(path: &Path, (width, height): (u32, u32), pixels: &[u8]) -> Result<(), String> {
     use image::ImageEncoder;
     use image::codecs::png::{CompressionType, FilterType, PngEncoder};
     let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
     let mut out = std::io::BufWriter::new(file);
-    PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Up)
+    PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Paeth)
         .write_image(pixels, width, height, image::ColorType::Rgb8)
         .map_err(|e| e.to_string())?;
     std::io::Write::flush(&mut out).map_err(|e| e.to_string())
