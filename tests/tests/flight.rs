@@ -415,21 +415,26 @@ fn scratch(name: &str) -> std::path::PathBuf {
     dir
 }
 
+/// Three lockstep iterations of a one-waypoint mission, their files in `dir`.
+fn three_short_flights(addr: impl std::fmt::Display, dir: &std::path::Path) -> RunSettings {
+    RunSettings {
+        addr: addr.to_string(),
+        start: pose(0.0, 0.0, -1.0),
+        missions: vec![Mission::goto(Coordinates::new(1.0, 0.0, -1.5))],
+        iterations: 3,
+        lockstep: Lockstep::Required,
+        log_dir: Some(dir.to_path_buf()),
+        ..RunSettings::default()
+    }
+}
+
 /// The files of an iteration are written while the next one flies; `Written` still means
 /// they are on disk, and the run returns only when every file is.
 #[tokio::test]
 async fn files_are_written_while_the_next_iteration_flies() {
     let server = server("empty_room").await;
     let dir = scratch("overlap");
-    let settings = RunSettings {
-        addr: server.addr().to_string(),
-        start: pose(0.0, 0.0, -1.0),
-        missions: vec![Mission::goto(Coordinates::new(1.0, 0.0, -1.5))],
-        iterations: 3,
-        lockstep: Lockstep::Required,
-        log_dir: Some(dir.clone()),
-        ..RunSettings::default()
-    };
+    let settings = three_short_flights(server.addr(), &dir);
     let factory = agents::info("base").unwrap().create;
     let mut events = Vec::new();
     let summary = ucc_client::run(
@@ -480,15 +485,7 @@ async fn a_file_that_cannot_be_written_fails_the_run_naming_it() {
     // A directory where the second iteration's plots go.
     let blocked = dir.join("UCCLOG-02-plots.png");
     std::fs::create_dir_all(&blocked).unwrap();
-    let settings = RunSettings {
-        addr: server.addr().to_string(),
-        start: pose(0.0, 0.0, -1.0),
-        missions: vec![Mission::goto(Coordinates::new(1.0, 0.0, -1.5))],
-        iterations: 3,
-        lockstep: Lockstep::Required,
-        log_dir: Some(dir.clone()),
-        ..RunSettings::default()
-    };
+    let settings = three_short_flights(server.addr(), &dir);
     let factory = agents::info("base").unwrap().create;
     let mut events = Vec::new();
     let error = ucc_client::run(
