@@ -64,7 +64,7 @@ impl Timer {
 
     /// Whether it fires at `tick` (and if so, schedules the next time).
     fn fire(&mut self, tick: u64) -> bool {
-        if tick < self.due {
+        if !self.is_due(tick) {
             return false;
         }
         self.due += self.every * ((tick - self.due) / self.every + 1);
@@ -486,9 +486,12 @@ impl Robot {
             return;
         };
         // Most ticks nothing is due (sensors report every 0.1-0.3 s): return before any work.
-        if tick < self.status.due
-            && self.parts.iter().all(|p| tick < p.timer.due && !p.forced)
-            && self.actuators.iter().all(|a| tick < a.timer.due)
+        if !self.status.is_due(tick)
+            && self
+                .parts
+                .iter()
+                .all(|p| !p.timer.is_due(tick) && !p.forced)
+            && self.actuators.iter().all(|a| !a.timer.is_due(tick))
         {
             return;
         }
@@ -568,51 +571,35 @@ impl Robot {
         tick: u64,
         tilt: Option<&M3>,
     ) -> Vec<Option<Option<f64>>> {
-        let mut length = None;
-        let fan_parts = self
-            .parts
-            .iter()
-            .zip(&self.model.parts)
-            .filter(|(part, model)| {
-                let Some(range) = part.sensor.single_ray() else {
-                    return false;
-                };
-                let fits = (part.forced || part.timer.is_due(tick))
-                    && model.direction[1] == 0.0
-                    && length.is_none_or(|l| l == range);
-                if fits {
-                    length = Some(range);
-                }
-                fits
-            });
-        if !scene.shortcuts || fan_parts.count() < 4 {
+        if !scene.shortcuts {
             return Vec::new();
         }
-        let Some(length) = length else {
-            return Vec::new();
-        };
-        let mut hits = vec![None; self.parts.len()];
-        let mut fan = Vec::with_capacity(self.parts.len());
-        let yaw = self.rotation[2];
+        let (yaw, mut length) = (self.rotation[2], None);
+        let mut fan = Vec::new();
         for (i, (part, model)) in self.parts.iter().zip(&self.model.parts).enumerate() {
+            let Some(range) = part.sensor.single_ray() else {
+                continue;
+            };
             if !(part.forced || part.timer.is_due(tick))
                 || model.direction[1] != 0.0
-                || part.sensor.single_ray() != Some(length)
+                || length.is_some_and(|l| l != range)
             {
                 continue;
             }
+            length = Some(range);
             let (origin, ray_yaw, pitch) = mount(self.position, yaw, tilt, model);
             // As the sensor builds its direction (`Reading::trace` then tilts it).
             let dir = direction(pitch + 0.0, ray_yaw + 0.0);
             let dir = tilt.map_or(dir, |t| dynamics::mul(t, dir));
-            fan.push((i, origin, dir, ray_yaw - yaw));
-        }
-        let n = fan.len();
-        // Azimuths from the body's heading, within ±π, largest first (as `cast_fan` wants).
-        for ray in fan.iter_mut() {
-            ray.3 = (ray.3 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+            // The azimuth from the body's heading, within ±π.
+            let offset = (ray_yaw - yaw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
                 - std::f64::consts::PI;
+            fan.push((i, origin, dir, offset));
         }
+        let Some(length) = length.filter(|_| fan.len() >= 4) else {
+            return Vec::new();
+        };
+        // Largest azimuth first, as `cast_fan` wants.
         fan.sort_by(|a, b| b.3.total_cmp(&a.3));
         let origins: Vec<V3> = fan.iter().map(|r| r.1).collect();
         let dirs: Vec<V3> = fan.iter().map(|r| r.2).collect();
@@ -624,7 +611,7 @@ impl Robot {
             ),
             None => ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
         };
-        let mut out = Vec::with_capacity(n);
+        let mut out = Vec::with_capacity(fan.len());
         scene.cast_fan(
             self.position,
             &origins,
@@ -637,6 +624,7 @@ impl Robot {
             true,
             &mut out,
         );
+        let mut hits = vec![None; self.parts.len()];
         for (ray, hit) in fan.iter().zip(out) {
             hits[ray.0] = Some(hit);
         }
