@@ -11,6 +11,32 @@ use usar_proto::Vec3;
 /// A position or a velocity in metres (per second), in the world or the body frame.
 pub type Coordinates = Vector3<f64>;
 
+/// A number as messages show it: `.1` decimals (`Num(x, 2)` → `3.14`), or scientific notation
+/// from a million on (`1.00e308`: never hundreds of digits for an absurd value).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Num(pub f64, pub usize);
+
+impl std::fmt::Display for Num {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let Self(v, decimals) = *self;
+        if v.is_finite() && v.abs() >= 1e6 {
+            write!(f, "{v:.decimals$e}")
+        } else {
+            write!(f, "{v:.decimals$}")
+        }
+    }
+}
+
+/// `x,y,z` as messages show them (each a [`Num`]).
+pub fn triple(v: &Coordinates, decimals: usize) -> String {
+    format!(
+        "{},{},{}",
+        Num(v.x, decimals),
+        Num(v.y, decimals),
+        Num(v.z, decimals)
+    )
+}
+
 /// Converts a protocol triple to a nalgebra vector.
 pub fn from_wire(v: Vec3) -> Coordinates {
     Coordinates::new(v.x, v.y, v.z)
@@ -61,6 +87,19 @@ pub fn wrap_angle(a: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn absurd_numbers_are_shown_short() {
+        assert_eq!(Num(3.14159, 2).to_string(), "3.14");
+        assert_eq!(Num(-999_999.0, 1).to_string(), "-999999.0");
+        assert_eq!(Num(1e308, 2).to_string(), "1.00e308");
+        assert_eq!(Num(-2.5e6, 1).to_string(), "-2.5e6");
+        assert_eq!(Num(f64::INFINITY, 2).to_string(), "inf");
+        assert_eq!(
+            triple(&Coordinates::new(1e308, 0.0, -1.0), 2),
+            "1.00e308,0.00,-1.00"
+        );
+    }
     use std::f64::consts::FRAC_PI_2;
 
     fn close(a: &Coordinates, b: &Coordinates) -> bool {

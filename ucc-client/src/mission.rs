@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use crate::geometry::Coordinates;
+use crate::geometry::{Coordinates, Num, triple};
 
 /// One mission.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -72,8 +72,10 @@ impl Mission {
 impl fmt::Display for Mission {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::GotoXyz { x, y, z } => write!(f, "GotoXyz {x:.2},{y:.2},{z:.2}"),
-            Self::Hover { seconds } => write!(f, "Hover {seconds:.1} s"),
+            Self::GotoXyz { x, y, z } => {
+                write!(f, "GotoXyz {}", triple(&Coordinates::new(*x, *y, *z), 2))
+            }
+            Self::Hover { seconds } => write!(f, "Hover {} s", Num(*seconds, 1)),
         }
     }
 }

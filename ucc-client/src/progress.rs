@@ -5,7 +5,7 @@ use std::fmt;
 use std::path::PathBuf;
 
 use crate::agent::{AgentEvent, SpeedCommand};
-use crate::geometry::Coordinates;
+use crate::geometry::{Coordinates, Num, triple};
 use crate::stats::IterationSummary;
 use crate::uav::UavState;
 
@@ -113,8 +113,9 @@ impl fmt::Display for Progress {
                 position: p,
             } => write!(
                 f,
-                "[{iteration}] t={time:.2}s spawned at {:.2},{:.2},{:.2}",
-                p.x, p.y, p.z
+                "[{iteration}] t={}s spawned at {}",
+                Num(*time, 2),
+                triple(p, 2)
             ),
             Self::State {
                 iteration,
@@ -122,9 +123,9 @@ impl fmt::Display for Progress {
                 uav,
                 ..
             } => {
-                write!(f, "[{iteration}] t={time:.2}s")?;
+                write!(f, "[{iteration}] t={}s", Num(*time, 2))?;
                 if let Some(p) = &uav.position {
-                    write!(f, " at {:.2},{:.2},{:.2}", p.value.x, p.value.y, p.value.z)?;
+                    write!(f, " at {}", triple(&p.value, 2))?;
                 }
                 Ok(())
             }

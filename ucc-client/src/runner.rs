@@ -19,6 +19,7 @@ use usar_proto::{Barrier, Command, Nfo, ServerMessage, StartPose};
 use crate::agent::{AgentFactory, MissionRefused};
 use crate::connection::{Connection, ConnectionError};
 use crate::flight::{Flight, Phase};
+use crate::geometry::Num;
 use crate::mission::Mission;
 use crate::output::{iteration_files, write_iteration};
 use crate::picture::{MapPicture, PictureError};
@@ -81,13 +82,13 @@ pub enum RunError {
         timeout: Duration,
     },
     /// The battery ran out.
-    #[error("battery empty at t={time:.2}s")]
+    #[error("battery empty at t={}s", Num(*time, 2))]
     BatteryEmpty {
         /// Simulated seconds.
         time: f64,
     },
     /// The UAV crashed (its crash sensor fired, docs/quadrotor.md).
-    #[error("crashed at t={time:.2}s: {reason}")]
+    #[error("crashed at t={}s: {reason}", Num(*time, 2))]
     Crashed {
         /// Simulated seconds.
         time: f64,
@@ -95,7 +96,7 @@ pub enum RunError {
         reason: String,
     },
     /// A mission took too long.
-    #[error("mission {number} ({mission}) not done after {seconds} simulated seconds")]
+    #[error("mission {number} ({mission}) not done after {} simulated seconds", Num(*seconds, 1))]
     MissionTimeout {
         /// 1-based.
         number: usize,

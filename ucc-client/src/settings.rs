@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use usar_proto::{Command, Init};
 
-use crate::geometry::{Coordinates, to_wire};
+use crate::geometry::{Coordinates, Num, to_wire};
 use crate::mission::{Mission, parse_numbers};
 use crate::picture::MapGeometry;
 
@@ -75,8 +75,11 @@ impl fmt::Display for Start {
                 rotation: r,
             } => write!(
                 f,
-                "{:.2},{:.2},{:.2} (roll {:.2}, pitch {:.2}, yaw {:.2})",
-                l.x, l.y, l.z, r.x, r.y, r.z
+                "{} (roll {}, pitch {}, yaw {})",
+                crate::geometry::triple(l, 2),
+                Num(r.x, 2),
+                Num(r.y, 2),
+                Num(r.z, 2)
             ),
             Self::Tag(tag) => write!(f, "start tag {tag}"),
         }

@@ -9,7 +9,7 @@
 
 use usar_proto::{NamedRange, Scan, SenData, ServerMessage};
 
-use crate::geometry::{Coordinates, body_to_world_vector, from_wire, world_to_body_vector};
+use crate::geometry::{Coordinates, Num, body_to_world_vector, from_wire, world_to_body_vector};
 
 /// Number of horizontal sonars of the stsAirRobot (`Sonar0` … `Sonar7`).
 pub const HORIZONTAL_SONARS: usize = 8;
@@ -287,7 +287,7 @@ impl UavState {
             .map(|v| v.value.norm())
             .reduce(f64::max);
         if let Some(speed) = speed {
-            reason.push_str(&format!(", speed before impact {speed:.2} m/s"));
+            reason.push_str(&format!(", speed before impact {} m/s", Num(speed, 2)));
         }
         if let Some(o) = &self.orientation {
             let tilt = (o.value.x.cos() * o.value.y.cos()).clamp(-1.0, 1.0).acos();
@@ -295,7 +295,12 @@ impl UavState {
         }
         if let Some(p) = &self.position {
             let p = p.value;
-            reason.push_str(&format!(" at ({:.2}, {:.2}, {:.2})", p.x, p.y, p.z));
+            reason.push_str(&format!(
+                " at ({}, {}, {})",
+                Num(p.x, 2),
+                Num(p.y, 2),
+                Num(p.z, 2)
+            ));
         }
         reason
     }

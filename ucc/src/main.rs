@@ -83,6 +83,10 @@ enum Cmd {
         /// Recording of the first connection; later ones get `-2`, `-3`, … before the extension.
         #[arg(long, value_name = "FILE")]
         record: PathBuf,
+        /// Connections served at once; more are closed on accept.
+        #[arg(long, value_name = "N", default_value_t = tap::MAX_CONNECTIONS,
+              value_parser = clap::value_parser!(u16).range(1..))]
+        max_connections: u16,
     },
 }
 
@@ -271,7 +275,10 @@ fn main() -> ExitCode {
             bind,
             upstream,
             record,
-        } => runtime().and_then(|rt| rt.block_on(tap(&bind, listen, upstream, record))),
+            max_connections,
+        } => runtime().and_then(|rt| {
+            rt.block_on(tap(&bind, listen, upstream, record, max_connections.into()))
+        }),
         Cmd::Demo(args) => runtime().and_then(|rt| rt.block_on(demo(args))),
         Cmd::Gui(args) => runtime().and_then(|rt| rt.block_on(gui(args))),
     };
@@ -316,7 +323,7 @@ fn wire_exit(failed: std::io::Result<usize>) -> anyhow::Result<ExitCode> {
         Err(e) => return Err(anyhow::Error::new(e).context("cannot read or write the lines")),
     };
     Ok(if failed > 0 {
-        eprintln!("ucc: {failed} line(s) could not be converted");
+        eprintln!("ucc: {failed} line(s) reported above");
         ExitCode::FAILURE
     } else {
         ExitCode::SUCCESS
@@ -528,16 +535,28 @@ fn print_statistics(summary: &Summary, wall: f64) {
     }
 }
 
-async fn tap(bind: &str, port: u16, upstream: String, record: PathBuf) -> anyhow::Result<ExitCode> {
+async fn tap(
+    bind: &str,
+    port: u16,
+    upstream: String,
+    record: PathBuf,
+    max_connections: usize,
+) -> anyhow::Result<ExitCode> {
+    let announce = format!(
+        "forwarding to {upstream}, recording to {}, at most {max_connections} connections",
+        record.display()
+    );
+    // Both checked before listening: a bad address or path is an error now, not when a
+    // client comes.
+    let tap = tap::Tap::check(upstream, record, max_connections).await?;
     let listener = tokio::net::TcpListener::bind((bind, port))
         .await
         .with_context(|| format!("cannot listen on {bind}:{port}"))?;
     println!(
-        "ucc tap: listening on {}, forwarding to {upstream}, recording to {}",
-        listener.local_addr()?,
-        record.display()
+        "ucc tap: listening on {}, {announce}",
+        listener.local_addr()?
     );
-    tap::run(listener, upstream, record, interrupt_token()).await?;
+    tap.run(listener, interrupt_token()).await;
     Ok(ExitCode::SUCCESS)
 }
 

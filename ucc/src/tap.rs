@@ -5,9 +5,18 @@
 //! since a proxy cannot know the simulated time otherwise) and checked with usar-proto: a
 //! line that does not parse, or that only parses by tolerating a deviation, is logged as a
 //! warning.
+//!
+//! Limits (docs/limits.md): at most `max_connections` sessions at once (more are closed on
+//! accept, and a failing accept — out of file descriptors — is waited out, never the end of
+//! the tap); lines longer than [`MAX_LINE`] are forwarded but neither checked nor recorded;
+//! the log shows a peer's text escaped and cut, and each kind of warning about one session
+//! in full 8 times, then at powers of two (`usar_proto::shown`); a recording that cannot be
+//! written is reported once, naming the file, and the session goes on unrecorded.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
@@ -16,93 +25,308 @@ use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
 use ucc_client::runner::record_path;
 use usar_proto::record::{Direction, RecordWriter};
+use usar_proto::shown::{Repeats, Shown};
 use usar_proto::{Command, ServerMessage};
 
-/// Longest line the tap splits out for recording; longer ones are forwarded but not recorded.
-const MAX_LINE: usize = 256 * 1024;
+/// Longest line the tap splits out for checking and recording (the server's limit); longer
+/// ones are forwarded but not recorded.
+const MAX_LINE: usize = usar_proto::codec::DEFAULT_MAX_LINE;
 
-/// Errors that end the tap.
+/// The default of `--max-connections` (the server's default too).
+pub(crate) const MAX_CONNECTIONS: u16 = 64;
+
+/// Errors that end the tap (or keep it from starting).
 #[derive(Debug, thiserror::Error)]
 pub(crate) enum TapError {
-    /// Accepting failed.
-    #[error("listener failed: {0}")]
-    Io(#[from] std::io::Error),
+    /// `--upstream` is not an address.
+    #[error("--upstream {upstream}: {reason} (expected HOST:PORT, e.g. usarsim-host:3000)")]
+    Upstream {
+        /// As given.
+        upstream: String,
+        /// Why.
+        reason: String,
+    },
+    /// The first recording cannot be created.
+    #[error("--record: cannot create {path}: {error}")]
+    Record {
+        /// The file.
+        path: PathBuf,
+        /// Why (part of the message, so not a `source`).
+        error: std::io::Error,
+    },
 }
 
-/// Accepts clients on `listener` and connects each to `upstream`, until `shutdown`.
-pub(crate) async fn run(
-    listener: TcpListener,
+/// What the tap does, checked by [`Tap::check`] before it listens.
+pub(crate) struct Tap {
     upstream: String,
     record: PathBuf,
-    shutdown: CancellationToken,
-) -> Result<(), TapError> {
-    let tracker = TaskTracker::new();
-    let mut connections = 0;
-    loop {
-        let (client, peer) = tokio::select! {
-            _ = shutdown.cancelled() => break,
-            accepted = listener.accept() => accepted?,
-        };
-        connections += 1;
-        let path = record_path(&record, connections);
-        let upstream = upstream.clone();
-        let token = shutdown.child_token();
-        tracker.spawn(async move {
-            info!(%peer, upstream, record = %path.display(), "tapping");
-            tokio::select! {
-                _ = token.cancelled() => {}
-                result = tap_one(client, &upstream, &path) => match result {
-                    Ok(()) => info!(%peer, "connection closed"),
-                    Err(error) => warn!(%peer, %error, "connection ended"),
-                },
-            }
-        });
-    }
-    tracker.close();
-    tracker.wait().await;
-    Ok(())
+    /// The recording of the first connection, created at start (a bad path is an error
+    /// then, not when a client comes).
+    first: Option<RecordWriter>,
+    max_connections: usize,
 }
 
-async fn tap_one(client: TcpStream, upstream: &str, path: &Path) -> std::io::Result<()> {
+impl Tap {
+    /// Checks `upstream` (it must resolve as `HOST:PORT`) and creates the first recording.
+    pub(crate) async fn check(
+        upstream: String,
+        record: PathBuf,
+        max_connections: usize,
+    ) -> Result<Self, TapError> {
+        let bad = |reason: String| TapError::Upstream {
+            upstream: upstream.clone(),
+            reason,
+        };
+        let addrs = tokio::net::lookup_host(upstream.as_str())
+            .await
+            .map_err(|e| bad(e.to_string()))?;
+        if addrs.count() == 0 {
+            return Err(bad("resolves to no address".into()));
+        }
+        let first = RecordWriter::create(&record).map_err(|error| TapError::Record {
+            path: record.clone(),
+            error,
+        })?;
+        Ok(Self {
+            upstream,
+            record,
+            first: Some(first),
+            max_connections,
+        })
+    }
+
+    /// Accepts clients on `listener` and connects each to the upstream server, until
+    /// `shutdown`.
+    pub(crate) async fn run(mut self, listener: TcpListener, shutdown: CancellationToken) {
+        let tracker = TaskTracker::new();
+        let open = Arc::new(AtomicUsize::new(0));
+        let (mut refused, mut failed_accepts) = (Repeats::default(), Repeats::default());
+        let mut connections = 0;
+        loop {
+            let accepted = tokio::select! {
+                _ = shutdown.cancelled() => break,
+                accepted = listener.accept() => accepted,
+            };
+            let (client, peer) = match accepted {
+                Ok(accepted) => accepted,
+                Err(error) => {
+                    // Out of file descriptors (or another passing failure): wait it out,
+                    // the listener's backlog keeps the clients waiting meanwhile.
+                    if let Some(n) = failed_accepts.note() {
+                        warn!(%error, count = n, "cannot accept a connection; trying again");
+                    }
+                    tokio::select! {
+                        _ = shutdown.cancelled() => break,
+                        () = tokio::time::sleep(Duration::from_millis(100)) => continue,
+                    }
+                }
+            };
+            if open.load(Ordering::Acquire) >= self.max_connections {
+                if let Some(n) = refused.note() {
+                    warn!(%peer, limit = self.max_connections, count = n,
+                        "connection refused: the limit of connections (--max-connections) is reached");
+                }
+                drop(client);
+                continue;
+            }
+            open.fetch_add(1, Ordering::AcqRel);
+            connections += 1;
+            let path = record_path(&self.record, connections);
+            let first = self.first.take();
+            let upstream = self.upstream.clone();
+            let token = shutdown.child_token();
+            let open = Arc::clone(&open);
+            tracker.spawn(async move {
+                info!(%peer, upstream, record = %path.display(), "tapping");
+                tokio::select! {
+                    _ = token.cancelled() => {}
+                    result = tap_one(client, &upstream, &path, first) => match result {
+                        Ok(()) => info!(%peer, "connection closed"),
+                        Err(error) => warn!(%peer, %error, "connection ended"),
+                    },
+                }
+                open.fetch_sub(1, Ordering::AcqRel);
+            });
+        }
+        if refused.count() > 0 {
+            warn!(
+                refused = refused.count(),
+                limit = self.max_connections,
+                "connections were refused at the limit"
+            );
+        }
+        tracker.close();
+        tracker.wait().await;
+    }
+}
+
+/// One session's recording: written until the first error, which is reported once.
+struct Recording {
+    writer: Option<RecordWriter>,
+    path: PathBuf,
+}
+
+impl Recording {
+    fn create(path: &Path, first: Option<RecordWriter>) -> Self {
+        let writer = match first {
+            Some(w) => Some(w),
+            None => match RecordWriter::create(path) {
+                Ok(w) => Some(w),
+                Err(error) => {
+                    warn!(file = %path.display(), %error,
+                        "cannot create the recording; this connection is forwarded unrecorded");
+                    None
+                }
+            },
+        };
+        Self {
+            writer,
+            path: path.to_owned(),
+        }
+    }
+
+    /// Runs `write` on the writer; on its first error, says so and stops recording.
+    fn with(&mut self, write: impl FnOnce(&mut RecordWriter) -> std::io::Result<()>) {
+        if let Some(w) = &mut self.writer
+            && let Err(error) = write(w)
+        {
+            warn!(file = %self.path.display(), %error,
+                "cannot write the recording; it is incomplete, the rest of this connection is not recorded");
+            self.writer = None;
+        }
+    }
+}
+
+async fn tap_one(
+    client: TcpStream,
+    upstream: &str,
+    path: &Path,
+    first: Option<RecordWriter>,
+) -> std::io::Result<()> {
     let server = TcpStream::connect(upstream)
         .await
         .map_err(|e| std::io::Error::new(e.kind(), format!("cannot connect to {upstream}: {e}")))?;
     let _ = (client.set_nodelay(true), server.set_nodelay(true));
-    let recording = Arc::new(Mutex::new(RecordWriter::create(path)?));
+    let recording = Arc::new(Mutex::new(Recording::create(path, first)));
     let (client_read, client_write) = client.into_split();
     let (server_read, server_write) = server.into_split();
-    let up = pump(
-        client_read,
-        server_write,
-        Direction::Client,
-        recording.clone(),
-    );
-    let down = pump(
-        server_read,
-        client_write,
-        Direction::Server,
-        recording.clone(),
-    );
+    let mut up = Checker::new(Direction::Client, recording.clone());
+    let mut down = Checker::new(Direction::Server, recording.clone());
     let result = tokio::select! {
-        r = up => r,
-        r = down => r,
+        r = pump(client_read, server_write, &mut up) => r,
+        r = pump(server_read, client_write, &mut down) => r,
     };
+    up.summarise();
+    down.summarise();
     if let Ok(mut r) = recording.lock() {
-        r.flush()?;
+        r.with(RecordWriter::flush);
     }
     result
 }
 
-/// Forwards bytes from `from` to `to` unchanged, recording and checking each line.
+/// Splits one direction's bytes into lines, checks and records them.
+struct Checker {
+    direction: Direction,
+    recording: Arc<Mutex<Recording>>,
+    line: Vec<u8>,
+    overlong: bool,
+    /// Lines that do not parse cleanly.
+    unclean: Repeats,
+    /// Lines longer than [`MAX_LINE`].
+    long: Repeats,
+}
+
+impl Checker {
+    fn new(direction: Direction, recording: Arc<Mutex<Recording>>) -> Self {
+        Self {
+            direction,
+            recording,
+            line: Vec::new(),
+            overlong: false,
+            unclean: Repeats::default(),
+            long: Repeats::default(),
+        }
+    }
+
+    fn bytes(&mut self, bytes: &[u8]) {
+        for &byte in bytes {
+            if byte == b'\n' || byte == b'\r' {
+                if !self.line.is_empty() && !self.overlong {
+                    let line = std::mem::take(&mut self.line);
+                    self.observe(&String::from_utf8_lossy(&line));
+                    self.line = line;
+                }
+                self.line.clear();
+                self.overlong = false;
+            } else if self.line.len() < MAX_LINE {
+                self.line.push(byte);
+            } else if !self.overlong {
+                self.overlong = true;
+                self.line.clear();
+                if let Some(n) = self.long.note() {
+                    warn!(direction = ?self.direction, max = MAX_LINE, count = n,
+                        "over-long line forwarded, not recorded");
+                }
+            }
+        }
+    }
+
+    /// Records one line and warns when usar-proto cannot read it cleanly.
+    fn observe(&mut self, line: &str) {
+        let mut time = None;
+        let problem = match self.direction {
+            Direction::Client => match Command::parse(line) {
+                Ok(p) => (!p.deviations.is_empty()).then(|| {
+                    let list: Vec<String> = p.deviations.iter().map(ToString::to_string).collect();
+                    list.join("; ")
+                }),
+                Err(e) => Some(e.to_string()),
+            },
+            Direction::Server => match ServerMessage::parse(line) {
+                Ok(p) => {
+                    time = p.message.time();
+                    None
+                }
+                Err(e) => Some(e.to_string()),
+            },
+        };
+        if let Some(problem) = problem
+            && let Some(n) = self.unclean.note()
+        {
+            warn!(direction = ?self.direction, line = %Shown(line), problem = %Shown(&problem),
+                count = n, "line does not parse cleanly");
+        }
+        if let Ok(mut r) = self.recording.lock() {
+            r.with(|w| {
+                if let Some(t) = time {
+                    w.set_time(t);
+                }
+                w.write(self.direction, line)
+            });
+        }
+    }
+
+    /// Says how many warnings were not shown.
+    fn summarise(&self) {
+        for (repeats, what) in [
+            (self.unclean, "lines that do not parse cleanly"),
+            (self.long, "over-long lines"),
+        ] {
+            if repeats.suppressed() > 0 {
+                warn!(direction = ?self.direction, count = repeats.count(),
+                    not_shown = repeats.suppressed(), "{what} in this connection");
+            }
+        }
+    }
+}
+
+/// Forwards bytes from `from` to `to` unchanged, checking and recording each line.
 async fn pump(
     mut from: impl AsyncReadExt + Unpin,
     mut to: impl AsyncWriteExt + Unpin,
-    direction: Direction,
-    recording: Arc<Mutex<RecordWriter>>,
+    checker: &mut Checker,
 ) -> std::io::Result<()> {
     let mut buffer = vec![0; 16 * 1024];
-    let mut line = Vec::new();
-    let mut overlong = false;
     loop {
         let n = from.read(&mut buffer).await?;
         if n == 0 {
@@ -110,56 +334,7 @@ async fn pump(
             return Ok(());
         }
         to.write_all(&buffer[..n]).await?;
-        for &byte in &buffer[..n] {
-            if byte == b'\n' || byte == b'\r' {
-                if !line.is_empty() && !overlong {
-                    observe(&String::from_utf8_lossy(&line), direction, &recording);
-                }
-                line.clear();
-                overlong = false;
-            } else if line.len() < MAX_LINE {
-                line.push(byte);
-            } else if !overlong {
-                overlong = true;
-                warn!(
-                    ?direction,
-                    max = MAX_LINE,
-                    "over-long line forwarded, not recorded"
-                );
-            }
-        }
-    }
-}
-
-/// Records one line and warns when usar-proto cannot read it cleanly.
-fn observe(line: &str, direction: Direction, recording: &Mutex<RecordWriter>) {
-    let problem = match direction {
-        Direction::Client => match Command::parse(line) {
-            Ok(p) => (!p.deviations.is_empty()).then(|| {
-                let list: Vec<String> = p.deviations.iter().map(ToString::to_string).collect();
-                list.join("; ")
-            }),
-            Err(e) => Some(e.to_string()),
-        },
-        Direction::Server => match ServerMessage::parse(line) {
-            Ok(p) => {
-                if let Some(t) = p.message.time()
-                    && let Ok(mut r) = recording.lock()
-                {
-                    r.set_time(t);
-                }
-                None
-            }
-            Err(e) => Some(e.to_string()),
-        },
-    };
-    if let Some(problem) = problem {
-        warn!(?direction, %line, %problem, "line does not parse cleanly");
-    }
-    if let Ok(mut r) = recording.lock()
-        && let Err(error) = r.write(direction, line)
-    {
-        warn!(%error, "cannot record");
+        checker.bytes(&buffer[..n]);
     }
 }
 
@@ -186,7 +361,10 @@ mod tests {
         let record = dir.join("session.usarlog");
         let front = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
         let front_addr = front.local_addr().unwrap();
-        let tap = tokio::spawn(run(front, upstream_addr, record.clone(), shutdown.clone()));
+        let tap = Tap::check(upstream_addr, record.clone(), MAX_CONNECTIONS.into())
+            .await
+            .unwrap();
+        let tap = tokio::spawn(tap.run(front, shutdown.clone()));
 
         let stream = tokio::net::TcpStream::connect(front_addr).await.unwrap();
         let (read, mut write) = stream.into_split();
@@ -208,7 +386,7 @@ mod tests {
         // Give the tap a moment to see the close, then stop everything.
         tokio::time::sleep(std::time::Duration::from_millis(200)).await;
         shutdown.cancel();
-        tap.await.unwrap().unwrap();
+        tap.await.unwrap();
         server.await.unwrap().unwrap();
 
         let text = std::fs::read_to_string(&record).unwrap();

@@ -13,17 +13,39 @@
 //!   ([`usar_proto::SERVER_WORDS`]); every other word, known or not, is a client command
 //!   (UDK ignores unknown commands, and unknown words in the wild — `MULTIDRIVE` — come from
 //!   clients). An unknown word therefore decodes as `{"client":{"Other":{...}}}`.
+//! * Nothing a line says is lost. A line decodes in its typed form only when that form keeps
+//!   all of it: a server line whose typed form prints back to other bytes (`{Range 4.5}`
+//!   would print as `4.5000`), or a command with a key its type does not have (`INIT ...
+//!   {Battery 3600}`), a number or vector that cannot be read, a boolean that is not exactly
+//!   `true`/`false`, or text outside braces, decodes in the generic form (`Other`: the word
+//!   and every key and value as text), which encodes back to the same line (server lines
+//!   byte for byte, commands with canonical spacing).
+//! * A command value that is not a number where a number belongs (`DRIVE {LinearVelocity
+//!   abc}`) is kept as text and reported (`line N: ...`); so are lines that cannot be read
+//!   or converted. Both functions return the number of lines reported (the program exits
+//!   with 1 when it is not 0); the other lines go on.
 //! * Blank lines and lines starting with `#` (comments in capture files) are skipped.
-//! * Every protocol line decodes: a server line that does not fit its typed message decodes
-//!   in the generic form, which encodes back to the same bytes. A line that cannot be read
-//!   (JSON for `encode`) is reported on `err` as `line N: reason` and the others go on; both
-//!   functions return the number of such lines (the program exits with 1 when it is not 0).
-//! * Output lines end with `\n` only (no `\r`). Input may be any mix of `\r\n`/`\n`; bytes
-//!   that are not UTF-8 are read lossily.
+//! * Streaming with bounded memory, whatever the input: a line ends at `\r\n`, `\n` or a
+//!   lone `\r`, and each output line ends the way its input line did (so `decode | encode`
+//!   gives CRLF lines back as CRLF). A line longer than [`MAX_LINE`] bytes (the server's
+//!   limit; [`MAX_JSON_LINE`] for `encode`) is skipped without being stored and reported
+//!   with its number and length. Bytes that are not UTF-8 are read lossily.
+//! * `encode` refuses a message that would print a control character other than TAB (a
+//!   `\r\n` inside a value would inject a second line), naming the line.
+
+use std::borrow::Cow;
+use std::io::{self, BufRead, Write};
 
 use serde::{Deserialize, Serialize};
-use std::io::{self, BufRead, Write};
-use usar_proto::{Command, Message, ServerMessage};
+use usar_proto::{Command, Deviation, Message, ServerMessage};
+
+/// The longest protocol line `decode` reads: the server's limit
+/// (`usar_proto::codec::DEFAULT_MAX_LINE`, 64 KiB).
+pub(crate) const MAX_LINE: usize = usar_proto::codec::DEFAULT_MAX_LINE;
+
+/// The longest JSON line `encode` reads (1 MiB): the JSON of a line of [`MAX_LINE`] bytes in
+/// the generic form is at most about eight times longer.
+pub(crate) const MAX_JSON_LINE: usize = 16 * MAX_LINE;
 
 /// One decoded line: which direction, and the typed message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -36,13 +58,65 @@ pub(crate) enum WireLine {
 }
 
 impl WireLine {
-    /// Reads one protocol line, choosing the direction by its message word.
-    pub(crate) fn parse(line: &str) -> Result<Self, usar_proto::ParseError> {
+    /// Reads one protocol line, choosing the direction by its message word, in the typed
+    /// form only when it keeps everything the line says (module docs). The strings are what
+    /// is worth reporting about the line (a command's value that is not a number).
+    pub(crate) fn parse(line: &str) -> Result<(Self, Vec<String>), usar_proto::ParseError> {
         if ServerMessage::is_server_word(Message::word(line)) {
-            Ok(Self::Server(ServerMessage::parse(line)?.message))
-        } else {
-            Ok(Self::Client(Command::parse(line)?.message))
+            let typed = ServerMessage::parse(line)?.message;
+            if matches!(typed, ServerMessage::Other(_)) || typed.to_string() == line {
+                return Ok((Self::Server(typed), Vec::new()));
+            }
+            let mut generic = Message::parse(line)?.message;
+            if generic.to_string() != line {
+                generic.verbatim = Some(line.to_owned());
+            }
+            return Ok((Self::Server(ServerMessage::Other(generic)), Vec::new()));
         }
+        let parsed = Command::parse(line)?;
+        let mut problems = Vec::new();
+        let mut lossy = false;
+        for deviation in &parsed.deviations {
+            match deviation {
+                // Spelling and spacing: the typed form says the same.
+                Deviation::ExtraWhitespace
+                | Deviation::MissingSpace
+                | Deviation::UnclosedGroup
+                | Deviation::CommandCase(_)
+                | Deviation::KeyCase { .. }
+                | Deviation::UnknownCommand(_)
+                | Deviation::DecimalComma { .. }
+                | Deviation::LeadingPlus { .. } => {}
+                Deviation::BadNumber { key, value } => {
+                    lossy = true;
+                    problems.push(format!(
+                        "{{{key} {value}}}: {value:?} is not a number (kept as written)"
+                    ));
+                }
+                Deviation::BadVector { key, value } => {
+                    lossy = true;
+                    problems.push(format!(
+                        "{{{key} {value}}}: not three numbers x,y,z (kept as written)"
+                    ));
+                }
+                _ => lossy = true,
+            }
+        }
+        // A key given twice: the typed form keeps the first only.
+        let pairs = |m: &Message| m.groups.iter().map(|g| g.pairs.len()).sum::<usize>();
+        let generic = Message::parse_udk(line)?.message;
+        if !lossy
+            && !matches!(parsed.message, Command::Other(_))
+            && pairs(&Message::parse_udk(&parsed.message.to_string())?.message) != pairs(&generic)
+        {
+            lossy = true;
+        }
+        let command = if lossy {
+            Command::Other(generic)
+        } else {
+            parsed.message
+        };
+        Ok((Self::Client(command), problems))
     }
 }
 
@@ -55,75 +129,179 @@ impl std::fmt::Display for WireLine {
     }
 }
 
-/// Calls `each(line_number, text)` for every non-blank, non-comment line.
-fn for_each_line(
-    mut input: impl BufRead,
-    mut each: impl FnMut(usize, &str) -> io::Result<()>,
-) -> io::Result<()> {
-    let mut buf = Vec::new();
-    let mut number = 0;
-    loop {
-        buf.clear();
-        if input.read_until(b'\n', &mut buf)? == 0 {
-            return Ok(());
+/// One line of input.
+enum Item<'a> {
+    /// A line: its text and its terminator (`"\r\n"`, `"\n"`, `"\r"`, or `""` at the end of
+    /// the input).
+    Line(Cow<'a, str>, &'static str),
+    /// A line longer than the limit: how many bytes it had (its text was not kept).
+    TooLong(u64),
+}
+
+/// Splits a byte stream into lines, keeping at most `limit` bytes of any line in memory.
+struct Lines<R> {
+    input: R,
+    limit: usize,
+    line: Vec<u8>,
+    /// Bytes of the current line, including those not kept.
+    length: u64,
+    /// 1-based number of the last line returned.
+    number: usize,
+}
+
+impl<R: BufRead> Lines<R> {
+    fn new(input: R, limit: usize) -> Self {
+        Self {
+            input,
+            limit,
+            line: Vec::new(),
+            length: 0,
+            number: 0,
         }
-        number += 1;
-        let text = String::from_utf8_lossy(&buf);
-        let line = text.trim_end_matches(['\r', '\n']);
-        if line.trim().is_empty() || line.starts_with('#') {
-            continue;
+    }
+
+    fn fill(input: &mut R) -> io::Result<&[u8]> {
+        loop {
+            match input.fill_buf() {
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                // Asked again: the borrow checker cannot see that the loop ends here.
+                Ok(_) => return input.fill_buf(),
+                Err(e) => return Err(e),
+            }
         }
-        each(number, line)?;
+    }
+
+    /// Keeps a piece of the current line, unless the line is already over the limit.
+    fn keep(line: &mut Vec<u8>, length: &mut u64, limit: usize, piece: &[u8]) {
+        *length += piece.len() as u64;
+        if *length <= limit as u64 {
+            line.extend_from_slice(piece);
+        } else {
+            line.clear();
+        }
+    }
+
+    /// The next line with its 1-based number, `None` at the end of the input.
+    fn next(&mut self) -> io::Result<Option<(usize, Item<'_>)>> {
+        self.line.clear();
+        self.length = 0;
+        let end = loop {
+            let buf = Self::fill(&mut self.input)?;
+            if buf.is_empty() {
+                if self.length == 0 {
+                    return Ok(None);
+                }
+                break "";
+            }
+            let Some(i) = buf.iter().position(|&b| b == b'\n' || b == b'\r') else {
+                let n = buf.len();
+                Self::keep(&mut self.line, &mut self.length, self.limit, buf);
+                self.input.consume(n);
+                continue;
+            };
+            let ending = buf[i];
+            Self::keep(&mut self.line, &mut self.length, self.limit, &buf[..i]);
+            self.input.consume(i + 1);
+            if ending == b'\n' {
+                break "\n";
+            }
+            // A CR: one more byte tells CR LF from a lone CR.
+            if Self::fill(&mut self.input)?.first() == Some(&b'\n') {
+                self.input.consume(1);
+                break "\r\n";
+            }
+            break "\r";
+        };
+        self.number += 1;
+        let item = if self.length > self.limit as u64 {
+            Item::TooLong(self.length)
+        } else {
+            Item::Line(String::from_utf8_lossy(&self.line), end)
+        };
+        Ok(Some((self.number, item)))
     }
 }
 
+/// Calls `each(line_number, text, terminator)` for every non-blank, non-comment line, and
+/// reports on `err` what it returns, and over-long lines. Returns how many were reported.
+fn for_each_line(
+    input: impl BufRead,
+    limit: usize,
+    mut err: impl Write,
+    mut each: impl FnMut(&str, &str) -> io::Result<Option<String>>,
+) -> io::Result<usize> {
+    let mut lines = Lines::new(input, limit);
+    let mut reported = 0;
+    while let Some((number, item)) = lines.next()? {
+        let problem = match item {
+            Item::TooLong(length) => Some(format!(
+                "{length} bytes, longer than the limit of {limit}: skipped"
+            )),
+            Item::Line(text, _) if text.trim().is_empty() || text.starts_with('#') => None,
+            Item::Line(text, end) => each(&text, end)?,
+        };
+        if let Some(problem) = problem {
+            reported += 1;
+            writeln!(err, "line {number}: {problem}")?;
+        }
+    }
+    Ok(reported)
+}
+
 /// `ucc decode`: protocol lines to JSON objects (or, with `print`, to printed lines).
-/// Returns the number of lines that could not be read.
+/// Returns the number of lines reported on `err`.
 pub(crate) fn decode(
     input: impl BufRead,
     mut out: impl Write,
-    mut err: impl Write,
+    err: impl Write,
     print: bool,
 ) -> io::Result<usize> {
-    let mut failed = 0;
-    for_each_line(input, |number, line| {
-        match WireLine::parse(line) {
-            Ok(m) if print => writeln!(out, "{m}")?,
-            Ok(m) => {
-                serde_json::to_writer(&mut out, &m).map_err(io::Error::other)?;
-                out.write_all(b"\n")?;
-            }
-            Err(e) => {
-                failed += 1;
-                writeln!(err, "line {number}: {e}")?;
-            }
+    let reported = for_each_line(input, MAX_LINE, err, |line, end| {
+        let (m, problems) = match WireLine::parse(line) {
+            Ok(parsed) => parsed,
+            Err(e) => return Ok(Some(e.to_string())),
+        };
+        if print {
+            write!(out, "{m}")?;
+        } else {
+            serde_json::to_writer(&mut out, &m).map_err(io::Error::other)?;
         }
-        Ok(())
+        out.write_all(end.as_bytes())?;
+        Ok((!problems.is_empty()).then(|| problems.join("; ")))
     })?;
     out.flush()?;
-    Ok(failed)
+    Ok(reported)
 }
 
 /// `ucc encode`: JSON objects (as written by [`decode`]) to protocol lines. Returns the
-/// number of lines that could not be read.
+/// number of lines reported on `err`.
 pub(crate) fn encode(
     input: impl BufRead,
     mut out: impl Write,
-    mut err: impl Write,
+    err: impl Write,
 ) -> io::Result<usize> {
-    let mut failed = 0;
-    for_each_line(input, |number, line| {
-        match serde_json::from_str::<WireLine>(line) {
-            Ok(m) => writeln!(out, "{m}")?,
-            Err(e) => {
-                failed += 1;
-                writeln!(err, "line {number}: {e}")?;
-            }
+    let mut text = String::new();
+    let reported = for_each_line(input, MAX_JSON_LINE, err, |line, end| {
+        let m = match serde_json::from_str::<WireLine>(line) {
+            Ok(m) => m,
+            Err(e) => return Ok(Some(e.to_string())),
+        };
+        text.clear();
+        match &m {
+            WireLine::Client(c) => c.write_to(&mut text),
+            WireLine::Server(s) => s.write_to(&mut text),
         }
-        Ok(())
+        if let Some(c) = text.chars().find(|c| c.is_control() && *c != '\t') {
+            return Ok(Some(format!(
+                "the message would print the control character {c:?} into the line: not written"
+            )));
+        }
+        out.write_all(text.as_bytes())?;
+        out.write_all(end.as_bytes())?;
+        Ok(None)
     })?;
     out.flush()?;
-    Ok(failed)
+    Ok(reported)
 }
 
 #[cfg(test)]
@@ -169,7 +347,7 @@ mod tests {
         assert_eq!((err.as_str(), failed), ("", 0));
         assert_eq!(
             out,
-            "{\"server\":{\"Sta\":{\"time\":{\"seconds\":477.7582,\"decimals\":4},\"battery\":99999,\"vehicle\":null,\"layout\":\"Udk\"}}}\n"
+            "{\"server\":{\"Sta\":{\"time\":{\"seconds\":477.7582,\"decimals\":4},\"battery\":99999,\"vehicle\":null,\"layout\":\"Udk\"}}}\r\n"
         );
         let (out, _, _) = run_decode("DRIVE {Left 1.5}\n", false);
         assert!(out.starts_with("{\"client\":{\"Drive\":{"), "{out}");
@@ -191,8 +369,7 @@ mod tests {
         assert_eq!((err.as_str(), failed), ("", 0));
         let (text, err, failed) = run_encode(&json);
         assert_eq!((err.as_str(), failed), ("", 0));
-        assert_eq!(text.lines().collect::<Vec<_>>(), lines);
-        assert!(!text.contains('\r'));
+        assert_eq!(text, input, "the same bytes, CR LF and all");
         let (printed, _, _) = run_decode(&input, true);
         assert_eq!(printed, text);
     }
@@ -208,6 +385,101 @@ mod tests {
         let (text, err, failed) = run_encode(&json);
         assert_eq!((err.as_str(), failed), ("", 0));
         assert_eq!(text, input);
+    }
+
+    /// Decodes, checks the report, encodes back.
+    fn through(input: &str, reported: usize) -> (String, String) {
+        let (json, err, failed) = run_decode(input, false);
+        assert_eq!(failed, reported, "{err}");
+        let (text, err2, failed) = run_encode(&json);
+        assert_eq!((err2.as_str(), failed), ("", 0));
+        (text, err)
+    }
+
+    #[test]
+    fn nothing_a_line_says_is_lost() {
+        // The defects of #25: Battery dropped, `4.5` printed as `4.5000`, CR LF made LF.
+        let init = "INIT {ClassName USARBot.P3AT} {Name p3} {Location 1,2,3} {Battery 3600}\r\n";
+        let (json, _, _) = run_decode(init, false);
+        assert!(json.contains("Battery"), "{json}");
+        assert_eq!(through(init, 0).0, init);
+        let sen =
+            "SEN {Time 1.0000} {Type Sonar} {Name F1} {Range 4.5}\r\nSTA {Time 2} {Battery 99}\n";
+        assert_eq!(through(sen, 0).0, sen);
+        assert_eq!(run_decode(sen, true).0, sen);
+        // Typed where nothing is lost, with the line's own ending.
+        let (json, _, _) = run_decode("DRIVE {LinearVelocity 1.5}\r", false);
+        assert!(json.starts_with("{\"client\":{\"Drive\""), "{json}");
+        assert!(json.ends_with("}\r"), "{json:?}");
+        for line in [
+            "DRIVE {Normalized True}\n",
+            "DRIVE {Left 1} {Left 2}\n",
+            "INIT {ClassName X} junk {Name a}\n",
+        ] {
+            let (text, _) = through(line, 0);
+            assert_eq!(
+                Message::parse_udk(&text).unwrap().message.groups,
+                Message::parse_udk(line).unwrap().message.groups,
+                "{line}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_number_that_is_not_one_is_kept_and_reported() {
+        let (text, err) = through("DRIVE {LinearVelocity abc}\nDRIVE {Left 1}\n", 1);
+        assert_eq!(text, "DRIVE {LinearVelocity abc}\nDRIVE {Left 1}\n");
+        assert_eq!(
+            err,
+            "line 1: {LinearVelocity abc}: \"abc\" is not a number (kept as written)\n"
+        );
+        let (text, err) = through("INIT {ClassName X} {Location 1,2}\n", 1);
+        assert_eq!(text, "INIT {ClassName X} {Location 1,2}\n");
+        assert!(err.contains("not three numbers"), "{err}");
+    }
+
+    #[test]
+    fn any_line_ending_splits_and_long_lines_are_skipped() {
+        let input = format!(
+            "STA {{Time 1}} {{Battery 1}}\r{}\rSTA {{Time 2}} {{Battery 2}}\r\n{}",
+            "X".repeat(MAX_LINE + 1),
+            "STA {Time 3} {Battery 3}"
+        );
+        let (printed, err, failed) = run_decode(&input, true);
+        assert_eq!(failed, 1);
+        assert_eq!(
+            err,
+            format!(
+                "line 2: {} bytes, longer than the limit of {MAX_LINE}: skipped\n",
+                MAX_LINE + 1
+            )
+        );
+        assert_eq!(
+            printed,
+            "STA {Time 1} {Battery 1}\rSTA {Time 2} {Battery 2}\r\nSTA {Time 3} {Battery 3}"
+        );
+        // A line that is just short enough is read.
+        let (_, err, failed) = run_decode(&format!("{}\n", "Y".repeat(MAX_LINE)), false);
+        assert_eq!((err.as_str(), failed), ("", 0));
+    }
+
+    #[test]
+    fn lines_split_across_reads_are_read_whole() {
+        // A reader that hands out one byte at a time: CR and LF arrive in separate reads.
+        let input = "STA {Time 1} {Battery 1}\r\nSTA {Time 2} {Battery 2}\r";
+        let slow = io::BufReader::with_capacity(1, input.as_bytes());
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        assert_eq!(decode(slow, &mut out, &mut err, true).unwrap(), 0);
+        assert_eq!(String::from_utf8(out).unwrap(), input);
+    }
+
+    #[test]
+    fn encode_refuses_to_inject_a_line() {
+        let json = "{\"client\":{\"Init\":{\"class_name\":\"USARBot.stsAirRobot\",\"name\":\"UAV\\r\\nGETSTARTPOSES\",\"location\":null,\"rotation\":null,\"start\":null}}}\n{\"client\":\"GetStartPoses\"}\n";
+        let (out, err, failed) = run_encode(json);
+        assert_eq!((out.as_str(), failed), ("GETSTARTPOSES\n", 1));
+        assert!(err.starts_with("line 1: "), "{err}");
+        assert!(err.contains("'\\r'"), "{err}");
     }
 
     #[test]

@@ -304,7 +304,11 @@ impl Decoder for ServerCodec {
 impl Encoder<&Command> for ServerCodec {
     type Error = io::Error;
 
+    /// Refuses a command whose values would break the line ([`Command::check`]) with an
+    /// [`io::ErrorKind::InvalidInput`] error that says why.
     fn encode(&mut self, item: &Command, dst: &mut BytesMut) -> io::Result<()> {
+        item.check()
+            .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e))?;
         item.write_line(dst);
         Ok(())
     }
@@ -406,5 +410,28 @@ mod tests {
             .encode(&Command::GetStartPoses, &mut dst)
             .unwrap();
         assert_eq!(&dst[..], b"GETSTARTPOSES\r\n");
+    }
+
+    #[test]
+    fn the_client_encoder_refuses_line_injection() {
+        let init = Command::parse("INIT {ClassName USARBot.stsAirRobot} {Name UAV1}")
+            .unwrap()
+            .message;
+        let Command::Init(mut bad) = init.clone() else {
+            unreachable!()
+        };
+        bad.name = Some("UAV1\r\nGETSTARTPOSES".into());
+        let mut dst = BytesMut::new();
+        let error = ServerCodec::default()
+            .encode(&Command::Init(bad), &mut dst)
+            .unwrap_err();
+        assert_eq!(error.kind(), io::ErrorKind::InvalidInput);
+        assert!(error.to_string().contains("carriage return"), "{error}");
+        assert!(dst.is_empty(), "nothing written");
+        ServerCodec::default().encode(&init, &mut dst).unwrap();
+        assert_eq!(
+            &dst[..],
+            b"INIT {ClassName USARBot.stsAirRobot} {Name UAV1}\r\n"
+        );
     }
 }

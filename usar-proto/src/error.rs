@@ -49,6 +49,57 @@ impl ParseError {
     }
 }
 
+/// A value that cannot be printed into a protocol line: it holds a character that would end
+/// the line or its group, or start another (a control character such as CR, LF, TAB or NUL,
+/// or a brace), so that a name like `UAV1\r\nGETSTARTPOSES` cannot inject a command.
+///
+/// The message names the command, the key and the character:
+/// `INIT {Name ..}: "UAV\r\nX" holds a carriage return (U+000D); values may not hold control characters or braces`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{command} {{{key} ..}}: {value:?} holds {what}; values may not hold control characters or braces"
+)]
+pub struct TextError {
+    /// The command word (`INIT`).
+    pub command: String,
+    /// The key (`Name`), or `word` for the command word itself.
+    pub key: String,
+    /// The value, cut to 80 characters.
+    pub value: String,
+    /// The character, named (`a carriage return (U+000D)`).
+    pub what: String,
+}
+
+impl TextError {
+    /// Checks one text value: `Err` names its first forbidden character.
+    pub fn check(command: &str, key: &str, value: &str) -> Result<(), Self> {
+        let Some(c) = value
+            .chars()
+            .find(|c| c.is_control() || matches!(c, '{' | '}'))
+        else {
+            return Ok(());
+        };
+        let what = match c {
+            '\r' => "a carriage return (U+000D)".to_owned(),
+            '\n' => "a line feed (U+000A)".to_owned(),
+            '\t' => "a tab (U+0009)".to_owned(),
+            '\0' => "a NUL (U+0000)".to_owned(),
+            '{' | '}' => format!("a brace ({c})"),
+            c => format!("a control character (U+{:04X})", u32::from(c)),
+        };
+        let mut shown: String = value.chars().take(80).collect();
+        if shown.len() < value.len() {
+            shown.push('…');
+        }
+        Err(Self {
+            command: command.to_owned(),
+            key: key.to_owned(),
+            value: shown,
+            what,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::ParseErrorKind;

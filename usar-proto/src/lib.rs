@@ -10,7 +10,10 @@
 //! * [`format`]: the engine's number formatters (implicit float, implicit vector,
 //!   `FloatString`) writing into any [`format::WireBuf`];
 //! * [`codec`] (feature `codec`): the tokio-util line codecs shared by server and client;
-//! * [`error`]: the crate-edge error, [`ParseError`].
+//! * [`shown`]: a peer's text as a log shows it (escaped, cut) and a counter that
+//!   summarises repeated warnings;
+//! * [`error`]: the crate-edge errors, [`ParseError`] (reading) and [`TextError`] (a value
+//!   that cannot be printed into a line).
 //!
 //! ```
 //! use usar_proto::{SenData, ServerMessage};
@@ -31,8 +34,9 @@ pub mod format;
 pub mod message;
 pub mod messages;
 pub mod record;
+pub mod shown;
 mod value;
 
-pub use error::{ParseError, ParseErrorKind};
+pub use error::{ParseError, ParseErrorKind, TextError};
 pub use message::{Deviation, Group, Message, Pair, Parsed};
 pub use messages::*;

@@ -150,7 +150,7 @@ pub struct MisPkg {
 
 use super::line::Line;
 use super::sync::{Barrier, SYNC_WORD};
-use crate::error::ParseError;
+use crate::error::{ParseError, TextError};
 use crate::format::WireBuf;
 use crate::message::{Deviation, Parsed, Raw, RawPair};
 use crate::value::{Lenient, lenient_f64, lenient_i64};
@@ -456,6 +456,70 @@ impl Command {
         self.write_to(out);
         out.push_text("\r\n");
     }
+
+    /// Checks that every text value can be printed into one line: no control character
+    /// (CR, LF, TAB, NUL, ...) and no brace, which would end the line or the group and let
+    /// a value inject a command. The printers do not check (they are the hot path); every
+    /// door that sends commands built from user input does: the client codec (`ServerCodec`)
+    /// and the `ucc-client` connection.
+    ///
+    /// ```
+    /// use usar_proto::{Command, Init};
+    /// let init = Command::Init(Init {
+    ///     class_name: "USARBot.stsAirRobot".into(),
+    ///     name: Some("UAV1\r\nGETSTARTPOSES".into()),
+    ///     ..Init::default()
+    /// });
+    /// let error = init.check().unwrap_err();
+    /// assert!(error.to_string().starts_with("INIT {Name ..}: \"UAV1\\r\\nGETSTARTPOSES\" holds a carriage return"));
+    /// ```
+    pub fn check(&self) -> Result<(), TextError> {
+        let check = |word: &str, fields: &[(&str, Option<&str>)]| {
+            fields.iter().try_for_each(|(key, value)| {
+                value.map_or(Ok(()), |v| TextError::check(word, key, v))
+            })
+        };
+        match self {
+            Self::Init(i) => check(
+                "INIT",
+                &[
+                    ("ClassName", Some(&i.class_name)),
+                    ("Name", i.name.as_deref()),
+                    ("Start", i.start.as_deref()),
+                ],
+            ),
+            Self::GetConf(q) | Self::GetGeo(q) => check(
+                if matches!(self, Self::GetConf(_)) {
+                    "GETCONF"
+                } else {
+                    "GETGEO"
+                },
+                &[("Type", Some(&q.kind)), ("Name", q.name.as_deref())],
+            ),
+            Self::Set(s) => check(
+                "SET",
+                &[
+                    ("Type", Some(&s.kind)),
+                    ("Name", s.name.as_deref()),
+                    ("Opcode", Some(&s.opcode)),
+                    ("Params", s.params.as_deref()),
+                ],
+            ),
+            Self::Act(a) => check("ACT", &[("Name", Some(&a.name))]),
+            Self::MisPkg(m) => check("MISPKG", &[("Name", Some(&m.name))]),
+            Self::Drive(_) | Self::GetStartPoses | Self::Sync(_) => Ok(()),
+            Self::Other(m) => {
+                TextError::check(&m.kind, "word", &m.kind)?;
+                if let Some(line) = &m.verbatim {
+                    TextError::check(&m.kind, "line", line)?;
+                }
+                m.groups.iter().flat_map(|g| &g.pairs).try_for_each(|p| {
+                    TextError::check(&m.kind, "key", &p.key)?;
+                    TextError::check(&m.kind, &p.key, &p.value)
+                })
+            }
+        }
+    }
 }
 
 impl std::fmt::Display for Command {
@@ -543,6 +607,50 @@ mod tests {
             c.to_string(),
             "DRIVE {AltitudeVelocity 1} {LinearVelocity 0} {LateralVelocity 0} {RotationalVelocity 56} {PitchAngle 5} {RollAngle -5} {Spin1 7} {Spin2 7} {Normalized false}"
         );
+    }
+
+    #[test]
+    fn values_that_would_break_the_line_are_refused() {
+        let init = |name: &str| {
+            Command::Init(Init {
+                class_name: "USARBot.stsAirRobot".into(),
+                name: Some(name.into()),
+                ..Init::default()
+            })
+        };
+        assert_eq!(init("UAV1").check(), Ok(()));
+        for (name, what) in [
+            ("a\r\nGETSTARTPOSES", "a carriage return"),
+            ("a\nb", "a line feed"),
+            ("a\tb", "a tab"),
+            ("a\0b", "a NUL"),
+            ("a\u{1b}[2J", "a control character (U+001B)"),
+            ("a} {Location 0,0,-50", "a brace (})"),
+        ] {
+            let e = init(name).check().unwrap_err();
+            assert_eq!((e.command.as_str(), e.key.as_str()), ("INIT", "Name"));
+            assert!(e.to_string().contains(what), "{e}");
+        }
+        let start = Command::Init(Init {
+            start: Some("Start1\r\n".into()),
+            ..Init::default()
+        });
+        assert_eq!(start.check().unwrap_err().key, "Start");
+        let class = Command::Init(Init {
+            class_name: "USARBot.x\r\nDRIVE {Left 1}".into(),
+            ..Init::default()
+        });
+        assert_eq!(class.check().unwrap_err().key, "ClassName");
+        let set = cmd("SET {Type Camera} {Opcode Zoom} {Params 0.5}").0;
+        assert_eq!(set.check(), Ok(()));
+        let mut other = cmd("MULTIDRIVE {FRFlipper 1.5}").0;
+        assert_eq!(other.check(), Ok(()));
+        if let Command::Other(m) = &mut other {
+            m.groups[0].pairs[0].value = "1\r\nGETSTARTPOSES".into();
+        }
+        assert_eq!(other.check().unwrap_err().key, "FRFlipper");
+        let long = init(&format!("{}\n", "x".repeat(500))).check().unwrap_err();
+        assert!(long.to_string().len() < 250, "{long}");
     }
 
     #[test]
