@@ -7,12 +7,13 @@
 //! (docs/lockstep.md) is the flight loop's business ([`crate::flight`]): here a `SYNC` is a
 //! command and its answer a message like any other.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use tokio::net::TcpStream;
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use usar_proto::record::{Direction, RecordWriter};
+use usar_proto::shown::{Repeats, Shown};
 use usar_proto::{Command, ServerMessage};
 
 use crate::agent::SpeedCommand;
@@ -46,7 +47,11 @@ pub enum ConnectionError {
     /// Sending to the server failed.
     #[error("cannot send to the server: {0}")]
     Write(std::io::Error),
-    /// The recording file could not be created.
+    /// A command holds text that would break its line (`usar_proto::Command::check`): a
+    /// robot name, class or start tag with a control character or a brace. Nothing was sent.
+    #[error("cannot send {0}")]
+    Unsendable(#[from] usar_proto::TextError),
+    /// The recording file could not be created or written (it is incomplete).
     #[error("cannot record to {path}: {error}")]
     Record {
         /// The file.
@@ -67,7 +72,35 @@ pub struct Connection {
     /// Server lines are recorded when the caller takes them, so that the interleaving with
     /// the caller's commands is the order of cause and effect (and the same in every
     /// lockstep run).
-    recorder: Option<RecordWriter>,
+    recorder: Option<Recorder>,
+    /// Server lines that could not be read (logged in full 8 times, then at powers of two).
+    unreadable: Repeats,
+}
+
+/// The recording of a connection: written until the first error, which is logged once
+/// (naming the file) and returned by [`Connection::disconnect`].
+#[derive(Debug)]
+struct Recorder {
+    writer: Option<RecordWriter>,
+    path: PathBuf,
+    error: Option<std::io::Error>,
+}
+
+impl Recorder {
+    fn write(&mut self, time: Option<f64>, direction: Direction, line: &str) {
+        let Some(w) = &mut self.writer else {
+            return;
+        };
+        if let Some(time) = time {
+            w.set_time(time);
+        }
+        if let Err(error) = w.write(direction, line) {
+            tracing::warn!(file = %self.path.display(), %error,
+                "cannot write the recording; it is incomplete from here on");
+            self.writer = None;
+            self.error = Some(error);
+        }
+    }
 }
 
 impl Connection {
@@ -82,17 +115,22 @@ impl Connection {
         timeout: Duration,
         path: &Path,
     ) -> Result<Self, ConnectionError> {
-        let recorder = RecordWriter::create(path).map_err(|error| ConnectionError::Record {
+        let writer = RecordWriter::create(path).map_err(|error| ConnectionError::Record {
             path: path.display().to_string(),
             error,
         })?;
+        let recorder = Recorder {
+            writer: Some(writer),
+            path: path.to_owned(),
+            error: None,
+        };
         Self::open(addr, timeout, Some(recorder)).await
     }
 
     async fn open(
         addr: &str,
         timeout: Duration,
-        recorder: Option<RecordWriter>,
+        recorder: Option<Recorder>,
     ) -> Result<Self, ConnectionError> {
         let stream = tokio::time::timeout(timeout, TcpStream::connect(addr))
             .await
@@ -113,6 +151,7 @@ impl Connection {
             lines: LineReader::new(read),
             writer,
             recorder,
+            unreadable: Repeats::default(),
         })
     }
 
@@ -138,40 +177,44 @@ impl Connection {
                         tracing::trace!(%line, deviations = ?parsed.deviations, "tolerated");
                     }
                     if let Some(r) = &mut self.recorder {
-                        if let Some(time) = parsed.message.time() {
-                            r.set_time(time);
-                        }
-                        let _ = r.write(Direction::Server, &line);
+                        r.write(parsed.message.time(), Direction::Server, &line);
                     }
                     return Ok(parsed.message);
                 }
                 Err(error) => {
-                    tracing::warn!(%line, %error, "unreadable server line skipped");
+                    if let Some(count) = self.unreadable.note() {
+                        tracing::warn!(line = %Shown(&line), %error, count,
+                            "unreadable server line skipped");
+                    }
                     if let Some(r) = &mut self.recorder {
-                        let _ = r.write(Direction::Server, &line);
+                        r.write(None, Direction::Server, &line);
                     }
                 }
             }
         }
     }
 
-    /// Sends one command.
+    /// Sends one command; refuses one whose text would break the line
+    /// ([`ConnectionError::Unsendable`]).
     pub async fn send(&mut self, command: &Command) -> Result<(), ConnectionError> {
+        command.check()?;
         let mut line = String::new();
         command.write_to(&mut line);
         self.send_line(&line).await
     }
 
-    /// Sends commands in one write (a DRIVE and the next `SYNC` reach the server together).
+    /// Sends commands in one write (a DRIVE and the next `SYNC` reach the server together);
+    /// sends none if one of them would break its line ([`ConnectionError::Unsendable`]).
     pub async fn send_all(&mut self, commands: &[Command]) -> Result<(), ConnectionError> {
         use tokio::io::AsyncWriteExt;
+        commands.iter().try_for_each(Command::check)?;
         let mut text = String::new();
         for command in commands {
             let start = text.len();
             command.write_to(&mut text);
             tracing::trace!(line = %&text[start..], "send");
             if let Some(r) = &mut self.recorder {
-                let _ = r.write(Direction::Client, &text[start..]);
+                r.write(None, Direction::Client, &text[start..]);
             }
             text.push_str("\r\n");
         }
@@ -184,7 +227,7 @@ impl Connection {
     async fn send_line(&mut self, line: &str) -> Result<(), ConnectionError> {
         tracing::trace!(%line, "send");
         if let Some(r) = &mut self.recorder {
-            let _ = r.write(Direction::Client, line);
+            r.write(None, Direction::Client, line);
         }
         write_line(&mut self.writer, line)
             .await
@@ -209,14 +252,18 @@ impl Connection {
         self.send(&Command::Drive(command.to_drive())).await
     }
 
-    /// Closes the connection cleanly (the server then removes the robot).
+    /// Closes the connection cleanly (the server then removes the robot). A recording that
+    /// could not be written whole is [`ConnectionError::Record`], naming the file.
     pub async fn disconnect(mut self) -> Result<(), ConnectionError> {
         use tokio::io::AsyncWriteExt;
         if let Some(r) = &mut self.recorder {
-            r.flush().map_err(|error| ConnectionError::Record {
-                path: "the recording".into(),
-                error,
-            })?;
+            let flushed = r.writer.as_mut().map_or(Ok(()), RecordWriter::flush);
+            if let Some(error) = r.error.take().or(flushed.err()) {
+                return Err(ConnectionError::Record {
+                    path: r.path.display().to_string(),
+                    error,
+                });
+            }
         }
         self.writer.shutdown().await.map_err(ConnectionError::Write)
     }
@@ -257,6 +304,48 @@ mod tests {
             conn.next_message().await,
             Err(ConnectionError::Closed)
         ));
+    }
+
+    #[tokio::test]
+    async fn a_command_that_would_inject_a_line_is_not_sent() {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap().to_string();
+        let server = tokio::spawn(async move {
+            let (mut socket, _) = listener.accept().await.unwrap();
+            let mut received = String::new();
+            socket.read_to_string(&mut received).await.unwrap();
+            socket.shutdown().await.unwrap();
+            received
+        });
+        let mut conn = Connection::connect(&addr, Duration::from_secs(5))
+            .await
+            .unwrap();
+        let init = |name: &str| {
+            Command::Init(usar_proto::Init {
+                class_name: "USARBot.stsAirRobot".into(),
+                name: Some(name.into()),
+                ..usar_proto::Init::default()
+            })
+        };
+        for bad in ["UAV1\r\nGETSTARTPOSES", "UAV\t1", "UAV\01"] {
+            let error = conn.send(&init(bad)).await.unwrap_err();
+            assert!(matches!(error, ConnectionError::Unsendable(_)), "{error}");
+            let error = conn
+                .send_all(&[Command::GetStartPoses, init(bad)])
+                .await
+                .unwrap_err();
+            assert!(
+                error.to_string().starts_with("cannot send INIT {Name ..}"),
+                "{error}"
+            );
+        }
+        conn.send(&init("UAV1")).await.unwrap();
+        conn.disconnect().await.unwrap();
+        assert_eq!(
+            server.await.unwrap(),
+            "INIT {ClassName USARBot.stsAirRobot} {Name UAV1}\r\n"
+        );
     }
 
     #[tokio::test]

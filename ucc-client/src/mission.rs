@@ -121,11 +121,42 @@ struct MissionFile {
     mission: Vec<toml::Spanned<RawMission>>,
 }
 
-/// Reads a mission file.
+/// The largest mission file [`load_missions`] reads (bytes): 1 MiB, like a robot file.
+pub const MAX_MISSION_FILE: u64 = 1024 * 1024;
+
+/// The most missions a file or a run may hold.
+pub const MAX_MISSIONS: usize = 10_000;
+
+/// Reads a mission file (at most [`MAX_MISSION_FILE`] bytes of UTF-8, at most
+/// [`MAX_MISSIONS`] missions).
 pub fn load_missions(path: &Path) -> Result<Vec<Mission>, MissionError> {
-    let text = std::fs::read_to_string(path).map_err(|error| MissionError::Io {
+    use std::io::Read;
+    let io = |error| MissionError::Io {
         path: path.to_owned(),
         error,
+    };
+    let invalid = |line, message| MissionError::Invalid {
+        path: path.to_owned(),
+        line,
+        message,
+    };
+    let mut bytes = Vec::new();
+    // `take` bounds what has no size too (a pipe, /dev/zero).
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(MAX_MISSION_FILE + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_MISSION_FILE {
+        return Err(invalid(
+            1,
+            format!("larger than the limit of {MAX_MISSION_FILE} bytes (1 MiB)"),
+        ));
+    }
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = good.iter().filter(|&&b| b == b'\n').count() + 1;
+        invalid(line, "not a text file (bytes that are not UTF-8)".into())
     })?;
     parse_missions(&text, path)
 }
@@ -142,6 +173,15 @@ pub fn parse_missions(text: &str, path: &Path) -> Result<Vec<Mission>, MissionEr
         .map_err(|e| invalid(e.span().map(|s| s.start), e.message().trim().to_owned()))?;
     if file.mission.is_empty() {
         return Err(invalid(None, "no [[mission]] entries".into()));
+    }
+    if let Some(extra) = file.mission.get(MAX_MISSIONS) {
+        return Err(invalid(
+            Some(extra.span().start),
+            format!(
+                "more than {MAX_MISSIONS} missions ({} in the file)",
+                file.mission.len()
+            ),
+        ));
     }
     file.mission
         .iter()
@@ -199,23 +239,38 @@ fn read_mission(table: &toml::Spanned<RawMission>) -> Result<Mission, (usize, St
             let [(x, ax), (y, ay), (z, az)] = [number("x")?, number("y")?, number("z")?];
             if let Some(at) = [(x, ax), (y, ay), (z, az)]
                 .iter()
-                .find(|(v, _)| !v.is_finite())
+                .find(|(v, _)| v.is_nan() || v.abs() > MAX_COORDINATE)
                 .map(|(_, at)| *at)
             {
-                return Err((at, "GotoXyz coordinates must be finite numbers".into()));
+                return Err((
+                    at,
+                    format!(
+                        "GotoXyz coordinates must be numbers within ±{MAX_COORDINATE} m (the world's size)"
+                    ),
+                ));
             }
             Mission::GotoXyz { x, y, z }
         }
         _ => {
             let (seconds, at) = number("seconds")?;
-            if !(seconds.is_finite() && seconds >= 0.0) {
-                return Err((at, "Hover seconds must be a number >= 0".into()));
+            if !(0.0..=MAX_HOVER).contains(&seconds) {
+                return Err((
+                    at,
+                    format!("Hover seconds must be a number >= 0 and <= {MAX_HOVER}"),
+                ));
             }
             Mission::Hover { seconds }
         }
     };
     Ok(mission)
 }
+
+/// The largest coordinate of a waypoint, metres: the server's world ends at ±100 000 m
+/// (docs/limits.md).
+pub const MAX_COORDINATE: f64 = 100_000.0;
+
+/// The longest hover, simulated seconds (as `--mission-timeout`'s limit).
+const MAX_HOVER: f64 = 1e6;
 
 fn line_of(text: &str, offset: usize) -> usize {
     text.as_bytes()[..offset.min(text.len())]
@@ -232,7 +287,13 @@ pub fn parse_point(text: &str) -> Result<Coordinates, MissionError> {
         reason,
     })?;
     match numbers[..] {
-        [x, y, z] => Ok(Coordinates::new(x, y, z)),
+        [x, y, z] if [x, y, z].iter().all(|v| v.abs() <= MAX_COORDINATE) => {
+            Ok(Coordinates::new(x, y, z))
+        }
+        [_, _, _] => Err(MissionError::Point {
+            text: text.to_owned(),
+            reason: format!("a coordinate beyond ±{MAX_COORDINATE} m (the world's size)"),
+        }),
         _ => Err(MissionError::Point {
             text: text.to_owned(),
             reason: format!("{} numbers instead of 3", numbers.len()),
@@ -326,6 +387,54 @@ mod tests {
         let missions = load_missions(&path).unwrap();
         assert_eq!(missions.len(), 4);
         assert_eq!(missions[2], Mission::Hover { seconds: 3.0 });
+    }
+
+    #[test]
+    fn absurd_files_and_numbers_are_refused_with_a_short_message() {
+        let dir = std::env::temp_dir().join(format!("ucc-missions-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // A file past 1 MiB, read no further than the limit.
+        let big = dir.join("big.toml");
+        std::fs::write(&big, "#".repeat(MAX_MISSION_FILE as usize + 10)).unwrap();
+        let err = load_missions(&big).unwrap_err().to_string();
+        assert!(err.contains("big.toml:1: larger than the limit"), "{err}");
+        // /dev/zero has no size and no end.
+        if Path::new("/dev/zero").exists() {
+            let err = load_missions(Path::new("/dev/zero"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("larger than the limit"), "{err}");
+        }
+        let binary = dir.join("binary.toml");
+        std::fs::write(&binary, b"# a\n\xff\xfe").unwrap();
+        let err = load_missions(&binary).unwrap_err().to_string();
+        assert!(
+            err.ends_with("binary.toml:2: not a text file (bytes that are not UTF-8)"),
+            "{err}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+        // More missions than the limit: named at the first one too many.
+        let one = "[[mission]]\ntype = \"Hover\"\nseconds = 1\n";
+        let (line, msg) = error_line(&one.repeat(MAX_MISSIONS + 1));
+        assert_eq!(line, 3 * MAX_MISSIONS + 1, "{msg}");
+        assert!(msg.contains("more than 10000 missions (10001"), "{msg}");
+        assert_eq!(
+            parse(&one.repeat(MAX_MISSIONS)).unwrap().len(),
+            MAX_MISSIONS
+        );
+        // 1e308 is refused, and no message prints its 309 digits.
+        let (_, msg) = error_line("[[mission]]\ntype = \"GotoXyz\"\nx = 1e308\ny = 0\nz = 0\n");
+        assert!(msg.contains("within ±100000 m"), "{msg}");
+        let err = parse_point("1e308,0,0").unwrap_err().to_string();
+        assert!(err.len() < 200 && err.contains("beyond"), "{err}");
+        let (_, msg) = error_line("[[mission]]\ntype = \"Hover\"\nseconds = 1e308\n");
+        assert!(msg.len() < 100, "{msg}");
+        let far = Mission::GotoXyz {
+            x: 1e308,
+            y: 0.0,
+            z: -1.0,
+        };
+        assert_eq!(far.to_string(), "GotoXyz 1.00e308,0.00,-1.00");
     }
 
     #[test]

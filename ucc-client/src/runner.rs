@@ -137,6 +137,7 @@ impl RunError {
                     ConnectionError::Connect { .. }
                         | ConnectionError::ConnectTimeout { .. }
                         | ConnectionError::Record { .. }
+                        | ConnectionError::Unsendable(_)
                 )
                 | Self::NoStartPoses { .. }
                 | Self::Output { .. }
@@ -167,6 +168,7 @@ pub async fn run(
         return Err(RunError::NoMissions);
     }
     Flight::new(0, settings, agents.create())?; // refuse a mission before connecting
+    settings.init().check().map_err(ConnectionError::from)?; // and a name that breaks a line
     if let Some(dir) = &settings.log_dir {
         std::fs::create_dir_all(dir).map_err(|error| RunError::Output {
             path: dir.clone(),

@@ -1,0 +1,359 @@
+//! `ucc decode`, `ucc encode` and `ucc tap` under hostile input (docs/limits.md): memory
+//! bounds read from the process's peak resident memory (VmHWM), the tap's start-up checks,
+//! and the attack suite of the tap: floods, connection exhaustion, control bytes, over-long
+//! lines, each while a healthy client flies through the tap and must keep 90 % of its rate.
+//!
+//! `UCC_BIN=path` runs these against another build of `ucc` (an older one, to compare).
+
+use std::io::{BufRead, Read, Write};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+use tokio::net::TcpStream;
+use tokio_util::sync::CancellationToken;
+
+/// Peak resident memory any of these programs may reach, MiB (as the server's bound).
+const MEMORY_BOUND_MIB: f64 = 64.0;
+
+fn ucc() -> Command {
+    let bin = std::env::var_os("UCC_BIN").unwrap_or_else(|| env!("CARGO_BIN_EXE_ucc").into());
+    Command::new(bin)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ucc-hostile-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Peak resident memory of a running process, MiB.
+fn peak_mib(pid: u32) -> f64 {
+    std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .unwrap_or_default()
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
+        .map_or(f64::NAN, |kib| kib / 1024.0)
+}
+
+/// Writes `total` bytes of `chunk` repeated to `ucc args` and returns its peak memory (MiB,
+/// read once everything was written), exit status and stderr.
+fn feed(args: &[&str], chunk: &[u8], total: usize) -> (f64, Option<i32>, String) {
+    let mut child = ucc()
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let errors = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stderr.read_to_string(&mut text);
+        text
+    });
+    let mut stdin = child.stdin.take().unwrap();
+    let mut written = 0;
+    while written < total && stdin.write_all(chunk).is_ok() {
+        written += chunk.len();
+    }
+    // The pipe holds 64 KiB: all but that has been read by now.
+    let peak = peak_mib(child.id());
+    drop(stdin);
+    let status = child.wait().unwrap();
+    (peak, status.code(), errors.join().unwrap())
+}
+
+/// The defect (#26): 1 GB without a line ending took 6.1 GB of memory in `decode`, 1 GB of
+/// CR-only line endings 2.4 GB, and `encode` 1.0 GB.
+#[test]
+fn decode_and_encode_stream_in_bounded_memory() {
+    let mib = 1024 * 1024;
+    let no_ending = vec![b'A'; mib];
+    let (peak, code, stderr) = feed(&["decode"], &no_ending, 256 * mib);
+    println!("decode, 256 MiB without a line ending: peak {peak:.1} MiB");
+    assert!(peak < MEMORY_BOUND_MIB, "decode took {peak:.1} MiB");
+    assert_eq!(code, Some(1));
+    assert!(
+        stderr.starts_with("line 1: 268435456 bytes, longer than the limit of 65536: skipped"),
+        "{stderr}"
+    );
+
+    // Lines just under the limit, ended by a lone CR: each is read and written on.
+    let mut cr_lines = vec![b'B'; 60_000];
+    cr_lines.push(b'\r');
+    let (peak, code, stderr) = feed(&["decode"], &cr_lines, 128 * mib);
+    println!("decode, 128 MiB of 60 KB lines ended by CR: peak {peak:.1} MiB");
+    assert!(peak < MEMORY_BOUND_MIB, "decode took {peak:.1} MiB");
+    assert_eq!((code, stderr.as_str()), (Some(0), ""));
+
+    let (peak, code, stderr) = feed(&["encode"], &no_ending, 256 * mib);
+    println!("encode, 256 MiB without a line ending: peak {peak:.1} MiB");
+    assert!(peak < MEMORY_BOUND_MIB, "encode took {peak:.1} MiB");
+    assert_eq!(code, Some(1));
+    assert!(
+        stderr.starts_with("line 1: 268435456 bytes, longer than the limit of 1048576: skipped"),
+        "{stderr}"
+    );
+}
+
+/// `ucc tap` as a child process: its address, and its stderr in a file.
+struct Tap {
+    child: Child,
+    addr: SocketAddr,
+    log: PathBuf,
+}
+
+impl Tap {
+    /// Starts `ucc tap` in front of `upstream` (through `sh` for `ulimit -n`).
+    fn start(upstream: SocketAddr, dir: &std::path::Path, fd_limit: u32, extra: &[&str]) -> Self {
+        let log = dir.join("tap.log");
+        let bin = std::env::var_os("UCC_BIN").unwrap_or_else(|| env!("CARGO_BIN_EXE_ucc").into());
+        let mut child = Command::new("sh")
+            .arg("-c")
+            .arg(format!("ulimit -n {fd_limit} && exec \"$0\" \"$@\""))
+            .arg(bin)
+            .args(["tap", "--listen", "0", "--upstream", &upstream.to_string()])
+            .arg("--record")
+            .arg(dir.join("session.usarlog"))
+            .args(extra)
+            .env("RUST_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        std::io::BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        // "ucc tap: listening on 127.0.0.1:PORT, forwarding to ..."
+        let addr = line
+            .split_whitespace()
+            .nth(4)
+            .and_then(|a| a.trim_end_matches(',').parse().ok())
+            .unwrap_or_else(|| panic!("no address in {line:?}"));
+        Self { child, addr, log }
+    }
+
+    fn alive(&mut self) -> bool {
+        self.child.try_wait().unwrap().is_none()
+    }
+}
+
+impl Drop for Tap {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// The healthy client, through the tap: an stsAirRobot, reading everything; its rate in
+/// lines per wall second over 3 s, after a head start of 0.7 s.
+async fn healthy_rate(addr: SocketAddr, name: &str) -> f64 {
+    let Ok(stream) = TcpStream::connect(addr).await else {
+        return 0.0;
+    };
+    let (read, mut write) = stream.into_split();
+    let mut lines = BufReader::new(read);
+    let mut line = String::new();
+    let next = async |lines: &mut BufReader<_>, line: &mut String, until: Instant| {
+        line.clear();
+        let wait = until.saturating_duration_since(Instant::now());
+        matches!(
+            tokio::time::timeout(wait, lines.read_line(line)).await,
+            Ok(Ok(n)) if n > 0
+        )
+    };
+    if !next(
+        &mut lines,
+        &mut line,
+        Instant::now() + Duration::from_secs(10),
+    )
+    .await
+        || !line.starts_with("NFO")
+    {
+        return 0.0;
+    }
+    let init =
+        format!("INIT {{ClassName USARBot.stsAirRobot}} {{Name {name}}} {{Location 0,0,-1}}\r\n");
+    if write.write_all(init.as_bytes()).await.is_err() {
+        return 0.0;
+    }
+    let begin = Instant::now() + Duration::from_millis(700);
+    let end = begin + Duration::from_secs(3);
+    while Instant::now() < begin {
+        if !next(&mut lines, &mut line, end).await {
+            return 0.0;
+        }
+    }
+    let mut count = 0u64;
+    while next(&mut lines, &mut line, end).await {
+        count += 1;
+    }
+    count as f64 / 3.0
+}
+
+/// Writes `chunk` again and again until stopped, never reading.
+async fn flood(mut stream: TcpStream, chunk: Vec<u8>, stop: CancellationToken) {
+    while !stop.is_cancelled() {
+        let write = tokio::time::timeout(Duration::from_millis(200), stream.write_all(&chunk));
+        if let Ok(Err(_)) = write.await {
+            return;
+        }
+    }
+}
+
+/// The defects (#25, #26): `--upstream nohostport` failed only when a client came, a bad
+/// `--record` path dropped every client without naming the path.
+#[test]
+fn the_tap_checks_its_upstream_and_recording_at_start() {
+    let dir = scratch("tap-start");
+    let record = dir.join("s.usarlog");
+    let run = |upstream: &str, record: &std::path::Path| {
+        let out = ucc()
+            .args(["tap", "--listen", "0", "--upstream", upstream, "--record"])
+            .arg(record)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (code, stdout, stderr) = run("nohostport", &record);
+    assert_eq!(code, Some(1), "{stdout}{stderr}");
+    assert!(!stdout.contains("listening"), "{stdout}");
+    assert!(
+        stderr.contains("--upstream nohostport:") && stderr.contains("expected HOST:PORT"),
+        "{stderr}"
+    );
+    let (code, stdout, stderr) = run("127.0.0.1:3000", &dir.join("missing/s.usarlog"));
+    assert_eq!(code, Some(1), "{stdout}{stderr}");
+    assert!(!stdout.contains("listening"), "{stdout}");
+    assert!(stderr.contains("missing/s.usarlog"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The attack suite of the tap (docs/limits.md): with the open files limited to 48, the tap
+/// must outlive 200 connections (it died at 101 with "Too many open files"), refuse those
+/// past `--max-connections`, keep its log small and free of control bytes under a flood of
+/// them (66 MB of traffic gave 662 MB of log), and stay under the memory bound, while a
+/// healthy client flying through it keeps 90 % of its rate.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_tap_survives_the_attack_suite() {
+    let server = usar_server::LocalServer::start(usar_server::ServerConfig {
+        time_scale: usar_server::TimeScale::Factor(1.0),
+        max_connections: 1000,
+        max_connections_per_address: 1000,
+        ..usar_server::ServerConfig::default()
+    })
+    .await
+    .unwrap();
+    let dir = scratch("tap-attack");
+    let mut tap = Tap::start(server.addr(), &dir, 48, &["--max-connections", "32"]);
+    let baseline = healthy_rate(tap.addr, "Base").await;
+    println!("baseline: {baseline:.1} lines/s");
+    assert!(
+        baseline > 20.0,
+        "the healthy client gets {baseline:.1} lines/s"
+    );
+
+    type Attack = fn(SocketAddr, CancellationToken) -> tokio::task::JoinHandle<()>;
+    let attacks: [(&str, Attack); 3] = [
+        ("200 connections, idle", |addr, stop| {
+            tokio::spawn(async move {
+                let mut held = Vec::new();
+                for _ in 0..200 {
+                    if let Ok(Ok(s)) =
+                        tokio::time::timeout(Duration::from_millis(200), TcpStream::connect(addr))
+                            .await
+                    {
+                        held.push(s);
+                    }
+                }
+                stop.cancelled().await;
+            })
+        }),
+        (
+            "control bytes (ESC, BEL, NUL) as fast as possible",
+            |addr, stop| {
+                tokio::spawn(async move {
+                    let chunk = "DRIVE \u{1b}[2J\u{7}{Left \0 1}\u{1b}]0;pwned\u{7}\r\n"
+                        .repeat(2000)
+                        .into_bytes();
+                    let s = TcpStream::connect(addr).await.unwrap();
+                    flood(s, chunk, stop).await;
+                })
+            },
+        ),
+        (
+            "8 connections of over-long lines, never reading",
+            |addr, stop| {
+                tokio::spawn(async move {
+                    let mut floods = Vec::new();
+                    for _ in 0..8 {
+                        let s = TcpStream::connect(addr).await.unwrap();
+                        floods.push(tokio::spawn(flood(s, vec![b'X'; 256 * 1024], stop.clone())));
+                    }
+                    for f in floods {
+                        let _ = f.await;
+                    }
+                })
+            },
+        ),
+    ];
+    let mut failures = Vec::new();
+    for (i, (name, attack)) in attacks.iter().enumerate() {
+        let stop = CancellationToken::new();
+        let running = attack(tap.addr, stop.clone());
+        let rate = healthy_rate(tap.addr, &format!("Healthy{i}")).await;
+        stop.cancel();
+        let _ = running.await;
+        let share = rate / baseline;
+        let peak = peak_mib(tap.child.id());
+        println!(
+            "{name}: healthy client {:.0} % of its rate, tap peak {peak:.1} MiB",
+            share * 100.0
+        );
+        if !tap.alive() {
+            failures.push(format!("{name}: the tap died"));
+            break;
+        }
+        if share < 0.9 {
+            failures.push(format!("{name}: healthy client at {:.0} %", share * 100.0));
+        }
+        if peak > MEMORY_BOUND_MIB {
+            failures.push(format!("{name}: {peak:.1} MiB"));
+        }
+        // Let the attack's connections close before the next one.
+        tokio::time::sleep(Duration::from_millis(500)).await;
+    }
+    // After everything, a new client is served.
+    assert!(
+        healthy_rate(tap.addr, "After").await > 0.0,
+        "no service after the attacks"
+    );
+    let log = std::fs::read(&tap.log).unwrap();
+    println!("tap log: {} bytes", log.len());
+    assert!(
+        !log.iter().any(|b| matches!(b, 0x1b | 0x07 | 0)),
+        "raw control bytes in the tap's log"
+    );
+    assert!(
+        log.len() < 256 * 1024,
+        "the log grew to {} bytes",
+        log.len()
+    );
+    let text = String::from_utf8_lossy(&log);
+    assert!(text.contains("connection refused"), "{text}");
+    assert!(failures.is_empty(), "{failures:?}");
+    drop(tap);
+    server.stop().await.unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+}
