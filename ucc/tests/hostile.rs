@@ -152,7 +152,9 @@ impl Drop for Tap {
 }
 
 /// The healthy client, through the tap: an stsAirRobot, reading everything; its rate in
-/// lines per wall second over 3 s, after a head start of 0.7 s.
+/// lines per wall second over three whole simulated seconds (from one STA to the STA three
+/// seconds later, so that the sensors' intervals do not change the count), after a head
+/// start of 0.7 s, with a deadline of 7 s (a stalled stream is measured as stalled).
 async fn healthy_rate(addr: SocketAddr, name: &str) -> f64 {
     let Ok(stream) = TcpStream::connect(addr).await else {
         return 0.0;
@@ -183,18 +185,29 @@ async fn healthy_rate(addr: SocketAddr, name: &str) -> f64 {
     if write.write_all(init.as_bytes()).await.is_err() {
         return 0.0;
     }
+    let sta_time = |line: &str| {
+        line.strip_prefix("STA {Time ")
+            .and_then(|rest| rest.split('}').next())
+            .and_then(|t| t.parse::<f64>().ok())
+    };
     let begin = Instant::now() + Duration::from_millis(700);
-    let end = begin + Duration::from_secs(3);
-    while Instant::now() < begin {
-        if !next(&mut lines, &mut line, end).await {
+    let deadline = begin + Duration::from_secs(7);
+    let (first, t0) = loop {
+        if !next(&mut lines, &mut line, deadline).await {
             return 0.0;
         }
-    }
-    let mut count = 0u64;
-    while next(&mut lines, &mut line, end).await {
+        if let Some(t) = sta_time(&line).filter(|_| Instant::now() >= begin) {
+            break (Instant::now(), t);
+        }
+    };
+    let mut count = 1u64;
+    while next(&mut lines, &mut line, deadline).await {
+        if sta_time(&line).is_some_and(|t| t >= t0 + 3.0 - 1e-3) {
+            break;
+        }
         count += 1;
     }
-    count as f64 / 3.0
+    count as f64 / first.elapsed().as_secs_f64()
 }
 
 /// Writes `chunk` again and again until stopped, never reading.
@@ -213,13 +226,22 @@ async fn flood(mut stream: TcpStream, chunk: Vec<u8>, stop: CancellationToken) {
 fn the_tap_checks_its_upstream_and_recording_at_start() {
     let dir = scratch("tap-start");
     let record = dir.join("s.usarlog");
+    // A tap that does not check listens until stopped: 10 s is its limit here.
     let run = |upstream: &str, record: &std::path::Path| {
-        let out = ucc()
+        let mut child = ucc()
             .args(["tap", "--listen", "0", "--upstream", upstream, "--record"])
             .arg(record)
             .stdin(Stdio::null())
-            .output()
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
             .unwrap();
+        let began = Instant::now();
+        while child.try_wait().unwrap().is_none() && began.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = child.kill();
+        let out = child.wait_with_output().unwrap();
         (
             out.status.code(),
             String::from_utf8_lossy(&out.stdout).into_owned(),
