@@ -328,7 +328,7 @@ mod tests {
                 ..usar_proto::Init::default()
             })
         };
-        for bad in ["UAV1\r\nGETSTARTPOSES", "UAV\t1", "UAV\01"] {
+        for bad in ["UAV1\r\nGETSTARTPOSES", "UAV\t1", "UAV\u{0}1"] {
             let error = conn.send(&init(bad)).await.unwrap_err();
             assert!(matches!(error, ConnectionError::Unsendable(_)), "{error}");
             let error = conn
