@@ -240,7 +240,7 @@ fn speed(s: &str) -> Result<f64, String> {
 
 fn replay(file: &Path, bind: &str, port: u16, fast: bool, speed: f64) -> anyhow::Result<()> {
     use usar_server::replay::{self, Pace};
-    let lines = replay::load(file)?;
+    let recording = replay::open(file)?;
     let pace = if fast {
         Pace::Fast
     } else {
@@ -258,12 +258,12 @@ fn replay(file: &Path, bind: &str, port: u16, fast: bool, speed: f64) -> anyhow:
             stdout,
             "usar-server replaying {} ({} lines) on {}",
             file.display(),
-            lines.len(),
+            recording.lines(),
             listener.local_addr()?
         )?;
         stdout.flush()?;
         drop(stdout);
-        replay::serve(listener, lines, pace, shutdown).await?;
+        replay::serve(listener, recording, pace, shutdown).await?;
         Ok(())
     })
 }

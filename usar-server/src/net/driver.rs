@@ -43,10 +43,11 @@ use bytes::Bytes;
 use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
-use usar_proto::record::{Direction, RecordWriter};
+use usar_proto::record::Direction;
 use usar_proto::{Barrier, Command, Nfo, ServerMessage};
 
 use super::TimeScale;
+use super::recording::Recording;
 use crate::sim::{ClientId, Printed, World};
 
 /// How far behind schedule the driver may fall before it re-anchors its clock.
@@ -172,7 +173,7 @@ struct Client {
     answered: bool,
     /// When the world reached the barrier (the lockstep timeout runs from then).
     answered_at: Option<Instant>,
-    record: Option<RecordWriter>,
+    record: Option<Recording>,
 }
 
 impl Client {
@@ -198,7 +199,7 @@ impl Client {
         message.write_to(&mut self.pending);
         if let Some(file) = &mut self.record {
             let line = String::from_utf8_lossy(&self.pending[start..]);
-            let _ = file.write_at(time, Direction::Server, &line);
+            file.write(time, Direction::Server, &line);
         }
         self.pending.extend_from_slice(b"\r\n");
     }
@@ -210,7 +211,7 @@ impl Client {
             let lines = lines.strip_suffix(b"\r\n").unwrap_or(lines);
             for line in lines.split(|&b| b == b'\n') {
                 let line = line.strip_suffix(b"\r").unwrap_or(line);
-                let _ = file.write_at(time, Direction::Server, &String::from_utf8_lossy(line));
+                file.write(time, Direction::Server, &String::from_utf8_lossy(line));
             }
         }
     }
@@ -272,6 +273,8 @@ pub(super) struct Driver {
     wants_room: Arc<AtomicBool>,
     /// When output was last handed to the queues (gathering at `TimeScale::Max`).
     last_flush: Instant,
+    /// Recording files that could not be created or written to the end.
+    incomplete: Vec<PathBuf>,
 }
 
 impl Driver {
@@ -285,11 +288,22 @@ impl Driver {
             joined: 0,
             wants_room,
             last_flush: Instant::now(),
+            incomplete: Vec::new(),
         }
     }
 
-    /// Runs the world until `shutdown` is cancelled or every request sender is gone.
-    pub(super) fn run(mut self, inbox: Receiver<Request>, shutdown: CancellationToken) {
+    /// Runs the world until `shutdown` is cancelled or every request sender is gone; then
+    /// writes the recordings out and returns the files that are incomplete (a write error).
+    pub(super) fn run(mut self, inbox: Receiver<Request>, shutdown: CancellationToken) -> Vec<PathBuf> {
+        self.run_world(inbox, shutdown);
+        let ids: Vec<ClientId> = self.clients.keys().copied().collect();
+        for id in ids {
+            self.close_record(id);
+        }
+        self.incomplete
+    }
+
+    fn run_world(&mut self, inbox: Receiver<Request>, shutdown: CancellationToken) {
         let pace = self.settings.scale == TimeScale::Max;
         let mut out = Printed::default();
         let mut anchor = Instant::now();
@@ -542,14 +556,22 @@ impl Driver {
         }
     }
 
-    fn open_record(&mut self) -> Option<RecordWriter> {
+    fn open_record(&mut self) -> Option<Recording> {
         let dir = self.settings.record_dir.as_ref()?;
         let path = dir.join(format!("connection-{:04}.usarlog", self.connections));
-        RecordWriter::create(&path)
-            .inspect_err(
-                |error| warn!(path = %path.display(), %error, "cannot record this connection"),
-            )
+        Recording::create(path)
+            .inspect_err(|path| self.incomplete.push(path.clone()))
             .ok()
+    }
+
+    /// Writes out and closes a client's recording, noting it if it is incomplete.
+    fn close_record(&mut self, client: ClientId) {
+        if let Some(c) = self.clients.get_mut(&client)
+            && let Some(mut file) = c.record.take()
+            && !file.flush()
+        {
+            self.incomplete.push(file.path().to_owned());
+        }
     }
 
     fn record_client_line(&mut self, client: ClientId, line: Option<&str>) {
@@ -557,7 +579,7 @@ impl Driver {
         if let (Some(c), Some(line)) = (self.clients.get_mut(&client), line)
             && let Some(file) = &mut c.record
         {
-            let _ = file.write_at(time, Direction::Client, line);
+            file.write(time, Direction::Client, line);
         }
     }
 
@@ -610,7 +632,7 @@ impl Driver {
                 if let Some(file) = &mut record {
                     let nfo = game_info(&self.world);
                     let text = String::from_utf8_lossy(&nfo);
-                    let _ = file.write_at(self.world.time(), Direction::Server, text.trim_end());
+                    file.write(self.world.time(), Direction::Server, text.trim_end());
                 }
                 let id = self.world.connect();
                 debug!(%peer, client = ?id, "joined the simulation");
@@ -637,13 +659,11 @@ impl Driver {
                     self.serve(client, line);
                 }
                 self.world.disconnect(client);
-                if let Some(mut c) = self.clients.remove(&client) {
-                    if c.barrier.is_some() {
-                        self.joined -= 1;
-                    }
-                    if let Some(file) = &mut c.record {
-                        let _ = file.flush();
-                    }
+                self.close_record(client);
+                if let Some(c) = self.clients.remove(&client)
+                    && c.barrier.is_some()
+                {
+                    self.joined -= 1;
                 }
             }
             Request::Wake => {}

@@ -9,6 +9,7 @@
 //! ```
 
 mod driver;
+mod recording;
 mod session;
 
 pub(crate) use driver::wait_of;
@@ -142,6 +143,25 @@ pub enum ServerError {
     /// The simulation thread panicked.
     #[error("simulation thread failed: {0}")]
     Simulation(String),
+    /// Some recording files (`ServerConfig::record`) could not be created or written to the
+    /// end (a full disk); what was written of them is kept, in whole lines.
+    #[error("the recording is incomplete: {} could not be written to the end{}",
+        shown_files(.0), if .0.len() > 1 { " (each error was logged)" } else { "" })]
+    RecordingIncomplete(Vec<std::path::PathBuf>),
+}
+
+/// Up to 5 files by name, then how many more.
+fn shown_files(files: &[std::path::PathBuf]) -> String {
+    let mut text = files
+        .iter()
+        .take(5)
+        .map(|f| f.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
+    if files.len() > 5 {
+        text.push_str(&format!(" and {} more", files.len() - 5));
+    }
+    text
 }
 
 /// Serves the protocol on an already-bound listener until `shutdown` is cancelled; then
@@ -181,7 +201,7 @@ pub async fn run(
             .name("usar-sim".into())
             .spawn(move || {
                 let _alarm = DeathAlarm(died);
-                driver.run(inbox, token);
+                driver.run(inbox, token)
             })?
     };
 
@@ -251,7 +271,13 @@ pub async fn run(
         .await
         .map_err(|e| ServerError::Simulation(e.to_string()))?;
     result?;
-    joined.map_err(|_| ServerError::Simulation("the simulation thread panicked".into()))
+    let incomplete = joined
+        .map_err(|_| ServerError::Simulation("the simulation thread panicked".into()))?;
+    if incomplete.is_empty() {
+        Ok(())
+    } else {
+        Err(ServerError::RecordingIncomplete(incomplete))
+    }
 }
 
 /// Cancels its token when dropped during a panic (the simulation thread unwinding).
