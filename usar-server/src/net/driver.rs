@@ -294,7 +294,11 @@ impl Driver {
 
     /// Runs the world until `shutdown` is cancelled or every request sender is gone; then
     /// writes the recordings out and returns the files that are incomplete (a write error).
-    pub(super) fn run(mut self, inbox: Receiver<Request>, shutdown: CancellationToken) -> Vec<PathBuf> {
+    pub(super) fn run(
+        mut self,
+        inbox: Receiver<Request>,
+        shutdown: CancellationToken,
+    ) -> Vec<PathBuf> {
         self.run_world(inbox, shutdown);
         let ids: Vec<ClientId> = self.clients.keys().copied().collect();
         for id in ids {

@@ -271,8 +271,8 @@ pub async fn run(
         .await
         .map_err(|e| ServerError::Simulation(e.to_string()))?;
     result?;
-    let incomplete = joined
-        .map_err(|_| ServerError::Simulation("the simulation thread panicked".into()))?;
+    let incomplete =
+        joined.map_err(|_| ServerError::Simulation("the simulation thread panicked".into()))?;
     if incomplete.is_empty() {
         Ok(())
     } else {
