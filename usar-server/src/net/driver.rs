@@ -44,7 +44,7 @@ use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
 use usar_proto::record::Direction;
-use usar_proto::{Barrier, Command, Nfo, ServerMessage};
+use usar_proto::{Barrier, Command, Init, Nfo, ServerMessage};
 
 use super::TimeScale;
 use super::recording::Recording;
@@ -65,6 +65,12 @@ const GATHER_BYTES: usize = 32 * 1024;
 
 /// ... or once this much wall time has passed since the last hand-over.
 const GATHER_TIME: Duration = Duration::from_millis(1);
+
+/// How long a client's first INIT waits for its place when another robot is there: the
+/// robot of a connection that has just closed is removed when its session notices the close,
+/// which may come after the next connection's INIT (a client that respawns between runs).
+/// The INIT is tried again whenever a robot leaves; the client's later lines wait behind it.
+const SPAWN_GRACE: Duration = Duration::from_secs(2);
 
 /// Loop turns between checks of the shutdown token when no request arrives (a request, such
 /// as the `Wake` sent on shutdown, makes the driver check at once).
@@ -174,6 +180,11 @@ struct Client {
     /// When the world reached the barrier (the lockstep timeout runs from then).
     answered_at: Option<Instant>,
     record: Option<Recording>,
+    /// Whether an INIT of this client has spawned a robot.
+    spawned: bool,
+    /// A first INIT whose place was taken, tried again when a robot leaves until the
+    /// deadline; the client's backlog waits behind it.
+    parked: Option<(Init, Instant)>,
 }
 
 impl Client {
@@ -191,6 +202,8 @@ impl Client {
             answered: false,
             answered_at: None,
             record: None,
+            spawned: false,
+            parked: None,
         }
     }
 
@@ -275,6 +288,8 @@ pub(super) struct Driver {
     last_flush: Instant,
     /// Recording files that could not be created or written to the end.
     incomplete: Vec<PathBuf>,
+    /// Clients with a parked INIT (none: no scans).
+    parked: usize,
 }
 
 impl Driver {
@@ -289,6 +304,7 @@ impl Driver {
             wants_room,
             last_flush: Instant::now(),
             incomplete: Vec::new(),
+            parked: 0,
         }
     }
 
@@ -345,7 +361,7 @@ impl Driver {
                 if !self.flush_all(&inbox, &shutdown) {
                     return;
                 }
-                let request = match self.barrier_deadline() {
+                let request = match self.next_deadline() {
                     None => inbox.recv().map_err(|_| RecvTimeoutError::Disconnected),
                     Some(deadline) => {
                         inbox.recv_timeout(deadline.saturating_duration_since(Instant::now()))
@@ -439,7 +455,13 @@ impl Driver {
         let ids: Vec<ClientId> = self.clients.keys().copied().collect();
         let mut served = 0;
         for id in ids {
+            if self.parked > 0 && self.still_parked(id) {
+                continue;
+            }
             for _ in 0..self.settings.requests_per_tick {
+                if self.parked > 0 && self.still_parked(id) {
+                    break;
+                }
                 let Some((line, permit)) = self
                     .clients
                     .get_mut(&id)
@@ -454,6 +476,71 @@ impl Driver {
             }
         }
         served
+    }
+
+    /// Whether the client's INIT is parked and its deadline not reached (a parked INIT past
+    /// its deadline is given up: the spawn failed, as logged when it was first tried).
+    fn still_parked(&mut self, id: ClientId) -> bool {
+        let Some(c) = self.clients.get_mut(&id) else {
+            return false;
+        };
+        match &c.parked {
+            Some((_, deadline)) if Instant::now() < *deadline => true,
+            Some(_) => {
+                debug!(peer = %c.peer, "INIT gave up waiting for its place");
+                c.parked = None;
+                self.parked -= 1;
+                false
+            }
+            None => false,
+        }
+    }
+
+    /// Applies an INIT; `true` if it spawned a robot.
+    fn init(&mut self, client: ClientId, init: Init) -> bool {
+        let before = self.world.robot_count();
+        self.world.command(client, Command::Init(init));
+        let spawned = self.world.robot_count() > before;
+        if spawned && let Some(c) = self.clients.get_mut(&client) {
+            c.spawned = true;
+        }
+        spawned
+    }
+
+    /// Tries the parked INITs again (a robot has left).
+    fn retry_parked(&mut self) {
+        if self.parked == 0 {
+            return;
+        }
+        let ids: Vec<ClientId> = self.clients.keys().copied().collect();
+        for id in ids {
+            let Some((init, _)) = self.clients.get(&id).and_then(|c| c.parked.clone()) else {
+                continue;
+            };
+            if self.init(id, init)
+                && let Some(c) = self.clients.get_mut(&id)
+            {
+                c.parked = None;
+                self.parked -= 1;
+            }
+        }
+    }
+
+    /// When the driver must look again without a request: a lockstep client runs out of
+    /// time, or a parked INIT does.
+    fn next_deadline(&self) -> Option<Instant> {
+        let parked = (self.parked > 0)
+            .then(|| {
+                self.clients
+                    .values()
+                    .filter_map(|c| c.parked.as_ref().map(|p| p.1))
+                    .min()
+            })
+            .flatten();
+        match (self.barrier_deadline(), parked) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
     }
 
     /// The world steps only when it holds a robot and no lockstep client holds it back.
@@ -592,6 +679,20 @@ impl Driver {
         match line {
             Line::Command { command, text } => {
                 self.record_client_line(client, text.as_deref());
+                if let Command::Init(init) = *command {
+                    let first = self.clients.get(&client).is_some_and(|c| !c.spawned);
+                    let others = self.world.robot_count() > 0;
+                    if !self.init(client, init.clone())
+                        && first
+                        && others
+                        && let Some(c) = self.clients.get_mut(&client)
+                    {
+                        debug!(peer = %c.peer, "INIT waits for its place");
+                        c.parked = Some((init, Instant::now() + SPAWN_GRACE));
+                        self.parked += 1;
+                    }
+                    return;
+                }
                 let replies = self.world.command(client, *command);
                 let time = self.world.time();
                 if let Some(c) = self.clients.get_mut(&client) {
@@ -664,11 +765,11 @@ impl Driver {
                 }
                 self.world.disconnect(client);
                 self.close_record(client);
-                if let Some(c) = self.clients.remove(&client)
-                    && c.barrier.is_some()
-                {
-                    self.joined -= 1;
+                if let Some(c) = self.clients.remove(&client) {
+                    self.joined -= usize::from(c.barrier.is_some());
+                    self.parked -= usize::from(c.parked.is_some());
                 }
+                self.retry_parked();
             }
             Request::Wake => {}
         }
