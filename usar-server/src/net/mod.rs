@@ -14,14 +14,14 @@ mod session;
 
 pub(crate) use driver::wait_of;
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::net::IpAddr;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::net::TcpListener;
-use tokio::sync::Semaphore;
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
@@ -208,6 +208,7 @@ pub async fn run(
     let tracker = TaskTracker::new();
     let slots = Arc::new(Semaphore::new(config.max_connections));
     let per_address: Arc<Mutex<HashMap<IpAddr, usize>>> = Arc::default();
+    let registry: Arc<Mutex<Registry>> = Arc::default();
     let limits = session::Limits {
         max_line_length: config.max_line_length,
         client_queue: config.client_queue.max(1),
@@ -234,19 +235,30 @@ pub async fn run(
                     }
                     Err(e) => break Err(ServerError::Io(e)),
                 };
-                let Some(address_slot) = AddressSlot::take(
-                    &per_address,
-                    peer.ip(),
-                    config.max_connections_per_address.max(1),
-                ) else {
+                // At a limit, the oldest connection that has not sent a complete line makes
+                // room (closed); only without one is the new connection refused.
+                let max_here = config.max_connections_per_address.max(1);
+                let Some(address_slot) = AddressSlot::take(&per_address, peer.ip(), max_here)
+                    .or_else(|| {
+                        Registry::evict_quiet(&registry, Some(peer.ip()))
+                            .then(|| AddressSlot::take(&per_address, peer.ip(), max_here))
+                            .flatten()
+                    })
+                else {
                     warn!(%peer, max = config.max_connections_per_address,
-                        "too many connections from this address, closing");
+                        "too many connections from this address, each has sent a line; closing");
                     continue;
                 };
-                let Ok(permit) = slots.clone().try_acquire_owned() else {
-                    warn!(%peer, max = config.max_connections, "too many connections, closing");
+                let Some(permit) = slots.clone().try_acquire_owned().ok().or_else(|| {
+                    Registry::evict_quiet(&registry, None)
+                        .then(|| slots.clone().try_acquire_owned().ok())
+                        .flatten()
+                }) else {
+                    warn!(%peer, max = config.max_connections,
+                        "too many connections, each has sent a line; closing");
                     continue;
                 };
+                let entry = Registry::add(&registry, peer.ip(), (permit, address_slot));
                 info!(%peer, "connected");
                 let _ = stream.set_nodelay(true);
                 tracker.spawn(session::serve(
@@ -256,7 +268,7 @@ pub async fn run(
                     (requests.clone(), wants_room.clone()),
                     limits,
                     shutdown.child_token(),
-                    (permit, address_slot),
+                    entry,
                 ));
             }
         }
@@ -288,6 +300,83 @@ impl Drop for DeathAlarm {
         if std::thread::panicking() {
             self.0.cancel();
         }
+    }
+}
+
+/// The connections being served, oldest first, holding their shares of the limits: so
+/// that at a limit the oldest connection that has not sent a complete line can give its
+/// share to a new one at once.
+#[derive(Default)]
+struct Registry {
+    next: u64,
+    live: BTreeMap<u64, Entry>,
+}
+
+struct Entry {
+    ip: IpAddr,
+    spoke: Arc<AtomicBool>,
+    evicted: CancellationToken,
+    _slots: (OwnedSemaphorePermit, AddressSlot),
+}
+
+/// A connection's place in the [`Registry`]; its session holds it, and leaves with it.
+pub(super) struct Registered {
+    registry: Arc<Mutex<Registry>>,
+    id: u64,
+    /// Set by the session once the client has sent a complete line.
+    pub(super) spoke: Arc<AtomicBool>,
+    /// Cancelled when the connection is closed to make room for a new one.
+    pub(super) evicted: CancellationToken,
+}
+
+impl Registry {
+    fn add(
+        registry: &Arc<Mutex<Self>>,
+        ip: IpAddr,
+        slots: (OwnedSemaphorePermit, AddressSlot),
+    ) -> Registered {
+        let mut r = registry.lock().unwrap_or_else(|e| e.into_inner());
+        let id = r.next;
+        r.next += 1;
+        let (spoke, evicted) = (Arc::new(AtomicBool::new(false)), CancellationToken::new());
+        r.live.insert(
+            id,
+            Entry {
+                ip,
+                spoke: spoke.clone(),
+                evicted: evicted.clone(),
+                _slots: slots,
+            },
+        );
+        Registered {
+            registry: registry.clone(),
+            id,
+            spoke,
+            evicted,
+        }
+    }
+
+    /// Closes the oldest connection (from `ip`, if given) that has not sent a complete line,
+    /// giving its shares back at once; `false` if there is none.
+    fn evict_quiet(registry: &Arc<Mutex<Self>>, ip: Option<IpAddr>) -> bool {
+        let mut r = registry.lock().unwrap_or_else(|e| e.into_inner());
+        let oldest = r
+            .live
+            .iter()
+            .find(|(_, e)| ip.is_none_or(|ip| e.ip == ip) && !e.spoke.load(Ordering::SeqCst))
+            .map(|(id, _)| *id);
+        let Some(entry) = oldest.and_then(|id| r.live.remove(&id)) else {
+            return false;
+        };
+        entry.evicted.cancel();
+        true
+    }
+}
+
+impl Drop for Registered {
+    fn drop(&mut self) {
+        let mut r = self.registry.lock().unwrap_or_else(|e| e.into_inner());
+        r.live.remove(&self.id);
     }
 }
 
