@@ -62,6 +62,15 @@ struct Args {
     /// the barrier (with a warning) and the world goes on without it.
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = seconds)]
     lockstep_timeout: f64,
+    /// Clients that may be in the lockstep barrier at once (the first to send SYNC; later
+    /// ones' SYNCs are ignored): 1 for "the first connection" (default: no limit).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    lockstep_clients: Option<u64>,
+    /// While clients outside the barrier are connected: the share of wall time (0.01 to 1,
+    /// over 10 s) the barrier may hold the world; past it, the member that held it longest
+    /// leaves the barrier for good, with a warning (1: off).
+    #[arg(long, default_value_t = 0.5, value_name = "SHARE", value_parser = share)]
+    lockstep_share: f64,
     /// With `--time-scale max`: wall-clock seconds the world waits for a client that reads
     /// nothing (it paces itself to its slowest reader) before it goes on without that client,
     /// dropping its output until it reads again.
@@ -193,6 +202,10 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         max_connections_per_address: args.max_connections_per_address,
         lockstep: args.lockstep,
         lockstep_timeout: std::time::Duration::from_secs_f64(args.lockstep_timeout),
+        lockstep_clients: args
+            .lockstep_clients
+            .map_or(usize::MAX, |n| usize::try_from(n).unwrap_or(usize::MAX)),
+        lockstep_share: args.lockstep_share,
         reader_timeout: std::time::Duration::from_secs_f64(args.reader_timeout),
         record: args.record.clone(),
         ..ServerConfig::default()
@@ -223,6 +236,14 @@ fn seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if (1e-3..=86_400.0).contains(&v) => Ok(v),
         _ => Err(format!("expected seconds from 0.001 to 86400, not '{s}'")),
+    }
+}
+
+/// A share of the wall time, 0.01 to 1.
+fn share(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (0.01..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("expected a share from 0.01 to 1, not '{s}'")),
     }
 }
 

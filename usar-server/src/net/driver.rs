@@ -72,6 +72,9 @@ const GATHER_TIME: Duration = Duration::from_millis(1);
 /// The INIT is tried again whenever a robot leaves; the client's later lines wait behind it.
 const SPAWN_GRACE: Duration = Duration::from_secs(2);
 
+/// The wall-clock window over which the lockstep barrier's share of the time is measured.
+const SHARE_WINDOW: Duration = Duration::from_secs(10);
+
 /// Loop turns between checks of the shutdown token when no request arrives (a request, such
 /// as the `Wake` sent on shutdown, makes the driver check at once).
 const SHUTDOWN_CHECK_TURNS: u32 = 256;
@@ -125,6 +128,10 @@ pub(super) struct Settings {
     pub(super) requests_per_tick: usize,
     pub(super) client_buffer: usize,
     pub(super) lockstep_timeout: Duration,
+    /// Clients in the lockstep barrier at once; later ones' `SYNC`s are ignored.
+    pub(super) lockstep_clients: usize,
+    /// The share of wall time the barrier may hold the world while clients outside it wait.
+    pub(super) lockstep_share: f64,
     /// At `TimeScale::Max`: how long the world waits for a client whose queue has no room.
     pub(super) reader_timeout: Duration,
 }
@@ -182,6 +189,13 @@ struct Client {
     record: Option<Recording>,
     /// Whether an INIT of this client has spawned a robot.
     spawned: bool,
+    /// Wall time the world waited for this client's next `SYNC` in the current window.
+    held: Duration,
+    /// Whether this client's `SYNC`s are refused (the barrier was full, or it held the
+    /// world too long): said once in the log.
+    sync_refused: bool,
+    /// Left the barrier for holding the world too long: its `SYNC`s are ignored from then on.
+    expelled: bool,
     /// A first INIT whose place was taken, tried again when a robot leaves until the
     /// deadline; the client's backlog waits behind it.
     parked: Option<(Init, Instant)>,
@@ -204,6 +218,9 @@ impl Client {
             record: None,
             spawned: false,
             parked: None,
+            held: Duration::ZERO,
+            sync_refused: false,
+            expelled: false,
         }
     }
 
@@ -290,6 +307,8 @@ pub(super) struct Driver {
     incomplete: Vec<PathBuf>,
     /// Clients with a parked INIT (none: no scans).
     parked: usize,
+    /// Start of the current window of the barrier's share, and the time it held the world.
+    window: (Instant, Duration),
 }
 
 impl Driver {
@@ -305,6 +324,7 @@ impl Driver {
             last_flush: Instant::now(),
             incomplete: Vec::new(),
             parked: 0,
+            window: (Instant::now(), Duration::ZERO),
         }
     }
 
@@ -361,12 +381,16 @@ impl Driver {
                 if !self.flush_all(&inbox, &shutdown) {
                     return;
                 }
+                let waited = Instant::now();
                 let request = match self.next_deadline() {
                     None => inbox.recv().map_err(|_| RecvTimeoutError::Disconnected),
                     Some(deadline) => {
                         inbox.recv_timeout(deadline.saturating_duration_since(Instant::now()))
                     }
                 };
+                if self.joined > 0 {
+                    self.note_held(waited.elapsed());
+                }
                 match request {
                     Ok(request) => {
                         self.take(request);
@@ -561,6 +585,52 @@ impl Driver {
             .map(|at| at.checked_add(self.settings.lockstep_timeout).unwrap_or(at))
     }
 
+    /// Counts `waited` against the lockstep clients that held the world meanwhile; at the end
+    /// of each window, if clients outside the barrier were held for more than the allowed
+    /// share of it, the member that held longest leaves the barrier for good (warning).
+    fn note_held(&mut self, waited: Duration) {
+        let (time, dt) = (self.world.time(), self.world.dt());
+        let mut holding = false;
+        for c in self.clients.values_mut() {
+            if c.answered && c.holds_at(time, dt) {
+                c.held += waited;
+                holding = true;
+            }
+        }
+        if holding {
+            self.window.1 += waited;
+        }
+        let now = Instant::now();
+        let window = now.duration_since(self.window.0);
+        if window < SHARE_WINDOW {
+            return;
+        }
+        let share = self.window.1.as_secs_f64() / window.as_secs_f64();
+        let others_wait = self.clients.len() > self.joined;
+        if others_wait && share > self.settings.lockstep_share {
+            let longest = self
+                .clients
+                .iter()
+                .filter(|(_, c)| c.barrier.is_some())
+                .max_by_key(|(_, c)| c.held)
+                .map(|(id, _)| *id);
+            if let Some(c) = longest.and_then(|id| self.clients.get_mut(&id)) {
+                warn!(peer = %c.peer, held_s = c.held.as_secs_f64(),
+                    window_s = window.as_secs_f64(), max_share = self.settings.lockstep_share,
+                    "lockstep client held the world too long while others wait; it leaves the \
+                     barrier, and its SYNCs are ignored from now on");
+                c.barrier = None;
+                c.answered_at = None;
+                c.expelled = true;
+                self.joined -= 1;
+            }
+        }
+        self.window = (now, Duration::ZERO);
+        for c in self.clients.values_mut() {
+            c.held = Duration::ZERO;
+        }
+    }
+
     /// Removes from the barrier every client that has held the world for longer than the
     /// lockstep timeout without sending its next `SYNC`.
     fn release_stuck_barriers(&mut self) {
@@ -704,7 +774,17 @@ impl Driver {
             Line::Sync { time, text } => {
                 self.record_client_line(client, text.as_deref());
                 let (now, dt) = (self.world.time(), self.world.dt());
+                let full = self.joined >= self.settings.lockstep_clients;
                 if let Some(c) = self.clients.get_mut(&client) {
+                    if c.barrier.is_none() && (c.expelled || full) {
+                        if !c.sync_refused {
+                            c.sync_refused = true;
+                            warn!(peer = %c.peer, expelled = c.expelled,
+                                max_clients = self.settings.lockstep_clients,
+                                "SYNC ignored: this client may not join the lockstep barrier");
+                        }
+                        return;
+                    }
                     if c.barrier.is_none() {
                         self.joined += 1;
                     }

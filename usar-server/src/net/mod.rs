@@ -103,6 +103,15 @@ pub struct ServerConfig {
     /// Wall-clock time a lockstep client may take to send its next `SYNC` before it is
     /// removed from the barrier (with a warning) and the world goes on without it.
     pub lockstep_timeout: Duration,
+    /// Clients in the lockstep barrier at once (the first to send `SYNC`); the `SYNC`s of
+    /// others are ignored (logged), so they are never waited for.
+    pub lockstep_clients: usize,
+    /// While clients outside the barrier are connected, the share of wall time (0 to 1,
+    /// measured over 10 s) the barrier may hold the world; past it, the member that held it
+    /// longest leaves the barrier for good (warning). 1 (the default of the library, whose
+    /// in-process servers serve one program's clients) turns the rule off; the
+    /// `usar-server` program, a shared server, uses 0.5.
+    pub lockstep_share: f64,
     /// At `time_scale: Max` the world waits for its slowest reader instead of dropping
     /// output; a client whose queue has had no room for this long (wall clock) is left
     /// behind: its output is dropped, as at real time, until it reads again.
@@ -128,6 +137,8 @@ impl Default for ServerConfig {
             line_timeout: Duration::from_secs(30),
             lockstep: false,
             lockstep_timeout: Duration::from_secs(10),
+            lockstep_clients: usize::MAX,
+            lockstep_share: 1.0,
             reader_timeout: Duration::from_secs(10),
             record: None,
         }
@@ -193,6 +204,8 @@ pub async fn run(
                 requests_per_tick: config.requests_per_tick.max(1),
                 client_buffer: config.client_buffer.max(1),
                 lockstep_timeout: config.lockstep_timeout,
+                lockstep_clients: config.lockstep_clients.max(1),
+                lockstep_share: config.lockstep_share,
                 reader_timeout: config.reader_timeout,
             },
             wants_room.clone(),
