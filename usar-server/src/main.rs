@@ -73,7 +73,8 @@ struct Args {
     lockstep_share: f64,
     /// With `--time-scale max`: wall-clock seconds the world waits for a client that reads
     /// nothing (it paces itself to its slowest reader) before it goes on without that client,
-    /// dropping its output until it reads again.
+    /// dropping its output until it reads again. Each time a reader stops, everyone waits
+    /// this long: lower it (e.g. 0.5) on a shared server (docs/limits.md).
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = seconds)]
     reader_timeout: f64,
     /// Record every connection (both directions, stamped with simulated time) into DIR,
