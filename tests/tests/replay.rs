@@ -43,11 +43,11 @@ async fn a_recorded_flight_replays_into_the_same_uav_state() {
     let flown = summary.iterations[0].trajectory.last().unwrap().clone();
 
     // Serve the recording and read it back with the framework's connection and model.
-    let lines = replay::load(&record).unwrap();
+    let recording = replay::open(&record).unwrap();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap().to_string();
     let stop = CancellationToken::new();
-    let replayer = tokio::spawn(replay::serve(listener, lines, Pace::Fast, stop.clone()));
+    let replayer = tokio::spawn(replay::serve(listener, recording, Pace::Fast, stop.clone()));
     let mut conn = Connection::connect(&addr, Duration::from_secs(5))
         .await
         .unwrap();

@@ -41,6 +41,21 @@ impl fmt::Display for Shown<'_> {
     }
 }
 
+/// A number as an error message shows it: as written for everyday sizes, with an exponent
+/// past a billion or below a ten-thousandth (`1e308`, not 309 digits).
+pub struct Number(pub f64);
+
+impl fmt::Display for Number {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let v = self.0;
+        if v == 0.0 || !v.is_finite() || (1e-4..1e9).contains(&v.abs()) {
+            write!(f, "{v}")
+        } else {
+            write!(f, "{v:e}")
+        }
+    }
+}
+
 /// Counts one kind of warning about one client and says which ones to log: the first
 /// [`FULL_WARNINGS`], then only the 16th, 32nd, 64th, ... (each with the count so far), so
 /// a flood of N bad lines writes O(log N) log lines.
@@ -73,6 +88,17 @@ impl Repeats {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn huge_and_tiny_numbers_are_shown_with_an_exponent() {
+        let shown = |v: f64| Number(v).to_string();
+        assert_eq!(shown(1e308), "1e308");
+        assert_eq!(shown(-2.5e12), "-2.5e12");
+        assert_eq!(shown(1e-300), "1e-300");
+        assert_eq!(shown(1500.25), "1500.25");
+        assert_eq!(shown(-3.0), "-3");
+        assert_eq!(shown(f64::NAN), "NaN");
+    }
 
     #[test]
     fn control_bytes_are_escaped_and_long_lines_cut() {

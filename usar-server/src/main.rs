@@ -62,9 +62,19 @@ struct Args {
     /// the barrier (with a warning) and the world goes on without it.
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = seconds)]
     lockstep_timeout: f64,
+    /// Clients that may be in the lockstep barrier at once (the first to send SYNC; later
+    /// ones' SYNCs are ignored): 1 for "the first connection" (default: no limit).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    lockstep_clients: Option<u64>,
+    /// While clients outside the barrier are connected: the share of wall time (0.01 to 1,
+    /// over 10 s) the barrier may hold the world; past it, the member that held it longest
+    /// leaves the barrier for good, with a warning (1: off).
+    #[arg(long, default_value_t = 0.5, value_name = "SHARE", value_parser = share)]
+    lockstep_share: f64,
     /// With `--time-scale max`: wall-clock seconds the world waits for a client that reads
     /// nothing (it paces itself to its slowest reader) before it goes on without that client,
-    /// dropping its output until it reads again.
+    /// dropping its output until it reads again. Each time a reader stops, everyone waits
+    /// this long: lower it (e.g. 0.5) on a shared server (docs/limits.md).
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = seconds)]
     reader_timeout: f64,
     /// Record every connection (both directions, stamped with simulated time) into DIR,
@@ -193,6 +203,10 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         max_connections_per_address: args.max_connections_per_address,
         lockstep: args.lockstep,
         lockstep_timeout: std::time::Duration::from_secs_f64(args.lockstep_timeout),
+        lockstep_clients: args
+            .lockstep_clients
+            .map_or(usize::MAX, |n| usize::try_from(n).unwrap_or(usize::MAX)),
+        lockstep_share: args.lockstep_share,
         reader_timeout: std::time::Duration::from_secs_f64(args.reader_timeout),
         record: args.record.clone(),
         ..ServerConfig::default()
@@ -226,6 +240,14 @@ fn seconds(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A share of the wall time, 0.01 to 1.
+fn share(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (0.01..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("expected a share from 0.01 to 1, not '{s}'")),
+    }
+}
+
 /// A replay speed factor, in the range of `--time-scale`.
 fn speed(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
@@ -240,7 +262,7 @@ fn speed(s: &str) -> Result<f64, String> {
 
 fn replay(file: &Path, bind: &str, port: u16, fast: bool, speed: f64) -> anyhow::Result<()> {
     use usar_server::replay::{self, Pace};
-    let lines = replay::load(file)?;
+    let recording = replay::open(file)?;
     let pace = if fast {
         Pace::Fast
     } else {
@@ -258,12 +280,12 @@ fn replay(file: &Path, bind: &str, port: u16, fast: bool, speed: f64) -> anyhow:
             stdout,
             "usar-server replaying {} ({} lines) on {}",
             file.display(),
-            lines.len(),
+            recording.lines(),
             listener.local_addr()?
         )?;
         stdout.flush()?;
         drop(stdout);
-        replay::serve(listener, lines, pace, shutdown).await?;
+        replay::serve(listener, recording, pace, shutdown).await?;
         Ok(())
     })
 }

@@ -17,8 +17,12 @@ use usar_proto::codec::LineCodec;
 use usar_proto::record::{self, Direction};
 use usar_proto::{Message, ServerMessage};
 
-/// The largest recording or capture `load` reads (bytes): 256 MiB.
-pub const MAX_REPLAY_FILE: u64 = 256 << 20;
+/// The longest line a recording or capture may hold (bytes): 1 MiB. Files of any size are
+/// read line by line, so memory stays bounded by this and the send buffer.
+pub const MAX_REPLAY_LINE: usize = 1 << 20;
+
+/// The recording format version this server reads (`# usar-record 1`).
+const RECORD_VERSION: &str = "1";
 
 /// One server line of a recording and the simulated time it was sent at.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,13 +53,11 @@ pub enum ReplayError {
         /// Why (shown in this error's text, so not its `source`).
         error: std::io::Error,
     },
-    /// The file is larger than [`MAX_REPLAY_FILE`].
-    #[error("{path}: {size} bytes is more than the limit of {MAX_REPLAY_FILE} bytes")]
-    TooLarge {
+    /// The file is not a regular file (a FIFO, a device, a folder).
+    #[error("{path}: not a regular file")]
+    NotAFile {
         /// The file.
         path: String,
-        /// Its size.
-        size: u64,
     },
     /// A recording line is malformed.
     #[error("{path}:{line}: {what}")]
@@ -75,41 +77,69 @@ pub enum ReplayError {
     },
 }
 
-/// Reads a recording: `usar-record` files keep their `S` lines with their times; any other
-/// text is taken as a capture, one line per line, of which the server messages (NFO, STA,
-/// SEN, CONF, GEO, ASTA, EFF, DIE, …) are kept, timed by their `{Time t}` (lines without one
-/// keep the previous time). Blank lines, `#` comments and client commands are skipped.
-///
-/// Files past [`MAX_REPLAY_FILE`] bytes are refused unread; time stamps must be finite.
-pub fn load(path: &Path) -> Result<Vec<ReplayLine>, ReplayError> {
-    use std::io::Read;
-    let name = path.display().to_string();
-    let io = |error| ReplayError::Io {
-        path: name.clone(),
-        error,
-    };
-    let file = std::fs::File::open(path).map_err(io)?;
-    let size = file.metadata().map_err(io)?.len();
-    let mut text = Vec::new();
-    file.take(MAX_REPLAY_FILE + 1)
-        .read_to_end(&mut text)
-        .map_err(io)?;
-    if size.max(text.len() as u64) > MAX_REPLAY_FILE {
-        return Err(ReplayError::TooLarge {
-            path: name,
-            size: size.max(text.len() as u64),
-        });
-    }
-    parse(&String::from_utf8_lossy(&text), &name)
+/// A recording or capture checked by [`open`], read again from the file for each client.
+#[derive(Debug, Clone)]
+pub struct ReplayFile {
+    path: std::path::PathBuf,
+    lines: usize,
 }
 
-/// Reads the text of a recording or capture (as [`load`] does; errors name `path`).
-pub fn parse(text: &str, path: &str) -> Result<Vec<ReplayLine>, ReplayError> {
-    let lines = if text.starts_with(record::HEADER) {
-        parse_record(text, path)?
-    } else {
-        parse_capture(text)
+impl ReplayFile {
+    /// The server lines it holds.
+    pub fn lines(&self) -> usize {
+        self.lines
+    }
+
+    /// Reads its server lines from the start.
+    fn read(&self) -> Result<Lines<std::io::BufReader<std::fs::File>>, ReplayError> {
+        let name = self.path.display().to_string();
+        let file = std::fs::File::open(&self.path).map_err(|error| ReplayError::Io {
+            path: name.clone(),
+            error,
+        })?;
+        Ok(Lines::new(
+            std::io::BufReader::with_capacity(64 * 1024, file),
+            name,
+        ))
+    }
+}
+
+/// Checks a recording or capture, reading it once line by line (memory does not grow with
+/// its size): `usar-record` files keep their `S` lines with their times; any other text is
+/// taken as a capture, one line per line, of which the server messages (NFO, STA, SEN, CONF,
+/// GEO, ASTA, EFF, DIE, …) are kept, timed by their `{Time t}` (lines without one keep the
+/// previous time). Blank lines, `#` comments and client commands are skipped.
+///
+/// Refused, naming the file (and line): anything but a regular file, lines longer than
+/// [`MAX_REPLAY_LINE`], time stamps that are not finite, a recording version other than 1,
+/// and files without a server line.
+pub fn open(path: &Path) -> Result<ReplayFile, ReplayError> {
+    let name = path.display().to_string();
+    let meta = std::fs::metadata(path).map_err(|error| ReplayError::Io {
+        path: name.clone(),
+        error,
+    })?;
+    if !meta.is_file() {
+        return Err(ReplayError::NotAFile { path: name });
+    }
+    let file = ReplayFile {
+        path: path.to_owned(),
+        lines: 0,
     };
+    let mut lines = 0;
+    for line in file.read()? {
+        line?;
+        lines += 1;
+    }
+    if lines == 0 {
+        return Err(ReplayError::Empty { path: name });
+    }
+    Ok(ReplayFile { lines, ..file })
+}
+
+/// Reads the text of a recording or capture (as [`open`] does; errors name `path`).
+pub fn parse(text: &str, path: &str) -> Result<Vec<ReplayLine>, ReplayError> {
+    let lines = Lines::new(text.as_bytes(), path.to_owned()).collect::<Result<Vec<_>, _>>()?;
     if lines.is_empty() {
         return Err(ReplayError::Empty {
             path: path.to_owned(),
@@ -118,56 +148,163 @@ pub fn parse(text: &str, path: &str) -> Result<Vec<ReplayLine>, ReplayError> {
     Ok(lines)
 }
 
-fn parse_record(text: &str, path: &str) -> Result<Vec<ReplayLine>, ReplayError> {
-    let mut lines = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let entry = record::parse_entry(raw).map_err(|e| ReplayError::Format {
-            path: path.to_owned(),
-            line: i + 1,
-            what: e.to_string(),
-        })?;
-        if let Some(entry) = entry
-            && entry.direction == Direction::Server
-        {
-            lines.push(ReplayLine {
-                time: Some(entry.time),
-                text: entry.text.to_owned(),
-            });
+/// The server lines of a recording or capture, read one line at a time.
+struct Lines<R> {
+    input: R,
+    path: String,
+    /// Lines read so far.
+    number: usize,
+    /// `None` until the first line says which kind of file this is.
+    record: Option<bool>,
+    /// A capture's latest `{Time t}`.
+    time: Option<f64>,
+    buffer: Vec<u8>,
+    failed: bool,
+}
+
+impl<R: std::io::BufRead> Lines<R> {
+    fn new(input: R, path: String) -> Self {
+        Self {
+            input,
+            path,
+            number: 0,
+            record: None,
+            time: None,
+            buffer: Vec::new(),
+            failed: false,
         }
     }
-    Ok(lines)
-}
 
-fn parse_capture(text: &str) -> Vec<ReplayLine> {
-    let mut time = None;
-    text.lines()
-        .map(|l| l.trim_end_matches('\r'))
-        .filter(|l| !l.starts_with('#') && ServerMessage::is_server_word(Message::word(l)))
-        .map(|l| {
-            if let Some(t) = Message::parse(l).ok().and_then(|p| {
-                p.message
-                    .get("Time")
-                    .and_then(|t| t.trim().parse::<f64>().ok())
-                    .filter(|t| t.is_finite())
-            }) {
-                time = Some(t);
+    fn error(&mut self, what: String) -> ReplayError {
+        self.failed = true;
+        ReplayError::Format {
+            path: self.path.clone(),
+            line: self.number,
+            what,
+        }
+    }
+
+    /// The next line of text (lossy UTF-8, without terminator); `None` at the end.
+    fn next_text(&mut self) -> Option<Result<String, ReplayError>> {
+        use std::io::{BufRead, Read};
+        self.buffer.clear();
+        let limit = MAX_REPLAY_LINE as u64 + 2;
+        let read = (&mut self.input)
+            .take(limit)
+            .read_until(b'\n', &mut self.buffer);
+        match read {
+            Ok(0) => return None,
+            Ok(_) => {}
+            Err(error) => {
+                self.failed = true;
+                return Some(Err(ReplayError::Io {
+                    path: self.path.clone(),
+                    error,
+                }));
             }
-            ReplayLine {
-                time,
-                text: l.to_owned(),
-            }
+        }
+        self.number += 1;
+        let line = self.buffer.strip_suffix(b"\n").unwrap_or(&self.buffer);
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        if line.len() > MAX_REPLAY_LINE {
+            return Some(Err(self.error(format!(
+                "line longer than the limit of {MAX_REPLAY_LINE} bytes"
+            ))));
+        }
+        Some(Ok(String::from_utf8_lossy(line).into_owned()))
+    }
+
+    /// A recording's line: its server line, if it is one.
+    fn record_line(&mut self, text: &str) -> Result<Option<ReplayLine>, ReplayError> {
+        match record::parse_entry(text) {
+            Ok(Some(entry)) if entry.direction == Direction::Server => Ok(Some(ReplayLine {
+                time: Some(entry.time),
+                text: entry.text.to_owned(),
+            })),
+            Ok(_) => Ok(None),
+            Err(e) => Err(self.error(e.to_string())),
+        }
+    }
+
+    /// A capture's line: kept if it is a server message.
+    fn capture_line(&mut self, text: String) -> Option<ReplayLine> {
+        if text.starts_with('#') || !ServerMessage::is_server_word(Message::word(&text)) {
+            return None;
+        }
+        if let Some(t) = Message::parse(&text).ok().and_then(|p| {
+            p.message
+                .get("Time")
+                .and_then(|t| t.trim().parse::<f64>().ok())
+                .filter(|t| t.is_finite())
+        }) {
+            self.time = Some(t);
+        }
+        Some(ReplayLine {
+            time: self.time,
+            text,
         })
-        .collect()
+    }
 }
 
-/// Serves `lines` to every client that connects until `shutdown` is cancelled.
+impl<R: std::io::BufRead> Iterator for Lines<R> {
+    type Item = Result<ReplayLine, ReplayError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        while !self.failed {
+            let text = match self.next_text()? {
+                Ok(text) => text,
+                Err(e) => return Some(Err(e)),
+            };
+            let record = match self.record {
+                Some(record) => record,
+                None => {
+                    // `# usar-record N`: our recording, if we know version N.
+                    let version = text
+                        .strip_prefix(RECORD_PREFIX)
+                        .filter(|rest| rest.starts_with(' '))
+                        .map(str::trim);
+                    if let Some(version) = version
+                        && version != RECORD_VERSION
+                    {
+                        return Some(Err(self.error(format!(
+                            "unknown recording version {} (this usar-server reads version {RECORD_VERSION})",
+                            crate::shown::Shown(version)
+                        ))));
+                    }
+                    self.record = Some(version.is_some());
+                    if version.is_some() {
+                        continue;
+                    }
+                    false
+                }
+            };
+            let line = if record {
+                match self.record_line(&text) {
+                    Ok(line) => line,
+                    Err(e) => return Some(Err(e)),
+                }
+            } else {
+                self.capture_line(text)
+            };
+            if line.is_some() {
+                return line.map(Ok);
+            }
+        }
+        None
+    }
+}
+
+/// What every recording's first line starts with (then the version).
+const RECORD_PREFIX: &str = "# usar-record";
+
+/// Serves `file` to every client that connects until `shutdown` is cancelled; each client
+/// gets the whole stream from the start, read from the file as it is sent.
 pub async fn serve(
     listener: TcpListener,
-    lines: Vec<ReplayLine>,
+    file: ReplayFile,
     pace: Pace,
     shutdown: CancellationToken,
 ) -> std::io::Result<()> {
-    let lines: std::sync::Arc<[ReplayLine]> = lines.into();
     let tracker = TaskTracker::new();
     loop {
         tokio::select! {
@@ -175,12 +312,12 @@ pub async fn serve(
             accepted = listener.accept() => {
                 let (stream, peer) = accepted?;
                 info!(%peer, "replaying");
-                let lines = lines.clone();
+                let file = file.clone();
                 let token = shutdown.child_token();
                 tracker.spawn(async move {
                     tokio::select! {
                         _ = token.cancelled() => {}
-                        result = replay_to(stream, &lines, pace) => match result {
+                        result = replay_to(stream, &file, pace) => match result {
                             Ok(()) => info!(%peer, "replay finished"),
                             Err(error) => info!(%peer, %error, "client left"),
                         },
@@ -194,7 +331,7 @@ pub async fn serve(
     Ok(())
 }
 
-async fn replay_to(stream: TcpStream, lines: &[ReplayLine], pace: Pace) -> std::io::Result<()> {
+async fn replay_to(stream: TcpStream, file: &ReplayFile, pace: Pace) -> std::io::Result<()> {
     let (read, mut write) = stream.into_split();
     let peer = write.peer_addr()?;
     // Read and log what the client says, so that it never blocks on a full socket.
@@ -202,16 +339,22 @@ async fn replay_to(stream: TcpStream, lines: &[ReplayLine], pace: Pace) -> std::
         let mut framed = FramedRead::new(read, LineCodec::new(64 * 1024));
         while let Some(Ok(line)) = framed.next().await {
             match line {
-                Ok(line) => info!(%peer, %line, "client says (ignored in replay)"),
+                Ok(line) => info!(%peer, line = %crate::shown::Shown(&line),
+                    "client says (ignored in replay)"),
                 Err(error) => warn!(%peer, %error, "unreadable line"),
             }
         }
     });
+    let mut lines = file.read().map_err(std::io::Error::other)?;
     let start = tokio::time::Instant::now();
-    let first = lines.iter().find_map(|l| l.time).unwrap_or(0.0);
+    let mut first = None;
     let mut batch = Vec::new();
-    for line in lines {
+    // The file is read on the runtime's thread in blocks of 64 KiB: short reads, like the
+    // socket writes around them.
+    for line in &mut lines {
+        let line = line.map_err(std::io::Error::other)?;
         if let (Pace::Timestamps(factor), Some(t)) = (pace, line.time) {
+            let first = *first.get_or_insert(t);
             let offset = crate::net::wait_of((t - first) / factor);
             let due = start.checked_add(offset).unwrap_or(start);
             if due > tokio::time::Instant::now() {
@@ -240,7 +383,7 @@ mod tests {
     #[test]
     fn a_recording_keeps_server_lines_with_their_times() {
         let text = "# usar-record 1\n0.0000 S NFO {Gametype BotDeathMatch} {Level X} {TimeLimit 20}\n0.0000 C INIT {ClassName USARBot.AirRobot}\n0.1000 S STA {Time 0.1000} {Battery 99999}\n";
-        let lines = parse_record(text, "r").unwrap();
+        let lines = parse(text, "r").unwrap();
         assert_eq!(lines.len(), 2);
         assert_eq!(lines[1].time, Some(0.1));
         assert_eq!(lines[1].text, "STA {Time 0.1000} {Battery 99999}");
@@ -249,7 +392,7 @@ mod tests {
     #[test]
     fn a_capture_keeps_its_server_lines() {
         let text = "# a capture\nINIT {ClassName USARBot.P3AT}\n\nNFO {Level X}\nSEN {Time 1.5000} {Type Camera} \nSEN {Type INS} {Name I}\n";
-        let lines = parse_capture(text);
+        let lines = parse(text, "c").unwrap();
         let texts: Vec<&str> = lines.iter().map(|l| l.text.as_str()).collect();
         assert_eq!(
             texts,
@@ -268,7 +411,7 @@ mod tests {
     #[test]
     fn a_broken_recording_names_the_line() {
         let text = "# usar-record 1\n0.0000 S NFO\nabc S STA\n";
-        let error = parse_record(text, "r.usarlog").unwrap_err().to_string();
+        let error = parse(text, "r.usarlog").unwrap_err().to_string();
         assert_eq!(error, "r.usarlog:3: bad time stamp 'abc'");
     }
 }

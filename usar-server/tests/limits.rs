@@ -70,6 +70,9 @@ async fn connections_per_address_are_limited() {
     for _ in 0..3 {
         let mut c = Client::connect_from(server.addr, 2).await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO "));
+        // Each has sent a line: none of them makes room for a newer one.
+        c.send("GETSTARTPOSES").await;
+        assert!(c.raw_line().await.unwrap().starts_with("NFO {StartPoses"));
         mine.push(c);
     }
     let mut fourth = Client::connect_from(server.addr, 2).await;
@@ -86,6 +89,63 @@ async fn connections_per_address_are_limited() {
     tokio::time::sleep(Duration::from_millis(100)).await;
     let mut again = Client::connect_from(server.addr, 2).await;
     assert!(again.raw_line().await.unwrap().starts_with("NFO "));
+    server.stop().await;
+}
+
+#[tokio::test]
+async fn at_a_limit_the_oldest_connection_without_a_line_makes_room() {
+    // Issue #26 item 6: 16 silent connections locked a new client of their address out for
+    // the 30 s idle timeout.
+    let server = TestServer::with(ServerConfig {
+        max_connections_per_address: 3,
+        max_connections: 5,
+        ..config()
+    })
+    .await;
+    let mut talker = Client::connect_from(server.addr, 2).await;
+    assert!(talker.raw_line().await.unwrap().starts_with("NFO "));
+    talker.send("GETSTARTPOSES").await;
+    assert!(
+        talker
+            .raw_line()
+            .await
+            .unwrap()
+            .starts_with("NFO {StartPoses")
+    );
+    let mut silent = Vec::new();
+    for _ in 0..2 {
+        let mut c = Client::connect_from(server.addr, 2).await;
+        assert!(c.raw_line().await.unwrap().starts_with("NFO "));
+        silent.push(c);
+    }
+    // The address is at its limit: the newcomer is served, the oldest silent one closed.
+    let mut newcomer = Client::connect_from(server.addr, 2).await;
+    assert!(newcomer.raw_line().await.unwrap().starts_with("NFO "));
+    assert_eq!(
+        silent[0].raw_line().await,
+        None,
+        "the oldest silent is closed"
+    );
+    // The others stay.
+    for c in [&mut talker, &mut silent[1], &mut newcomer] {
+        c.send("GETSTARTPOSES").await;
+        assert!(c.raw_line().await.unwrap().starts_with("NFO {StartPoses"));
+    }
+    // The server's limit (5) works the same way, across addresses.
+    let mut quiet = Client::connect_from(server.addr, 3).await;
+    assert!(quiet.raw_line().await.unwrap().starts_with("NFO "));
+    let mut other = Client::connect_from(server.addr, 4).await;
+    assert!(other.raw_line().await.unwrap().starts_with("NFO "));
+    let mut fifth = Client::connect_from(server.addr, 5).await;
+    assert!(fifth.raw_line().await.unwrap().starts_with("NFO "));
+    assert_eq!(quiet.raw_line().await, None, "the oldest silent is closed");
+    for c in [&mut silent[1], &mut other, &mut fifth] {
+        c.send("GETSTARTPOSES").await;
+        assert!(c.raw_line().await.unwrap().starts_with("NFO {StartPoses"));
+    }
+    // All five have spoken: the next is refused.
+    let mut sixth = Client::connect_from(server.addr, 6).await;
+    assert_eq!(sixth.raw_line().await, None, "refused: everyone has spoken");
     server.stop().await;
 }
 

@@ -227,3 +227,91 @@ async fn a_lockstep_client_that_stops_syncing_leaves_the_barrier() {
     assert!(t >= 2.0, "answered at {t}");
     server.stop().await;
 }
+
+/// Issue #26 item 5: one client that sends each `SYNC` just before the lockstep timeout
+/// held every other client at 0.4 % of its rate. With a share limit it leaves the barrier
+/// after one window (10 s of wall time), and the others run at full speed again.
+#[tokio::test]
+async fn a_client_that_holds_the_world_too_long_leaves_the_barrier() {
+    let server = TestServer::with(ServerConfig {
+        time_scale: TimeScale::Factor(10.0),
+        lockstep: true,
+        lockstep_timeout: std::time::Duration::from_secs(1),
+        lockstep_share: 0.5,
+        ..ServerConfig::default()
+    })
+    .await;
+    let mut hog = server.client().await;
+    hog.raw_line().await.unwrap();
+    let mut free = server.client().await;
+    free.raw_line().await.unwrap();
+    free.spawn_at([0.0, 0.0, -1.0], 0.0).await;
+    let hogging = tokio::spawn(async move {
+        let mut barrier = 0.1;
+        let mut answers = 0;
+        loop {
+            hog.send(&format!("SYNC {{Time {barrier}}}")).await;
+            let answered =
+                tokio::time::timeout(std::time::Duration::from_secs(3), until_sync(&mut hog)).await;
+            if answered.is_err() {
+                return answers; // no longer answered: out of the barrier
+            }
+            answers += 1;
+            tokio::time::sleep(std::time::Duration::from_millis(900)).await;
+            barrier += 0.1;
+        }
+    });
+    // Held, the world would go 0.1 s per 0.9 s of wall time: 4.4 s in 40 s.
+    let started = std::time::Instant::now();
+    let last = sta_until(&mut free, 20.0).await;
+    assert!(
+        started.elapsed() < std::time::Duration::from_secs(40),
+        "the hog held the world: {last} s simulated in {:?}",
+        started.elapsed()
+    );
+    let answers = hogging.await.unwrap();
+    assert!(
+        answers >= 5,
+        "the hog was in the barrier first ({answers} answers)"
+    );
+    server.stop().await;
+}
+
+/// `lockstep_clients`: who may join the barrier. With 1, a second client's `SYNC` is
+/// ignored: never answered, holding nobody.
+#[tokio::test]
+async fn only_the_first_lockstep_clients_may_join_the_barrier() {
+    let server = TestServer::with(ServerConfig {
+        time_scale: TimeScale::Factor(10.0),
+        lockstep: true,
+        lockstep_clients: 1,
+        ..ServerConfig::default()
+    })
+    .await;
+    let mut first = server.client().await;
+    first.raw_line().await.unwrap();
+    first.send("SYNC {Time 0}").await;
+    until_sync(&mut first).await;
+    let mut second = server.client().await;
+    second.raw_line().await.unwrap();
+    second.send("SYNC {Time 0}").await;
+    second
+        .send("INIT {ClassName USARBot.stsAirRobot} {Location 0,0,-1}")
+        .await;
+    // The first holds the world at 0 until it syncs again; the second is not answered.
+    first.send("SYNC {Time 0.5}").await;
+    let (_, t) = until_sync(&mut first).await;
+    assert!((t - 0.5).abs() < 0.006, "answered at {t}");
+    let mut last = 0.0;
+    while last < 0.5 {
+        let (_, m) = second.message().await;
+        assert!(
+            !matches!(m, ServerMessage::Sync(_)),
+            "second client answered"
+        );
+        if let ServerMessage::Sta(s) = m {
+            last = s.time.seconds;
+        }
+    }
+    server.stop().await;
+}

@@ -179,7 +179,7 @@ fn files_past_the_size_limits_are_refused_unread() {
             "--port".as_ref(),
             "0".as_ref(),
         ],
-        &["more than the limit"],
+        &["line longer than the limit"],
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

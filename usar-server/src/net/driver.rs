@@ -43,10 +43,11 @@ use bytes::Bytes;
 use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
-use usar_proto::record::{Direction, RecordWriter};
-use usar_proto::{Barrier, Command, Nfo, ServerMessage};
+use usar_proto::record::Direction;
+use usar_proto::{Barrier, Command, Init, Nfo, ServerMessage};
 
 use super::TimeScale;
+use super::recording::Recording;
 use crate::sim::{ClientId, Printed, World};
 
 /// How far behind schedule the driver may fall before it re-anchors its clock.
@@ -64,6 +65,15 @@ const GATHER_BYTES: usize = 32 * 1024;
 
 /// ... or once this much wall time has passed since the last hand-over.
 const GATHER_TIME: Duration = Duration::from_millis(1);
+
+/// How long a client's first INIT waits for its place when another robot is there: the
+/// robot of a connection that has just closed is removed when its session notices the close,
+/// which may come after the next connection's INIT (a client that respawns between runs).
+/// The INIT is tried again whenever a robot leaves; the client's later lines wait behind it.
+const SPAWN_GRACE: Duration = Duration::from_secs(2);
+
+/// The wall-clock window over which the lockstep barrier's share of the time is measured.
+const SHARE_WINDOW: Duration = Duration::from_secs(10);
 
 /// Loop turns between checks of the shutdown token when no request arrives (a request, such
 /// as the `Wake` sent on shutdown, makes the driver check at once).
@@ -118,6 +128,10 @@ pub(super) struct Settings {
     pub(super) requests_per_tick: usize,
     pub(super) client_buffer: usize,
     pub(super) lockstep_timeout: Duration,
+    /// Clients in the lockstep barrier at once; later ones' `SYNC`s are ignored.
+    pub(super) lockstep_clients: usize,
+    /// The share of wall time the barrier may hold the world while clients outside it wait.
+    pub(super) lockstep_share: f64,
     /// At `TimeScale::Max`: how long the world waits for a client whose queue has no room.
     pub(super) reader_timeout: Duration,
 }
@@ -172,7 +186,19 @@ struct Client {
     answered: bool,
     /// When the world reached the barrier (the lockstep timeout runs from then).
     answered_at: Option<Instant>,
-    record: Option<RecordWriter>,
+    record: Option<Recording>,
+    /// Whether an INIT of this client has spawned a robot.
+    spawned: bool,
+    /// Wall time the world waited for this client's next `SYNC` in the current window.
+    held: Duration,
+    /// Whether this client's `SYNC`s are refused (the barrier was full, or it held the
+    /// world too long): said once in the log.
+    sync_refused: bool,
+    /// Left the barrier for holding the world too long: its `SYNC`s are ignored from then on.
+    expelled: bool,
+    /// A first INIT whose place was taken, tried again when a robot leaves until the
+    /// deadline; the client's backlog waits behind it.
+    parked: Option<(Init, Instant)>,
 }
 
 impl Client {
@@ -190,6 +216,11 @@ impl Client {
             answered: false,
             answered_at: None,
             record: None,
+            spawned: false,
+            parked: None,
+            held: Duration::ZERO,
+            sync_refused: false,
+            expelled: false,
         }
     }
 
@@ -198,7 +229,7 @@ impl Client {
         message.write_to(&mut self.pending);
         if let Some(file) = &mut self.record {
             let line = String::from_utf8_lossy(&self.pending[start..]);
-            let _ = file.write_at(time, Direction::Server, &line);
+            file.write(time, Direction::Server, &line);
         }
         self.pending.extend_from_slice(b"\r\n");
     }
@@ -210,7 +241,7 @@ impl Client {
             let lines = lines.strip_suffix(b"\r\n").unwrap_or(lines);
             for line in lines.split(|&b| b == b'\n') {
                 let line = line.strip_suffix(b"\r").unwrap_or(line);
-                let _ = file.write_at(time, Direction::Server, &String::from_utf8_lossy(line));
+                file.write(time, Direction::Server, &String::from_utf8_lossy(line));
             }
         }
     }
@@ -272,6 +303,12 @@ pub(super) struct Driver {
     wants_room: Arc<AtomicBool>,
     /// When output was last handed to the queues (gathering at `TimeScale::Max`).
     last_flush: Instant,
+    /// Recording files that could not be created or written to the end.
+    incomplete: Vec<PathBuf>,
+    /// Clients with a parked INIT (none: no scans).
+    parked: usize,
+    /// Start of the current window of the barrier's share, and the time it held the world.
+    window: (Instant, Duration),
 }
 
 impl Driver {
@@ -285,11 +322,28 @@ impl Driver {
             joined: 0,
             wants_room,
             last_flush: Instant::now(),
+            incomplete: Vec::new(),
+            parked: 0,
+            window: (Instant::now(), Duration::ZERO),
         }
     }
 
-    /// Runs the world until `shutdown` is cancelled or every request sender is gone.
-    pub(super) fn run(mut self, inbox: Receiver<Request>, shutdown: CancellationToken) {
+    /// Runs the world until `shutdown` is cancelled or every request sender is gone; then
+    /// writes the recordings out and returns the files that are incomplete (a write error).
+    pub(super) fn run(
+        mut self,
+        inbox: Receiver<Request>,
+        shutdown: CancellationToken,
+    ) -> Vec<PathBuf> {
+        self.run_world(inbox, shutdown);
+        let ids: Vec<ClientId> = self.clients.keys().copied().collect();
+        for id in ids {
+            self.close_record(id);
+        }
+        self.incomplete
+    }
+
+    fn run_world(&mut self, inbox: Receiver<Request>, shutdown: CancellationToken) {
         let pace = self.settings.scale == TimeScale::Max;
         let mut out = Printed::default();
         let mut anchor = Instant::now();
@@ -327,12 +381,16 @@ impl Driver {
                 if !self.flush_all(&inbox, &shutdown) {
                     return;
                 }
-                let request = match self.barrier_deadline() {
+                let waited = Instant::now();
+                let request = match self.next_deadline() {
                     None => inbox.recv().map_err(|_| RecvTimeoutError::Disconnected),
                     Some(deadline) => {
                         inbox.recv_timeout(deadline.saturating_duration_since(Instant::now()))
                     }
                 };
+                if self.joined > 0 {
+                    self.note_held(waited.elapsed());
+                }
                 match request {
                     Ok(request) => {
                         self.take(request);
@@ -421,7 +479,13 @@ impl Driver {
         let ids: Vec<ClientId> = self.clients.keys().copied().collect();
         let mut served = 0;
         for id in ids {
+            if self.parked > 0 && self.still_parked(id) {
+                continue;
+            }
             for _ in 0..self.settings.requests_per_tick {
+                if self.parked > 0 && self.still_parked(id) {
+                    break;
+                }
                 let Some((line, permit)) = self
                     .clients
                     .get_mut(&id)
@@ -436,6 +500,71 @@ impl Driver {
             }
         }
         served
+    }
+
+    /// Whether the client's INIT is parked and its deadline not reached (a parked INIT past
+    /// its deadline is given up: the spawn failed, as logged when it was first tried).
+    fn still_parked(&mut self, id: ClientId) -> bool {
+        let Some(c) = self.clients.get_mut(&id) else {
+            return false;
+        };
+        match &c.parked {
+            Some((_, deadline)) if Instant::now() < *deadline => true,
+            Some(_) => {
+                debug!(peer = %c.peer, "INIT gave up waiting for its place");
+                c.parked = None;
+                self.parked -= 1;
+                false
+            }
+            None => false,
+        }
+    }
+
+    /// Applies an INIT; `true` if it spawned a robot.
+    fn init(&mut self, client: ClientId, init: Init) -> bool {
+        let before = self.world.robot_count();
+        self.world.command(client, Command::Init(init));
+        let spawned = self.world.robot_count() > before;
+        if spawned && let Some(c) = self.clients.get_mut(&client) {
+            c.spawned = true;
+        }
+        spawned
+    }
+
+    /// Tries the parked INITs again (a robot has left).
+    fn retry_parked(&mut self) {
+        if self.parked == 0 {
+            return;
+        }
+        let ids: Vec<ClientId> = self.clients.keys().copied().collect();
+        for id in ids {
+            let Some((init, _)) = self.clients.get(&id).and_then(|c| c.parked.clone()) else {
+                continue;
+            };
+            if self.init(id, init)
+                && let Some(c) = self.clients.get_mut(&id)
+            {
+                c.parked = None;
+                self.parked -= 1;
+            }
+        }
+    }
+
+    /// When the driver must look again without a request: a lockstep client runs out of
+    /// time, or a parked INIT does.
+    fn next_deadline(&self) -> Option<Instant> {
+        let parked = (self.parked > 0)
+            .then(|| {
+                self.clients
+                    .values()
+                    .filter_map(|c| c.parked.as_ref().map(|p| p.1))
+                    .min()
+            })
+            .flatten();
+        match (self.barrier_deadline(), parked) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
     }
 
     /// The world steps only when it holds a robot and no lockstep client holds it back.
@@ -454,6 +583,52 @@ impl Driver {
             .filter_map(|c| c.answered_at)
             .min()
             .map(|at| at.checked_add(self.settings.lockstep_timeout).unwrap_or(at))
+    }
+
+    /// Counts `waited` against the lockstep clients that held the world meanwhile; at the end
+    /// of each window, if clients outside the barrier were held for more than the allowed
+    /// share of it, the member that held longest leaves the barrier for good (warning).
+    fn note_held(&mut self, waited: Duration) {
+        let (time, dt) = (self.world.time(), self.world.dt());
+        let mut holding = false;
+        for c in self.clients.values_mut() {
+            if c.answered && c.holds_at(time, dt) {
+                c.held += waited;
+                holding = true;
+            }
+        }
+        if holding {
+            self.window.1 += waited;
+        }
+        let now = Instant::now();
+        let window = now.duration_since(self.window.0);
+        if window < SHARE_WINDOW {
+            return;
+        }
+        let share = self.window.1.as_secs_f64() / window.as_secs_f64();
+        let others_wait = self.clients.len() > self.joined;
+        if others_wait && share > self.settings.lockstep_share {
+            let longest = self
+                .clients
+                .iter()
+                .filter(|(_, c)| c.barrier.is_some())
+                .max_by_key(|(_, c)| c.held)
+                .map(|(id, _)| *id);
+            if let Some(c) = longest.and_then(|id| self.clients.get_mut(&id)) {
+                warn!(peer = %c.peer, held_s = c.held.as_secs_f64(),
+                    window_s = window.as_secs_f64(), max_share = self.settings.lockstep_share,
+                    "lockstep client held the world too long while others wait; it leaves the \
+                     barrier, and its SYNCs are ignored from now on");
+                c.barrier = None;
+                c.answered_at = None;
+                c.expelled = true;
+                self.joined -= 1;
+            }
+        }
+        self.window = (now, Duration::ZERO);
+        for c in self.clients.values_mut() {
+            c.held = Duration::ZERO;
+        }
     }
 
     /// Removes from the barrier every client that has held the world for longer than the
@@ -542,14 +717,22 @@ impl Driver {
         }
     }
 
-    fn open_record(&mut self) -> Option<RecordWriter> {
+    fn open_record(&mut self) -> Option<Recording> {
         let dir = self.settings.record_dir.as_ref()?;
         let path = dir.join(format!("connection-{:04}.usarlog", self.connections));
-        RecordWriter::create(&path)
-            .inspect_err(
-                |error| warn!(path = %path.display(), %error, "cannot record this connection"),
-            )
+        Recording::create(path)
+            .inspect_err(|path| self.incomplete.push(path.clone()))
             .ok()
+    }
+
+    /// Writes out and closes a client's recording, noting it if it is incomplete.
+    fn close_record(&mut self, client: ClientId) {
+        if let Some(c) = self.clients.get_mut(&client)
+            && let Some(mut file) = c.record.take()
+            && !file.flush()
+        {
+            self.incomplete.push(file.path().to_owned());
+        }
     }
 
     fn record_client_line(&mut self, client: ClientId, line: Option<&str>) {
@@ -557,7 +740,7 @@ impl Driver {
         if let (Some(c), Some(line)) = (self.clients.get_mut(&client), line)
             && let Some(file) = &mut c.record
         {
-            let _ = file.write_at(time, Direction::Client, line);
+            file.write(time, Direction::Client, line);
         }
     }
 
@@ -566,6 +749,20 @@ impl Driver {
         match line {
             Line::Command { command, text } => {
                 self.record_client_line(client, text.as_deref());
+                if let Command::Init(init) = *command {
+                    let first = self.clients.get(&client).is_some_and(|c| !c.spawned);
+                    let others = self.world.robot_count() > 0;
+                    if !self.init(client, init.clone())
+                        && first
+                        && others
+                        && let Some(c) = self.clients.get_mut(&client)
+                    {
+                        debug!(peer = %c.peer, "INIT waits for its place");
+                        c.parked = Some((init, Instant::now() + SPAWN_GRACE));
+                        self.parked += 1;
+                    }
+                    return;
+                }
                 let replies = self.world.command(client, *command);
                 let time = self.world.time();
                 if let Some(c) = self.clients.get_mut(&client) {
@@ -577,7 +774,17 @@ impl Driver {
             Line::Sync { time, text } => {
                 self.record_client_line(client, text.as_deref());
                 let (now, dt) = (self.world.time(), self.world.dt());
+                let full = self.joined >= self.settings.lockstep_clients;
                 if let Some(c) = self.clients.get_mut(&client) {
+                    if c.barrier.is_none() && (c.expelled || full) {
+                        if !c.sync_refused {
+                            c.sync_refused = true;
+                            warn!(peer = %c.peer, expelled = c.expelled,
+                                max_clients = self.settings.lockstep_clients,
+                                "SYNC ignored: this client may not join the lockstep barrier");
+                        }
+                        return;
+                    }
                     if c.barrier.is_none() {
                         self.joined += 1;
                     }
@@ -610,7 +817,7 @@ impl Driver {
                 if let Some(file) = &mut record {
                     let nfo = game_info(&self.world);
                     let text = String::from_utf8_lossy(&nfo);
-                    let _ = file.write_at(self.world.time(), Direction::Server, text.trim_end());
+                    file.write(self.world.time(), Direction::Server, text.trim_end());
                 }
                 let id = self.world.connect();
                 debug!(%peer, client = ?id, "joined the simulation");
@@ -637,14 +844,12 @@ impl Driver {
                     self.serve(client, line);
                 }
                 self.world.disconnect(client);
-                if let Some(mut c) = self.clients.remove(&client) {
-                    if c.barrier.is_some() {
-                        self.joined -= 1;
-                    }
-                    if let Some(file) = &mut c.record {
-                        let _ = file.flush();
-                    }
+                self.close_record(client);
+                if let Some(c) = self.clients.remove(&client) {
+                    self.joined -= usize::from(c.barrier.is_some());
+                    self.parked -= usize::from(c.parked.is_some());
                 }
+                self.retry_parked();
             }
             Request::Wake => {}
         }

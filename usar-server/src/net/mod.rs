@@ -9,18 +9,19 @@
 //! ```
 
 mod driver;
+mod recording;
 mod session;
 
 pub(crate) use driver::wait_of;
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::net::IpAddr;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::net::TcpListener;
-use tokio::sync::Semaphore;
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
@@ -102,6 +103,15 @@ pub struct ServerConfig {
     /// Wall-clock time a lockstep client may take to send its next `SYNC` before it is
     /// removed from the barrier (with a warning) and the world goes on without it.
     pub lockstep_timeout: Duration,
+    /// Clients in the lockstep barrier at once (the first to send `SYNC`); the `SYNC`s of
+    /// others are ignored (logged), so they are never waited for.
+    pub lockstep_clients: usize,
+    /// While clients outside the barrier are connected, the share of wall time (0 to 1,
+    /// measured over 10 s) the barrier may hold the world; past it, the member that held it
+    /// longest leaves the barrier for good (warning). 1 (the default of the library, whose
+    /// in-process servers serve one program's clients) turns the rule off; the
+    /// `usar-server` program, a shared server, uses 0.5.
+    pub lockstep_share: f64,
     /// At `time_scale: Max` the world waits for its slowest reader instead of dropping
     /// output; a client whose queue has had no room for this long (wall clock) is left
     /// behind: its output is dropped, as at real time, until it reads again.
@@ -127,6 +137,8 @@ impl Default for ServerConfig {
             line_timeout: Duration::from_secs(30),
             lockstep: false,
             lockstep_timeout: Duration::from_secs(10),
+            lockstep_clients: usize::MAX,
+            lockstep_share: 1.0,
             reader_timeout: Duration::from_secs(10),
             record: None,
         }
@@ -142,6 +154,25 @@ pub enum ServerError {
     /// The simulation thread panicked.
     #[error("simulation thread failed: {0}")]
     Simulation(String),
+    /// Some recording files (`ServerConfig::record`) could not be created or written to the
+    /// end (a full disk); what was written of them is kept, in whole lines.
+    #[error("the recording is incomplete: {} could not be written to the end{}",
+        shown_files(.0), if .0.len() > 1 { " (each error was logged)" } else { "" })]
+    RecordingIncomplete(Vec<std::path::PathBuf>),
+}
+
+/// Up to 5 files by name, then how many more.
+fn shown_files(files: &[std::path::PathBuf]) -> String {
+    let mut text = files
+        .iter()
+        .take(5)
+        .map(|f| f.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
+    if files.len() > 5 {
+        text.push_str(&format!(" and {} more", files.len() - 5));
+    }
+    text
 }
 
 /// Serves the protocol on an already-bound listener until `shutdown` is cancelled; then
@@ -173,6 +204,8 @@ pub async fn run(
                 requests_per_tick: config.requests_per_tick.max(1),
                 client_buffer: config.client_buffer.max(1),
                 lockstep_timeout: config.lockstep_timeout,
+                lockstep_clients: config.lockstep_clients.max(1),
+                lockstep_share: config.lockstep_share,
                 reader_timeout: config.reader_timeout,
             },
             wants_room.clone(),
@@ -181,13 +214,14 @@ pub async fn run(
             .name("usar-sim".into())
             .spawn(move || {
                 let _alarm = DeathAlarm(died);
-                driver.run(inbox, token);
+                driver.run(inbox, token)
             })?
     };
 
     let tracker = TaskTracker::new();
     let slots = Arc::new(Semaphore::new(config.max_connections));
     let per_address: Arc<Mutex<HashMap<IpAddr, usize>>> = Arc::default();
+    let registry: Arc<Mutex<Registry>> = Arc::default();
     let limits = session::Limits {
         max_line_length: config.max_line_length,
         client_queue: config.client_queue.max(1),
@@ -214,19 +248,30 @@ pub async fn run(
                     }
                     Err(e) => break Err(ServerError::Io(e)),
                 };
-                let Some(address_slot) = AddressSlot::take(
-                    &per_address,
-                    peer.ip(),
-                    config.max_connections_per_address.max(1),
-                ) else {
+                // At a limit, the oldest connection that has not sent a complete line makes
+                // room (closed); only without one is the new connection refused.
+                let max_here = config.max_connections_per_address.max(1);
+                let Some(address_slot) = AddressSlot::take(&per_address, peer.ip(), max_here)
+                    .or_else(|| {
+                        Registry::evict_quiet(&registry, Some(peer.ip()))
+                            .then(|| AddressSlot::take(&per_address, peer.ip(), max_here))
+                            .flatten()
+                    })
+                else {
                     warn!(%peer, max = config.max_connections_per_address,
-                        "too many connections from this address, closing");
+                        "too many connections from this address, each has sent a line; closing");
                     continue;
                 };
-                let Ok(permit) = slots.clone().try_acquire_owned() else {
-                    warn!(%peer, max = config.max_connections, "too many connections, closing");
+                let Some(permit) = slots.clone().try_acquire_owned().ok().or_else(|| {
+                    Registry::evict_quiet(&registry, None)
+                        .then(|| slots.clone().try_acquire_owned().ok())
+                        .flatten()
+                }) else {
+                    warn!(%peer, max = config.max_connections,
+                        "too many connections, each has sent a line; closing");
                     continue;
                 };
+                let entry = Registry::add(&registry, peer.ip(), (permit, address_slot));
                 info!(%peer, "connected");
                 let _ = stream.set_nodelay(true);
                 tracker.spawn(session::serve(
@@ -236,7 +281,7 @@ pub async fn run(
                     (requests.clone(), wants_room.clone()),
                     limits,
                     shutdown.child_token(),
-                    (permit, address_slot),
+                    entry,
                 ));
             }
         }
@@ -251,7 +296,13 @@ pub async fn run(
         .await
         .map_err(|e| ServerError::Simulation(e.to_string()))?;
     result?;
-    joined.map_err(|_| ServerError::Simulation("the simulation thread panicked".into()))
+    let incomplete =
+        joined.map_err(|_| ServerError::Simulation("the simulation thread panicked".into()))?;
+    if incomplete.is_empty() {
+        Ok(())
+    } else {
+        Err(ServerError::RecordingIncomplete(incomplete))
+    }
 }
 
 /// Cancels its token when dropped during a panic (the simulation thread unwinding).
@@ -262,6 +313,83 @@ impl Drop for DeathAlarm {
         if std::thread::panicking() {
             self.0.cancel();
         }
+    }
+}
+
+/// The connections being served, oldest first, holding their shares of the limits: so
+/// that at a limit the oldest connection that has not sent a complete line can give its
+/// share to a new one at once.
+#[derive(Default)]
+struct Registry {
+    next: u64,
+    live: BTreeMap<u64, Entry>,
+}
+
+struct Entry {
+    ip: IpAddr,
+    spoke: Arc<AtomicBool>,
+    evicted: CancellationToken,
+    _slots: (OwnedSemaphorePermit, AddressSlot),
+}
+
+/// A connection's place in the [`Registry`]; its session holds it, and leaves with it.
+pub(super) struct Registered {
+    registry: Arc<Mutex<Registry>>,
+    id: u64,
+    /// Set by the session once the client has sent a complete line.
+    pub(super) spoke: Arc<AtomicBool>,
+    /// Cancelled when the connection is closed to make room for a new one.
+    pub(super) evicted: CancellationToken,
+}
+
+impl Registry {
+    fn add(
+        registry: &Arc<Mutex<Self>>,
+        ip: IpAddr,
+        slots: (OwnedSemaphorePermit, AddressSlot),
+    ) -> Registered {
+        let mut r = registry.lock().unwrap_or_else(|e| e.into_inner());
+        let id = r.next;
+        r.next += 1;
+        let (spoke, evicted) = (Arc::new(AtomicBool::new(false)), CancellationToken::new());
+        r.live.insert(
+            id,
+            Entry {
+                ip,
+                spoke: spoke.clone(),
+                evicted: evicted.clone(),
+                _slots: slots,
+            },
+        );
+        Registered {
+            registry: registry.clone(),
+            id,
+            spoke,
+            evicted,
+        }
+    }
+
+    /// Closes the oldest connection (from `ip`, if given) that has not sent a complete line,
+    /// giving its shares back at once; `false` if there is none.
+    fn evict_quiet(registry: &Arc<Mutex<Self>>, ip: Option<IpAddr>) -> bool {
+        let mut r = registry.lock().unwrap_or_else(|e| e.into_inner());
+        let oldest = r
+            .live
+            .iter()
+            .find(|(_, e)| ip.is_none_or(|ip| e.ip == ip) && !e.spoke.load(Ordering::SeqCst))
+            .map(|(id, _)| *id);
+        let Some(entry) = oldest.and_then(|id| r.live.remove(&id)) else {
+            return false;
+        };
+        entry.evicted.cancel();
+        true
+    }
+}
+
+impl Drop for Registered {
+    fn drop(&mut self) {
+        let mut r = self.registry.lock().unwrap_or_else(|e| e.into_inner());
+        r.live.remove(&self.id);
     }
 }
 

@@ -17,14 +17,14 @@ use futures::StreamExt;
 use tokio::io::AsyncWriteExt;
 use tokio::net::TcpStream;
 use tokio::net::tcp::OwnedWriteHalf;
-use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc, oneshot};
+use tokio::sync::{Semaphore, mpsc, oneshot};
 use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
 use usar_proto::codec::LineCodec;
 use usar_proto::{Command, SYNC_WORD};
 
-use super::AddressSlot;
+use super::Registered;
 use super::driver::{Line, Request};
 use crate::shown::{Repeats, Shown};
 
@@ -59,7 +59,7 @@ pub(super) async fn serve(
     (requests, wants_room): (std::sync::mpsc::Sender<Request>, Arc<AtomicBool>),
     limits: Limits,
     shutdown: CancellationToken,
-    _slots: (OwnedSemaphorePermit, AddressSlot),
+    registered: Registered,
 ) {
     let (read, mut write) = stream.into_split();
     // USARSim sends the game info on accept, before the client says anything.
@@ -102,7 +102,10 @@ pub(super) async fn serve(
                 }
                 Err(_) => return "closing: line not finished in time",
             };
-            first = false;
+            if first {
+                first = false;
+                registered.spoke.store(true, Ordering::SeqCst);
+            }
             let line = match item {
                 Ok(Ok(line)) => read_line(line, peer, limits, &mut complaints),
                 Ok(Err(error)) => {
@@ -133,6 +136,9 @@ pub(super) async fn serve(
     let writer = write_output(write, output, queued, (wants_room, requests.clone()));
     tokio::select! {
         _ = shutdown.cancelled() => info!(%peer, "closing: server shutting down"),
+        _ = registered.evicted.cancelled() => warn!(%peer,
+            "closing: a connection limit was reached and this was the oldest connection \
+             that had not sent a line"),
         why = reader => info!(%peer, "{why}"),
         result = writer => if let Err(error) = result {
             info!(%peer, %error, "disconnected: write failed");

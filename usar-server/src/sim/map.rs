@@ -595,7 +595,8 @@ fn within(values: &[&[f64; 3]], limit: f64) -> Result<(), String> {
     {
         None => Ok(()),
         Some(x) => Err(format!(
-            "{x} is out of range: numbers must be within ±{limit}"
+            "{} is out of range: numbers must be within ±{limit}",
+            crate::shown::Number(*x)
         )),
     }
 }
@@ -647,9 +648,16 @@ impl ReadError {
     }
 }
 
-/// Reads a UTF-8 text file of at most `limit` bytes (checked before reading).
+/// Reads a UTF-8 text file of at most `limit` bytes (checked before reading). Only regular
+/// files: opening a FIFO would wait for a writer forever.
 pub(crate) fn read_text(path: &Path, limit: u64) -> Result<String, ReadError> {
     use std::io::Read;
+    if !std::fs::metadata(path).map_err(ReadError::Io)?.is_file() {
+        return Err(ReadError::Io(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file (a FIFO, a device or a folder)",
+        )));
+    }
     let file = std::fs::File::open(path).map_err(ReadError::Io)?;
     let size = file.metadata().map_err(ReadError::Io)?.len();
     if size > limit {

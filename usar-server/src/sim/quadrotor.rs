@@ -174,7 +174,10 @@ impl QuadrotorConfig {
             ("quadrotor.max_tilt_rate", self.max_tilt_rate, 100.0),
         ] {
             if v > max {
-                return Err(format!("{what} must be at most {max}, got {v}"));
+                return Err(format!(
+                    "{what} must be at most {max}, got {}",
+                    crate::shown::Number(v)
+                ));
             }
         }
         if self.rotor_speed_min >= self.rotor_speed_max {

@@ -353,7 +353,10 @@ fn positive(what: &str, v: f64) -> Result<(), String> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(format!("{what} must be a positive number, got {v}"))
+        Err(format!(
+            "{what} must be a positive number, got {}",
+            crate::shown::Number(v)
+        ))
     }
 }
 
@@ -374,7 +377,10 @@ const MAX_SIZE: f64 = 100.0;
 fn at_most(what: &str, v: f64, max: f64) -> Result<(), String> {
     positive(what, v)?;
     if v > max {
-        return Err(format!("{what} must be at most {max}, got {v}"));
+        return Err(format!(
+            "{what} must be at most {max}, got {}",
+            crate::shown::Number(v)
+        ));
     }
     Ok(())
 }
@@ -452,7 +458,10 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
         at_most("interval", interval, 1e6)?;
     }
     if !(part.noise.is_finite() && (0.0..=100.0).contains(&part.noise)) {
-        return Err(format!("noise must be >= 0, got {}", part.noise));
+        return Err(format!(
+            "noise must be >= 0, got {}",
+            crate::shown::Number(part.noise)
+        ));
     }
     (kind.build)(part).map(drop)
 }

@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Fuzz campaign (issue #26): runs every cargo-fuzz target for MINUTES minutes on the nightly
+# toolchain, then prints each target's executions, rate and findings. Not part of CI.
+#
+#   fuzz/campaign.sh [MINUTES [TARGET...]]          (default: 10 minutes, every target)
+#
+# Needs `rustup toolchain install nightly` and `cargo install cargo-fuzz --locked`.
+# Corpora are kept compact in the repository: fuzz/corpora/TARGET.tar.xz (minimised with
+# `cargo fuzz cmin` after each run); they are unpacked into fuzz/corpus/ (not committed) to
+# run. Findings (crashes, timeouts, out-of-memory inputs) land in fuzz/artifacts/TARGET/.
+set -euo pipefail
+cd "$(dirname "$0")"
+minutes=${1:-10}
+shift || true
+targets=("$@")
+if (( ${#targets[@]} == 0 )); then
+  mapfile -t targets < <(cargo +nightly fuzz list)
+fi
+seconds=$(awk -v m="$minutes" 'BEGIN { printf "%d", m * 60 }')
+mkdir -p corpora corpus artifacts
+summary=()
+for t in "${targets[@]}"; do
+  mkdir -p "corpus/$t" "artifacts/$t"
+  if [[ -f "corpora/$t.tar.xz" ]]; then
+    tar -xJf "corpora/$t.tar.xz" -C "corpus/$t"
+  fi
+  before=$(find "artifacts/$t" -type f | wc -l)
+  log="artifacts/$t.log"
+  echo "== $t: ${minutes} min"
+  # -rss_limit_mb: a finding if one input takes more; -max_len: inputs of up to 4 KiB.
+  cargo +nightly fuzz run "$t" "corpus/$t" -- -max_total_time="$seconds" \
+    -print_final_stats=1 -rss_limit_mb=1024 -max_len=4096 >"$log" 2>&1 || true
+  execs=$(awk -F: '/stat::number_of_executed_units/ { gsub(/ /, "", $2); print $2 }' "$log" | tail -1)
+  rate=$(awk -F: '/stat::average_exec_per_sec/ { gsub(/ /, "", $2); print $2 }' "$log" | tail -1)
+  after=$(find "artifacts/$t" -type f | wc -l)
+  # Keep the corpus small: minimise, then pack.
+  cargo +nightly fuzz cmin "$t" "corpus/$t" >/dev/null 2>&1 || true
+  files=$(find "corpus/$t" -type f | wc -l)
+  tar -cJf "corpora/$t.tar.xz" -C "corpus/$t" .
+  summary+=("$(printf '%-14s %12s execs %8s/s %6s corpus files %3s findings' \
+    "$t" "${execs:-?}" "${rate:-?}" "$files" "$((after - before))")")
+done
+echo
+echo "fuzz campaign, ${minutes} min per target, $(date -u +%Y-%m-%d)"
+printf '%s\n' "${summary[@]}"
+if compgen -G "artifacts/*/*" >/dev/null; then
+  echo "findings:"
+  find artifacts -mindepth 2 -type f
+fi
