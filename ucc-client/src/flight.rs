@@ -387,9 +387,11 @@ impl Flight {
         for event in step.events {
             match &event {
                 AgentEvent::MissionStarted { index, .. } => self.mission_start = (*index, time),
-                AgentEvent::MissionDone { .. } => {
+                AgentEvent::MissionDone { index, .. } => {
                     self.record.missions_done += 1;
                     self.record.end_time = Some(time);
+                    // The next mission's time starts now, whether or not it is announced.
+                    self.mission_start = (index + 1, time);
                 }
                 AgentEvent::Log(_) => {}
             }
@@ -410,6 +412,7 @@ impl Flight {
             command: self.sent,
         });
         if step.all_done {
+            self.count_unreported(time);
             self.agent.stop();
             if self.sent != Some(SpeedCommand::STOP) {
                 self.send_speed(SpeedCommand::STOP, time);
@@ -429,6 +432,28 @@ impl Flight {
                 seconds: self.mission_timeout,
             });
         }
+    }
+
+    /// The agent says every mission is done but reported fewer `MissionDone`s: the runner
+    /// counts the missions itself (the statistics would say 0 missions in 0 s otherwise) and
+    /// warns, naming the events the agent should send.
+    fn count_unreported(&mut self, time: f64) {
+        let (reported, total) = (self.record.missions_done, self.missions.len());
+        if reported >= total {
+            return;
+        }
+        self.record.missions_done = total;
+        self.record.end_time = Some(time);
+        let message = format!(
+            "agent {} says all done after reporting {reported} of {total} mission(s) done; \
+             counted all {total} done at t={time:.2}s (an agent reports \
+             AgentEvent::MissionStarted and AgentEvent::MissionDone for each mission)",
+            self.agent.name()
+        );
+        self.report(Progress::Warning {
+            iteration: self.iteration,
+            message,
+        });
     }
 
     fn send_speed(&mut self, command: SpeedCommand, time: f64) {

@@ -45,7 +45,8 @@ impl FlightRecord {
         self.trajectory
             .windows(2)
             .map(|w| (w[1].position - w[0].position).norm())
-            .sum()
+            .sum::<f64>()
+            + 0.0 // an empty sum is -0.0: no "-0.0000" in the tables
     }
 
     /// Simulated seconds from the spawn to the last mission done.

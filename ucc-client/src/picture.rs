@@ -24,8 +24,21 @@ const X_LABELS: u32 = 50;
 const Y_LABELS: u32 = 60;
 const CAPTION: u32 = 40;
 
-/// Paths of more iterations than this share one legend entry.
+/// Paths of more iterations than this share one legend entry (and one colour).
 const LEGEND_ITERATIONS: usize = 8;
+
+/// The colours of the paths of a few iterations: dark enough on white, none red (the
+/// waypoints) or green (the start), none yellow.
+const PATH_COLOURS: [RGBColor; LEGEND_ITERATIONS] = [
+    RGBColor(31, 119, 180),  // blue
+    RGBColor(255, 127, 14),  // orange
+    RGBColor(148, 103, 189), // purple
+    RGBColor(23, 190, 207),  // cyan
+    RGBColor(140, 86, 75),   // brown
+    RGBColor(227, 119, 194), // pink
+    RGBColor(90, 90, 90),    // grey
+    RGBColor(20, 40, 120),   // navy
+];
 
 /// The outline of one solid of the map seen from above, and its height range: what the
 /// pictures draw of a map.
@@ -45,6 +58,40 @@ pub struct Footprint {
 pub struct MapGeometry {
     /// Every solid.
     pub footprints: Vec<Footprint>,
+}
+
+impl MapGeometry {
+    /// What is wrong with flying at `p` (world frame, z down), if anything: it lies inside a
+    /// solid, or below the floor (lower than every solid of the map). Mesh triangles (three
+    /// corners) are surfaces, not solids, and are not looked at.
+    pub fn problem_at(&self, p: &Coordinates) -> Option<String> {
+        let bottom = self
+            .footprints
+            .iter()
+            .map(|f| f.z_max)
+            .fold(f64::MIN, f64::max);
+        if !self.footprints.is_empty() && p.z >= bottom {
+            return Some(format!(
+                "is below the floor (nothing of the map lies lower than z = {bottom:.2})"
+            ));
+        }
+        let inside = self.footprints.iter().any(|f| {
+            f.outline.len() > 3 && f.z_min < p.z && p.z < f.z_max && encloses(&f.outline, p)
+        });
+        inside.then(|| "is inside a wall or an obstacle".to_owned())
+    }
+}
+
+/// Whether the polygon `outline` (x, y) holds the point's x, y (even-odd rule).
+fn encloses(outline: &[(f64, f64)], p: &Coordinates) -> bool {
+    let mut inside = false;
+    for (i, &(x0, y0)) in outline.iter().enumerate() {
+        let (x1, y1) = outline[(i + 1) % outline.len()];
+        if (y0 > p.y) != (y1 > p.y) && p.x < x0 + (p.y - y0) / (y1 - y0) * (x1 - x0) {
+            inside = !inside;
+        }
+    }
+    inside
 }
 
 /// A local server's map as the pictures draw it (with the `local` feature, which brings the
@@ -235,13 +282,21 @@ impl MapPicture {
                 .legend(move |(x, y)| Circle::new((x + 10, y), 2, wall.filled()));
         }
 
-        let many = self.paths.len() > LEGEND_ITERATIONS;
+        let n = self.paths.len();
+        let many = n > LEGEND_ITERATIONS;
         for (i, path) in self.paths.iter().enumerate() {
-            let color = Palette99::pick(i).to_rgba();
+            // Many paths: one colour, translucent, so that where they agree is darker. A few:
+            // a colour each, and each later one narrower than the one before, so that paths
+            // that agree show as stripes instead of the last one hiding the others.
+            let (color, width) = if many {
+                (PATH_COLOURS[0].mix(0.4), 1)
+            } else {
+                (PATH_COLOURS[i].to_rgba(), 2 + 3 * (n - 1 - i) as u32)
+            };
             let series = chart
                 .draw_series(LineSeries::new(
                     path.iter().map(top_view),
-                    color.stroke_width(if many { 1 } else { 2 }),
+                    color.stroke_width(width),
                 ))
                 .map_err(err)?;
             // One legend entry per iteration for a few; one for all of many.
@@ -252,8 +307,13 @@ impl MapPicture {
                 (_, false) => Some(format!("iteration {}", i + 1)),
             };
             if let Some(label) = label {
+                let color = if many {
+                    PATH_COLOURS[0].to_rgba()
+                } else {
+                    color
+                };
                 series.label(label).legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 20, y)], color.stroke_width(2))
+                    PathElement::new([(x, y), (x + 20, y)], color.stroke_width(3))
                 });
             }
         }
@@ -280,6 +340,17 @@ impl MapPicture {
             .legend(|(x, y)| {
                 Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], RED.stroke_width(2))
             });
+        // Their numbers, in the order flown (waypoints at one place share a label: "1, 5").
+        let font = ("sans-serif", 15).into_font().color(&RED);
+        chart
+            .draw_series(
+                waypoint_labels(&self.waypoints)
+                    .into_iter()
+                    .map(|(p, label)| {
+                        EmptyElement::at(top_view(&p)) + Text::new(label, (9, -22), font.clone())
+                    }),
+            )
+            .map_err(err)?;
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)
@@ -311,6 +382,19 @@ impl MapPicture {
         .map_err(err)?;
         root.present().map_err(err)
     }
+}
+
+/// The numbers of the waypoints (1-based), one label per place.
+fn waypoint_labels(waypoints: &[Coordinates]) -> Vec<(Coordinates, String)> {
+    let mut labels: Vec<(Coordinates, String)> = Vec::new();
+    for (i, p) in waypoints.iter().enumerate() {
+        let same = |q: &Coordinates| (q.x - p.x).abs() < 0.05 && (q.y - p.y).abs() < 0.05;
+        match labels.iter_mut().find(|(q, _)| same(q)) {
+            Some((_, label)) => *label = format!("{label}, {}", i + 1),
+            None => labels.push((*p, (i + 1).to_string())),
+        }
+    }
+    labels
 }
 
 /// The part of a polygon inside a rectangle `(x0, x1, y0, y1)` (Sutherland–Hodgman).
@@ -481,7 +565,11 @@ fn line_panel<DB: DrawingBackend>(
     x: std::ops::Range<f64>,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let points = series.iter().flat_map(|(_, points)| points.iter());
-    let y = range(points.chain(marks).map(|p| p.1), 0.5);
+    let mut y = range(points.chain(marks).map(|p| p.1), 0.5);
+    if series.len() > 1 {
+        // Room above the data for the legend, which would otherwise cover it.
+        y.end += (y.end - y.start) * 0.4;
+    }
     let mut chart = ChartBuilder::on(area)
         .caption(caption, ("sans-serif", 16))
         .margin(12)
@@ -548,6 +636,34 @@ fn register_font() -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn points_in_a_solid_or_under_the_floor_are_named() {
+        let room = MapGeometry {
+            footprints: vec![
+                Footprint {
+                    outline: vec![(-10.0, -10.0), (10.0, -10.0), (10.0, 10.0), (-10.0, 10.0)],
+                    z_min: 0.0,
+                    z_max: 0.2,
+                },
+                Footprint {
+                    outline: vec![(4.0, -1.0), (5.0, -1.0), (5.0, 1.0), (4.0, 1.0)],
+                    z_min: -3.0,
+                    z_max: 0.0,
+                },
+            ],
+        };
+        let at = |x, y, z| room.problem_at(&Coordinates::new(x, y, z));
+        assert_eq!(at(0.0, 0.0, -1.0), None);
+        assert_eq!(at(3.0, 0.0, -1.0), None);
+        assert!(at(0.0, 0.0, 1.0).unwrap().contains("below the floor"));
+        assert!(at(0.0, 0.0, 0.1).unwrap().contains("inside a wall"));
+        assert!(at(4.5, 0.5, -1.0).unwrap().contains("inside a wall"));
+        assert_eq!(
+            MapGeometry::default().problem_at(&Coordinates::zeros()),
+            None
+        );
+    }
 
     #[test]
     fn nice_lengths() {
@@ -638,6 +754,158 @@ mod tests {
             y < f64::from(CAPTION + MARGIN + 10),
             "scale bar label at y={y}"
         );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The numbers of `points="x,y x,y"` attributes of the polylines of an SVG, with the
+    /// polyline's stroke colour and width.
+    fn polylines(svg: &str) -> Vec<(String, f64, Vec<(f64, f64)>)> {
+        let attr = |tag: &str, name: &str| {
+            tag.split(&format!(" {name}=\""))
+                .nth(1)?
+                .split('"')
+                .next()
+                .map(str::to_owned)
+        };
+        svg.split("<polyline")
+            .skip(1)
+            .map(|tag| {
+                let tag = &tag[..tag.find("/>").unwrap()];
+                let points = attr(tag, "points")
+                    .unwrap_or_default()
+                    .split_whitespace()
+                    .map(|p| {
+                        let (x, y) = p.split_once(',').unwrap();
+                        (x.parse().unwrap(), y.parse().unwrap())
+                    })
+                    .collect();
+                let width = attr(tag, "stroke-width").map_or(1.0, |w| w.parse().unwrap());
+                (attr(tag, "stroke").unwrap_or_default(), width, points)
+            })
+            .collect()
+    }
+
+    /// The defects: in a 3-iteration overlay the third path was yellow on white and hid the
+    /// identical earlier ones; in a 1000-iteration overlay the legend was red and the paths
+    /// brown; the waypoints were not numbered.
+    #[test]
+    fn overlay_paths_stay_visible_and_match_their_legend_and_waypoints_are_numbered() {
+        let dir = std::env::temp_dir().join(format!("ucc-overlay-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path: Vec<_> = (0..30)
+            .map(|i| Coordinates::new(f64::from(i) * 0.1, f64::from(i) * 0.05, -1.0))
+            .collect();
+        let waypoints = vec![
+            Coordinates::new(0.0, 0.0, -1.0),
+            Coordinates::new(3.0, 0.0, -1.0),
+            Coordinates::new(3.0, 1.5, -1.0),
+            Coordinates::new(0.0, 0.0, -1.0),
+        ];
+        let picture = |n: usize| MapPicture {
+            title: format!("{n}"),
+            paths: vec![path.clone(); n],
+            waypoints: waypoints.clone(),
+            start: Some(Coordinates::zeros()),
+            ..MapPicture::default()
+        };
+        let [svg, _] = picture(3).write(&dir.join("three")).unwrap();
+        let svg = std::fs::read_to_string(svg).unwrap();
+        // The three paths (the axes and ticks are black, the legend samples two points).
+        let lines: Vec<_> = polylines(&svg)
+            .into_iter()
+            .filter(|l| l.0 != "#000000")
+            .collect();
+        let paths: Vec<_> = lines.iter().filter(|l| l.2.len() > 2).collect();
+        assert_eq!(paths.len(), 3);
+        for (colour, _, _) in &paths {
+            let rgb = u32::from_str_radix(colour.trim_start_matches('#'), 16).unwrap();
+            let [r, g, b] = [rgb >> 16, (rgb >> 8) & 255, rgb & 255].map(f64::from);
+            let luminance = (0.299 * r + 0.587 * g + 0.114 * b) / 255.0;
+            assert!(luminance < 0.7, "{colour} is too pale on white");
+        }
+        assert!(
+            paths[0].1 > paths[1].1 && paths[1].1 > paths[2].1,
+            "each later path narrower, so that identical ones all show: {:?}",
+            paths.iter().map(|p| p.1).collect::<Vec<_>>()
+        );
+        for (label, text) in [("1, 4", "the first and the last"), ("2", "2"), ("3", "3")] {
+            assert!(
+                svg.contains(&format!(">\n{label}\n</text>")),
+                "waypoint label {text}"
+            );
+        }
+
+        let [svg, _] = picture(1000).write(&dir.join("thousand")).unwrap();
+        let svg = std::fs::read_to_string(svg).unwrap();
+        let lines = polylines(&svg);
+        let colours: std::collections::BTreeSet<&str> = lines
+            .iter()
+            .map(|(c, _, _)| c.as_str())
+            .filter(|c| *c != "#000000")
+            .collect();
+        assert_eq!(
+            colours.len(),
+            1,
+            "paths and legend in one colour: {colours:?}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The defect: the legends of the attitude and position plots covered the data.
+    #[test]
+    fn plot_legends_do_not_cover_the_data() {
+        let dir = std::env::temp_dir().join(format!("ucc-legends-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Roll and pitch at their largest, and positions that end high, at the right.
+        let trajectory = (0..50)
+            .map(|i| {
+                let t = f64::from(i) * 0.1;
+                TrajectoryPoint {
+                    time: t,
+                    position: Coordinates::new(t, t * 0.8, -1.0),
+                    orientation: Some(Coordinates::new(0.1 * t / 5.0, 0.2 * t / 5.0, 0.0)),
+                    velocity: None,
+                    battery: None,
+                }
+            })
+            .collect();
+        let plots = Plots {
+            title: "legends".into(),
+            trajectory,
+            waypoints: Vec::new(),
+        };
+        let [svg, _] = plots.write(&dir.join("plots")).unwrap();
+        let svg = std::fs::read_to_string(svg).unwrap();
+        // The legend boxes: white, translucent rectangles.
+        let boxes: Vec<(f64, f64, f64, f64)> = svg
+            .split("<rect")
+            .skip(1)
+            .filter(|tag| tag.contains("opacity=\"0.85\""))
+            .map(|tag| {
+                let num = |name: &str| -> f64 {
+                    tag.split(&format!(" {name}=\""))
+                        .nth(1)
+                        .unwrap()
+                        .split('"')
+                        .next()
+                        .unwrap()
+                        .parse()
+                        .unwrap()
+                };
+                (num("x"), num("y"), num("width"), num("height"))
+            })
+            .collect();
+        assert_eq!(boxes.len(), 2, "attitude and position legends");
+        for (_, _, points) in polylines(&svg).iter().filter(|l| l.2.len() > 2) {
+            for &(px, py) in points {
+                for &(x, y, w, h) in &boxes {
+                    assert!(
+                        !(x <= px && px <= x + w && y <= py && py <= y + h),
+                        "data at {px},{py} under a legend at {x},{y} {w}x{h}"
+                    );
+                }
+            }
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -209,6 +209,14 @@ pub async fn run(
                 status
             }
         };
+        // Nothing flown and nothing to fly (no server, an unwritable recording): the error
+        // alone, without a failed iteration's report or files that would show nothing.
+        if summary.iterations.is_empty()
+            && !flight.record().connected
+            && let Some(e) = failure.take_if(|e| e.is_fatal())
+        {
+            return Err(e);
+        }
         // Without lockstep once, do not wait for it again at every iteration.
         if lockstep == Lockstep::IfOffered && !flight.is_lockstep() {
             lockstep = Lockstep::Off;

@@ -46,7 +46,9 @@ impl FromStr for Start {
     /// `x,y,z`, `x,y,z,roll,pitch,yaw` (metres, radians) or a PlayerStart tag.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let s = s.trim();
-        let looks_numeric = s.starts_with(|c: char| c.is_ascii_digit() || "+-.".contains(c));
+        // A comma makes it a pose (`nan,0,-1` is a bad pose, not a tag).
+        let looks_numeric =
+            s.contains(',') || s.starts_with(|c: char| c.is_ascii_digit() || "+-.".contains(c));
         if !looks_numeric {
             if s.is_empty() || s.contains(['{', '}']) {
                 return Err(format!("invalid start tag {s:?}"));
@@ -253,6 +255,9 @@ mod tests {
         );
         assert!("1,2".parse::<Start>().unwrap_err().contains("2 numbers"));
         assert!("1,a,2".parse::<Start>().is_err());
+        // The defect: a pose with a number that is not one was taken as a PlayerStart tag.
+        let nan = "nan,0,-1".parse::<Start>().unwrap_err();
+        assert!(nan.contains("\"nan\" is not a number"), "{nan}");
         assert!("".parse::<Start>().is_err());
     }
 

@@ -126,7 +126,13 @@ impl Summary {
                     .map(|i| hausdorff(first, &i.path()))
                     .fold(0.0, f64::max)
             }),
-            simulated_seconds: self.iterations.iter().map(|i| i.simulated_seconds()).sum(),
+            // + 0.0: an empty sum is -0.0.
+            simulated_seconds: self
+                .iterations
+                .iter()
+                .map(IterationSummary::simulated_seconds)
+                .sum::<f64>()
+                + 0.0,
         }
     }
 

@@ -5,12 +5,13 @@ mod tap;
 mod wire;
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, bail};
-use clap::{Args, Parser, Subcommand};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use tokio_util::sync::CancellationToken;
 use ucc_client::agents::{self, AgentInfo};
 use ucc_client::mission::{load_missions, parse_point};
@@ -40,9 +41,19 @@ enum Cmd {
     /// Fly missions against a running server (usar-server or USARSim).
     #[command(
         after_help = "Example:\n  ucc run --start 0,0,-1 --goto 3,0,-2 --goto 3,3,-2 --iterations 2\n\n\
-                            Each iteration writes, in --log-dir: PREFIX-NN.log, \
-                            PREFIX-NN-trajectory.csv, PREFIX-NN-map.svg/.png; at the end \
-                            PREFIX-overlay.svg/.png with every iteration's path."
+                      Coordinates: metres, x north, y east, z DOWN (z = -2 is 2 m above z = 0).\n\n\
+                      Each iteration NN writes, in --log-dir:\n  \
+                      PREFIX-NN.log              the events, with simulated times\n  \
+                      PREFIX-NN-trajectory.csv   time, position, attitude, velocity, battery\n  \
+                      PREFIX-NN-map.svg/.png     the path over the map, seen from above\n  \
+                      PREFIX-NN-plots.svg/.png   side view; altitude, speed, battery, attitude, \
+                      position over time\n\
+                      and at the end:\n  \
+                      PREFIX-overlay.svg/.png    every iteration's path on one map\n  \
+                      PREFIX-results.csv         one row per iteration: status, missions, time, \
+                      distance\n\n\
+                      A folder that already holds files of PREFIX is refused before flying \
+                      (--force overwrites them)."
     )]
     Run(Box<RunArgs>),
     /// Start a server inside this process and fly a built-in mission; writes the pictures.
@@ -104,29 +115,24 @@ struct RunArgs {
     #[arg(long)]
     local: bool,
     /// With --local: the map (an embedded name, any case, or a map file).
-    #[arg(long, requires = "local", value_name = "NAME|FILE")]
+    #[arg(long, value_name = "NAME|FILE")]
     map: Option<String>,
     /// With --local: a robot catalog file (docs/robots.md) instead of the embedded one.
-    #[arg(long, requires = "local", value_name = "FILE")]
+    #[arg(long, value_name = "FILE")]
     robots: Option<PathBuf>,
     /// With --local: the seed of every noise source.
-    #[arg(long, requires = "local", default_value_t = 0)]
+    #[arg(long, default_value_t = 0)]
     seed: u64,
     /// With --local: simulated seconds per wall second, or `max` (lockstep either way).
-    #[arg(long, requires = "local", default_value = "max", value_name = "K|max")]
+    #[arg(long, default_value = "max", value_name = "K|max")]
     time_scale: TimeScale,
     /// With --local: mean wind `vx,vy[,vz]` m/s (x north, y east, z down), felt by robots
     /// with physics such as stsQuadrotor.
-    #[arg(long, requires = "local", value_name = "VX,VY[,VZ]", allow_hyphen_values = true,
+    #[arg(long, value_name = "VX,VY[,VZ]", allow_hyphen_values = true,
           value_parser = usar_server::sim::wind::parse_velocity)]
     wind: Option<[f64; 3]>,
     /// With --local: gust intensity (standard deviation, m/s; seeded by --seed).
-    #[arg(
-        long,
-        requires = "local",
-        value_name = "M/S",
-        allow_hyphen_values = true
-    )]
+    #[arg(long, value_name = "M/S", allow_hyphen_values = true)]
     gusts: Option<f64>,
     /// Robot class (`stsAirRobot`, `stsQuadrotor`, `AirRobot`, or `Package.Class`).
     #[arg(long, default_value = "stsAirRobot")]
@@ -147,19 +153,26 @@ struct RunArgs {
     #[arg(long, value_name = "FILE")]
     missions: Option<PathBuf>,
     /// How many times to fly the missions (respawning at the start each time).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 1, allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u32).range(1..))]
     iterations: u32,
     /// Directory for logs, trajectories and pictures.
     #[arg(long, default_value = "ucc-logs")]
     log_dir: PathBuf,
+    /// Overwrite the files of an earlier run with the same --log-dir and --prefix (without
+    /// it such a run is refused before flying).
+    #[arg(long)]
+    force: bool,
     /// File name prefix of everything written.
     #[arg(long, default_value = "UCCLOG")]
     prefix: String,
     /// Simulated seconds a single mission may take before the run fails.
-    #[arg(long, default_value_t = 120.0, value_name = "SECONDS", value_parser = positive_seconds)]
+    #[arg(long, default_value_t = 120.0, value_name = "SECONDS", allow_hyphen_values = true,
+          value_parser = positive_seconds)]
     mission_timeout: f64,
     /// Wall-clock seconds to wait for the sensor stream after spawning (and for any silence).
-    #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = positive_seconds)]
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS", allow_hyphen_values = true,
+          value_parser = positive_seconds)]
     stream_timeout: f64,
     /// Run in lockstep with the server (docs/lockstep.md; `usar-server --lockstep`):
     /// reproducible runs at any speed; a server that does not offer it is an error. Without
@@ -214,11 +227,12 @@ struct DemoArgs {
     #[arg(long, default_value = "base", help = agent_help(), value_parser = agent_name)]
     agent: &'static AgentInfo,
     /// How many times to fly the mission.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 1, allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u32).range(1..))]
     iterations: u32,
     /// Simulation speed: simulated seconds per wall-clock second (the flight is the same at
     /// any speed: the demo runs in lockstep).
-    #[arg(long, default_value_t = 1.0, value_parser = positive_seconds)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true, value_parser = positive_seconds)]
     speed: f64,
 }
 
@@ -233,6 +247,33 @@ fn agent_help() -> String {
 /// `--agent NAME`: a registered agent (a bad name is a usage error, exit 2).
 fn agent_name(name: &str) -> Result<&'static AgentInfo, String> {
     agents::info(name).ok_or_else(|| format!("unknown agent (known agents: {})", agents::names()))
+}
+
+/// The options of `ucc run` that configure the server `--local` starts: given without
+/// `--local`, a usage error (exit 2) that says what to do.
+fn local_only(run: &ArgMatches) {
+    if run.get_flag("local") {
+        return;
+    }
+    let given = ["map", "robots", "seed", "time_scale", "wind", "gusts"]
+        .into_iter()
+        .find(|id| run.value_source(id) == Some(ValueSource::CommandLine));
+    if let Some(id) = given {
+        let option = format!("--{}", id.replace('_', "-"));
+        let mut command = Cli::command();
+        command.build();
+        let run = command
+            .find_subcommand_mut("run")
+            .expect("the run subcommand");
+        run.error(
+            clap::error::ErrorKind::ArgumentConflict,
+            format!(
+                "{option} configures the server that --local starts: add --local, or, against a \
+                 server of your own, start it with the option (usar-server {option} ...)"
+            ),
+        )
+        .exit();
+    }
 }
 
 /// A positive, finite number of seconds (or a positive speed).
@@ -256,7 +297,11 @@ fn main() -> ExitCode {
         .with_ansi(std::io::stderr().is_terminal())
         .with_writer(std::io::stderr)
         .init();
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    if let Some(("run", run)) = matches.subcommand() {
+        local_only(run);
+    }
     let result = match cli.command {
         Cmd::Decode { print, .. } => wire_exit(wire::decode(
             std::io::stdin().lock(),
@@ -360,6 +405,17 @@ const INTERRUPTED: u8 = 130;
 
 /// `ucc run`: against --host/--port, or against a server started here with --local.
 async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
+    // Everything that can be checked before flying is: a mistake found after the flight
+    // costs the whole flight.
+    let mut missions = match &args.missions {
+        Some(path) => load_missions(path)?,
+        None => Vec::new(),
+    };
+    missions.extend(args.goto.iter().copied().map(Mission::goto));
+    if missions.is_empty() {
+        bail!("no missions: give --goto x,y,z (repeatable) or --missions FILE");
+    }
+    prepare_output(&args.log_dir, &args.prefix, args.force)?;
     if !args.local {
         let addr = format!("{}:{}", args.host, args.port);
         let lockstep = if args.lockstep {
@@ -367,7 +423,7 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
         } else {
             Lockstep::Off
         };
-        return run(args, addr, lockstep, None).await;
+        return run(args, missions, addr, lockstep, None).await;
     }
     let map = match &args.map {
         None => Map::default_map(),
@@ -400,11 +456,13 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
         bail!("{problem}");
     }
     let geometry = MapGeometry::from(&config.map);
+    check_points(&geometry, &args.start, &missions, config.map.level())?;
     let server = LocalServer::start(config)
         .await
         .context("cannot start the local server")?;
     let result = run(
         args,
+        missions,
         server.addr().to_string(),
         Lockstep::Required,
         Some(geometry),
@@ -416,26 +474,78 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
     result
 }
 
+/// Refuses a start or a waypoint inside a solid of the local server's map or below its
+/// floor, naming it (z points down: a sign slip puts a point under the floor).
+fn check_points(
+    map: &MapGeometry,
+    start: &Start,
+    missions: &[Mission],
+    level: &str,
+) -> anyhow::Result<()> {
+    let refuse = |what: String, p: &Coordinates, problem: String| {
+        anyhow::anyhow!(
+            "map {level}: {what} {:.2},{:.2},{:.2} {problem}; z points down: z = -1 is 1 m \
+             above z = 0",
+            p.x,
+            p.y,
+            p.z
+        )
+    };
+    if let Start::Pose { location, .. } = start
+        && let Some(problem) = map.problem_at(location)
+    {
+        return Err(refuse("the start".into(), location, problem));
+    }
+    for (n, target) in missions.iter().filter_map(Mission::target).enumerate() {
+        if let Some(problem) = map.problem_at(&target) {
+            return Err(refuse(format!("waypoint {}", n + 1), &target, problem));
+        }
+    }
+    Ok(())
+}
+
+/// Makes the output folder and checks, before anything flies, that the run's files can be
+/// written there and that no earlier run's files would be overwritten (unless `force`).
+fn prepare_output(dir: &Path, prefix: &str, force: bool) -> anyhow::Result<()> {
+    if prefix.is_empty() || prefix.contains(['/', '\\']) || prefix.starts_with('.') {
+        bail!(
+            "--prefix {prefix:?}: a file name prefix is a name, not a path (the folder is \
+             --log-dir)"
+        );
+    }
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
+    if !force {
+        let start = format!("{prefix}-");
+        let mut earlier: Vec<String> = std::fs::read_dir(dir)
+            .with_context(|| format!("cannot read the output folder {}", dir.display()))?
+            .filter_map(|e| e.ok()?.file_name().into_string().ok())
+            .filter(|name| name.starts_with(&start))
+            .collect();
+        earlier.sort();
+        if let Some(first) = earlier.first() {
+            bail!(
+                "{} already holds {} file(s) of an earlier run ({first}, ...): pass --force to \
+                 overwrite them, or choose another --log-dir or --prefix",
+                dir.display(),
+                earlier.len()
+            );
+        }
+    }
+    let probe = dir.join(format!(".{prefix}-{}.probe", std::process::id()));
+    std::fs::write(&probe, b"")
+        .with_context(|| format!("cannot write into the output folder {}", dir.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
 async fn run(
     args: RunArgs,
+    missions: Vec<Mission>,
     addr: String,
     lockstep: Lockstep,
     map: Option<MapGeometry>,
 ) -> anyhow::Result<ExitCode> {
-    let mut missions = match &args.missions {
-        Some(path) => load_missions(path)?,
-        None => Vec::new(),
-    };
-    missions.extend(args.goto.iter().copied().map(Mission::goto));
-    if missions.is_empty() {
-        bail!("no missions: give --goto x,y,z (repeatable) or --missions FILE");
-    }
-    if lockstep == Lockstep::Off {
-        println!(
-            "ucc: running on sensor time: results depend on timing (with usar-server, start \
-             it with --lockstep and pass --lockstep for repeatable runs)"
-        );
-    }
     let settings = RunSettings {
         addr,
         robot: args.robot,
@@ -460,6 +570,17 @@ async fn run(
     let mut observer = |p: &Progress| {
         match p {
             Progress::IterationDone { .. } | Progress::IterationFailed { .. } => bar.inc(1),
+            // Said once, when it is true: connected, and not in lockstep.
+            Progress::Connected {
+                iteration: 1,
+                lockstep: false,
+                ..
+            } => bar.suspend(|| {
+                println!(
+                    "ucc: running on sensor time: results depend on timing (with usar-server, \
+                     start it with --lockstep and pass --lockstep for repeatable runs)"
+                );
+            }),
             _ => {}
         }
         let show = !quiet
@@ -603,6 +724,8 @@ const DEMO_OFFSETS: [[f64; 3]; 5] = [
 ];
 
 async fn demo(args: DemoArgs) -> anyhow::Result<ExitCode> {
+    // The demo's folder is its own: each demo replaces the last one's files.
+    prepare_output(&args.output, "demo", true)?;
     let config = ServerConfig {
         time_scale: TimeScale::Factor(args.speed),
         lockstep: true,

@@ -143,7 +143,161 @@ fn no_server_is_a_clear_error() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("cannot connect to localhost:"), "{stderr}");
     assert!(stderr.contains("is the server running?"), "{stderr}");
+    // The defects: a warning about sensor time came first, the error was printed twice
+    // (stdout and stderr), and an empty overlay and a results table with -0.0000 were written.
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(!stdout.contains("sensor time"), "{stdout}");
+    let both = format!("{stdout}{stderr}");
+    assert_eq!(both.matches("cannot connect").count(), 1, "{both}");
+    let written: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert!(written.is_empty(), "{written:?}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The defects: `--seed` without `--local` said "required arguments were not provided:
+/// --local"; `--mission-timeout -1` said "unexpected argument '-1'"; `--start nan,0,-1` was
+/// taken as a PlayerStart tag.
+#[test]
+fn argument_errors_say_what_is_wrong() {
+    let mission = ["--start", "0,0,-1", "--goto", "1,0,-1"];
+    let (code, _, err) = ucc_output(&[&["run", "--seed", "3"][..], &mission].concat());
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("--seed") && err.contains("add --local") && !err.contains("not provided"),
+        "{err}"
+    );
+    let (code, _, err) = ucc_output(&[&["run", "--time-scale", "5"][..], &mission].concat());
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("--time-scale") && err.contains("add --local"),
+        "{err}"
+    );
+    let (code, _, err) = ucc_output(&[&["run", "--mission-timeout", "-1"][..], &mission].concat());
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("expected a number from 0.001") && !err.contains("unexpected argument"),
+        "{err}"
+    );
+    let (code, _, err) = ucc_output(&["run", "--iterations", "-1", "--start", "0,0,-1"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(!err.contains("unexpected argument"), "{err}");
+    let (code, _, err) = ucc_output(&["run", "--local", "--start", "nan,0,-1", "--goto", "1,0,-1"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("\"nan\" is not a number"), "{err}");
+}
+
+/// The defect: `ucc run --help` named the log, the trajectory and the map pictures, but not
+/// the plots and the results table.
+#[test]
+fn run_help_names_every_file_a_run_writes() {
+    let (code, out, _) = ucc_output(&["run", "--help"]);
+    assert_eq!(code, Some(0));
+    for file in [
+        "PREFIX-NN.log",
+        "PREFIX-NN-trajectory.csv",
+        "PREFIX-NN-map.svg/.png",
+        "PREFIX-NN-plots.svg/.png",
+        "PREFIX-overlay.svg/.png",
+        "PREFIX-results.csv",
+        "--force",
+    ] {
+        assert!(out.contains(file), "{file} not in {out}");
+    }
+}
+
+/// The defect: running again with the same --log-dir overwrote the earlier results without
+/// a word. Now it is refused before flying, unless --force.
+#[test]
+fn an_earlier_run_is_kept_unless_forced() {
+    let dir = scratch("again");
+    let once = |extra: &[&str]| {
+        let mut command = ucc();
+        command
+            .args(["run", "--local", "--start", "0,0,-1", "--goto", "0.5,0,-1"])
+            .arg("--log-dir")
+            .arg(&dir)
+            .args(extra);
+        let out = command.output().unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (code, out, err) = once(&[]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let results = dir.join("UCCLOG-results.csv");
+    let before = std::fs::metadata(&results).unwrap().modified().unwrap();
+    let (code, out, err) = once(&[]);
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(!out.contains("connected"), "flew before refusing: {out}");
+    assert!(
+        err.contains(&*dir.to_string_lossy()) && err.contains("--force"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::metadata(&results).unwrap().modified().unwrap(),
+        before
+    );
+    // Another prefix in the same folder is another run.
+    let (code, out, err) = once(&["--prefix", "second"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let (code, out, err) = once(&["--force"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The defect: output paths were checked after the flight (`--prefix a/b` flew the whole
+/// mission, then failed to write `DIR/a/b-01.log`; `ucc demo --output /proc/nope` too).
+#[test]
+fn output_paths_are_checked_before_flying() {
+    let dir = scratch("prefix");
+    let file = dir.join("a-file");
+    std::fs::write(&file, "").unwrap();
+    let mission = ["run", "--local", "--start", "0,0,-1", "--goto", "3,0,-1"];
+    for (extra, named) in [
+        (
+            vec!["--prefix", "a/b", "--log-dir", dir.to_str().unwrap()],
+            "--prefix",
+        ),
+        (
+            vec!["--log-dir", file.to_str().unwrap()],
+            file.to_str().unwrap(),
+        ),
+    ] {
+        let (code, out, err) = ucc_output(&[&mission[..], &extra].concat());
+        assert_eq!(code, Some(1), "{extra:?}: {out}{err}");
+        assert!(!out.contains("connected"), "{extra:?} flew first: {out}");
+        assert!(err.contains(named), "{extra:?}: {err}");
+    }
+    let (code, out, err) = ucc_output(&["demo", "--output", "/proc/nope"]);
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(!out.contains("spawning"), "flew first: {out}");
+    assert!(err.contains("/proc/nope"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The defect: z points down, and nothing said so: `--start 0,0,1 --goto 2,0,1` flew a metre
+/// under the floor and exited 0; `--goto 2,0,1` from a good start waited 120 simulated
+/// seconds for "not done". The local server knows its map: such points are refused at once.
+#[test]
+fn points_under_the_floor_or_in_a_wall_are_refused_on_the_local_server() {
+    for (args, what) in [
+        (&["--start", "0,0,1", "--goto", "2,0,1"][..], "the start"),
+        (&["--start", "0,0,-1", "--goto", "2,0,1"], "waypoint 1"),
+        (
+            &["--start", "0,0,-1", "--goto", "2,0,-1", "--goto", "2,0,3"],
+            "waypoint 2",
+        ),
+    ] {
+        let (code, out, err) = ucc_output(&[&["run", "--local"][..], args].concat());
+        assert_eq!(code, Some(1), "{args:?}: {out}{err}");
+        assert!(!out.contains("connected"), "{args:?}: flew first: {out}");
+        assert!(
+            err.contains(what) && err.contains("below the floor") && err.contains("z points down"),
+            "{args:?}: {err}"
+        );
+    }
 }
 
 #[test]

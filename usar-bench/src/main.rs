@@ -195,8 +195,21 @@ macro_rules! say {
     }};
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
     let args = Args::parse();
+    // A user's mistake (a map that does not exist, a host that does not answer) is one
+    // line naming it, never a stack backtrace.
+    match bench(&args) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("usar-bench: error: {error:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn bench(args: &Args) -> anyhow::Result<()> {
+    let args = args.clone();
     if args.sim_only && !args.scaling.is_empty() {
         return scaling(&args);
     }
@@ -678,9 +691,10 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
     let (server, addr) = match &args.host {
         Some(host) => {
             let addr = tokio::net::lookup_host((host.as_str(), args.port))
-                .await?
+                .await
+                .with_context(|| format!("cannot find host {host}"))?
                 .next()
-                .context("host not found")?;
+                .with_context(|| format!("host {host} has no address"))?;
             (None, addr)
         }
         None => {
@@ -758,7 +772,9 @@ async fn run_once(args: &Args, uavs: usize) -> anyhow::Result<Report> {
 
 /// The map's first start location, asked over the protocol.
 async fn first_start(addr: SocketAddr) -> anyhow::Result<[f64; 3]> {
-    let stream = TcpStream::connect(addr).await?;
+    let stream = TcpStream::connect(addr)
+        .await
+        .with_context(|| format!("cannot connect to the server at {addr}"))?;
     let (read, mut write) = stream.into_split();
     let mut lines = BufReader::new(read).lines();
     write.write_all(b"GETSTARTPOSES\r\n").await?;

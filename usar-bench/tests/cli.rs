@@ -126,3 +126,32 @@ fn sim_only_prints_the_memory_per_idle_robot() {
     // Robots of one class share their sensors' tables (14.6 KiB each before they did).
     assert!(kib > 0.5 && kib < 10.0, "{kib} KiB per robot");
 }
+
+/// The defect: a map that does not exist and a server that does not answer printed a stack
+/// backtrace (with RUST_BACKTRACE set), and the connection error named no address.
+#[test]
+fn user_errors_are_one_line_naming_what_and_where() {
+    let port = {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().port()
+    };
+    let port = port.to_string();
+    for (args, expected) in [
+        (&["--map", "nowhere", "--uavs", "1"][..], "nowhere"),
+        (
+            &["--host", "127.0.0.1", "--port", &port, "--uavs", "1"],
+            &*format!("127.0.0.1:{port}"),
+        ),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_usar-bench"))
+            .args(args)
+            .env("RUST_BACKTRACE", "1")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(expected), "{args:?}: {err}");
+        assert!(!err.to_lowercase().contains("backtrace"), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
+    }
+}

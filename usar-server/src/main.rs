@@ -186,6 +186,12 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         args.gust_length,
     )
     .map_err(|e| anyhow::anyhow!("--wind/--gusts/--gust-length: {e}"))?;
+    // The recording folder before the ready line: a path that cannot be a folder is a
+    // configuration error, not a failure after "listening on".
+    if let Some(dir) = &args.record {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("--record {}: cannot create the folder", dir.display()))?;
+    }
     Ok(ServerConfig {
         map,
         robots,

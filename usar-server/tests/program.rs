@@ -301,3 +301,27 @@ fn a_client_cannot_flood_the_log_or_write_control_bytes_into_it() {
         "raw control bytes in the log"
     );
 }
+
+/// The defect: `--record notadir` (a file) printed `listening on …`, then exited 1 with
+/// `File exists (os error 17): File exists (os error 17)`, naming no path.
+#[test]
+fn a_record_folder_that_cannot_be_made_is_refused_before_listening() {
+    let dir = scratch("record-notadir");
+    let file = dir.join("notadir");
+    std::fs::write(&file, "").unwrap();
+    for path in [file.as_os_str(), std::ffi::OsStr::new("/proc/foo")] {
+        let out = server()
+            .args(["--port".as_ref(), "0".as_ref(), "--record".as_ref(), path])
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{path:?}: {stderr}");
+        assert!(!stdout.contains("listening"), "{stdout}");
+        let shown = path.to_string_lossy();
+        assert!(stderr.contains(&*shown), "names {shown}: {stderr}");
+        let cause = stderr.rsplit(": ").next().unwrap().trim();
+        assert_eq!(stderr.matches(cause).count(), 1, "the cause once: {stderr}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
