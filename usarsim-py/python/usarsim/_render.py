@@ -44,7 +44,7 @@ class TopView:
         span = np.maximum(map_info.hi - map_info.lo, 1.0)
         # The longer side of the map is `size` pixels; the picture has the map's proportions.
         self.scale = (size - 1) / span.max()
-        height, width = (int(np.ceil(s * self.scale)) + 1 for s in span)
+        height, width = (int(s * self.scale + 1e-6) + 1 for s in span)
         self.size = (height, width)
         self.background = np.full((height, width, 3), 255, np.uint8)
         for poly, _, _ in map_info.obstacles:
