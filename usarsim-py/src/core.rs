@@ -44,6 +44,8 @@ pub(crate) struct Settings {
     pub(crate) robot: String,
     pub(crate) period: f64,
     pub(crate) dt: f64,
+    /// Without sonars and laser ([`Settings::state_only`]).
+    pub(crate) state_only: bool,
 }
 
 impl Settings {
@@ -121,7 +123,20 @@ impl Settings {
             robot,
             period,
             dt,
+            state_only: false,
         })
+    }
+
+    /// The same without the range sensors (every `Sonar` and `RangeScanner` part removed):
+    /// the world casts no rays and observations carry no sonar or laser columns.
+    pub(crate) fn state_only(mut self) -> Self {
+        if let Some(class) = self.catalog.get_mut(&self.robot) {
+            class.parts.retain(|p| {
+                !p.kind.eq_ignore_ascii_case("Sonar") && !p.kind.eq_ignore_ascii_case("RangeScanner")
+            });
+        }
+        self.state_only = true;
+        self
     }
 
     /// Physics ticks per control period.
@@ -292,6 +307,8 @@ pub(crate) struct Observations {
     pub(crate) crashed: Vec<bool>,
     /// Simulated seconds.
     pub(crate) time: Vec<f64>,
+    /// Leave `sonar` and `laser` empty.
+    pub(crate) no_ranges: bool,
 }
 
 fn xyz(r: Option<&ucc_client::uav::Reading<ucc_client::Coordinates>>) -> [f64; 3] {
@@ -312,6 +329,7 @@ impl Observations {
             touched: Vec::with_capacity(n),
             crashed: Vec::with_capacity(n),
             time: Vec::with_capacity(n),
+            no_ranges: false,
         }
     }
 
@@ -321,6 +339,14 @@ impl Observations {
         self.attitude.extend(xyz(s.orientation.as_ref()));
         self.angular_velocity
             .extend(xyz(s.angular_velocity.as_ref()));
+        self.battery
+            .push(s.battery.as_ref().map_or(1.0, |b| b.value.level));
+        self.touched.push(touched || s.crashed());
+        self.crashed.push(s.crashed());
+        self.time.push(time);
+        if self.no_ranges {
+            return;
+        }
         let range = |r: &Option<ucc_client::uav::Reading<f64>>| {
             r.as_ref().map_or(NO_RANGE, |r| {
                 if r.value.is_finite() {
@@ -341,11 +367,6 @@ impl Observations {
                 .filter(|v| v.is_finite())
                 .unwrap_or(NO_RANGE)
         }));
-        self.battery
-            .push(s.battery.as_ref().map_or(1.0, |b| b.value.level));
-        self.touched.push(touched || s.crashed());
-        self.crashed.push(s.crashed());
-        self.time.push(time);
     }
 }
 
@@ -436,7 +457,14 @@ impl Batch {
 
     /// Every UAV's observation, world-major.
     pub(crate) fn observe(&self) -> Observations {
-        let mut obs = Observations::with_capacity(self.len());
+        let mut obs = if self.settings.state_only {
+            Observations {
+                no_ranges: true,
+                ..Observations::default()
+            }
+        } else {
+            Observations::with_capacity(self.len())
+        };
         for w in &self.worlds {
             w.observe(&mut obs);
         }

@@ -75,8 +75,10 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
     put("velocity", obs.velocity, 3)?;
     put("attitude", obs.attitude, 3)?;
     put("angular_velocity", obs.angular_velocity, 3)?;
-    put("sonar", obs.sonar, SONARS)?;
-    put("laser", obs.laser, LASER)?;
+    if !obs.no_ranges {
+        put("sonar", obs.sonar, SONARS)?;
+        put("laser", obs.laser, LASER)?;
+    }
     put("battery", obs.battery, 1)?;
     put("time", obs.time, 1)?;
     dict.set_item("touched", obs.touched.into_pyarray(py))?;
@@ -86,9 +88,10 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
 
 /// N worlds with K UAVs each, stepped together one control period per call.
 ///
-/// `Batch(map, robot, seeds, starts, uavs_per_world=1, period=0.1, noise=None)`: one world
-/// per seed; `starts` is a float64 array of shape `(len(seeds) * uavs_per_world, 4)` with
-/// x, y, z (metres, z down) and yaw (rad) per UAV, world-major.
+/// `Batch(map, robot, seeds, starts, uavs_per_world=1, period=0.1, noise=None,
+/// state_only=False)`: one world per seed; `starts` is a float64 array of shape
+/// `(len(seeds) * uavs_per_world, 4)` with x, y, z (metres, z down) and yaw (rad) per UAV,
+/// world-major. `state_only`: the robot without sonars and laser (no `sonar`, `laser` keys).
 #[pyclass(name = "Batch", module = "usarsim._core")]
 struct PyBatch {
     /// A mutex only to make the class `Sync` (Python objects may be shared between threads);
@@ -141,7 +144,7 @@ impl PyBatch {
 impl PyBatch {
     #[new]
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None))]
+    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false))]
     fn new(
         py: Python<'_>,
         map: &str,
@@ -151,13 +154,17 @@ impl PyBatch {
         uavs_per_world: usize,
         period: f64,
         noise: Option<f64>,
+        state_only: bool,
     ) -> PyResult<Self> {
         if seeds.is_empty() || uavs_per_world == 0 {
             return Err(PyValueError::new_err(
                 "Batch: needs at least one world (seed) and one UAV per world",
             ));
         }
-        let settings = Settings::new(map, robot, period, noise)?;
+        let mut settings = Settings::new(map, robot, period, noise)?;
+        if state_only {
+            settings = settings.state_only();
+        }
         let poses: Vec<Pose> = rows::<4>(&starts, seeds.len() * uavs_per_world, "starts")?;
         let worlds = py.detach(|| {
             seeds

@@ -290,3 +290,20 @@ def test_a_non_square_map_fills_its_picture():
     img = env.render()
     assert max(img.shape[:2]) == 400 and abs(img.shape[0] / img.shape[1] - 30.4 / 20.4) < 0.01
     assert (img[:-1, 0] == 90).all() and (img[:-1, -1] == 90).all()  # the west and east walls at the edges
+
+
+# Observation options: state only (no range sensors), flat Box.
+
+
+def test_state_only_and_flat_observations():
+    from gymnasium.utils.env_checker import check_env
+
+    env = gymnasium.make("usarsim/Waypoints-v0", state_only=True, flat=True)
+    check_env(env.unwrapped)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (17,) and env.observation_space.contains(obs)  # 3+3+3+3+1+3+1
+    venv = usarsim.vector_env(4, state_only=True)
+    obs, _ = venv.reset(seed=0)
+    assert "laser" not in obs and "sonar" not in obs and obs["position"].shape == (4, 3)
+    full = usarsim.vector_env(4, flat=True)
+    assert full.reset(seed=0)[0].shape == (4, 17 + 10 + 228)

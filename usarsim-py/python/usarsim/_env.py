@@ -89,19 +89,23 @@ class UsarsimEnv(Replay, gym.Env):
     def __init__(self, task: str = "waypoints", *, map: str = "empty_room", robot: str = "stsAirRobot",
                  start=None, waypoints=None, n_waypoints: int = 3, waypoint_radius: float = 0.5,
                  period: float = 0.1, noise: float | None = None, max_steps: int | None = None,
-                 server: str | None = None, render_mode: str | None = None) -> None:
+                 server: str | None = None, render_mode: str | None = None, state_only: bool = False,
+                 flat: bool = False) -> None:
         self._recipe = dict(task=task, map=map, robot=robot, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, period=period,
-                            noise=noise, max_steps=max_steps, server=server, render_mode=render_mode)
+                            noise=noise, max_steps=max_steps, server=server, render_mode=render_mode,
+                            state_only=state_only, flat=flat)
         self.render_mode = _render_mode(render_mode)
-        self.observation_space = observation_space()
+        if state_only and server is not None:
+            raise ValueError("state_only: only for the in-process world (the server's robot has its sensors)")
+        self.observation_space = observation_space(state_only, flat)
         self.action_space = action_space()
         self._robot, self._period, self._server = _robot(robot), float(period), server
         # The in-process world (also the map geometry for a remote server running the same map).
-        self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise)
+        self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise, bool(state_only))
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, 1, self.map, start=start, waypoints=waypoints, n_waypoints=n_waypoints,
-                            waypoint_radius=waypoint_radius, max_steps=max_steps)
+                            waypoint_radius=waypoint_radius, max_steps=max_steps, state_only=state_only, flat=flat)
         self._remote = None
         self._view = None
         self._trail: list = []
@@ -148,7 +152,7 @@ class UsarsimEnv(Replay, gym.Env):
         self._tasks.begin(raw, [0])
         self._trail = [raw["position"][0, :2].copy()]
         self._ended = False
-        return {k: v[0] for k, v in self._tasks.observe(raw).items()}, {"lockstep": self._remote.lockstep if self._remote else True}
+        return self._tasks.row(self._tasks.observe(raw), 0), {"lockstep": self._remote.lockstep if self._remote else True}
 
     def step(self, action):
         if self._closed:
@@ -167,7 +171,7 @@ class UsarsimEnv(Replay, gym.Env):
         self._trail.append(raw["position"][0, :2].copy())
         reward, term, trunc, info = self._tasks.reward(raw)
         self._ended = bool(term[0] or trunc[0])
-        obs = {k: v[0] for k, v in self._tasks.observe(raw).items()}
+        obs = self._tasks.row(self._tasks.observe(raw), 0)
         return obs, float(reward[0]), bool(term[0]), bool(trunc[0]), {k: v[0] for k, v in info.items()}
 
     def render(self):
@@ -177,7 +181,7 @@ class UsarsimEnv(Replay, gym.Env):
             self._view = TopView(self.map)
         raw = self._raw
         t = self._tasks
-        return self._view.draw(raw["position"], raw["attitude"][:, 2], raw["laser"], [self._trail],
+        return self._view.draw(raw["position"], raw["attitude"][:, 2], raw.get("laser"), [self._trail],
                                [t.targets[0, t.index[0]:t.count[0]]])
 
     def close(self):
@@ -233,24 +237,27 @@ class UsarsimVectorEnv(Replay, VectorEnv):
     def __init__(self, num_envs: int, task: str = "waypoints", *, map: str = "empty_room",
                  robot: str = "stsAirRobot", start=None, waypoints=None, n_waypoints: int = 3,
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
-                 max_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP) -> None:
+                 max_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP,
+                 state_only: bool = False, flat: bool = False) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
         self._recipe = dict(num_envs=num_envs, task=task, map=map, robot=robot, start=start,
                             waypoints=waypoints, n_waypoints=n_waypoints, waypoint_radius=waypoint_radius,
-                            period=period, noise=noise, max_steps=max_steps, autoreset_mode=autoreset_mode)
+                            period=period, noise=noise, max_steps=max_steps, autoreset_mode=autoreset_mode,
+                            state_only=state_only, flat=flat)
         self.metadata = {**type(self).metadata, "autoreset_mode": _autoreset_mode(autoreset_mode)}
         self.num_envs = int(num_envs)
-        self.single_observation_space = observation_space()
+        self.single_observation_space = observation_space(state_only, flat)
         self.single_action_space = action_space()
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         first = _first(map)
         self._batch = _core.Batch(map, _robot(robot), [0] * self.num_envs, np.repeat(first, self.num_envs, 0),
-                                  1, period, noise)
+                                  1, period, noise, bool(state_only))
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, self.num_envs, self.map, start=start, waypoints=waypoints,
-                            n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, max_steps=max_steps)
+                            n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, max_steps=max_steps,
+                            state_only=state_only, flat=flat)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._replay = None
 
@@ -316,7 +323,7 @@ class UsarsimVectorEnv(Replay, VectorEnv):
             mask = term | trunc
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in ended:
-                final_obs[i] = {k: v[i] for k, v in obs.items()}
+                final_obs[i] = self._tasks.row(obs, i)
             infos["final_obs"], infos["_final_obs"] = final_obs, mask
             infos["final_info"] = _with_masks({k: np.where(mask, v, np.zeros_like(v)) for k, v in info.items()}, mask)
             infos["_final_info"] = mask.copy()

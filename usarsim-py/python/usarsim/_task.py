@@ -43,13 +43,21 @@ TOUCH_PENALTY = 1.0
 CRASH_PENALTY = 100.0
 
 
-def observation_space() -> spaces.Dict:
-    """The observation space of one UAV."""
+def fields(state_only: bool = False) -> list:
+    """The observation keys, in order (without ``sonar`` and ``laser`` when state-only)."""
+    return [k for k in FIELDS if not (state_only and k in ("sonar", "laser"))]
 
-    def box(n, lo=-INF, hi=INF):
-        return spaces.Box(lo, hi, (n,), np.float32)
 
-    return spaces.Dict({k: box(BOUNDS[k][2], BOUNDS[k][0], BOUNDS[k][1]) for k in FIELDS})
+def observation_space(state_only: bool = False, flat: bool = False) -> spaces.Space:
+    """The observation space of one UAV: a Dict of float32 Boxes, or with ``flat`` one
+    float32 Box of the same values concatenated in key order (docs/python.md)."""
+    keys = fields(state_only)
+    if flat:
+        lo = np.concatenate([np.full(BOUNDS[k][2], BOUNDS[k][0]) for k in keys]).astype(np.float32)
+        hi = np.concatenate([np.full(BOUNDS[k][2], BOUNDS[k][1]) for k in keys]).astype(np.float32)
+        return spaces.Box(lo, hi, dtype=np.float32)
+    return spaces.Dict({k: spaces.Box(np.float32(BOUNDS[k][0]), np.float32(BOUNDS[k][1]), (BOUNDS[k][2],), np.float32)
+                        for k in keys})
 
 
 def action_space() -> spaces.Box:
@@ -89,7 +97,9 @@ class Tasks:
     """Task state for `n` UAVs: targets, progress, step counts."""
 
     def __init__(self, task: str, n: int, map_info: MapInfo, *, start=None, waypoints=None,
-                 n_waypoints: int = 3, waypoint_radius: float = 0.5, max_steps=None) -> None:
+                 n_waypoints: int = 3, waypoint_radius: float = 0.5, max_steps=None,
+                 state_only: bool = False, flat: bool = False) -> None:
+        self.keys, self.flat = fields(bool(state_only)), bool(flat)
         if task not in ("waypoints", "hover"):
             raise ValueError(f"task: expected 'waypoints' or 'hover', got {task!r}")
         self.task, self.n, self.map = task, n, map_info
@@ -185,13 +195,18 @@ class Tasks:
 
     def observe(self, raw) -> dict:
         """The observation dict (float32 arrays, one row per UAV)."""
-        values = {k: raw[k] for k in FIELDS if k not in ("waypoint", "yaw_error")}
+        values = {k: raw[k] for k in self.keys if k not in ("waypoint", "yaw_error")}
         values["attitude"] = (raw["attitude"] + np.pi) % (2 * np.pi) - np.pi
         values["waypoint"] = self._vector(raw)
         # Hover: the yaw to hold minus the yaw (wrapped); Waypoints: 0.
         yaw_error = (self.hold_yaw - raw["attitude"][:, 2] + np.pi) % (2 * np.pi) - np.pi
         values["yaw_error"] = (yaw_error if self.task == "hover" else np.zeros(self.n))[:, None]
-        return {k: np.clip(v, BOUNDS[k][0], BOUNDS[k][1]).astype(np.float32) for k, v in values.items()}
+        out = {k: np.clip(values[k], BOUNDS[k][0], BOUNDS[k][1]).astype(np.float32) for k in self.keys}
+        return np.concatenate(list(out.values()), axis=1) if self.flat else out
+
+    def row(self, obs, i: int):
+        """Row `i` of an observation from :meth:`observe`."""
+        return obs[i] if self.flat else {k: v[i] for k, v in obs.items()}
 
     def reward(self, raw, live=None):
         """Rewards, terminated and truncated flags and info arrays after one step. Rows not in
