@@ -9,7 +9,7 @@ use ucc_client::SpeedCommand;
 use ucc_client::uav::UavState;
 use usar_proto::{Command, Init, ServerMessage, Vec3};
 use usar_proto::SenData;
-use usar_server::sim::robots::PartConfig;
+use usar_server::sim::robots::{DynamicsKind, PartConfig};
 use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 
 /// Horizontal sonars + SonarTop + SonarBottom.
@@ -36,6 +36,33 @@ fn invalid(message: impl Into<String>) -> SimError {
     SimError::Invalid(message.into())
 }
 
+/// The largest roll and pitch an attitude action asks for, rad (the crash tilt is 60°).
+pub(crate) const MAX_TILT: f64 = 0.6;
+/// The largest yaw rate an attitude action asks for, rad/s (100°/s, as DRIVE's maximum).
+pub(crate) const MAX_YAW_RATE: f64 = 1.745_329_251_994_329_5;
+/// Gravity, m/s² (the quadrotor model's).
+const GRAVITY: f64 = 9.80665;
+
+/// How a normalized action row (four values in -1..=1) commands the robot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum ActionMode {
+    /// Forward, right, up, yaw rate: fractions of the robot's maximum speeds (`DRIVE`).
+    Velocity,
+    /// Roll, pitch (× [`MAX_TILT`]), yaw rate (× [`MAX_YAW_RATE`]) and collective thrust
+    /// `weight × (1 + a)` (0 to twice the weight): `QUAD {Attitude} {Thrust}`.
+    Attitude {
+        /// The vehicle's weight, N.
+        weight: f64,
+    },
+    /// Four rotor speeds, -1..=1 mapped onto the class's rotor speed range: `QUAD {Rotors}`.
+    Rotors {
+        /// Rotor speed limits, rad/s.
+        min: f64,
+        /// Rotor speed limits, rad/s.
+        max: f64,
+    },
+}
+
 /// Settings shared by every world of a batch.
 #[derive(Debug, Clone)]
 pub(crate) struct Settings {
@@ -46,6 +73,8 @@ pub(crate) struct Settings {
     pub(crate) dt: f64,
     /// Without sonars and laser ([`Settings::state_only`]).
     pub(crate) state_only: bool,
+    /// How actions command the robot.
+    pub(crate) action: ActionMode,
 }
 
 impl Settings {
@@ -124,7 +153,61 @@ impl Settings {
             period,
             dt,
             state_only: false,
+            action: ActionMode::Velocity,
         })
+    }
+
+    /// With the action mode `mode`: `"velocity"`, or for a robot with physics `"attitude"`
+    /// or `"rotors"` (the `QUAD` extension, docs/quadrotor.md).
+    pub(crate) fn action_mode(mut self, mode: &str) -> Result<Self, SimError> {
+        let class = self
+            .catalog
+            .get(&self.robot)
+            .ok_or_else(|| invalid(format!("robot: unknown robot class {:?}", self.robot)))?;
+        let q = &class.quadrotor;
+        self.action = match mode {
+            "velocity" => ActionMode::Velocity,
+            "attitude" | "rotors" if class.dynamics != DynamicsKind::Quadrotor => {
+                return Err(invalid(format!(
+                    "action_mode: {mode:?} needs a robot with physics (such as stsQuadrotor); \
+                     {} is kinematic",
+                    self.robot
+                )));
+            }
+            "attitude" => ActionMode::Attitude {
+                weight: q.mass * GRAVITY,
+            },
+            "rotors" => ActionMode::Rotors {
+                min: q.rotor_speed_min,
+                max: q.rotor_speed_max,
+            },
+            other => {
+                return Err(invalid(format!(
+                    "action_mode: expected \"velocity\", \"attitude\" or \"rotors\", got {other:?}"
+                )));
+            }
+        };
+        Ok(self)
+    }
+
+    /// The command of one action row (values in -1..=1).
+    fn command(&self, a: &[f64; 4]) -> Command {
+        let line = match self.action {
+            ActionMode::Velocity => return drive(a),
+            ActionMode::Attitude { weight } => format!(
+                "QUAD {{Attitude {},{},{}}} {{Thrust {}}}",
+                a[0] * MAX_TILT,
+                a[1] * MAX_TILT,
+                a[2] * MAX_YAW_RATE,
+                weight * (1.0 + a[3])
+            ),
+            ActionMode::Rotors { min, max } => {
+                let w = a.map(|v| min + (v + 1.0) / 2.0 * (max - min));
+                format!("QUAD {{Rotors {},{},{},{}}}", w[0], w[1], w[2], w[3])
+            }
+        };
+        // Finite numbers always parse; hover (a level DRIVE) if they somehow did not.
+        Command::parse(&line).map_or_else(|_| drive(&[0.0; 4]), |p| p.message)
     }
 
     /// The same without the range sensors (every `Sonar` and `RangeScanner` part removed):
@@ -237,7 +320,7 @@ impl WorldSim {
     /// one control period. Actions must be finite (checked by the caller).
     pub(crate) fn step(&mut self, settings: &Settings, actions: &[[f64; 4]]) {
         for (uav, a) in self.uavs.iter().zip(actions) {
-            self.world.command(uav.client, drive(a));
+            self.world.command(uav.client, settings.command(a));
         }
         self.advance(settings.ticks());
     }

@@ -92,6 +92,7 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
 /// state_only=False)`: one world per seed; `starts` is a float64 array of shape
 /// `(len(seeds) * uavs_per_world, 4)` with x, y, z (metres, z down) and yaw (rad) per UAV,
 /// world-major. `state_only`: the robot without sonars and laser (no `sonar`, `laser` keys).
+/// `action_mode`: `"velocity"` (DRIVE), `"attitude"` or `"rotors"` (QUAD; docs/python.md).
 #[pyclass(name = "Batch", module = "usarsim._core")]
 struct PyBatch {
     /// A mutex only to make the class `Sync` (Python objects may be shared between threads);
@@ -144,7 +145,7 @@ impl PyBatch {
 impl PyBatch {
     #[new]
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false))]
+    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false, action_mode = "velocity"))]
     fn new(
         py: Python<'_>,
         map: &str,
@@ -155,13 +156,14 @@ impl PyBatch {
         period: f64,
         noise: Option<f64>,
         state_only: bool,
+        action_mode: &str,
     ) -> PyResult<Self> {
         if seeds.is_empty() || uavs_per_world == 0 {
             return Err(PyValueError::new_err(
                 "Batch: needs at least one world (seed) and one UAV per world",
             ));
         }
-        let mut settings = Settings::new(map, robot, period, noise)?;
+        let mut settings = Settings::new(map, robot, period, noise)?.action_mode(action_mode)?;
         if state_only {
             settings = settings.state_only();
         }
@@ -224,8 +226,8 @@ impl PyBatch {
         Ok(())
     }
 
-    /// Steps every world one control period. `actions`: float64 `(len, 4)`, each row
-    /// forward, right, up, yaw in -1..=1 (clipped). `reset`: None, or `(indices, seeds,
+    /// Steps every world one control period. `actions`: float64 `(len, 4)`, each row four
+    /// values in -1..=1 (clipped) read as the action mode says. `reset`: None, or `(indices, seeds,
     /// starts)` as in `reset`: those worlds are replaced by fresh ones instead of stepping
     /// (their actions are ignored), in the same parallel pass.
     #[pyo3(signature = (actions, reset = None))]

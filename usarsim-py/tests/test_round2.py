@@ -307,3 +307,44 @@ def test_state_only_and_flat_observations():
     assert "laser" not in obs and "sonar" not in obs and obs["position"].shape == (4, 3)
     full = usarsim.vector_env(4, flat=True)
     assert full.reset(seed=0)[0].shape == (4, 17 + 10 + 228)
+
+
+# Action modes of the quadrotor (the QUAD extension), each flown by a simple controller.
+
+
+def test_attitude_mode_flies_a_quadrotor_to_a_waypoint():
+    env = gymnasium.make("usarsim/Waypoints-v0", robot="stsQuadrotor", action_mode="attitude",
+                         start=(0, 0, -2, 0), waypoints=[[2, 1, -2.5]], max_steps=150)
+    obs, _ = env.reset(seed=0)
+    for _ in range(150):
+        (ex, ey, ez), (vx, vy, vz) = obs["waypoint"], obs["velocity"]
+        # Heading 0: nose down (pitch < 0) accelerates north, right wing down (roll > 0) east;
+        # thrust above the weight climbs (z is down).
+        a = np.clip([0.5 * ey - 0.6 * vy, -(0.5 * ex - 0.6 * vx), 0, -0.6 * ez + 0.5 * vz], -1, 1)
+        obs, r, term, trunc, info = env.step(a.astype(np.float32))
+        if term or trunc:
+            break
+    assert term and info["waypoints_reached"] == 1 and not info["crashed"]
+
+
+def test_rotors_mode_climbs_a_quadrotor_level():
+    env = gymnasium.make("usarsim/Hover-v0", robot="stsQuadrotor", action_mode="rotors", max_steps=100)
+    obs, _ = env.reset(seed=0)
+    target = obs["position"][2] - 1.0  # 1 m higher
+    hover = (705.7 - 100) / 900 * 2 - 1  # the default vehicle's hover speed, normalized
+    for _ in range(60):
+        u = np.clip(hover + 0.15 * (obs["position"][2] - target) + 0.2 * obs["velocity"][2], -1, 1)
+        obs, *_ = env.step(np.full(4, u, np.float32))
+    assert abs(obs["position"][2] - target) < 0.2
+    assert np.all(np.abs(obs["attitude"][:2]) < 0.05)  # equal rotors: no tilt
+
+
+def test_velocity_mode_flies_a_quadrotor_and_bad_modes_are_named():
+    env = gymnasium.make("usarsim/Waypoints-v0", robot="stsQuadrotor", start=(0, 0, -2, 0),
+                         waypoints=[[2, 0, -2]], max_steps=100)
+    obs, _ = env.reset(seed=0)
+    assert fly_to_waypoints(env, obs)[1]
+    with pytest.raises(ValueError, match="action_mode: .*needs a robot with physics"):
+        gymnasium.make("usarsim/Hover-v0", action_mode="rotors")
+    with pytest.raises(ValueError, match="action_mode: expected"):
+        gymnasium.make("usarsim/Hover-v0", robot="stsQuadrotor", action_mode="rates")

@@ -81,7 +81,8 @@ class UsarsimEnv(Replay, gym.Env):
     tag, ``(x, y, z[, yaw])`` or ``"random"``), ``waypoints`` (``(k, 3)`` or None for
     seeded random ones), ``n_waypoints``, ``period`` (control period, s), ``noise`` (sensor
     noise std for every part), ``max_steps``, ``server`` (``"host:port"`` to fly a running
-    usar-server or USARSim instead of the in-process world), ``render_mode``.
+    usar-server or USARSim instead of the in-process world), ``render_mode``, ``state_only``,
+    ``flat``, ``action_mode`` (docs/python.md).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -90,19 +91,22 @@ class UsarsimEnv(Replay, gym.Env):
                  start=None, waypoints=None, n_waypoints: int = 3, waypoint_radius: float = 0.5,
                  period: float = 0.1, noise: float | None = None, max_steps: int | None = None,
                  server: str | None = None, render_mode: str | None = None, state_only: bool = False,
-                 flat: bool = False) -> None:
+                 flat: bool = False, action_mode: str = "velocity") -> None:
         self._recipe = dict(task=task, map=map, robot=robot, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, period=period,
                             noise=noise, max_steps=max_steps, server=server, render_mode=render_mode,
-                            state_only=state_only, flat=flat)
+                            state_only=state_only, flat=flat, action_mode=action_mode)
         self.render_mode = _render_mode(render_mode)
         if state_only and server is not None:
             raise ValueError("state_only: only for the in-process world (the server's robot has its sensors)")
+        if action_mode != "velocity" and server is not None:
+            raise ValueError("action_mode: only 'velocity' for a remote server")
         self.observation_space = observation_space(state_only, flat)
         self.action_space = action_space()
         self._robot, self._period, self._server = _robot(robot), float(period), server
         # The in-process world (also the map geometry for a remote server running the same map).
-        self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise, bool(state_only))
+        self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise, bool(state_only),
+                                  action_mode)
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, 1, self.map, start=start, waypoints=waypoints, n_waypoints=n_waypoints,
                             waypoint_radius=waypoint_radius, max_steps=max_steps, state_only=state_only, flat=flat)
@@ -238,13 +242,13 @@ class UsarsimVectorEnv(Replay, VectorEnv):
                  robot: str = "stsAirRobot", start=None, waypoints=None, n_waypoints: int = 3,
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
                  max_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP,
-                 state_only: bool = False, flat: bool = False) -> None:
+                 state_only: bool = False, flat: bool = False, action_mode: str = "velocity") -> None:
         if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
         self._recipe = dict(num_envs=num_envs, task=task, map=map, robot=robot, start=start,
                             waypoints=waypoints, n_waypoints=n_waypoints, waypoint_radius=waypoint_radius,
                             period=period, noise=noise, max_steps=max_steps, autoreset_mode=autoreset_mode,
-                            state_only=state_only, flat=flat)
+                            state_only=state_only, flat=flat, action_mode=action_mode)
         self.metadata = {**type(self).metadata, "autoreset_mode": _autoreset_mode(autoreset_mode)}
         self.num_envs = int(num_envs)
         self.single_observation_space = observation_space(state_only, flat)
@@ -253,7 +257,7 @@ class UsarsimVectorEnv(Replay, VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         first = _first(map)
         self._batch = _core.Batch(map, _robot(robot), [0] * self.num_envs, np.repeat(first, self.num_envs, 0),
-                                  1, period, noise, bool(state_only))
+                                  1, period, noise, bool(state_only), action_mode)
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, self.num_envs, self.map, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, max_steps=max_steps,

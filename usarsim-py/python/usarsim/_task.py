@@ -61,7 +61,9 @@ def observation_space(state_only: bool = False, flat: bool = False) -> spaces.Sp
 
 
 def action_space() -> spaces.Box:
-    """The action space of one UAV: forward, right, up, yaw rate, each in -1..1."""
+    """The action space of one UAV: four values in -1..1, read as the action mode says
+    (velocity: forward, right, up, yaw rate; attitude: roll, pitch, yaw rate, thrust;
+    rotors: the four rotor speeds; docs/python.md)."""
     return spaces.Box(-1.0, 1.0, (4,), np.float32)
 
 
