@@ -348,3 +348,19 @@ def test_velocity_mode_flies_a_quadrotor_and_bad_modes_are_named():
         gymnasium.make("usarsim/Hover-v0", action_mode="rotors")
     with pytest.raises(ValueError, match="action_mode: expected"):
         gymnasium.make("usarsim/Hover-v0", robot="stsQuadrotor", action_mode="rates")
+
+
+# RLlib's MultiAgentEnv adapter.
+
+
+def test_rllib_multi_agent_env_ends_with_all():
+    pytest.importorskip("ray.rllib")
+    env = usarsim.MultiUavRLlibEnv({"n": 2, "task": "hover", "max_steps": 3})
+    obs, infos = env.reset(seed=0)
+    assert set(obs) == {"uav_0", "uav_1"} and env.observation_spaces["uav_0"].contains(obs["uav_0"])
+    for step in range(3):
+        obs, rew, term, trunc, infos = env.step({a: env.action_spaces[a].sample() for a in env.agents})
+        assert term["__all__"] is False and trunc["__all__"] is (step == 2)
+    assert env.agents == [] and set(obs) == {"uav_0", "uav_1"}  # the last observations
+    twin = pickle.loads(pickle.dumps(env))
+    assert twin.reset(seed=0)[0]["uav_0"]["position"].tolist() == env.reset(seed=0)[0]["uav_0"]["position"].tolist()

@@ -33,22 +33,24 @@ class MultiUavEnv(Replay, ParallelEnv):
     def __init__(self, n: int = 2, task: str = "waypoints", *, map: str = "empty_room",
                  robot: str = "stsAirRobot", starts=None, n_waypoints: int = 3,
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
-                 max_steps: int | None = None, render_mode: str | None = None) -> None:
+                 max_steps: int | None = None, render_mode: str | None = None, state_only: bool = False,
+                 flat: bool = False, action_mode: str = "velocity") -> None:
         if ParallelEnv is object:
             raise ImportError("usarsim.multi_uav needs pettingzoo: pip install pettingzoo")
         if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1):
             raise ValueError(f"n: expected an integer >= 1, got {n!r}")
         self._recipe = dict(n=n, task=task, map=map, robot=robot, starts=starts, n_waypoints=n_waypoints,
                             waypoint_radius=waypoint_radius, period=period, noise=noise, max_steps=max_steps,
-                            render_mode=render_mode)
+                            render_mode=render_mode, state_only=state_only, flat=flat, action_mode=action_mode)
         self.n = int(n)
         self.render_mode = _render_mode(render_mode)
         self.possible_agents = [f"uav_{i}" for i in range(self.n)]
         self.agents = []
         first = _first(map)
-        probe = _core.Batch(map, _robot(robot), [0], first, 1, period, noise)
+        probe = _core.Batch(map, _robot(robot), [0], first, 1, period, noise, bool(state_only), action_mode)
         self.map = MapInfo(probe)
-        self._args = (map, _robot(robot), period, noise)
+        self._args = (map, _robot(robot), period, noise, bool(state_only), action_mode)
+        self._space = observation_space(state_only, flat)
         self._starts = None if starts is None else np.asarray(starts, dtype=np.float64)
         if self._starts is not None and self._starts.shape != (self.n, 4):
             raise ValueError(f"starts: expected shape ({self.n}, 4), got {self._starts.shape}")
@@ -58,7 +60,7 @@ class MultiUavEnv(Replay, ParallelEnv):
                     raise ValueError(f"starts[{i}]: not finite: {p.tolist()}")
                 self.map.check_inside(p[:3], f"starts[{i}]")
         self._tasks = Tasks(task, self.n, self.map, start="random", n_waypoints=n_waypoints,
-                            waypoint_radius=waypoint_radius, max_steps=max_steps)
+                            waypoint_radius=waypoint_radius, max_steps=max_steps, state_only=state_only, flat=flat)
         self._batch = None
         self._rng = np.random.default_rng()
         self._view = None
@@ -67,14 +69,14 @@ class MultiUavEnv(Replay, ParallelEnv):
 
     @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
-        return observation_space()
+        return self._space
 
     @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
         return action_space()
 
     def _split(self, arrays):
-        return {a: {k: v[i] for k, v in arrays.items()} for i, a in enumerate(self.possible_agents) if a in self.agents}
+        return {a: self._tasks.row(arrays, i) for i, a in enumerate(self.possible_agents) if a in self.agents}
 
     def reset(self, seed=None, options=None):
         if self._closed:
@@ -87,8 +89,9 @@ class MultiUavEnv(Replay, ParallelEnv):
         self._rng = _rng(rng_state)
         self._replay = {"rng": rng_state, "options": options, "actions": []}
         starts = self._tasks.new_starts(self._rng, range(self.n), True, options, poses=self._starts)
-        map_, robot, period, noise = self._args
-        self._batch = _core.Batch(map_, robot, [_seed(self._rng)], starts, self.n, period, noise)
+        map_, robot, period, noise, state_only, action_mode = self._args
+        self._batch = _core.Batch(map_, robot, [_seed(self._rng)], starts, self.n, period, noise, state_only,
+                                  action_mode)
         self.agents = list(self.possible_agents)
         self._raw = self._batch.observe()
         self._tasks.begin(self._raw, range(self.n))
@@ -133,7 +136,7 @@ class MultiUavEnv(Replay, ParallelEnv):
         raw = self._raw
         t = self._tasks
         targets = [t.targets[i, t.index[i]:t.count[i]] for i in range(self.n)]
-        return self._view.draw(raw["position"], raw["attitude"][:, 2], raw["laser"], self._trails, targets)
+        return self._view.draw(raw["position"], raw["attitude"][:, 2], raw.get("laser"), self._trails, targets)
 
     def close(self):
         self._batch = None
