@@ -7,8 +7,8 @@ use std::sync::{Mutex, PoisonError};
 
 use ucc_client::SpeedCommand;
 use ucc_client::uav::UavState;
-use usar_proto::{Command, Init, ServerMessage, Vec3};
 use usar_proto::SenData;
+use usar_proto::{Command, Init, ServerMessage, Vec3};
 use usar_server::sim::robots::{DynamicsKind, PartConfig};
 use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 
@@ -215,7 +215,8 @@ impl Settings {
     pub(crate) fn state_only(mut self) -> Self {
         if let Some(class) = self.catalog.get_mut(&self.robot) {
             class.parts.retain(|p| {
-                !p.kind.eq_ignore_ascii_case("Sonar") && !p.kind.eq_ignore_ascii_case("RangeScanner")
+                !p.kind.eq_ignore_ascii_case("Sonar")
+                    && !p.kind.eq_ignore_ascii_case("RangeScanner")
             });
         }
         self.state_only = true;
@@ -507,7 +508,11 @@ impl Batch {
         resets: &[Option<Reset>],
     ) -> Result<(), SimError> {
         let per = self.uavs_per_world;
-        for (i, (_, poses)) in resets.iter().enumerate().filter_map(|(i, r)| Some((i, r.as_ref()?))) {
+        for (i, (_, poses)) in resets
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| Some((i, r.as_ref()?)))
+        {
             if poses.len() != per {
                 return Err(invalid(format!(
                     "starts: world {i} needs {per} starts, got {}",

@@ -23,9 +23,7 @@ use std::sync::{Mutex, PoisonError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::core::{
-    Batch, LASER, Observations, Pose, Reset, SONARS, Settings, SimError, WorldSim,
-};
+use crate::core::{Batch, LASER, Observations, Pose, Reset, SONARS, Settings, SimError, WorldSim};
 use crate::remote::Remote;
 
 impl From<SimError> for PyErr {
