@@ -1,13 +1,20 @@
-"""Environment steps per second with the full sensor suite (figures for BENCHMARKS.md).
+"""UAV-steps per second and per CPU-second (figures for BENCHMARKS.md).
 
-    python benchmarks/steps_per_second.py [runs]
+    python benchmarks/steps_per_second.py [seconds per case]
 
 1 UAV: gymnasium.make("usarsim/Waypoints-v0") stepped from Python (with Gymnasium's
 wrappers, as users run it). N UAVs: usarsim.vector_env(N), one Rust call per step; a UAV-step
-is one UAV advanced one control period (0.1 s simulated, 20 physics ticks, every sensor).
-Random actions; episodes reset as they end.
+is one UAV advanced one control period (0.1 s simulated, 20 physics ticks). "full": the
+stsAirRobot with every sensor (228-beam laser, 10 sonars) and the Dict observation; "state":
+``state_only=True, flat=True`` (no range sensors; one float32 Box). Random actions; episodes
+end and autoreset (NEXT_STEP) as they come. "autoreset step": one step in which every
+sub-environment resets (episodes of 1 step), against a normal step.
+
+Per CPU-second is the process's CPU time (user + system, all threads): on a machine shared
+with other work it is the fairer figure; wall-clock UAV-steps/s depends on the free cores.
 """
 
+import os
 import statistics
 import sys
 import time
@@ -18,35 +25,65 @@ import numpy as np
 import usarsim
 
 
-def single(seconds=3.0):
+def clocks():
+    t = os.times()
+    return time.perf_counter(), t.user + t.system
+
+
+def single(seconds):
     env = gymnasium.make("usarsim/Waypoints-v0")
     env.reset(seed=0)
     rng = np.random.default_rng(0)
-    n, start = 0, time.perf_counter()
-    while time.perf_counter() - start < seconds:
+    n, (w0, c0) = 0, clocks()
+    while clocks()[0] - w0 < seconds:
         _, _, term, trunc, _ = env.step(rng.uniform(-1, 1, 4).astype(np.float32))
         n += 1
         if term or trunc:
             env.reset()
-    return n / (time.perf_counter() - start)
+    w1, c1 = clocks()
+    return n / (w1 - w0), n / max(c1 - c0, 1e-9)
 
 
-def vector(num, seconds=3.0):
-    venv = usarsim.vector_env(num)
+def vector(num, seconds, **options):
+    venv = usarsim.vector_env(num, **options)
     venv.reset(seed=0)
     rng = np.random.default_rng(0)
-    n, start = 0, time.perf_counter()
-    while time.perf_counter() - start < seconds or n == 0:
-        venv.step(rng.uniform(-1, 1, (num, 4)))
+    actions = [rng.uniform(-1, 1, (num, 4)) for _ in range(8)]
+    n, (w0, c0) = 0, clocks()
+    while clocks()[0] - w0 < seconds or n == 0:
+        venv.step(actions[n % 8])
         n += 1
-    return n * num / (time.perf_counter() - start)
+    w1, c1 = clocks()
+    return n * num / (w1 - w0), n * num / max(c1 - c0, 1e-9)
+
+
+def autoreset(num, repeats=5):
+    """Seconds of a normal step and of a step where all `num` sub-envs reset (median)."""
+    venv = usarsim.vector_env(num, "hover", max_steps=1)
+    venv.reset(seed=0)
+    a = np.zeros((num, 4))
+    normal, resetting = [], []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        venv.step(a)  # ends every episode (max_steps=1): a normal step
+        normal.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        venv.step(a)  # NEXT_STEP: every sub-env resets
+        resetting.append(time.perf_counter() - t)
+    return statistics.median(normal), statistics.median(resetting)
 
 
 if __name__ == "__main__":
-    runs = int(sys.argv[1]) if len(sys.argv) > 1 else 3
-    cases = [("1 UAV (gymnasium.make)", single)] + [
-        (f"vector env, {n} UAVs", lambda n=n: vector(n)) for n in (16, 256, 1024)]
+    seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 3.0
+    print(f"cores: {os.cpu_count()}, load average {os.getloadavg()[0]:.1f} at the start")
+    cases = [("1 UAV (gymnasium.make), full", lambda: single(seconds))]
+    for n in (256, 1024):
+        cases.append((f"vector env, {n} UAVs, full", lambda n=n: vector(n, seconds)))
+        cases.append((f"vector env, {n} UAVs, state", lambda n=n: vector(n, seconds, state_only=True, flat=True)))
     for name, fn in cases:
-        figures = sorted(fn() for _ in range(runs))
-        print(f"{name:28s} UAV-steps/s  min {figures[0]:9.0f}  median {statistics.median(figures):9.0f}  "
-              f"max {figures[-1]:9.0f}")
+        wall, cpu = fn()
+        print(f"{name:34s} {wall:10.0f} UAV-steps/s   {cpu:10.0f} per CPU-second")
+    for n in (256, 1024):
+        normal, resetting = autoreset(n)
+        print(f"autoreset, {n} UAVs: normal step {normal * 1e3:6.1f} ms, step resetting all "
+              f"{resetting * 1e3:6.1f} ms ({resetting / normal:.2f}x)")

@@ -3,10 +3,13 @@
 //! [`UavState`] per UAV and written out as flat arrays. No Python types here.
 
 use std::path::Path;
+use std::sync::{Mutex, PoisonError};
 
 use ucc_client::SpeedCommand;
 use ucc_client::uav::UavState;
+use usar_proto::SenData;
 use usar_proto::{Command, Init, ServerMessage, Vec3};
+use usar_server::sim::robots::{DynamicsKind, PartConfig};
 use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 
 /// Horizontal sonars + SonarTop + SonarBottom.
@@ -15,6 +18,11 @@ pub(crate) const SONARS: usize = 10;
 pub(crate) const LASER: usize = 228;
 /// Range reported for a sonar or beam that has not read yet (the laser's maximum).
 const NO_RANGE: f64 = 4.0;
+/// The Touch part (`event = "contact"`, read every physics tick) added to the robot class in
+/// process: a UAV "touched" something in a period when any of its readings said so.
+const CONTACT: &str = "PyContact";
+/// The largest sensor noise standard deviation a robot file accepts (docs/robots.md).
+const MAX_NOISE: f64 = 100.0;
 
 /// What went wrong, with what and where (becomes a Python `ValueError`).
 #[derive(Debug, thiserror::Error)]
@@ -28,6 +36,33 @@ fn invalid(message: impl Into<String>) -> SimError {
     SimError::Invalid(message.into())
 }
 
+/// The largest roll and pitch an attitude action asks for, rad (the crash tilt is 60°).
+pub(crate) const MAX_TILT: f64 = 0.6;
+/// The largest yaw rate an attitude action asks for, rad/s (100°/s, as DRIVE's maximum).
+pub(crate) const MAX_YAW_RATE: f64 = 1.745_329_251_994_329_5;
+/// Gravity, m/s² (the quadrotor model's).
+const GRAVITY: f64 = 9.80665;
+
+/// How a normalized action row (four values in -1..=1) commands the robot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum ActionMode {
+    /// Forward, right, up, yaw rate: fractions of the robot's maximum speeds (`DRIVE`).
+    Velocity,
+    /// Roll, pitch (× [`MAX_TILT`]), yaw rate (× [`MAX_YAW_RATE`]) and collective thrust
+    /// `weight × (1 + a)` (0 to twice the weight): `QUAD {Attitude} {Thrust}`.
+    Attitude {
+        /// The vehicle's weight, N.
+        weight: f64,
+    },
+    /// Four rotor speeds, -1..=1 mapped onto the class's rotor speed range: `QUAD {Rotors}`.
+    Rotors {
+        /// Rotor speed limits, rad/s.
+        min: f64,
+        /// Rotor speed limits, rad/s.
+        max: f64,
+    },
+}
+
 /// Settings shared by every world of a batch.
 #[derive(Debug, Clone)]
 pub(crate) struct Settings {
@@ -36,6 +71,10 @@ pub(crate) struct Settings {
     pub(crate) robot: String,
     pub(crate) period: f64,
     pub(crate) dt: f64,
+    /// Without sonars and laser ([`Settings::state_only`]).
+    pub(crate) state_only: bool,
+    /// How actions command the robot.
+    pub(crate) action: ActionMode,
 }
 
 impl Settings {
@@ -75,30 +114,113 @@ impl Settings {
         let Some(class) = catalog.get_mut(&full) else {
             return Err(invalid(format!("robot: unknown robot class {robot:?}")));
         };
+        let dt = SimConfig::default().dt;
+        let ticks = period / dt;
+        if !(period.is_finite() && period >= dt && (ticks - ticks.round()).abs() < 1e-6) {
+            return Err(invalid(format!(
+                "period: the control period must be a whole multiple of the {dt} s physics \
+                 step (0.005, 0.01, ..., 0.1, ...), got {period}"
+            )));
+        }
         if let Some(noise) = noise {
-            if !(noise.is_finite() && noise >= 0.0) {
+            if !(noise.is_finite() && (0.0..=MAX_NOISE).contains(&noise)) {
                 return Err(invalid(format!(
-                    "noise: must be a finite number >= 0, got {noise}"
+                    "noise: must be a finite standard deviation in 0..={MAX_NOISE}, got {noise}"
                 )));
             }
             for part in &mut class.parts {
                 part.noise = noise;
             }
         }
+        class.parts.retain(|p| p.name != CONTACT);
+        class.parts.push(PartConfig {
+            kind: "Touch".to_string(),
+            name: CONTACT.to_string(),
+            position: [0.0; 3],
+            direction: [0.0; 3],
+            interval: Some(dt),
+            noise: 0.0,
+            settings: toml::Table::from_iter([(
+                "event".to_string(),
+                toml::Value::String("contact".to_string()),
+            )]),
+        });
         let robot = class.class.clone();
-        let dt = SimConfig::default().dt;
-        if !(period.is_finite() && period >= dt) {
-            return Err(invalid(format!(
-                "period: the control period must be a finite number of seconds >= {dt}, got {period}"
-            )));
-        }
         Ok(Self {
             map,
             catalog,
             robot,
             period,
             dt,
+            state_only: false,
+            action: ActionMode::Velocity,
         })
+    }
+
+    /// With the action mode `mode`: `"velocity"`, or for a robot with physics `"attitude"`
+    /// or `"rotors"` (the `QUAD` extension, docs/quadrotor.md).
+    pub(crate) fn action_mode(mut self, mode: &str) -> Result<Self, SimError> {
+        let class = self
+            .catalog
+            .get(&self.robot)
+            .ok_or_else(|| invalid(format!("robot: unknown robot class {:?}", self.robot)))?;
+        let q = &class.quadrotor;
+        self.action = match mode {
+            "velocity" => ActionMode::Velocity,
+            "attitude" | "rotors" if class.dynamics != DynamicsKind::Quadrotor => {
+                return Err(invalid(format!(
+                    "action_mode: {mode:?} needs a robot with physics (such as stsQuadrotor); \
+                     {} is kinematic",
+                    self.robot
+                )));
+            }
+            "attitude" => ActionMode::Attitude {
+                weight: q.mass * GRAVITY,
+            },
+            "rotors" => ActionMode::Rotors {
+                min: q.rotor_speed_min,
+                max: q.rotor_speed_max,
+            },
+            other => {
+                return Err(invalid(format!(
+                    "action_mode: expected \"velocity\", \"attitude\" or \"rotors\", got {other:?}"
+                )));
+            }
+        };
+        Ok(self)
+    }
+
+    /// The command of one action row (values in -1..=1).
+    fn command(&self, a: &[f64; 4]) -> Command {
+        let line = match self.action {
+            ActionMode::Velocity => return drive(a),
+            ActionMode::Attitude { weight } => format!(
+                "QUAD {{Attitude {},{},{}}} {{Thrust {}}}",
+                a[0] * MAX_TILT,
+                a[1] * MAX_TILT,
+                a[2] * MAX_YAW_RATE,
+                weight * (1.0 + a[3])
+            ),
+            ActionMode::Rotors { min, max } => {
+                let w = a.map(|v| min + (v + 1.0) / 2.0 * (max - min));
+                format!("QUAD {{Rotors {},{},{},{}}}", w[0], w[1], w[2], w[3])
+            }
+        };
+        // Finite numbers always parse; hover (a level DRIVE) if they somehow did not.
+        Command::parse(&line).map_or_else(|_| drive(&[0.0; 4]), |p| p.message)
+    }
+
+    /// The same without the range sensors (every `Sonar` and `RangeScanner` part removed):
+    /// the world casts no rays and observations carry no sonar or laser columns.
+    pub(crate) fn state_only(mut self) -> Self {
+        if let Some(class) = self.catalog.get_mut(&self.robot) {
+            class.parts.retain(|p| {
+                !p.kind.eq_ignore_ascii_case("Sonar")
+                    && !p.kind.eq_ignore_ascii_case("RangeScanner")
+            });
+        }
+        self.state_only = true;
+        self
     }
 
     /// Physics ticks per control period.
@@ -198,36 +320,37 @@ impl WorldSim {
     /// Sends each UAV its normalized command (forward, right, up, yaw in -1..=1), then steps
     /// one control period. Actions must be finite (checked by the caller).
     pub(crate) fn step(&mut self, settings: &Settings, actions: &[[f64; 4]]) {
-        let before: Vec<[f64; 3]> = self.uavs.iter().map(position).collect();
         for (uav, a) in self.uavs.iter().zip(actions) {
-            self.world.command(uav.client, drive(a));
+            self.world.command(uav.client, settings.command(a));
         }
         self.advance(settings.ticks());
-        let max = settings.catalog.get(&settings.robot).map(|c| &c.flight);
-        for ((uav, a), start) in self.uavs.iter_mut().zip(actions).zip(before) {
-            // In contact when the body went less than 70 % of the commanded way.
-            let Some(f) = max else { continue };
-            let moved = distance(position(uav), start);
-            let wanted = ((a[0] * f.max_linear_speed).powi(2)
-                + (a[1] * f.max_lateral_speed).powi(2)
-                + (a[2] * f.max_altitude_speed).powi(2))
-            .sqrt()
-                * settings.period;
-            uav.touched = wanted > 0.02 && moved < 0.7 * wanted;
-        }
     }
 
+    /// Steps `ticks` physics ticks; a UAV touched something in them when any reading of
+    /// its contact sensor said so (the server's own contact test, any robot).
     fn advance(&mut self, ticks: usize) {
         for _ in 0..ticks {
             self.world.step(&mut self.out);
         }
+        for uav in &mut self.uavs {
+            uav.touched = false;
+        }
         for (client, message) in self.out.drain(..) {
             let index = client.0.wrapping_sub(self.first) as usize;
-            if let Some(uav) = self.uavs.get_mut(index)
-                && uav.client == client
-            {
-                uav.state.apply(&message);
+            let Some(uav) = self.uavs.get_mut(index) else {
+                continue;
+            };
+            if uav.client != client {
+                continue;
             }
+            if let ServerMessage::Sen(sen) = &message
+                && let SenData::Touch { name, touch } = &sen.data
+                && name == CONTACT
+            {
+                uav.touched |= *touch;
+                continue;
+            }
+            uav.state.apply(&message);
         }
     }
 
@@ -242,17 +365,6 @@ impl WorldSim {
             obs.push_state(&uav.state, uav.touched, self.world.time());
         }
     }
-}
-
-fn position(uav: &Uav) -> [f64; 3] {
-    uav.state
-        .position
-        .as_ref()
-        .map_or([0.0; 3], |p| [p.value.x, p.value.y, p.value.z])
-}
-
-fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 /// Observations of many UAVs, one flat row-major buffer per field.
@@ -279,6 +391,8 @@ pub(crate) struct Observations {
     pub(crate) crashed: Vec<bool>,
     /// Simulated seconds.
     pub(crate) time: Vec<f64>,
+    /// Leave `sonar` and `laser` empty.
+    pub(crate) no_ranges: bool,
 }
 
 fn xyz(r: Option<&ucc_client::uav::Reading<ucc_client::Coordinates>>) -> [f64; 3] {
@@ -299,6 +413,7 @@ impl Observations {
             touched: Vec::with_capacity(n),
             crashed: Vec::with_capacity(n),
             time: Vec::with_capacity(n),
+            no_ranges: false,
         }
     }
 
@@ -308,6 +423,14 @@ impl Observations {
         self.attitude.extend(xyz(s.orientation.as_ref()));
         self.angular_velocity
             .extend(xyz(s.angular_velocity.as_ref()));
+        self.battery
+            .push(s.battery.as_ref().map_or(1.0, |b| b.value.level));
+        self.touched.push(touched || s.crashed());
+        self.crashed.push(s.crashed());
+        self.time.push(time);
+        if self.no_ranges {
+            return;
+        }
         let range = |r: &Option<ucc_client::uav::Reading<f64>>| {
             r.as_ref().map_or(NO_RANGE, |r| {
                 if r.value.is_finite() {
@@ -328,11 +451,6 @@ impl Observations {
                 .filter(|v| v.is_finite())
                 .unwrap_or(NO_RANGE)
         }));
-        self.battery
-            .push(s.battery.as_ref().map_or(1.0, |b| b.value.level));
-        self.touched.push(touched || s.crashed());
-        self.crashed.push(s.crashed());
-        self.time.push(time);
     }
 }
 
@@ -344,66 +462,97 @@ pub(crate) struct Batch {
     pub(crate) uavs_per_world: usize,
 }
 
+/// Runs `f` on every world with its index, spread over the cores when there are enough.
+fn par_worlds<F>(worlds: &mut [WorldSim], f: F)
+where
+    F: Fn(usize, &mut WorldSim) + Sync,
+{
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if threads < 2 || worlds.len() < 4 {
+        for (i, w) in worlds.iter_mut().enumerate() {
+            f(i, w);
+        }
+        return;
+    }
+    let chunk = worlds.len().div_ceil(threads);
+    let f = &f;
+    std::thread::scope(|scope| {
+        for (c, worlds) in worlds.chunks_mut(chunk).enumerate() {
+            scope.spawn(move || {
+                for (j, w) in worlds.iter_mut().enumerate() {
+                    f(c * chunk + j, w);
+                }
+            });
+        }
+    });
+}
+
+/// A world to replace by a fresh one: its seed and one start pose per UAV.
+pub(crate) type Reset = (u64, Vec<Pose>);
+
 impl Batch {
     /// Total UAVs.
     pub(crate) fn len(&self) -> usize {
         self.worlds.len() * self.uavs_per_world
     }
 
-    /// Replaces world `index` by a fresh one.
-    pub(crate) fn reset_world(
+    /// One pass over the worlds, spread over the cores: a world with a `resets` entry is
+    /// replaced by a fresh one (its actions ignored); the others step one control period with
+    /// their rows of `actions` (one per UAV, world-major), or stay as they are when `actions`
+    /// is None. `resets` is empty or one entry per world. A reset that cannot spawn leaves its
+    /// world as it was and is the error (the lowest world index if several fail); the other
+    /// worlds have stepped or reset.
+    pub(crate) fn step(
         &mut self,
-        index: usize,
-        seed: u64,
-        poses: &[Pose],
+        actions: Option<&[[f64; 4]]>,
+        resets: &[Option<Reset>],
     ) -> Result<(), SimError> {
-        if poses.len() != self.uavs_per_world {
-            return Err(invalid(format!(
-                "starts: world {index} needs {} starts, got {}",
-                self.uavs_per_world,
-                poses.len()
-            )));
-        }
-        let world = WorldSim::new(&self.settings, seed, poses)
-            .map_err(|e| invalid(format!("world {index}: {e}")))?;
-        match self.worlds.get_mut(index) {
-            Some(slot) => *slot = world,
-            None => return Err(invalid(format!("world index {index} out of range"))),
-        }
-        Ok(())
-    }
-
-    /// Steps every world one control period; `actions` has one row per UAV (world-major).
-    /// Worlds are spread over the cores when there are enough of them.
-    pub(crate) fn step(&mut self, actions: &[[f64; 4]]) {
         let per = self.uavs_per_world;
-        let settings = &self.settings;
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        if threads < 2 || self.worlds.len() < 4 {
-            for (w, a) in self.worlds.iter_mut().zip(actions.chunks(per)) {
-                w.step(settings, a);
+        for (i, (_, poses)) in resets
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| Some((i, r.as_ref()?)))
+        {
+            if poses.len() != per {
+                return Err(invalid(format!(
+                    "starts: world {i} needs {per} starts, got {}",
+                    poses.len()
+                )));
             }
-            return;
         }
-        let chunk = self.worlds.len().div_ceil(threads);
-        std::thread::scope(|scope| {
-            for (worlds, actions) in self
-                .worlds
-                .chunks_mut(chunk)
-                .zip(actions.chunks(chunk * per))
-            {
-                scope.spawn(move || {
-                    for (w, a) in worlds.iter_mut().zip(actions.chunks(per)) {
-                        w.step(settings, a);
+        let settings = &self.settings;
+        let failed = Mutex::new(None::<(usize, SimError)>);
+        par_worlds(&mut self.worlds, |i, w| {
+            match (resets.get(i).and_then(Option::as_ref), actions) {
+                (Some((seed, poses)), _) => match WorldSim::new(settings, *seed, poses) {
+                    Ok(fresh) => *w = fresh,
+                    Err(e) => {
+                        let mut failed = failed.lock().unwrap_or_else(PoisonError::into_inner);
+                        if failed.as_ref().is_none_or(|(j, _)| i < *j) {
+                            *failed = Some((i, e));
+                        }
                     }
-                });
+                },
+                (None, Some(actions)) => w.step(settings, &actions[i * per..(i + 1) * per]),
+                (None, None) => {}
             }
         });
+        match failed.into_inner().unwrap_or_else(PoisonError::into_inner) {
+            Some((i, e)) => Err(invalid(format!("world {i}: {e}"))),
+            None => Ok(()),
+        }
     }
 
     /// Every UAV's observation, world-major.
     pub(crate) fn observe(&self) -> Observations {
-        let mut obs = Observations::with_capacity(self.len());
+        let mut obs = if self.settings.state_only {
+            Observations {
+                no_ranges: true,
+                ..Observations::default()
+            }
+        } else {
+            Observations::with_capacity(self.len())
+        };
         for w in &self.worlds {
             w.observe(&mut obs);
         }

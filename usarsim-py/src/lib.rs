@@ -23,7 +23,7 @@ use std::sync::{Mutex, PoisonError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::core::{Batch, LASER, Observations, Pose, SONARS, Settings, SimError, WorldSim};
+use crate::core::{Batch, LASER, Observations, Pose, Reset, SONARS, Settings, SimError, WorldSim};
 use crate::remote::Remote;
 
 impl From<SimError> for PyErr {
@@ -73,8 +73,10 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
     put("velocity", obs.velocity, 3)?;
     put("attitude", obs.attitude, 3)?;
     put("angular_velocity", obs.angular_velocity, 3)?;
-    put("sonar", obs.sonar, SONARS)?;
-    put("laser", obs.laser, LASER)?;
+    if !obs.no_ranges {
+        put("sonar", obs.sonar, SONARS)?;
+        put("laser", obs.laser, LASER)?;
+    }
     put("battery", obs.battery, 1)?;
     put("time", obs.time, 1)?;
     dict.set_item("touched", obs.touched.into_pyarray(py))?;
@@ -84,9 +86,11 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
 
 /// N worlds with K UAVs each, stepped together one control period per call.
 ///
-/// `Batch(map, robot, seeds, starts, uavs_per_world=1, period=0.1, noise=None)`: one world
-/// per seed; `starts` is a float64 array of shape `(len(seeds) * uavs_per_world, 4)` with
-/// x, y, z (metres, z down) and yaw (rad) per UAV, world-major.
+/// `Batch(map, robot, seeds, starts, uavs_per_world=1, period=0.1, noise=None,
+/// state_only=False)`: one world per seed; `starts` is a float64 array of shape
+/// `(len(seeds) * uavs_per_world, 4)` with x, y, z (metres, z down) and yaw (rad) per UAV,
+/// world-major. `state_only`: the robot without sonars and laser (no `sonar`, `laser` keys).
+/// `action_mode`: `"velocity"` (DRIVE), `"attitude"` or `"rotors"` (QUAD; docs/python.md).
 #[pyclass(name = "Batch", module = "usarsim._core")]
 struct PyBatch {
     /// A mutex only to make the class `Sync` (Python objects may be shared between threads);
@@ -98,13 +102,48 @@ impl PyBatch {
     fn get(&mut self) -> &mut Batch {
         self.inner.get_mut().unwrap_or_else(PoisonError::into_inner)
     }
+
+    /// One entry per world: `Some((seed, starts))` for the worlds in `indices`.
+    fn resets(
+        &mut self,
+        indices: Vec<usize>,
+        seeds: Vec<u64>,
+        starts: &PyReadonlyArray2<'_, f64>,
+    ) -> PyResult<Vec<Option<Reset>>> {
+        let (worlds, per) = (self.get().worlds.len(), self.get().uavs_per_world);
+        if seeds.len() != indices.len() {
+            return Err(PyValueError::new_err(format!(
+                "seeds: expected one per reset world ({}), got {}",
+                indices.len(),
+                seeds.len()
+            )));
+        }
+        let poses = rows::<4>(starts, indices.len() * per, "starts")?;
+        let mut out = vec![None; worlds];
+        for ((&i, seed), poses) in indices.iter().zip(seeds).zip(poses.chunks(per)) {
+            match out.get_mut(i) {
+                Some(slot @ None) => *slot = Some((seed, poses.to_vec())),
+                Some(Some(_)) => {
+                    return Err(PyValueError::new_err(format!(
+                        "indices: world {i} listed twice"
+                    )));
+                }
+                None => {
+                    return Err(PyValueError::new_err(format!(
+                        "indices: world index {i} out of range (0..{worlds})"
+                    )));
+                }
+            }
+        }
+        Ok(out)
+    }
 }
 
 #[pymethods]
 impl PyBatch {
     #[new]
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None))]
+    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false, action_mode = "velocity"))]
     fn new(
         py: Python<'_>,
         map: &str,
@@ -114,13 +153,18 @@ impl PyBatch {
         uavs_per_world: usize,
         period: f64,
         noise: Option<f64>,
+        state_only: bool,
+        action_mode: &str,
     ) -> PyResult<Self> {
         if seeds.is_empty() || uavs_per_world == 0 {
             return Err(PyValueError::new_err(
                 "Batch: needs at least one world (seed) and one UAV per world",
             ));
         }
-        let settings = Settings::new(map, robot, period, noise)?;
+        let mut settings = Settings::new(map, robot, period, noise)?.action_mode(action_mode)?;
+        if state_only {
+            settings = settings.state_only();
+        }
         let poses: Vec<Pose> = rows::<4>(&starts, seeds.len() * uavs_per_world, "starts")?;
         let worlds = py.detach(|| {
             seeds
@@ -165,29 +209,42 @@ impl PyBatch {
         self.get().settings.robot.clone()
     }
 
-    /// Replaces world `index` by a fresh one with `seed` and `starts` (shape `(K, 4)`).
-    fn reset_world(
+    /// Replaces the worlds `indices` by fresh ones, in parallel: world `indices[j]` gets
+    /// `seeds[j]` and rows `j*K .. (j+1)*K` of `starts` (shape `(len(indices) * K, 4)`).
+    fn reset(
         &mut self,
         py: Python<'_>,
-        index: usize,
-        seed: u64,
+        indices: Vec<usize>,
+        seeds: Vec<u64>,
         starts: PyReadonlyArray2<'_, f64>,
     ) -> PyResult<()> {
-        let poses = rows::<4>(&starts, self.get().uavs_per_world, "starts")?;
+        let resets = self.resets(indices, seeds, &starts)?;
         let inner = self.get();
-        py.detach(|| inner.reset_world(index, seed, &poses))?;
+        py.detach(|| inner.step(None, &resets))?;
         Ok(())
     }
 
-    /// Steps every world one control period. `actions`: float64 `(len, 4)`, each row
-    /// forward, right, up, yaw in -1..=1 (clipped).
-    fn step(&mut self, py: Python<'_>, actions: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+    /// Steps every world one control period. `actions`: float64 `(len, 4)`, each row four
+    /// values in -1..=1 (clipped) read as the action mode says. `reset`: None, or `(indices, seeds,
+    /// starts)` as in `reset`: those worlds are replaced by fresh ones instead of stepping
+    /// (their actions are ignored), in the same parallel pass.
+    #[pyo3(signature = (actions, reset = None))]
+    fn step(
+        &mut self,
+        py: Python<'_>,
+        actions: PyReadonlyArray2<'_, f64>,
+        reset: Option<(Vec<usize>, Vec<u64>, PyReadonlyArray2<'_, f64>)>,
+    ) -> PyResult<()> {
         let actions: Vec<[f64; 4]> = rows::<4>(&actions, self.get().len(), "action")?
             .into_iter()
             .map(|a| a.map(|v| v.clamp(-1.0, 1.0)))
             .collect();
+        let resets = match reset {
+            Some((indices, seeds, starts)) => self.resets(indices, seeds, &starts)?,
+            None => Vec::new(),
+        };
         let inner = self.get();
-        py.detach(|| inner.step(&actions));
+        py.detach(|| inner.step(Some(&actions), &resets))?;
         Ok(())
     }
 

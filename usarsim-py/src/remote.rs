@@ -160,6 +160,12 @@ impl Remote {
             let message = match self.read_message() {
                 Ok(Some(m)) => m,
                 Ok(None) => return Err(err(&self.addr, "the server closed the connection")),
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                    return Err(err(
+                        &self.addr,
+                        format_args!("timed out: no answer within {} s", TIMEOUT.as_secs()),
+                    ));
+                }
                 Err(e) => return Err(err(&self.addr, format_args!("read failed: {e}"))),
             };
             if let ServerMessage::Sync(barrier) = &message {

@@ -30,6 +30,15 @@ def vector_env(num_envs: int, task: str = "waypoints", **options) -> UsarsimVect
     return UsarsimVectorEnv(num_envs, task, **options)
 
 
+def __getattr__(name):
+    # Optional adapters, imported on first use (their engines are not dependencies).
+    if name == "MultiUavRLlibEnv":
+        from ._rllib import MultiUavRLlibEnv
+
+        return MultiUavRLlibEnv
+    raise AttributeError(f"module 'usarsim' has no attribute {name!r}")
+
+
 _register()
 
 __all__ = [
@@ -39,6 +48,7 @@ __all__ = [
     "fly",
     "Batch",
     "LASER_BEAMS",
+    "MultiUavRLlibEnv",
     "Remote",
     "SONARS",
     "UsarsimEnv",

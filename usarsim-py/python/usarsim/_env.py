@@ -1,11 +1,13 @@
-"""The Gymnasium environment, the vector environment and the PettingZoo environment."""
+"""The Gymnasium environment and the vector environment."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.error import ClosedEnvironmentError, ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -40,14 +42,47 @@ def _seed(rng: np.random.Generator) -> int:
     return int(rng.integers(0, 2**63 - 1))
 
 
-class UsarsimEnv(gym.Env):
+def _render_mode(render_mode, allowed=("rgb_array",)):
+    if render_mode is not None and render_mode not in allowed:
+        raise ValueError(f"render_mode: expected None or one of {list(allowed)}, got {render_mode!r}")
+    return render_mode
+
+
+def _rng(state) -> np.random.Generator:
+    """A generator in the saved bit-generator `state`."""
+    rng = np.random.Generator(getattr(np.random, state["bit_generator"])())
+    rng.bit_generator.state = state
+    return rng
+
+
+class Replay:
+    """What an env pickles: its recipe (constructor arguments), the random state at its last
+    reset, that reset's options and the actions since. Unpickling builds the env from the
+    recipe, resets it from that random state and replays the actions; the simulation is
+    deterministic, so the copy continues bit for bit where the original is."""
+
+    def __getstate__(self):
+        return {"recipe": self._recipe, "replay": self._replay, "spec": getattr(self, "spec", None)}
+
+    def __setstate__(self, state):
+        self.__init__(**state["recipe"])
+        self.spec = state["spec"]
+        replay = state["replay"]
+        if replay is not None:
+            self._restore(replay["rng"], replay["options"])
+            for a in replay["actions"]:
+                self.step(a)
+
+
+class UsarsimEnv(Replay, gym.Env):
     """One stsAirRobot in a map (`usarsim/Waypoints-v0`, `usarsim/Hover-v0`).
 
     Keyword options: ``map`` (embedded name or map file), ``robot``, ``start`` (a PlayerStart
     tag, ``(x, y, z[, yaw])`` or ``"random"``), ``waypoints`` (``(k, 3)`` or None for
     seeded random ones), ``n_waypoints``, ``period`` (control period, s), ``noise`` (sensor
     noise std for every part), ``max_steps``, ``server`` (``"host:port"`` to fly a running
-    usar-server or USARSim instead of the in-process world), ``render_mode``.
+    usar-server or USARSim instead of the in-process world), ``render_mode``, ``state_only``,
+    ``flat``, ``action_mode`` (docs/python.md).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -55,32 +90,64 @@ class UsarsimEnv(gym.Env):
     def __init__(self, task: str = "waypoints", *, map: str = "empty_room", robot: str = "stsAirRobot",
                  start=None, waypoints=None, n_waypoints: int = 3, waypoint_radius: float = 0.5,
                  period: float = 0.1, noise: float | None = None, max_steps: int | None = None,
-                 server: str | None = None, render_mode: str | None = None) -> None:
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
-        self.render_mode = render_mode
-        self.observation_space = observation_space()
+                 server: str | None = None, render_mode: str | None = None, state_only: bool = False,
+                 flat: bool = False, action_mode: str = "velocity") -> None:
+        self._recipe = dict(task=task, map=map, robot=robot, start=start, waypoints=waypoints,
+                            n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, period=period,
+                            noise=noise, max_steps=max_steps, server=server, render_mode=render_mode,
+                            state_only=state_only, flat=flat, action_mode=action_mode)
+        self.render_mode = _render_mode(render_mode)
+        if state_only and server is not None:
+            raise ValueError("state_only: only for the in-process world (the server's robot has its sensors)")
+        if action_mode != "velocity" and server is not None:
+            raise ValueError("action_mode: only 'velocity' for a remote server")
+        self.observation_space = observation_space(state_only, flat)
         self.action_space = action_space()
         self._robot, self._period, self._server = _robot(robot), float(period), server
         # The in-process world (also the map geometry for a remote server running the same map).
-        self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise)
+        self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise, bool(state_only),
+                                  action_mode)
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, 1, self.map, start=start, waypoints=waypoints, n_waypoints=n_waypoints,
-                            waypoint_radius=waypoint_radius, max_steps=max_steps)
+                            waypoint_radius=waypoint_radius, max_steps=max_steps, state_only=state_only, flat=flat)
         self._remote = None
         self._view = None
         self._trail: list = []
         self._raw = None
+        self._ended = False
+        self._closed = False
+        self._replay = None
+
+    @property
+    def spec(self):
+        """The registration spec, with ``max_episode_steps`` the episode's step limit
+        (``max_steps``): the env truncates by itself, so make() adds no TimeLimit."""
+        spec = self.__dict__.get("_spec")
+        if spec is not None and spec.max_episode_steps is None:
+            spec = dataclasses.replace(spec, max_episode_steps=self._tasks.max_steps)
+        return spec
+
+    @spec.setter
+    def spec(self, value):
+        self.__dict__["_spec"] = value
 
     def _observe(self):
         self._raw = (self._remote or self._batch).observe()
         return self._raw
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        if self._closed:
+            raise ClosedEnvironmentError("reset: the environment is closed")
         super().reset(seed=seed)
+        return self._restore(self.np_random.bit_generator.state, options)
+
+    def _restore(self, rng_state, options):
+        """The reset after the seeding: from the generator state `rng_state`."""
+        self._np_random = _rng(rng_state)
+        self._replay = {"rng": rng_state, "options": options, "actions": []}
         starts = self._tasks.new_starts(self.np_random, [0], False, options)
         if self._server is None:
-            self._batch.reset_world(0, _seed(self.np_random), starts)
+            self._batch.reset([0], [_seed(self.np_random)], starts)
         else:
             if self._remote is not None:
                 self._remote.close()
@@ -88,20 +155,27 @@ class UsarsimEnv(gym.Env):
         raw = self._observe()
         self._tasks.begin(raw, [0])
         self._trail = [raw["position"][0, :2].copy()]
-        return {k: v[0] for k, v in self._tasks.observe(raw).items()}, {"lockstep": self._remote.lockstep if self._remote else True}
+        self._ended = False
+        return self._tasks.row(self._tasks.observe(raw), 0), {"lockstep": self._remote.lockstep if self._remote else True}
 
     def step(self, action):
+        if self._closed:
+            raise ClosedEnvironmentError("step: the environment is closed")
         if self._raw is None:
-            raise ValueError("step: call reset() first")
+            raise ResetNeeded("step: call reset() first")
+        if self._ended:
+            raise ResetNeeded("step: the episode has ended (terminated or truncated): call reset()")
         a = _actions(action, 1)
         if self._remote is not None:
             self._remote.step(list(a[0]))
         else:
             self._batch.step(a)
+        self._replay["actions"].append(a[0].copy())
         raw = self._observe()
         self._trail.append(raw["position"][0, :2].copy())
         reward, term, trunc, info = self._tasks.reward(raw)
-        obs = {k: v[0] for k, v in self._tasks.observe(raw).items()}
+        self._ended = bool(term[0] or trunc[0])
+        obs = self._tasks.row(self._tasks.observe(raw), 0)
         return obs, float(reward[0]), bool(term[0]), bool(trunc[0]), {k: v[0] for k, v in info.items()}
 
     def render(self):
@@ -110,13 +184,15 @@ class UsarsimEnv(gym.Env):
         if self._view is None:
             self._view = TopView(self.map)
         raw = self._raw
-        return self._view.draw(raw["position"], raw["attitude"][:, 2], raw["laser"], [self._trail],
-                               self._tasks.targets[:, self._tasks.index[0]:])
+        t = self._tasks
+        return self._view.draw(raw["position"], raw["attitude"][:, 2], raw.get("laser"), [self._trail],
+                               [t.targets[0, t.index[0]:t.count[0]]])
 
     def close(self):
         if self._remote is not None:
             self._remote.close()
             self._remote = None
+        self._closed = True
 
 
 def _first(map_name: str) -> np.ndarray:
@@ -129,11 +205,35 @@ def _first(map_name: str) -> np.ndarray:
     return np.array([[0.0, 0.0, -1.0, 0.0]])
 
 
-class UsarsimVectorEnv(VectorEnv):
+def _autoreset_mode(mode) -> AutoresetMode:
+    if isinstance(mode, AutoresetMode):
+        if mode in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            return mode
+    else:
+        for m in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            if mode in (m.value, m.name):
+                return m
+    raise ValueError(f"autoreset_mode: expected AutoresetMode.NEXT_STEP or SAME_STEP, got {mode!r}")
+
+
+def _with_masks(info: dict, mask: np.ndarray) -> dict:
+    """Gymnasium's vector info: each key with a boolean `_key` mask of the rows that have it."""
+    out = {}
+    for k, v in info.items():
+        out[k] = v
+        out[f"_{k}"] = mask.copy()
+    return out
+
+
+class UsarsimVectorEnv(Replay, VectorEnv):
     """`num_envs` independent worlds with one UAV each, stepped by Rust in one call.
 
-    Same options as :class:`UsarsimEnv` (no ``server``). Autoreset: next step (Gymnasium's
-    default): the step after an episode ends resets that sub-environment and ignores its action.
+    Same options as :class:`UsarsimEnv` (no ``server``), plus ``autoreset_mode``:
+    ``AutoresetMode.NEXT_STEP`` (default, Gymnasium's): the step after an episode ends resets
+    that sub-environment, ignores its action and returns its first observation with reward
+    0; ``AutoresetMode.SAME_STEP``: the step that ends an episode resets it and returns the
+    first observation of the next one, the last one in ``info["final_obs"]`` and its info in
+    ``info["final_info"]``. Resets run in Rust, in the same parallel pass as the step.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -141,56 +241,101 @@ class UsarsimVectorEnv(VectorEnv):
     def __init__(self, num_envs: int, task: str = "waypoints", *, map: str = "empty_room",
                  robot: str = "stsAirRobot", start=None, waypoints=None, n_waypoints: int = 3,
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
-                 max_steps: int | None = None) -> None:
-        if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
+                 max_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP,
+                 state_only: bool = False, flat: bool = False, action_mode: str = "velocity") -> None:
+        if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
+        self._recipe = dict(num_envs=num_envs, task=task, map=map, robot=robot, start=start,
+                            waypoints=waypoints, n_waypoints=n_waypoints, waypoint_radius=waypoint_radius,
+                            period=period, noise=noise, max_steps=max_steps, autoreset_mode=autoreset_mode,
+                            state_only=state_only, flat=flat, action_mode=action_mode)
+        self.metadata = {**type(self).metadata, "autoreset_mode": _autoreset_mode(autoreset_mode)}
         self.num_envs = int(num_envs)
-        self.single_observation_space = observation_space()
+        self.single_observation_space = observation_space(state_only, flat)
         self.single_action_space = action_space()
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         first = _first(map)
         self._batch = _core.Batch(map, _robot(robot), [0] * self.num_envs, np.repeat(first, self.num_envs, 0),
-                                  1, period, noise)
+                                  1, period, noise, bool(state_only), action_mode)
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, self.num_envs, self.map, start=start, waypoints=waypoints,
-                            n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, max_steps=max_steps)
+                            n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, max_steps=max_steps,
+                            state_only=state_only, flat=flat)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._replay = None
 
     def reset(self, *, seed=None, options=None):
+        if self.closed:
+            raise ClosedEnvironmentError("reset: the environment is closed")
         super().reset(seed=seed)
         if seed is not None:
-            self._rngs = [np.random.default_rng([int(seed), i]) for i in range(self.num_envs)]
-        elif not hasattr(self, "_rngs"):
-            self._rngs = [np.random.default_rng(_seed(self.np_random) + i) for i in range(self.num_envs)]
-        for i in range(self.num_envs):
-            self._reset_one(i, options)
+            rngs = [np.random.default_rng([int(seed), i]) for i in range(self.num_envs)]
+        elif self._replay is None:
+            rngs = [np.random.default_rng(_seed(self.np_random) + i) for i in range(self.num_envs)]
+        else:
+            rngs = self._rngs
+        return self._restore([r.bit_generator.state for r in rngs], options)
+
+    def _restore(self, rng_states, options):
+        self._rngs = [_rng(s) for s in rng_states]
+        self._replay = {"rng": rng_states, "options": options, "actions": []}
+        rows = np.arange(self.num_envs)
+        self._batch.reset(rows.tolist(), *self._new_worlds(rows, options))
         self._autoreset[:] = False
         raw = self._batch.observe()
-        self._tasks.begin(raw, range(self.num_envs))
+        self._tasks.begin(raw, rows)
         return self._tasks.observe(raw), {}
 
-    def _reset_one(self, i, options=None):
-        rng = self._rngs[i]
-        starts = self._tasks.new_starts(rng, [i], False, options)
-        self._batch.reset_world(i, _seed(rng), starts)
+    def _new_worlds(self, rows, options=None):
+        """Seeds and starts of fresh worlds for `rows` (and their new tasks)."""
+        seeds, starts = [], []
+        for i in rows:
+            rng = self._rngs[i]
+            starts.append(self._tasks.new_starts(rng, [i], False, options))
+            seeds.append(_seed(rng))
+        return seeds, np.concatenate(starts) if starts else np.zeros((0, 4))
 
     def step(self, actions):
+        if self.closed:
+            raise ClosedEnvironmentError("step: the environment is closed")
+        if self._replay is None:
+            raise ResetNeeded("step: call reset() first")
         a = _actions(actions, self.num_envs)
+        self._replay["actions"].append(a.copy())
+        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
+            return self._step_same(a)
         done = np.flatnonzero(self._autoreset)
-        a[done] = 0.0
-        self._batch.step(a)
-        for i in done:
-            self._reset_one(int(i))
+        reset = (done.tolist(), *self._new_worlds(done)) if len(done) else None
+        self._batch.step(a, reset)
         raw = self._batch.observe()
-        reward, term, trunc, info = self._tasks.reward(raw)
+        live = ~self._autoreset
         if len(done):
             self._tasks.begin(raw, done)
-            reward[done] = 0.0
-            term[done] = False
-            trunc[done] = False
+        reward, term, trunc, info = self._tasks.reward(raw, live)
         self._autoreset = term | trunc
-        return self._tasks.observe(raw), reward, term, trunc, info
+        return self._tasks.observe(raw), reward, term, trunc, _with_masks(info, live)
+
+    def _step_same(self, a):
+        self._batch.step(a)
+        raw = self._batch.observe()
+        reward, term, trunc, info = self._tasks.reward(raw)
+        obs = self._tasks.observe(raw)
+        infos = _with_masks(info, np.ones(self.num_envs, dtype=bool))
+        ended = np.flatnonzero(term | trunc)
+        if len(ended):
+            mask = term | trunc
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for i in ended:
+                final_obs[i] = self._tasks.row(obs, i)
+            infos["final_obs"], infos["_final_obs"] = final_obs, mask
+            infos["final_info"] = _with_masks({k: np.where(mask, v, np.zeros_like(v)) for k, v in info.items()}, mask)
+            infos["_final_info"] = mask.copy()
+            self._batch.reset(ended.tolist(), *self._new_worlds(ended))
+            raw = self._batch.observe()
+            self._tasks.begin(raw, ended)
+            obs = self._tasks.observe(raw)
+        return obs, reward, term, trunc, infos
 
 
 def _register() -> None:

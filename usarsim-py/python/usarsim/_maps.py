@@ -19,6 +19,8 @@ class MapInfo:
             pts = np.vstack([pts, [x, y]])
         self.lo = pts.min(axis=0)
         self.hi = pts.max(axis=0)
+        #: The bottom of the lowest solid (z down): below it is outside the map.
+        self.z_bottom = max((zmax for _, _, zmax in self.shapes), default=np.inf)
         # Solids that reach into the flight band (walls, buildings; not floor or ceiling).
         self.obstacles = [
             (o, o.min(axis=0), o.max(axis=0))
@@ -33,6 +35,17 @@ class MapInfo:
                 return np.array([x, y, z, yaw])
         names = ", ".join(s[0] for s in self.starts) or "none"
         raise ValueError(f"start: no PlayerStart {key!r} in this map (known: {names})")
+
+    def check_inside(self, p, what: str) -> None:
+        """ValueError naming `what` unless (x, y, z) is within the map's extent and above its
+        lowest solid."""
+        x, y, z = (float(v) for v in p[:3])
+        if not (self.lo[0] <= x <= self.hi[0] and self.lo[1] <= y <= self.hi[1]):
+            raise ValueError(f"{what}: ({x:g}, {y:g}, {z:g}) is outside the map (x in {self.lo[0]:g}..{self.hi[0]:g}, "
+                             f"y in {self.lo[1]:g}..{self.hi[1]:g})")
+        if z >= self.z_bottom:
+            raise ValueError(f"{what}: ({x:g}, {y:g}, {z:g}) is below the floor (z is down; the map's lowest solid "
+                             f"ends at z = {self.z_bottom:g})")
 
     def is_free(self, p, clearance: float) -> bool:
         """Whether (x, y) is at least `clearance` from the bounding box of every obstacle."""

@@ -7,7 +7,9 @@ import functools
 import numpy as np
 
 from . import _core
-from ._env import _actions, _first, _robot, _seed
+from gymnasium.error import ClosedEnvironmentError, ResetNeeded
+
+from ._env import Replay, _actions, _first, _render_mode, _rng, _robot, _seed
 from ._maps import MapInfo
 from ._render import TopView
 from ._task import Tasks, action_space, observation_space
@@ -18,7 +20,7 @@ except ImportError:  # pragma: no cover - pettingzoo is an optional extra
     ParallelEnv = object
 
 
-class MultiUavEnv(ParallelEnv):
+class MultiUavEnv(Replay, ParallelEnv):
     """N stsAirRobots in one world, agents ``uav_0`` ... ``uav_{n-1}``.
 
     Each agent has its own task (its waypoints, or its pose to hold); starts are seeded
@@ -31,45 +33,65 @@ class MultiUavEnv(ParallelEnv):
     def __init__(self, n: int = 2, task: str = "waypoints", *, map: str = "empty_room",
                  robot: str = "stsAirRobot", starts=None, n_waypoints: int = 3,
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
-                 max_steps: int | None = None, render_mode: str | None = None) -> None:
+                 max_steps: int | None = None, render_mode: str | None = None, state_only: bool = False,
+                 flat: bool = False, action_mode: str = "velocity") -> None:
         if ParallelEnv is object:
             raise ImportError("usarsim.multi_uav needs pettingzoo: pip install pettingzoo")
-        if not (isinstance(n, (int, np.integer)) and n >= 1):
+        if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1):
             raise ValueError(f"n: expected an integer >= 1, got {n!r}")
+        self._recipe = dict(n=n, task=task, map=map, robot=robot, starts=starts, n_waypoints=n_waypoints,
+                            waypoint_radius=waypoint_radius, period=period, noise=noise, max_steps=max_steps,
+                            render_mode=render_mode, state_only=state_only, flat=flat, action_mode=action_mode)
         self.n = int(n)
-        self.render_mode = render_mode
+        self.render_mode = _render_mode(render_mode)
         self.possible_agents = [f"uav_{i}" for i in range(self.n)]
         self.agents = []
         first = _first(map)
-        probe = _core.Batch(map, _robot(robot), [0], first, 1, period, noise)
+        probe = _core.Batch(map, _robot(robot), [0], first, 1, period, noise, bool(state_only), action_mode)
         self.map = MapInfo(probe)
-        self._args = (map, _robot(robot), period, noise)
+        self._args = (map, _robot(robot), period, noise, bool(state_only), action_mode)
+        self._space = observation_space(state_only, flat)
         self._starts = None if starts is None else np.asarray(starts, dtype=np.float64)
         if self._starts is not None and self._starts.shape != (self.n, 4):
             raise ValueError(f"starts: expected shape ({self.n}, 4), got {self._starts.shape}")
+        if self._starts is not None:
+            for i, p in enumerate(self._starts):
+                if not np.all(np.isfinite(p)):
+                    raise ValueError(f"starts[{i}]: not finite: {p.tolist()}")
+                self.map.check_inside(p[:3], f"starts[{i}]")
         self._tasks = Tasks(task, self.n, self.map, start="random", n_waypoints=n_waypoints,
-                            waypoint_radius=waypoint_radius, max_steps=max_steps)
+                            waypoint_radius=waypoint_radius, max_steps=max_steps, state_only=state_only, flat=flat)
         self._batch = None
         self._rng = np.random.default_rng()
         self._view = None
+        self._closed = False
+        self._replay = None
 
     @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
-        return observation_space()
+        return self._space
 
     @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
         return action_space()
 
     def _split(self, arrays):
-        return {a: {k: v[i] for k, v in arrays.items()} for i, a in enumerate(self.possible_agents) if a in self.agents}
+        return {a: self._tasks.row(arrays, i) for i, a in enumerate(self.possible_agents) if a in self.agents}
 
     def reset(self, seed=None, options=None):
+        if self._closed:
+            raise ClosedEnvironmentError("reset: the environment is closed")
         if seed is not None:
             self._rng = np.random.default_rng(seed)
+        return self._restore(self._rng.bit_generator.state, options)
+
+    def _restore(self, rng_state, options):
+        self._rng = _rng(rng_state)
+        self._replay = {"rng": rng_state, "options": options, "actions": []}
         starts = self._tasks.new_starts(self._rng, range(self.n), True, options, poses=self._starts)
-        map_, robot, period, noise = self._args
-        self._batch = _core.Batch(map_, robot, [_seed(self._rng)], starts, self.n, period, noise)
+        map_, robot, period, noise, state_only, action_mode = self._args
+        self._batch = _core.Batch(map_, robot, [_seed(self._rng)], starts, self.n, period, noise, state_only,
+                                  action_mode)
         self.agents = list(self.possible_agents)
         self._raw = self._batch.observe()
         self._tasks.begin(self._raw, range(self.n))
@@ -77,14 +99,19 @@ class MultiUavEnv(ParallelEnv):
         return self._split(self._tasks.observe(self._raw)), {a: {} for a in self.agents}
 
     def step(self, actions):
+        if self._closed:
+            raise ClosedEnvironmentError("step: the environment is closed")
         if self._batch is None:
-            raise ValueError("step: call reset() first")
+            raise ResetNeeded("step: call reset() first")
+        if not self.agents:
+            raise ResetNeeded("step: every agent's episode has ended: call reset()")
         a = np.zeros((self.n, 4))
         for agent, act in actions.items():
             if agent not in self.agents:
                 raise ValueError(f"actions: {agent!r} is not a live agent (live: {self.agents})")
             a[self.possible_agents.index(agent)] = _actions(act, 1)[0]
         self._batch.step(a)
+        self._replay["actions"].append({k: np.array(v, copy=True) for k, v in actions.items()})
         raw = self._raw = self._batch.observe()
         for t, p in zip(self._trails, raw["position"]):
             t.append(p[:2].copy())
@@ -107,7 +134,10 @@ class MultiUavEnv(ParallelEnv):
         if self._view is None:
             self._view = TopView(self.map)
         raw = self._raw
-        return self._view.draw(raw["position"], raw["attitude"][:, 2], raw["laser"], self._trails, None)
+        t = self._tasks
+        targets = [t.targets[i, t.index[i]:t.count[i]] for i in range(self.n)]
+        return self._view.draw(raw["position"], raw["attitude"][:, 2], raw.get("laser"), self._trails, targets)
 
     def close(self):
         self._batch = None
+        self._closed = True

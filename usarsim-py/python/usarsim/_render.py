@@ -41,10 +41,12 @@ class TopView:
 
     def __init__(self, map_info: MapInfo, size: int = 400) -> None:
         self.map = map_info
-        span = max(*(map_info.hi - map_info.lo), 1.0)
-        self.scale = (size - 1) / span
-        self.size = size
-        self.background = np.full((size, size, 3), 255, np.uint8)
+        span = np.maximum(map_info.hi - map_info.lo, 1.0)
+        # The longer side of the map is `size` pixels; the picture has the map's proportions.
+        self.scale = (size - 1) / span.max()
+        height, width = (int(s * self.scale + 1e-6) + 1 for s in span)
+        self.size = (height, width)
+        self.background = np.full((height, width, 3), 255, np.uint8)
         for poly, _, _ in map_info.obstacles:
             _fill_convex(self.background, None, None, self.px(poly), (90, 90, 90))
 
@@ -56,7 +58,7 @@ class TopView:
         return np.column_stack([col, row])
 
     def draw(self, positions, yaws, lasers, trails, targets) -> np.ndarray:
-        """One RGB frame (size, size, 3) uint8."""
+        """One RGB frame (height, width, 3) uint8; the longer side is `size` pixels."""
         img = self.background.copy()
         fov, res = 4.189, 0.0184086914
         for i, (p, yaw) in enumerate(zip(positions, yaws)):

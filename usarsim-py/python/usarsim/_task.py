@@ -20,6 +20,7 @@ FIELDS = {
     "laser": LASER_BEAMS,
     "battery": 1,
     "waypoint": 3,
+    "yaw_error": 1,
 }
 
 #: (low, high, width) of each observation; readings are clipped to them.
@@ -32,63 +33,102 @@ BOUNDS = {
     "laser": (0.0, 4.0, LASER_BEAMS),
     "battery": (0.0, 1.0, 1),
     "waypoint": (-2e4, 2e4, 3),
+    "yaw_error": (-np.pi, np.pi, 1),
 }
 
 #: Reward for each waypoint reached.
 WAYPOINT_BONUS = 10.0
-#: Reward per control period in which the body was stopped by a wall, floor or UAV.
+#: Reward per control period in which the body touched a wall, the floor or another UAV.
 TOUCH_PENALTY = 1.0
 CRASH_PENALTY = 100.0
 
 
-def observation_space() -> spaces.Dict:
-    """The observation space of one UAV."""
+def fields(state_only: bool = False) -> list:
+    """The observation keys, in order (without ``sonar`` and ``laser`` when state-only)."""
+    return [k for k in FIELDS if not (state_only and k in ("sonar", "laser"))]
 
-    def box(n, lo=-INF, hi=INF):
-        return spaces.Box(lo, hi, (n,), np.float32)
 
-    return spaces.Dict({k: box(BOUNDS[k][2], BOUNDS[k][0], BOUNDS[k][1]) for k in FIELDS})
+def observation_space(state_only: bool = False, flat: bool = False) -> spaces.Space:
+    """The observation space of one UAV: a Dict of float32 Boxes, or with ``flat`` one
+    float32 Box of the same values concatenated in key order (docs/python.md)."""
+    keys = fields(state_only)
+    if flat:
+        lo = np.concatenate([np.full(BOUNDS[k][2], BOUNDS[k][0]) for k in keys]).astype(np.float32)
+        hi = np.concatenate([np.full(BOUNDS[k][2], BOUNDS[k][1]) for k in keys]).astype(np.float32)
+        return spaces.Box(lo, hi, dtype=np.float32)
+    return spaces.Dict({k: spaces.Box(np.float32(BOUNDS[k][0]), np.float32(BOUNDS[k][1]), (BOUNDS[k][2],), np.float32)
+                        for k in keys})
 
 
 def action_space() -> spaces.Box:
-    """The action space of one UAV: forward, right, up, yaw rate, each in -1..1."""
+    """The action space of one UAV: four values in -1..1, read as the action mode says
+    (velocity: forward, right, up, yaw rate; attitude: roll, pitch, yaw rate, thrust;
+    rotors: the four rotor speeds; docs/python.md)."""
     return spaces.Box(-1.0, 1.0, (4,), np.float32)
 
 
 def _pose(value, map_info: MapInfo, what: str) -> np.ndarray:
     if isinstance(value, str):
         return map_info.start(value)
-    a = np.asarray(value, dtype=np.float64).ravel()
+    try:
+        a = np.asarray(value, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        a = np.zeros(0)
     if a.shape not in ((3,), (4,)) or not np.all(np.isfinite(a)):
         raise ValueError(f"{what}: expected a PlayerStart tag or finite (x, y, z[, yaw]), got {value!r}")
+    map_info.check_inside(a[:3], what)
     return np.append(a, 0.0) if a.size == 3 else a
+
+
+def _waypoints(value, map_info: MapInfo, what: str) -> np.ndarray:
+    """Waypoints as a finite (k, 3) array, k >= 1, inside the map; ValueError naming `what`."""
+    try:
+        w = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        w = np.zeros((0, 0))
+    if w.ndim == 1 and w.shape == (3,):
+        w = w[None]
+    if w.ndim != 2 or w.shape[1] != 3 or len(w) == 0 or not np.all(np.isfinite(w)):
+        raise ValueError(f"{what}: expected finite waypoints of shape (k, 3), k >= 1, got shape {np.shape(value)}")
+    for i, p in enumerate(w):
+        map_info.check_inside(p, f"{what}[{i}]")
+    return w
 
 
 class Tasks:
     """Task state for `n` UAVs: targets, progress, step counts."""
 
     def __init__(self, task: str, n: int, map_info: MapInfo, *, start=None, waypoints=None,
-                 n_waypoints: int = 3, waypoint_radius: float = 0.5, max_steps=None) -> None:
+                 n_waypoints: int = 3, waypoint_radius: float = 0.5, max_steps=None,
+                 state_only: bool = False, flat: bool = False) -> None:
+        self.keys, self.flat = fields(bool(state_only)), bool(flat)
         if task not in ("waypoints", "hover"):
             raise ValueError(f"task: expected 'waypoints' or 'hover', got {task!r}")
         self.task, self.n, self.map = task, n, map_info
-        self.start, self.waypoints = start, waypoints
-        if not (isinstance(n_waypoints, (int, np.integer)) and n_waypoints >= 1):
+        self.start = start
+        if not (isinstance(n_waypoints, (int, np.integer)) and not isinstance(n_waypoints, bool) and n_waypoints >= 1):
             raise ValueError(f"n_waypoints: expected an integer >= 1, got {n_waypoints!r}")
         self.n_waypoints = int(n_waypoints)
-        self.radius = float(waypoint_radius)
-        self.max_steps = int(max_steps if max_steps is not None else (600 if task == "waypoints" else 200))
-        if self.max_steps < 1:
-            raise ValueError(f"max_steps: expected >= 1, got {max_steps!r}")
-        if waypoints is not None:
-            w = np.asarray(waypoints, dtype=np.float64)
-            if w.ndim != 2 or w.shape[1] != 3 or len(w) == 0 or not np.all(np.isfinite(w)):
-                raise ValueError(f"waypoints: expected finite shape (k, 3), got {np.shape(waypoints)}")
-            self.n_waypoints = len(w)
+        try:
+            self.radius = float(waypoint_radius)
+        except (TypeError, ValueError):
+            self.radius = float("nan")
+        if not (np.isfinite(self.radius) and self.radius > 0):
+            raise ValueError(f"waypoint_radius: expected a finite number of metres > 0, got {waypoint_radius!r}")
+        if max_steps is None:
+            max_steps = 600 if task == "waypoints" else 200
+        if not (isinstance(max_steps, (int, np.integer)) and not isinstance(max_steps, bool) and max_steps >= 1):
+            raise ValueError(f"max_steps: expected an integer >= 1, got {max_steps!r}")
+        self.max_steps = int(max_steps)
+        self.waypoints = None if waypoints is None else _waypoints(waypoints, map_info, "waypoints")
+        if self.waypoints is not None:
+            self.n_waypoints = len(self.waypoints)
         if start is not None and not (isinstance(start, str) and start == "random"):
             _pose(start, map_info, "start")  # checked now, not at the first reset
         w = self.n_waypoints if task == "waypoints" else 1
         self.targets = np.zeros((n, w, 3))
+        #: Waypoints of each row (a reset may give a row another count).
+        self.count = np.full(n, w, dtype=np.int64)
         self.hold_yaw = np.zeros(n)
         self.index = np.zeros(n, dtype=np.int64)
         self.steps = np.zeros(n, dtype=np.int64)
@@ -107,7 +147,14 @@ class Tasks:
         `poses` (one (x, y, z, yaw) per row) overrides the start option."""
         options = options or {}
         start = options.get("start", self.start)
-        waypoints = options.get("waypoints", self.waypoints)
+        if "start" in options and start is not None and not (isinstance(start, str) and start == "random"):
+            _pose(start, self.map, "options['start']")
+        waypoints = self.waypoints
+        if options.get("waypoints") is not None:
+            waypoints = _waypoints(options["waypoints"], self.map, "options['waypoints']")
+        if waypoints is not None and self.task == "waypoints" and len(waypoints) > self.targets.shape[1]:
+            pad = np.zeros((self.n, len(waypoints) - self.targets.shape[1], 3))
+            self.targets = np.concatenate([self.targets, pad], axis=1)
         rows = list(rows)
         if poses is not None:
             base = np.asarray(poses, dtype=np.float64)
@@ -131,14 +178,16 @@ class Tasks:
                 if self.map.is_free(cand, 0.8) and cand[2] < -0.5:
                     spawns[k, :3] = cand
             elif waypoints is not None:
-                self.targets[r] = np.asarray(waypoints, dtype=np.float64)
+                self.targets[r, :len(waypoints)] = waypoints
+                self.count[r] = len(waypoints)
             else:
-                self.targets[r] = self.map.sample(rng, self.n_waypoints, spacing=1.5,
-                                                  near=base[k], radius=5.0)
+                self.targets[r, :self.n_waypoints] = self.map.sample(rng, self.n_waypoints, spacing=1.5,
+                                                                     near=base[k], radius=5.0)
+                self.count[r] = self.n_waypoints
         return spawns
 
     def _vector(self, raw) -> np.ndarray:
-        tgt = self.targets[np.arange(self.n), np.minimum(self.index, self.targets.shape[1] - 1)]
+        tgt = self.targets[np.arange(self.n), np.minimum(self.index, self.count - 1)]
         return tgt - raw["position"]
 
     def begin(self, raw, rows) -> None:
@@ -148,14 +197,25 @@ class Tasks:
 
     def observe(self, raw) -> dict:
         """The observation dict (float32 arrays, one row per UAV)."""
-        values = {k: raw[k] for k in FIELDS if k != "waypoint"}
+        values = {k: raw[k] for k in self.keys if k not in ("waypoint", "yaw_error")}
         values["attitude"] = (raw["attitude"] + np.pi) % (2 * np.pi) - np.pi
         values["waypoint"] = self._vector(raw)
-        return {k: np.clip(v, BOUNDS[k][0], BOUNDS[k][1]).astype(np.float32) for k, v in values.items()}
+        # Hover: the yaw to hold minus the yaw (wrapped); Waypoints: 0.
+        yaw_error = (self.hold_yaw - raw["attitude"][:, 2] + np.pi) % (2 * np.pi) - np.pi
+        values["yaw_error"] = (yaw_error if self.task == "hover" else np.zeros(self.n))[:, None]
+        out = {k: np.clip(values[k], BOUNDS[k][0], BOUNDS[k][1]).astype(np.float32) for k in self.keys}
+        return np.concatenate(list(out.values()), axis=1) if self.flat else out
 
-    def reward(self, raw):
-        """Rewards, terminated and truncated flags and info arrays after one step."""
-        self.steps += 1
+    def row(self, obs, i: int):
+        """Row `i` of an observation from :meth:`observe`."""
+        return obs[i] if self.flat else {k: v[i] for k, v in obs.items()}
+
+    def reward(self, raw, live=None):
+        """Rewards, terminated and truncated flags and info arrays after one step. Rows not in
+        the boolean mask `live` (sub-environments reset in this step) get reward 0, no end and
+        no progress."""
+        live = np.ones(self.n, dtype=bool) if live is None else np.asarray(live, dtype=bool)
+        self.steps += live
         touched = np.asarray(raw["touched"], dtype=bool)
         crashed = np.asarray(raw["crashed"], dtype=bool)
         dist = np.linalg.norm(self._vector(raw), axis=1)
@@ -166,15 +226,16 @@ class Tasks:
             reached = np.zeros(self.n, dtype=bool)
         else:
             reward = self.prev - dist - TOUCH_PENALTY * touched
-            reached = dist < self.radius
+            reached = (dist < self.radius) & live
             reward = reward + WAYPOINT_BONUS * reached
             self.index = self.index + reached
-            terminated = self.index >= self.targets.shape[1]
+            terminated = self.index >= self.count
             dist = np.linalg.norm(self._vector(raw), axis=1)
-        self.prev = dist
+        self.prev = np.where(live, dist, self.prev)
         # A crash (robots with physics: docs/quadrotor.md) ends the episode with a penalty.
         reward = reward - CRASH_PENALTY * crashed
-        terminated = terminated | crashed
-        truncated = ~terminated & ((self.steps >= self.max_steps) | (raw["battery"][:, 0] <= 0.0))
-        return reward, terminated, truncated, {"touched": touched, "crashed": crashed, "reached": reached,
-                                               "waypoints_reached": self.index.copy()}
+        terminated = (terminated | crashed) & live
+        truncated = live & ~terminated & ((self.steps >= self.max_steps) | (raw["battery"][:, 0] <= 0.0))
+        reward = np.where(live, reward, 0.0)
+        return reward, terminated, truncated, {"touched": touched & live, "crashed": crashed & live,
+                                               "reached": reached, "waypoints_reached": self.index.copy()}
