@@ -34,7 +34,7 @@ use tokio_util::sync::CancellationToken;
 use usar_server::{LocalServer, ServerConfig};
 
 pub use guard::check_host;
-pub use socket::{MAX_MESSAGE, REQUESTS_PER_UPDATE};
+pub use socket::{MAX_MESSAGE, MAX_PAGES, REQUESTS_PER_UPDATE};
 
 use crate::hub::{Hub, Shared};
 
@@ -123,6 +123,8 @@ struct Local {
 /// the per-address cap meant for strangers on a shared server does not apply (50 UAVs from
 /// one page are 50 connections from 127.0.0.1).
 fn local_config(mut config: ServerConfig) -> ServerConfig {
+    // A UAV may hold two connections for a moment between iterations.
+    config.max_connections = config.max_connections.max(2 * hub::request::MAX_UAVS);
     config.max_connections_per_address = config.max_connections;
     config
 }
@@ -138,6 +140,8 @@ pub(crate) struct App {
     port: u16,
     loopback_only: bool,
     robots: Vec<String>,
+    /// WebSocket pages open.
+    pages: Arc<std::sync::atomic::AtomicUsize>,
 }
 
 /// A fresh random token (128 bits, hex).
@@ -231,6 +235,7 @@ pub async fn serve(
         port: addr.port(),
         loopback_only,
         robots,
+        pages: Arc::default(),
     };
     let router = Router::new()
         .route("/", get(index))

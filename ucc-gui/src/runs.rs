@@ -194,11 +194,7 @@ fn observe(shared: &Shared, id: u32, progress: &Progress, local: bool) {
         Progress::Agent {
             event: AgentEvent::MissionStarted { index, .. },
             ..
-        } => {
-            if let Ok(u) = hub.uav(id) {
-                u.active = Some(*index);
-            }
-        }
+        } => hub.mission_started(id, *index),
         Progress::Written { files } => hub.written(id, files),
         _ => {}
     }

@@ -8,7 +8,11 @@
 
 use axum::extract::State;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
-use axum::response::Response;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
 use serde_json::{Value, json};
 use usar_server::LocalServer;
 
@@ -19,11 +23,34 @@ use crate::{App, UPDATE_PERIOD, runs};
 pub const MAX_MESSAGE: usize = 64 * 1024;
 /// Requests a page may send per update period; the rest wait for the next one.
 pub const REQUESTS_PER_UPDATE: u32 = 200;
+/// Pages served at once; more WebSockets are refused (503) until one closes.
+pub const MAX_PAGES: usize = 32;
+
+/// Counts an open page; the count goes down when it is dropped.
+struct PageSlot(Arc<AtomicUsize>);
+
+impl Drop for PageSlot {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
+}
 
 pub(crate) async fn websocket(State(app): State<App>, ws: WebSocketUpgrade) -> Response {
+    if app.pages.fetch_add(1, Ordering::SeqCst) >= MAX_PAGES {
+        app.pages.fetch_sub(1, Ordering::SeqCst);
+        return (
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!("at most {MAX_PAGES} pages at once: close one"),
+        )
+            .into_response();
+    }
+    let slot = PageSlot(app.pages.clone());
     ws.max_message_size(MAX_MESSAGE)
         .max_frame_size(MAX_MESSAGE)
-        .on_upgrade(move |socket| page(app, socket))
+        .on_upgrade(move |socket| async move {
+            let _slot = slot;
+            page(app, socket).await;
+        })
 }
 
 /// One page's session: the hello, then requests in and updates out.

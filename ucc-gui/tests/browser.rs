@@ -856,3 +856,105 @@ async fn fifty_uavs_fly_from_the_page() -> Result<()> {
     })
     .await
 }
+
+/// The page with 1000 UAVs: frame time and memory of the page itself, fed the hub's update
+/// format at 20 Hz (every UAV moving, trails growing) for 10 s. A benchmark: runs only with
+/// `UCC_GUI_BENCH=1` and prints its figures (BENCHMARKS.md). Writes the screenshots of the
+/// docs (docs/img/) when `UCC_GUI_SCREENSHOTS=1`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bench_page_with_1000_uavs() -> Result<()> {
+    if std::env::var("UCC_GUI_BENCH").as_deref() != Ok("1") {
+        eprintln!("1000-UAV page benchmark skipped: set UCC_GUI_BENCH=1 to run it");
+        return Ok(());
+    }
+    with_page(local(TimeScale::Max), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        let figures = c
+            .execute_async(
+                "const done = arguments[arguments.length - 1]; const U = window.ucc; const N = 1000;
+                 const server = {addr: '127.0.0.1:3000', local: true, time_scale: '1', paused: false, map: 'EmptyRoom'};
+                 const first = []; for (let i = 0; i < N; i++) first.push({id: i + 1, info: {name: 'U' + (i + 1), robot: 'stsAirRobot', agent: 'base', start: '0,0,-1', status: 'running', error: null, iteration: 1, iterations: 10000, active: 0, prefix: 'U', pictures: 'none', autosave: false, missions: [{kind: 'GotoXyz', x: 5, y: 0, z: -2, text: 'GotoXyz 5,0,-2'}]}, trail_reset: true, history_reset: true, past_reset: true});
+                 U.receive({type: 'state', server, uavs: first, removed: [], log: []});
+                 U.select(1);
+                 let k = 0; const t0 = performance.now(); const mem0 = performance.memory ? performance.memory.usedJSHeapSize : 0;
+                 const timer = setInterval(() => {
+                   k++; const uavs = [];
+                   for (let i = 0; i < N; i++) {
+                     const a = k * 0.02 + i, r = 2 + (i % 7), x = -9 + (i % 40) * 0.45 + Math.cos(a) * 0.3, y = -9 + Math.floor(i / 40) * 0.7 + Math.sin(a) * 0.3;
+                     const p = [x, y, -1 - (i % 3) * 0.5];
+                     uavs.push({id: i + 1, live: {time: k * 0.05, position: p, attitude: [0.05, -0.05, a], velocity: [0.3, 0.3, 0], battery: {level: 0.9, remaining: 900}},
+                                trail: [p], history: [[k * 0.05, -p[2], 0.42, 0.9]]});
+                   }
+                   U.receive({type: 'state', server, uavs, removed: [], log: []});
+                 }, 50);
+                 window.uccFrameTimes = []; const gaps = []; let last = performance.now();
+                 function f(t) { gaps.push(t - last); last = t; if (t - t0 < 10000) requestAnimationFrame(f); else {
+                   clearInterval(timer);
+                   const q = (a, p) => { const s = [...a].sort((x, y) => x - y); return s[Math.min(s.length - 1, Math.floor(p * s.length))]; };
+                   const d = window.uccFrameTimes;
+                   done({uavs: N, draw_median_ms: q(d, 0.5), draw_p95_ms: q(d, 0.95), frames: d.length,
+                         gap_median_ms: q(gaps, 0.5), gap_p95_ms: q(gaps, 0.95), updates: k,
+                         heap_mb_start: mem0 / 1e6, heap_mb_end: performance.memory ? performance.memory.usedJSHeapSize / 1e6 : null,
+                         trail_points: [...U.uavs.values()].reduce((n, u) => n + u.trail.length, 0)});
+                 } }
+                 requestAnimationFrame(f);",
+                vec![],
+            )
+            .await?;
+        println!("ucc-gui page with 1000 UAVs, 10 s: {figures}");
+        if std::env::var("UCC_GUI_SCREENSHOTS").as_deref() == Ok("1") {
+            let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/img");
+            std::fs::write(dir.join("ucc-gui-1000-uavs.png"), c.screenshot().await?)?;
+        }
+        Ok(())
+    })
+    .await
+}
+
+/// The screenshots of docs/gui.md (docs/img/): three UAVs flying in the arena, the page at
+/// 1400×900 and 1024×700, the 3D view and the plots. Runs only with `UCC_GUI_SCREENSHOTS=1`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn screenshots_for_the_docs() -> Result<()> {
+    if std::env::var("UCC_GUI_SCREENSHOTS").as_deref() != Ok("1") {
+        eprintln!("screenshots skipped: set UCC_GUI_SCREENSHOTS=1 to write docs/img/");
+        return Ok(());
+    }
+    let arena = ServerChoice::Local(Box::new(ServerConfig {
+        map: usar_server::sim::Map::embedded("arena").context("the arena map")?,
+        time_scale: TimeScale::Factor(5.0),
+        lockstep: true,
+        ..ServerConfig::default()
+    }));
+    with_page(arena, (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        js(&c, "
+            const fly = [['Start1', [[-12, 0], [-6, 3], [-2, -4]]], ['Start2', [[12, -6], [6, -7], [3, -2]]], ['Start3', [[10, 7], [4, 7], [0, 5]]]];
+            fly.forEach(([tag, pts], i) => {
+              U.send({op: 'create', robot: 'stsAirRobot', agent: 'avoid', start: tag, name: ''});
+              for (const [x, y] of pts) U.send({op: 'add_mission', uav: i + 1, kind: 'GotoXyz', x: String(x), y: String(y), z: '-1.5'});
+              U.send({op: 'options', uav: i + 1, prefix: 'S' + (i + 1), pictures: 'none', autosave: false});
+              U.send({op: 'start', uav: i + 1, iterations: '3'});
+            });").await?;
+        until("a second iteration", 120, || async {
+            Ok(js(&c, "return [...U.uavs.values()].every(u => u.info.iteration >= 2)").await?.as_bool() == Some(true))
+        })
+        .await?;
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        js(&c, "U.select(1); U.fit(); const v = U.view3d; if (v) { v.orbit.theta = 0.6; v.orbit.phi = 0.75; v.dirty = true; }").await?;
+        tokio::time::sleep(Duration::from_millis(700)).await;
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/img");
+        std::fs::create_dir_all(&dir)?;
+        std::fs::write(dir.join("ucc-gui-1400x900.png"), c.screenshot().await?)?;
+        let view3d = c.find(Locator::Id("view3d-box")).await?;
+        std::fs::write(dir.join("ucc-gui-3d.png"), view3d.screenshot().await?)?;
+        let side = c.find(Locator::Id("side")).await?;
+        std::fs::write(dir.join("ucc-gui-plots.png"), side.screenshot().await?)?;
+        c.set_window_size(1024, 700).await?;
+        tokio::time::sleep(Duration::from_millis(1000)).await;
+        js(&c, "U.fit()").await?;
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        std::fs::write(dir.join("ucc-gui-1024x700.png"), c.screenshot().await?)?;
+        Ok(())
+    })
+    .await
+}

@@ -128,6 +128,9 @@ pub struct Uav {
     pub files_version: u64,
     /// Cancels the run.
     pub cancel: Option<CancellationToken>,
+    /// Bumped whenever what `info` shows changes (name, status, missions, options…): a
+    /// page is sent `info` again only then.
+    pub info_version: u64,
 }
 
 impl Uav {
@@ -166,7 +169,13 @@ impl Uav {
             files_seen: HashSet::new(),
             files_version: 0,
             cancel: None,
+            info_version: 1,
         }
+    }
+
+    /// Marks `info` changed.
+    pub fn touch(&mut self) {
+        self.info_version += 1;
     }
 
     /// Whether its run is under way.
@@ -285,7 +294,10 @@ impl Hub {
     /// A new state sample of a UAV: the live panel, the trail, the plots, the laser's hits.
     pub fn sample(&mut self, uav: u32, iteration: usize, live: Live) {
         let Ok(u) = self.uav(uav) else { return };
-        u.iteration = iteration;
+        if u.iteration != iteration {
+            u.iteration = iteration;
+            u.touch();
+        }
         u.samples += 1;
         if let Some(p) = live.position {
             let point = [p[0] as f32, p[1] as f32, p[2] as f32];
@@ -345,6 +357,14 @@ impl Hub {
         u.trail_epoch += 1;
         u.iteration = iteration;
         u.active = None;
+        u.touch();
+    }
+
+    /// A UAV's agent started its mission `index` (0-based).
+    pub fn mission_started(&mut self, uav: u32, index: usize) {
+        let Ok(u) = self.uav(uav) else { return };
+        u.active = Some(index);
+        u.touch();
     }
 
     /// A run wrote these files (a file written again is listed once).
@@ -365,6 +385,7 @@ impl Hub {
         u.error = error;
         u.cancel = None;
         u.active = None;
+        u.touch();
     }
 
     /// A UAV's log as text, filtered by level (`""` for all).

@@ -19,6 +19,10 @@ pub const MAX_NAME: usize = 64;
 pub const MAX_HOVER: f64 = 86_400.0;
 /// The most iterations one Start may ask for.
 pub const MAX_ITERATIONS: usize = 10_000;
+/// The most UAVs a hub holds (a page cannot grow the server's memory without bound).
+pub const MAX_UAVS: usize = 4_096;
+/// The most missions one UAV holds.
+pub const MAX_MISSIONS: usize = 1_000;
 
 /// A request from the page, as JSON: `{"op": "create", ...}`. Numbers come as the text the
 /// user typed, so that the Rust side says what is wrong with them.
@@ -250,6 +254,11 @@ impl Hub {
         start: &str,
         name: &str,
     ) -> Result<Action, RequestError> {
+        if self.uavs.len() >= MAX_UAVS {
+            return Err(RequestError::State(format!(
+                "at most {MAX_UAVS} UAVs: remove one first"
+            )));
+        }
         let robot = plain("robot class", robot, MAX_NAME)?;
         if robot.is_empty() {
             return Err(field("robot class", "empty"));
@@ -356,12 +365,19 @@ impl Hub {
             }
         };
         let u = self.uav(uav)?;
+        if u.missions.len() >= MAX_MISSIONS {
+            return Err(RequestError::State(format!(
+                "{} has {MAX_MISSIONS} missions, the most a UAV may have",
+                u.name
+            )));
+        }
         let info = agents::info(&u.agent)
             .ok_or_else(|| RequestError::State(format!("unknown agent {:?}", u.agent)))?;
         (info.create)()
             .add_mission(mission.clone())
             .map_err(|e| RequestError::State(e.to_string()))?;
         u.missions.push(mission);
+        u.touch();
         Ok(Action::None)
     }
 
@@ -374,6 +390,7 @@ impl Hub {
             )));
         }
         u.missions.remove(index);
+        u.touch();
         Ok(Action::None)
     }
 
@@ -401,6 +418,7 @@ impl Hub {
         u.prefix = prefix.to_owned();
         u.pictures = pictures;
         u.autosave = autosave;
+        u.touch();
         Ok(Action::None)
     }
 
@@ -442,6 +460,7 @@ impl Hub {
         u.error = None;
         u.iteration = 0;
         u.active = None;
+        u.touch();
         u.past.clear();
         u.past_epoch += 1;
         u.trail.clear();
@@ -457,6 +476,7 @@ impl Hub {
         {
             cancel.cancel();
             u.status = Status::Stopping;
+            u.touch();
         }
         Ok(Action::None)
     }

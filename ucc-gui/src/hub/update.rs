@@ -5,7 +5,6 @@
 //! points. UAVs removed since are listed in `removed`.
 
 use std::collections::HashMap;
-use std::hash::{Hash, Hasher};
 
 use serde_json::{Map, Value, json};
 
@@ -36,13 +35,6 @@ struct UavCursor {
     info: u64,
     samples: u64,
     files: u64,
-}
-
-/// A hash of a JSON value's text (to see whether the page has it already).
-fn digest(v: &Value) -> u64 {
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    v.to_string().hash(&mut h);
-    h.finish()
 }
 
 fn info_json(u: &Uav) -> Value {
@@ -115,11 +107,9 @@ impl Hub {
                 c.past = 0;
                 out.insert("past_reset".into(), true.into());
             }
-            let info = info_json(u);
-            let d = digest(&info);
-            if d != c.info {
-                c.info = d;
-                out.insert("info".into(), info);
+            if u.info_version != c.info {
+                c.info = u.info_version;
+                out.insert("info".into(), info_json(u));
             }
             let selected = cursor.selected == Some(u.id);
             if u.samples != c.samples || (selected && detail_changed) {
