@@ -15,7 +15,7 @@ const store = new Store();
 let selected = null, ws = null, logDirty = false, dirty = true, optionsShown = null;
 const map = new Map2d($("map"), store);
 const sides = { north: new SideView($("side-north"), 0), east: new SideView($("side-east"), 1) };
-let plots = null, view3d = null;
+let plots = null, view3d = null, last3d = -1e9, pending3d = false;
 window.uccFrameTimes = []; // draw time of each frame, ms (the benchmark reads it)
 window.uccUpdates = 0; // state updates received
 
@@ -187,14 +187,17 @@ function drawMap() { map.draw(selected, $("overlay").checked); }
 
 function frame(now) {
   try {
-    if (dirty || (view3d && view3d.dirty)) {
+    if (dirty || pending3d || (view3d && view3d.dirty)) {
+      pending3d = false;
       const t = performance.now();
       drawMap();
       const c = selected !== null ? store.uavs.get(selected) : null;
       sides.north.draw(c, map.geometry, $("overlay").checked);
       sides.east.draw(c, map.geometry, $("overlay").checked);
       if (plots) plots.draw(c);
-      if (view3d) { view3d.draw(selected, $("follow").checked, now); view3d.dirty = false; }
+      // The 3D view at most 15 times a second (software WebGL is slow); the rest, every frame.
+      if (view3d && now - last3d > 66) { view3d.draw(selected, $("follow").checked, now); view3d.dirty = false; last3d = now; }
+      else if (view3d) pending3d = true;
       window.uccFrameTimes.push(performance.now() - t);
       if (window.uccFrameTimes.length > 10000) window.uccFrameTimes.splice(0, 5000);
       dirty = false;
