@@ -17,7 +17,10 @@ pub(crate) async fn state(State(app): State<App>) -> impl IntoResponse {
     )
 }
 
-pub(crate) async fn log_file(State(app): State<App>, Query(q): Query<HashMap<String, String>>) -> Response {
+pub(crate) async fn log_file(
+    State(app): State<App>,
+    Query(q): Query<HashMap<String, String>>,
+) -> Response {
     let uav = match q.get("uav").map(|s| s.as_str()) {
         None | Some("") | Some("all") => None,
         Some(s) => match s.parse() {

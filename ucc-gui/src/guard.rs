@@ -74,4 +74,3 @@ pub fn check_host(host: &str, port: u16, loopback_only: bool) -> Result<(), Stri
         ))
     }
 }
-

@@ -45,11 +45,27 @@ const INDEX_HTML: &str = include_str!("assets/index.html");
 /// (`assets/vendor/README.md`).
 const ASSETS: &[(&str, &str, &str)] = &[
     ("app.js", "text/javascript", include_str!("assets/app.js")),
-    ("logic.js", "text/javascript", include_str!("assets/logic.js")),
-    ("map2d.js", "text/javascript", include_str!("assets/map2d.js")),
+    (
+        "logic.js",
+        "text/javascript",
+        include_str!("assets/logic.js"),
+    ),
+    (
+        "map2d.js",
+        "text/javascript",
+        include_str!("assets/map2d.js"),
+    ),
     ("side.js", "text/javascript", include_str!("assets/side.js")),
-    ("plots.js", "text/javascript", include_str!("assets/plots.js")),
-    ("view3d.js", "text/javascript", include_str!("assets/view3d.js")),
+    (
+        "plots.js",
+        "text/javascript",
+        include_str!("assets/plots.js"),
+    ),
+    (
+        "view3d.js",
+        "text/javascript",
+        include_str!("assets/view3d.js"),
+    ),
     ("style.css", "text/css", include_str!("assets/style.css")),
     (
         "vendor/three.module.min.js",
@@ -283,7 +299,6 @@ async fn index() -> impl IntoResponse {
         INDEX_HTML,
     )
 }
-
 
 /// One of the page's files, or 404.
 async fn asset(Path(name): Path<String>) -> Response {

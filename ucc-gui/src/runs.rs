@@ -111,7 +111,8 @@ pub fn spawn_run(
                     shared: shared.clone(),
                 })
             };
-            let result = runtime.block_on(ucc_client::run(&settings, &agents, &mut observer, &cancel));
+            let result =
+                runtime.block_on(ucc_client::run(&settings, &agents, &mut observer, &cancel));
             let mut hub = shared.lock();
             match result {
                 Ok(summary) => {

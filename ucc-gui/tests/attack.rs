@@ -15,7 +15,8 @@ use ucc_gui::{GuiConfig, ServerChoice};
 /// One attack at a time: each measures rates on a shared, small machine.
 static ONE_AT_A_TIME: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
-type Ws = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+type Ws =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
 async fn start() -> (std::net::SocketAddr, CancellationToken) {
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
@@ -148,7 +149,11 @@ async fn a_flooding_page_does_not_slow_a_healthy_one() {
         let mut sent = 0u64;
         // Sends without reading the replies (the page's own replies back up).
         while tokio::time::Instant::now() < end {
-            let m = if sent % 2 == 0 { bad.clone() } else { garbage.clone() };
+            let m = if sent.is_multiple_of(2) {
+                bad.clone()
+            } else {
+                garbage.clone()
+            };
             if tokio::time::timeout(Duration::from_millis(200), flood.send(m))
                 .await
                 .is_err()
@@ -205,7 +210,11 @@ async fn thousands_of_uavs_and_pages_stay_bounded() {
     let (created, refused) = reader.await.unwrap();
     assert_eq!(created, 4_096, "{refused:?}");
     assert_eq!(refused.len(), 904);
-    assert!(refused[0].starts_with("at most 4096 UAVs"), "{}", refused[0]);
+    assert!(
+        refused[0].starts_with("at most 4096 UAVs"),
+        "{}",
+        refused[0]
+    );
     drop(sink);
 
     // More pages than allowed: the excess is refused, the allowed ones are served.

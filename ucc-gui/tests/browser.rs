@@ -195,12 +195,16 @@ async fn fly_three_iterations_stop_and_refuse_bad_input() -> Result<()> {
     let _one = ONE_BROWSER.lock().await;
     let (url, gui, log_dir) = start_gui(TimeScale::Factor(5.0)).await?;
     let mut session = start_browser(&chromium, &chromedriver).await?;
-    let result = scenario(&session.client, &url).await;
+    let result = futures::FutureExt::catch_unwind(std::panic::AssertUnwindSafe(scenario(
+        &session.client,
+        &url,
+    )))
+    .await;
     let _ = session.client.clone().close().await;
     let _ = session.driver.kill().await;
     gui.cancel();
     let _ = std::fs::remove_dir_all(&log_dir);
-    result
+    result.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
 
 async fn scenario(c: &Client, url: &str) -> Result<()> {
@@ -433,7 +437,10 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
     })
     .await?;
     let stopped_at: usize = text(c, "iteration-counter").await?.parse()?;
-    assert!((1..50).contains(&stopped_at), "stopped at iteration {stopped_at}");
+    assert!(
+        (1..50).contains(&stopped_at),
+        "stopped at iteration {stopped_at}"
+    );
     assert!(text(c, "log").await?.contains("interrupted"));
     Ok(())
 }
@@ -561,7 +568,12 @@ async fn js(c: &Client, script: &str) -> Result<serde_json::Value> {
 
 /// Runs `body` with a browser of this window size and scale and a control center on
 /// `server`; cleans up whatever the result.
-async fn with_page<F, Fut>(server: ServerChoice, size: (u32, u32), scale: f64, body: F) -> Result<()>
+async fn with_page<F, Fut>(
+    server: ServerChoice,
+    size: (u32, u32),
+    scale: f64,
+    body: F,
+) -> Result<()>
 where
     F: FnOnce(Client, String, PathBuf) -> Fut,
     Fut: std::future::Future<Output = Result<()>>,
@@ -572,12 +584,18 @@ where
     let _one = ONE_BROWSER.lock().await;
     let (url, gui, log_dir) = start_gui_on(server).await?;
     let mut session = start_browser_with(&chromium, &chromedriver, size.0, size.1, scale).await?;
-    let result = body(session.client.clone(), url, log_dir.clone()).await;
+    // A failed assertion panics: catch it so that Chromium is closed (not left running).
+    let result = futures::FutureExt::catch_unwind(std::panic::AssertUnwindSafe(body(
+        session.client.clone(),
+        url,
+        log_dir.clone(),
+    )))
+    .await;
     let _ = session.client.clone().close().await;
     let _ = session.driver.kill().await;
     gui.cancel();
     let _ = std::fs::remove_dir_all(&log_dir);
-    result
+    result.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
 
 async fn create_uav(c: &Client, name: &str, start: &str) -> Result<()> {
@@ -801,8 +819,16 @@ async fn the_layout_fits_small_and_large_windows() -> Result<()> {
     let remote = ServerChoice::Remote(server.addr().to_string());
     with_page(remote, (1400, 900), 1.0, |c, url, _| async move {
         open(&c, &url).await?;
-        let shown = js(&c, "return getComputedStyle(document.getElementById('time-scale-row')).display !== 'none'").await?;
-        assert_eq!(shown, json!(false), "the speed of a remote server is not ours to set");
+        let shown = js(
+            &c,
+            "return getComputedStyle(document.getElementById('time-scale-row')).display !== 'none'",
+        )
+        .await?;
+        assert_eq!(
+            shown,
+            json!(false),
+            "the speed of a remote server is not ours to set"
+        );
         Ok(())
     })
     .await?;
@@ -814,34 +840,52 @@ async fn the_layout_fits_small_and_large_windows() -> Result<()> {
 /// horizontal axis, and a 3D view.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn views_are_sharp_with_axes_and_in_3d() -> Result<()> {
-    with_page(local(TimeScale::Max), (1400, 900), 2.0, |c, url, _| async move {
-        open(&c, &url).await?;
-        create_uav(&c, "", "0,0,-1").await?;
-        for (x, y) in [(0.0, 3.0), (0.0, -3.0)] {
-            type_into(&c, "mission-x", &format!("{x}")).await?;
-            type_into(&c, "mission-y", &format!("{y}")).await?;
-            by_id(&c, "mission-add").await?.click().await?;
-        }
-        type_into(&c, "iterations", "1").await?;
-        by_id(&c, "start").await?.click().await?;
-        until("the run to end", 120, || async { Ok(status(&c).await? == "done") }).await?;
-        tokio::time::sleep(Duration::from_millis(500)).await;
-        let r = js(&c, "
+    with_page(
+        local(TimeScale::Max),
+        (1400, 900),
+        2.0,
+        |c, url, _| async move {
+            open(&c, &url).await?;
+            create_uav(&c, "", "0,0,-1").await?;
+            for (x, y) in [(0.0, 3.0), (0.0, -3.0)] {
+                type_into(&c, "mission-x", &format!("{x}")).await?;
+                type_into(&c, "mission-y", &format!("{y}")).await?;
+                by_id(&c, "mission-add").await?.click().await?;
+            }
+            type_into(&c, "iterations", "1").await?;
+            by_id(&c, "start").await?.click().await?;
+            until("the run to end", 120, || async {
+                Ok(status(&c).await? == "done")
+            })
+            .await?;
+            tokio::time::sleep(Duration::from_millis(500)).await;
+            let r = js(
+                &c,
+                "
             const m = document.getElementById('map');
             return {ratio: m.width / m.clientWidth, dpr: devicePixelRatio,
                     axes: document.querySelectorAll('#plots .u-axis').length,
                     east: U.side && U.side.east ? U.side.east.range : null,
-                    three: !!document.querySelector('#view3d canvas')};").await?;
-        assert!((r["ratio"].as_f64().unwrap() - 2.0).abs() < 0.05, "{r}");
-        assert!(r["axes"].as_u64().unwrap() >= 6, "three plots with two axes each: {r}");
-        let east = r["east"].as_array().context("no east–altitude view")?;
-        assert!(east[1].as_f64().unwrap() - east[0].as_f64().unwrap() >= 5.0, "an east–west leg shows its length: {r}");
-        assert_eq!(r["three"], json!(true), "{r}");
-        let dir = artifacts();
-        std::fs::create_dir_all(&dir)?;
-        std::fs::write(dir.join("views-hidpi.png"), c.screenshot().await?)?;
-        Ok(())
-    })
+                    three: !!document.querySelector('#view3d canvas')};",
+            )
+            .await?;
+            assert!((r["ratio"].as_f64().unwrap() - 2.0).abs() < 0.05, "{r}");
+            assert!(
+                r["axes"].as_u64().unwrap() >= 6,
+                "three plots with two axes each: {r}"
+            );
+            let east = r["east"].as_array().context("no east–altitude view")?;
+            assert!(
+                east[1].as_f64().unwrap() - east[0].as_f64().unwrap() >= 5.0,
+                "an east–west leg shows its length: {r}"
+            );
+            assert_eq!(r["three"], json!(true), "{r}");
+            let dir = artifacts();
+            std::fs::create_dir_all(&dir)?;
+            std::fs::write(dir.join("views-hidpi.png"), c.screenshot().await?)?;
+            Ok(())
+        },
+    )
     .await
 }
 
@@ -902,7 +946,7 @@ async fn bench_page_with_1000_uavs() -> Result<()> {
                    }
                    U.receive({type: 'state', server, uavs, removed: [], log: []});
                  }, 50);
-                 window.uccFrameTimes = []; const gaps = []; let last = performance.now();
+                 window.uccFrameTimes = []; for (const k in window.uccParts) window.uccParts[k] = 0; const gaps = []; let last = performance.now();
                  function f(t) { gaps.push(t - last); last = t; if (t - t0 < 10000) requestAnimationFrame(f); else {
                    clearInterval(timer);
                    const q = (a, p) => { const s = [...a].sort((x, y) => x - y); return s[Math.min(s.length - 1, Math.floor(p * s.length))]; };
@@ -910,7 +954,7 @@ async fn bench_page_with_1000_uavs() -> Result<()> {
                    done({uavs: N, draw_median_ms: q(d, 0.5), draw_p95_ms: q(d, 0.95), frames: d.length,
                          gap_median_ms: q(gaps, 0.5), gap_p95_ms: q(gaps, 0.95), updates: k,
                          heap_mb_start: mem0 / 1e6, heap_mb_end: performance.memory ? performance.memory.usedJSHeapSize / 1e6 : null,
-                         trail_points: [...U.uavs.values()].reduce((n, u) => n + u.trail.length, 0)});
+                         trail_points: [...U.uavs.values()].reduce((n, u) => n + u.trail.length, 0), parts_ms: window.uccParts});
                  } }
                  requestAnimationFrame(f);",
                 vec![],

@@ -42,7 +42,14 @@ fn goto(uav: u32, x: &str) -> Request {
 fn names_never_lead_files_out_of_the_log_dir() {
     let mut hub = hub();
     let log_dir = hub.log_dir.clone();
-    for name in ["../escaped", "/abs/path", "a/../../b", "..", ".hidden", "x\\..\\y"] {
+    for name in [
+        "../escaped",
+        "/abs/path",
+        "a/../../b",
+        "..",
+        ".hidden",
+        "x\\..\\y",
+    ] {
         let Ok(id) = create(&mut hub, name) else {
             continue; // refused with a message: fine too
         };

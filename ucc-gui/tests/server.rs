@@ -318,7 +318,11 @@ fn updates_carry_only_what_is_new() {
     assert_eq!(u["uavs"][0]["trail_reset"], true);
     assert_eq!(u["uavs"][0]["info"]["iteration"], 2);
     let u = hub.update(&mut cursor);
-    assert_eq!(u["uavs"], serde_json::json!([]), "nothing new, nothing sent");
+    assert_eq!(
+        u["uavs"],
+        serde_json::json!([]),
+        "nothing new, nothing sent"
+    );
     // A new run starts a new overlay.
     hub.finished(id, ucc_gui::hub::Status::Done, None);
     hub.apply(Request::Start {

@@ -18,6 +18,7 @@ const sides = { north: new SideView($("side-north"), 0), east: new SideView($("s
 let plots = null, view3d = null, last3d = -1e9, pending3d = false;
 window.uccFrameTimes = []; // draw time of each frame, ms (the benchmark reads it)
 window.uccUpdates = 0; // state updates received
+window.uccParts = { map: 0, side: 0, plots: 0, view3d: 0, update: 0 }; // ms spent per part (the benchmark reads it)
 
 /** An element with text (never HTML). */
 function el(tag, text, attrs = {}) {
@@ -67,6 +68,11 @@ function hello(m) {
 
 function update(m) {
   window.uccUpdates++;
+  const t0 = performance.now();
+  try { merge(m); } finally { window.uccParts.update += performance.now() - t0; }
+}
+
+function merge(m) {
   const before = store.server;
   const changed = store.merge(m);
   const s = store.server;
@@ -189,14 +195,18 @@ function frame(now) {
   try {
     if (dirty || pending3d || (view3d && view3d.dirty)) {
       pending3d = false;
-      const t = performance.now();
+      const t = performance.now(), parts = window.uccParts;
       drawMap();
+      const t1 = performance.now();
       const c = selected !== null ? store.uavs.get(selected) : null;
       sides.north.draw(c, map.geometry, $("overlay").checked);
       sides.east.draw(c, map.geometry, $("overlay").checked);
+      const t2 = performance.now();
       if (plots) plots.draw(c);
+      const t3 = performance.now();
+      parts.map += t1 - t; parts.side += t2 - t1; parts.plots += t3 - t2;
       // The 3D view at most 15 times a second (software WebGL is slow); the rest, every frame.
-      if (view3d && now - last3d > 66) { view3d.draw(selected, $("follow").checked, now); view3d.dirty = false; last3d = now; }
+      if (view3d && now - last3d > 66) { view3d.draw(selected, $("follow").checked, now); view3d.dirty = false; last3d = now; parts.view3d += performance.now() - t3; }
       else if (view3d) pending3d = true;
       window.uccFrameTimes.push(performance.now() - t);
       if (window.uccFrameTimes.length > 10000) window.uccFrameTimes.splice(0, 5000);

@@ -53,6 +53,68 @@ export class Map2d {
     ctx.stroke();
   }
 
+  addPath(path, points, step = 1) {
+    if (points.length < 2) return;
+    let [sx, sy] = this.toScreen(points[0][0], points[0][1]); path.moveTo(sx, sy);
+    for (let i = step; i < points.length; i += step) { [sx, sy] = this.toScreen(points[i][0], points[i][1]); path.lineTo(sx, sy); }
+    const last = points[points.length - 1]; [sx, sy] = this.toScreen(last[0], last[1]); path.lineTo(sx, sy);
+  }
+
+  /** A triangle pointing along `yaw` (screen: north up, east right) into `path`. */
+  triangle(path, px, py, yaw) {
+    const c = Math.cos(yaw), s = Math.sin(yaw);
+    const pt = (x, y) => [px + x * c - y * s, py + x * s + y * c];
+    const [a, b, d] = [pt(0, -10), pt(6, 7), pt(-6, 7)];
+    path.moveTo(a[0], a[1]); path.lineTo(b[0], b[1]); path.lineTo(d[0], d[1]); path.closePath();
+  }
+
+  waypoints(u, color) {
+    const ctx = this.ctx;
+    u.missions.forEach((m, i) => {
+      if (m.kind !== "GotoXyz") return;
+      const [sx, sy] = this.toScreen(m.x, m.y);
+      ctx.strokeStyle = color; ctx.lineWidth = i === u.active ? 3 : 1.5;
+      ctx.strokeRect(sx - 5, sy - 5, 10, 10);
+      if (i === u.active) { ctx.fillStyle = color; ctx.fillRect(sx - 3, sy - 3, 6, 6); }
+      ctx.fillStyle = "#1a1a1a"; ctx.fillText(String(i + 1), sx + 7, sy - 6);
+    });
+  }
+
+  /** The selected UAV, on top: overlay, trail, waypoints, laser beams, sonar cones, name. */
+  drawSelected(c, color, overlay) {
+    const ctx = this.ctx, u = c.info, l = c.live;
+    if (overlay) { ctx.globalAlpha = 0.35; for (const p of c.past) this.path(p, color, 1.5); ctx.globalAlpha = 1; }
+    this.path(c.trail, color, 2.5);
+    this.waypoints(u, color);
+    if (!l || !l.position) return;
+    const [px, py] = this.toScreen(l.position[0], l.position[1]);
+    const yaw = l.attitude ? l.attitude[2] : 0;
+    if (l.laser) {
+      ctx.strokeStyle = "rgba(214,40,57,0.3)"; ctx.lineWidth = 1; ctx.beginPath();
+      const n = l.laser.ranges.length;
+      for (let i = 0; i < n; i++) {
+        const r = l.laser.ranges[i]; if (r === null) continue;
+        const a = yaw + l.laser.fov / 2 - i * l.laser.resolution;
+        const [ex, ey] = this.toScreen(l.position[0] + r * Math.cos(a), l.position[1] + r * Math.sin(a));
+        ctx.moveTo(px, py); ctx.lineTo(ex, ey);
+      }
+      ctx.stroke();
+    }
+    if (l.sonars) {
+      ctx.fillStyle = "rgba(27,122,110,0.18)";
+      l.sonars.forEach((r, i) => {
+        if (r === null) return;
+        const a = yaw + i * Math.PI / 4, half = 0.26; // 8 sonars, 45° apart, ~30° cones
+        ctx.beginPath(); ctx.moveTo(px, py);
+        const sa = Math.atan2(-Math.cos(a), Math.sin(a));
+        ctx.arc(px, py, Math.min(r * this.view.scale, 1e5), sa - half, sa + half); ctx.closePath(); ctx.fill();
+      });
+    }
+    const body = new Path2D(); this.triangle(body, px, py, yaw);
+    ctx.fillStyle = color; ctx.fill(body); ctx.strokeStyle = "#000"; ctx.lineWidth = 1.5; ctx.stroke(body);
+    ctx.fillStyle = "#1a1a1a"; ctx.fillText(u.name, px + 9, py + 4);
+  }
+
   draw(selected, overlay) {
     [this.w, this.h] = sizeCanvas(this.canvas);
     if (!this.fitted) this.fit();
@@ -87,54 +149,25 @@ export class Map2d {
     }
     const many = uavs.size > 50;
     ctx.font = "11px sans-serif";
-    let k = 0;
+    // Trails and UAVs are batched per colour: one path each, whatever the number of UAVs.
+    const trails = COLORS.map(() => new Path2D()), bodies = COLORS.map(() => new Path2D());
+    let k = 0, sel = null;
     for (const c of uavs.values()) {
-      const color = COLORS[k++ % COLORS.length], u = c.info, isSel = u.id === selected;
-      if (overlay && (isSel || !many)) { ctx.globalAlpha = 0.35; for (const p of c.past) this.path(p, color, 1.5); ctx.globalAlpha = 1; }
-      // With many UAVs, the others' trails are drawn coarser.
-      this.path(c.trail, color, isSel ? 2.5 : 1.5, many && !isSel ? Math.max(1, c.trail.length >> 6) : 1);
-      if (isSel || !many) {
-        u.missions.forEach((m, i) => {
-          if (m.kind !== "GotoXyz") return;
-          const [sx, sy] = this.toScreen(m.x, m.y);
-          ctx.strokeStyle = color; ctx.lineWidth = i === u.active ? 3 : 1.5;
-          ctx.strokeRect(sx - 5, sy - 5, 10, 10);
-          if (i === u.active) { ctx.fillStyle = color; ctx.fillRect(sx - 3, sy - 3, 6, 6); }
-          ctx.fillStyle = "#1a1a1a"; ctx.fillText(String(i + 1), sx + 7, sy - 6);
-        });
-      }
+      const ci = k++ % COLORS.length, color = COLORS[ci], u = c.info, isSel = u.id === selected;
+      if (isSel) { sel = { c, color }; continue; }
+      if (overlay && !many) { ctx.globalAlpha = 0.35; for (const p of c.past) this.path(p, color, 1.5); ctx.globalAlpha = 1; }
+      this.addPath(trails[ci], c.trail, many ? Math.max(1, c.trail.length >> 6) : 1);
+      if (!many) this.waypoints(u, color);
       const l = c.live;
       if (!l || !l.position) continue;
       const [px, py] = this.toScreen(l.position[0], l.position[1]);
       if (px < -20 || py < -20 || px > W + 20 || py > H + 20) continue;
-      const yaw = l.attitude ? l.attitude[2] : 0;
-      if (isSel && l.laser) {
-        ctx.strokeStyle = "rgba(214,40,57,0.3)"; ctx.lineWidth = 1; ctx.beginPath();
-        const n = l.laser.ranges.length;
-        for (let i = 0; i < n; i++) {
-          const r = l.laser.ranges[i]; if (r === null) continue;
-          const a = yaw + l.laser.fov / 2 - i * l.laser.resolution;
-          const [ex, ey] = this.toScreen(l.position[0] + r * Math.cos(a), l.position[1] + r * Math.sin(a));
-          ctx.moveTo(px, py); ctx.lineTo(ex, ey);
-        }
-        ctx.stroke();
-      }
-      if (isSel && l.sonars) {
-        ctx.fillStyle = "rgba(27,122,110,0.18)";
-        l.sonars.forEach((r, i) => {
-          if (r === null) return;
-          const a = yaw + i * Math.PI / 4, half = 0.26; // 8 sonars, 45° apart, ~30° cones
-          ctx.beginPath(); ctx.moveTo(px, py);
-          const sa = Math.atan2(-Math.cos(a), Math.sin(a));
-          ctx.arc(px, py, Math.min(r * this.view.scale, 1e5), sa - half, sa + half); ctx.closePath(); ctx.fill();
-        });
-      }
-      ctx.save(); ctx.translate(px, py); ctx.rotate(yaw);
-      ctx.fillStyle = color; ctx.strokeStyle = isSel ? "#000" : "#fff"; ctx.lineWidth = 1.5;
-      ctx.beginPath(); ctx.moveTo(0, -10); ctx.lineTo(6, 7); ctx.lineTo(-6, 7); ctx.closePath(); ctx.fill(); ctx.stroke();
-      ctx.restore();
-      if (isSel || !many) { ctx.fillStyle = "#1a1a1a"; ctx.fillText(u.name, px + 9, py + 4); }
+      this.triangle(bodies[ci], px, py, l.attitude ? l.attitude[2] : 0);
+      if (!many) { ctx.fillStyle = "#1a1a1a"; ctx.fillText(u.name, px + 9, py + 4); }
     }
+    ctx.lineWidth = 1.5;
+    COLORS.forEach((color, i) => { ctx.strokeStyle = color; ctx.stroke(trails[i]); ctx.fillStyle = color; ctx.fill(bodies[i]); });
+    if (sel) this.drawSelected(sel.c, sel.color, overlay);
     // Scale bar.
     ctx.fillStyle = "#1a1a1a"; ctx.fillRect(10, H - 14, step * this.view.scale, 3);
     ctx.fillText(`${step} m`, 14 + step * this.view.scale, H - 10);

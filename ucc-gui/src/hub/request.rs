@@ -219,7 +219,12 @@ impl Hub {
             .parse::<u16>()
             .ok()
             .filter(|p| *p != 0)
-            .ok_or_else(|| field("server port", format!("{} is not a port (1-65535)", shown(port))))?;
+            .ok_or_else(|| {
+                field(
+                    "server port",
+                    format!("{} is not a port (1-65535)", shown(port)),
+                )
+            })?;
         if self.busy() {
             return Err(RequestError::State(
                 "stop every UAV before changing the server".into(),
@@ -286,25 +291,33 @@ impl Hub {
         agents::info(agent).ok_or_else(|| {
             field(
                 "agent type",
-                format!("unknown agent {} (known agents: {})", shown(agent), agents::names()),
+                format!(
+                    "unknown agent {} (known agents: {})",
+                    shown(agent),
+                    agents::names()
+                ),
             )
         })?;
         let start_text = plain("start pose", start, 200)?;
         let start: Start = start_text.parse().map_err(|e| field("start pose", e))?;
         match &start {
             Start::Pose { location, rotation } => {
-                if !location.iter().chain(rotation.iter()).all(|v| v.is_finite()) {
+                if !location
+                    .iter()
+                    .chain(rotation.iter())
+                    .all(|v| v.is_finite())
+                {
                     return Err(field("start pose", "every number must be finite"));
                 }
                 if location.iter().any(|v| v.abs() > MAX_COORDINATE) {
-                    return Err(field(
-                        "start pose",
-                        format!("beyond ±{MAX_COORDINATE} m"),
-                    ));
+                    return Err(field("start pose", format!("beyond ±{MAX_COORDINATE} m")));
                 }
             }
             Start::Tag(tag) if tag.chars().count() > MAX_NAME => {
-                return Err(field("start pose", format!("a tag of at most {MAX_NAME} characters")));
+                return Err(field(
+                    "start pose",
+                    format!("a tag of at most {MAX_NAME} characters"),
+                ));
             }
             Start::Tag(_) => {}
         }
@@ -328,7 +341,9 @@ impl Hub {
 
     fn remove(&mut self, uav: u32) -> Result<Action, RequestError> {
         if self.uav(uav)?.flying() {
-            return Err(RequestError::State("stop the UAV before removing it".into()));
+            return Err(RequestError::State(
+                "stop the UAV before removing it".into(),
+            ));
         }
         self.uavs.retain(|u| u.id != uav);
         Ok(Action::None)
@@ -411,9 +426,7 @@ impl Hub {
                 ),
             ));
         }
-        let pictures = pictures
-            .parse()
-            .map_err(|e: String| field("pictures", e))?;
+        let pictures = pictures.parse().map_err(|e: String| field("pictures", e))?;
         let u = self.uav(uav)?;
         u.prefix = prefix.to_owned();
         u.pictures = pictures;

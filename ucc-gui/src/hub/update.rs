@@ -141,7 +141,15 @@ impl Hub {
             if !history.is_empty() {
                 let h: Vec<_> = history
                     .iter()
-                    .map(|h| h.map(|v| if v.is_finite() { Value::from(v) } else { Value::Null }))
+                    .map(|h| {
+                        h.map(|v| {
+                            if v.is_finite() {
+                                Value::from(v)
+                            } else {
+                                Value::Null
+                            }
+                        })
+                    })
                     .collect();
                 out.insert("history".into(), h.into());
             }
