@@ -67,6 +67,17 @@ impl Drop for Session {
 }
 
 async fn start_browser(chromium: &PathBuf, chromedriver: &PathBuf) -> Result<Session> {
+    start_browser_with(chromium, chromedriver, 1400, 1000, 1.0).await
+}
+
+/// A browser with a window of `width`×`height` CSS pixels at `scale` device pixels each.
+async fn start_browser_with(
+    chromium: &PathBuf,
+    chromedriver: &PathBuf,
+    width: u32,
+    height: u32,
+    scale: f64,
+) -> Result<Session> {
     let port = free_port();
     let driver = tokio::process::Command::new(chromedriver)
         .arg(format!("--port={port}"))
@@ -91,7 +102,9 @@ async fn start_browser(chromium: &PathBuf, chromedriver: &PathBuf) -> Result<Ses
             "binary": chromium,
             "args": ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                      "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                     "--disable-dev-shm-usage", "--window-size=1400,1000",
+                     "--disable-dev-shm-usage", format!("--window-size={width},{height}"),
+                     format!("--force-device-scale-factor={scale}"),
+                     "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
                      format!("--user-data-dir={}", profile.display())]
 
         }
@@ -179,14 +192,19 @@ async fn fly_three_iterations_stop_and_refuse_bad_input() -> Result<()> {
     let Some((chromium, chromedriver)) = browser() else {
         return Ok(());
     };
+    let _one = ONE_BROWSER.lock().await;
     let (url, gui, log_dir) = start_gui(TimeScale::Factor(5.0)).await?;
     let mut session = start_browser(&chromium, &chromedriver).await?;
-    let result = scenario(&session.client, &url).await;
+    let result = futures::FutureExt::catch_unwind(std::panic::AssertUnwindSafe(scenario(
+        &session.client,
+        &url,
+    )))
+    .await;
     let _ = session.client.clone().close().await;
     let _ = session.driver.kill().await;
     gui.cancel();
     let _ = std::fs::remove_dir_all(&log_dir);
-    result
+    result.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
 
 async fn scenario(c: &Client, url: &str) -> Result<()> {
@@ -236,8 +254,8 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
     // Where the point (ox + 2.5, oy + 2.5) is, relative to the canvas centre, in CSS pixels.
     let offset = c
         .execute(
-            "const [sx, sy] = toScreen(arguments[0], arguments[1]); const k = map.clientWidth / map.width;\
-             return [(sx - map.width / 2) * k, (sy - map.height / 2) * k];",
+            "const [sx, sy] = ucc.toScreen(arguments[0], arguments[1]); const map = document.getElementById('map');\
+             return [sx - map.clientWidth / 2, sy - map.clientHeight / 2];",
             vec![json!(ox + 2.5), json!(oy + 2.5)],
         )
         .await?;
@@ -279,7 +297,7 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
         let c = c.clone();
         async move {
             Ok::<_, anyhow::Error>(
-                c.execute("return [view.cx, view.cy, view.scale]", vec![])
+                c.execute("return [ucc.view.cx, ucc.view.cy, ucc.view.scale]", vec![])
                     .await?,
             )
         }
@@ -306,7 +324,7 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
         "{before} -> {panned}"
     );
     c.execute(
-        "map.dispatchEvent(new WheelEvent('wheel', {deltaY: -100, clientX: 100, clientY: 100, bubbles: true, cancelable: true}))",
+        "document.getElementById('map').dispatchEvent(new WheelEvent('wheel', {deltaY: -100, clientX: 100, clientY: 100, bubbles: true, cancelable: true}))",
         vec![],
     )
     .await?;
@@ -315,7 +333,7 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
         zoomed[2].as_f64() > panned[2].as_f64(),
         "{panned} -> {zoomed}"
     );
-    c.execute("fit()", vec![]).await?;
+    c.execute("ucc.fit()", vec![]).await?;
     tokio::time::sleep(Duration::from_millis(300)).await;
     assert_eq!(
         count(c, "[data-testid=mission-list] li").await?,
@@ -331,10 +349,15 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
     })
     .await?;
     let first = text(c, "uav-position").await?;
-    until("the position to change", 60, || async {
+    if let Err(e) = until("the position to change", 60, || async {
         Ok(text(c, "uav-position").await? != first)
     })
-    .await?;
+    .await
+    {
+        let log = text(c, "log").await.unwrap_or_default();
+        let status = c.find(Locator::Id("run-status")).await?.text().await?;
+        bail!("{e}: status {status:?}, log:\n{log}");
+    }
     let parts: Vec<f64> = text(c, "uav-position")
         .await?
         .split(',')
@@ -395,18 +418,29 @@ async fn scenario(c: &Client, url: &str) -> Result<()> {
     assert!(saved.contains("UAV1 info [3] iteration done"), "{saved}");
 
     // Stop mid-flight.
-    type_into(c, "iterations", "5").await?;
+    type_into(c, "iterations", "50").await?;
     by_id(c, "start").await?.click().await?;
-    until("the second run to fly", 30, || async {
-        Ok(status(c).await? == "running" && text(c, "iteration-counter").await? == "1")
+    if let Err(e) = until("the second run to fly", 30, || async {
+        Ok(status(c).await? == "running" && text(c, "iteration-counter").await? != "0")
     })
-    .await?;
+    .await
+    {
+        let log = text(c, "log").await.unwrap_or_default();
+        let status = c.find(Locator::Id("run-status")).await?.text().await?;
+        let counter = text(c, "iteration-counter").await?;
+        let error = text(c, "error").await.unwrap_or_default();
+        bail!("{e}: status {status:?}, counter {counter}, error {error:?}, log:\n{log}");
+    }
     by_id(c, "stop").await?.click().await?;
     until("the run to stop", 30, || async {
         Ok(status(c).await? == "stopped")
     })
     .await?;
-    assert_eq!(text(c, "iteration-counter").await?, "1");
+    let stopped_at: usize = text(c, "iteration-counter").await?.parse()?;
+    assert!(
+        (1..50).contains(&stopped_at),
+        "stopped at iteration {stopped_at}"
+    );
     assert!(text(c, "log").await?.contains("interrupted"));
     Ok(())
 }
@@ -422,6 +456,7 @@ async fn bench_frame_time_with_50_uavs() -> Result<()> {
     let Some((chromium, chromedriver)) = browser() else {
         return Ok(());
     };
+    let _one = ONE_BROWSER.lock().await;
     let (url, gui, log_dir) = start_gui(TimeScale::Factor(1.0)).await?;
     let mut session = start_browser(&chromium, &chromedriver).await?;
     let c = &session.client;
@@ -435,18 +470,18 @@ async fn bench_frame_time_with_50_uavs() -> Result<()> {
         "let id = 0;
          for (const x of [-8, -4.5, -1, 2.5, 6]) for (let k = 0; k < 10; k++) { const y = Math.round((-9 + 1.9 * k) * 10) / 10;
            id++;
-           send({op: 'create', robot: 'stsAirRobot', agent: 'base', start: `${x},${y},-1`, name: ''});
+           ucc.send({op: 'create', robot: 'stsAirRobot', agent: 'base', start: `${x},${y},-1`, name: ''});
            for (const [dx, dy] of [[0, 0], [1.5, 0], [1.5, 1], [0, 1]])
-             send({op: 'add_mission', uav: id, kind: 'GotoXyz', x: String(x + dx), y: String(y + dy), z: '-2'});
-           send({op: 'options', uav: id, prefix: 'B' + id, pictures: 'none', autosave: false});
-           send({op: 'start', uav: id, iterations: '1000'});
+             ucc.send({op: 'add_mission', uav: id, kind: 'GotoXyz', x: String(x + dx), y: String(y + dy), z: '-2'});
+           ucc.send({op: 'options', uav: id, prefix: 'B' + id, pictures: 'none', autosave: false});
+           ucc.send({op: 'start', uav: id, iterations: '1000'});
          }",
         vec![],
     )
     .await?;
     until("50 UAVs flying", 120, || async {
         let n = c
-            .execute("return [...uavs.values()].filter(u => u.info.live && u.info.status === 'running').length", vec![])
+            .execute("return [...ucc.uavs.values()].filter(u => u.live && u.info.status === 'running').length", vec![])
             .await?;
         Ok(n.as_u64() == Some(50))
     })
@@ -462,7 +497,7 @@ async fn bench_frame_time_with_50_uavs() -> Result<()> {
                const d = window.uccFrameTimes;
                done({draw_median: q(d, 0.5), draw_p95: q(d, 0.95), draw_max: q(d, 1), frames: d.length,
                      gap_median: q(gaps, 0.5), gap_p95: q(gaps, 0.95), updates_per_s: (window.uccUpdates - u0) / ((t - t0) / 1000),
-                     trail_points: [...uavs.values()].reduce((n, u) => n + u.trail.length + u.past.flat().length, 0)});
+                     trail_points: [...ucc.uavs.values()].reduce((n, u) => n + u.trail.length + u.past.flat().length, 0)});
              } }
              requestAnimationFrame(f);",
             vec![],
@@ -477,4 +512,508 @@ async fn bench_frame_time_with_50_uavs() -> Result<()> {
     gui.cancel();
     let _ = std::fs::remove_dir_all(&log_dir);
     Ok(())
+}
+
+// ---- issue #23: defects a user hit, each checked the way the user met it ----
+
+/// Browser tests run one at a time (two cores, a Chromium each).
+static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
+/// The page's objects for a test script.
+const U: &str = "const U = window.ucc;";
+
+/// The control center on a server of the given kind; its URL, its stop token and log dir.
+async fn start_gui_on(server: ServerChoice) -> Result<(String, CancellationToken, PathBuf)> {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+    let url = ucc_gui::url(listener.local_addr()?, None);
+    let log_dir = std::env::temp_dir().join(format!("ucc-gui-test-{}", free_port()));
+    let config = GuiConfig {
+        server,
+        log_dir: log_dir.clone(),
+        token: None,
+    };
+    let cancel = CancellationToken::new();
+    let stop = cancel.clone();
+    tokio::spawn(async move { ucc_gui::serve(listener, config, stop).await });
+    Ok((url, cancel, log_dir))
+}
+
+fn local(speed: TimeScale) -> ServerChoice {
+    ServerChoice::Local(Box::new(ServerConfig {
+        time_scale: speed,
+        lockstep: true,
+        ..ServerConfig::default()
+    }))
+}
+
+/// Opens the page and waits until it is connected.
+async fn open(c: &Client, url: &str) -> Result<()> {
+    c.goto(url).await?;
+    until("the page to connect", 30, || async {
+        Ok(count(c, "[data-testid=agent-type] option").await? > 0)
+    })
+    .await?;
+    // Errors thrown anywhere in the page are collected for the test.
+    c.execute(
+        "window.uccErrors = []; window.addEventListener('error', (e) => window.uccErrors.push(String(e.message)));",
+        vec![],
+    )
+    .await?;
+    Ok(())
+}
+
+async fn js(c: &Client, script: &str) -> Result<serde_json::Value> {
+    Ok(c.execute(&format!("{U} {script}"), vec![]).await?)
+}
+
+/// Runs `body` with a browser of this window size and scale and a control center on
+/// `server`; cleans up whatever the result.
+async fn with_page<F, Fut>(
+    server: ServerChoice,
+    size: (u32, u32),
+    scale: f64,
+    body: F,
+) -> Result<()>
+where
+    F: FnOnce(Client, String, PathBuf) -> Fut,
+    Fut: std::future::Future<Output = Result<()>>,
+{
+    let Some((chromium, chromedriver)) = browser() else {
+        return Ok(());
+    };
+    let _one = ONE_BROWSER.lock().await;
+    let (url, gui, log_dir) = start_gui_on(server).await?;
+    let mut session = start_browser_with(&chromium, &chromedriver, size.0, size.1, scale).await?;
+    // A failed assertion panics: catch it so that Chromium is closed (not left running).
+    let result = futures::FutureExt::catch_unwind(std::panic::AssertUnwindSafe(body(
+        session.client.clone(),
+        url,
+        log_dir.clone(),
+    )))
+    .await;
+    let _ = session.client.clone().close().await;
+    let _ = session.driver.kill().await;
+    gui.cancel();
+    let _ = std::fs::remove_dir_all(&log_dir);
+    result.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+}
+
+async fn create_uav(c: &Client, name: &str, start: &str) -> Result<()> {
+    let before = count(c, "#uav-list li").await?;
+    type_into(c, "start-pose", start).await?;
+    let n = c.find(Locator::Id("uav-name")).await?;
+    n.clear().await?;
+    n.send_keys(name).await?;
+    by_id(c, "create-uav").await?.click().await?;
+    until("the UAV in the list", 10, || async {
+        Ok(count(c, "#uav-list li").await? == before + 1)
+    })
+    .await
+}
+
+/// Defect 4: a name is text, never HTML; defect 9: the UAV list, the Loop field, the log
+/// filters and the × buttons are usable from the keyboard and named; Enter submits a form.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn names_are_text_and_the_page_works_from_the_keyboard() -> Result<()> {
+    with_page(local(TimeScale::Max), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        create_uav(&c, "<img/src=x>", "0,0,-1").await?;
+        create_uav(&c, "<b>bold</b>", "1,0,-1").await?;
+        assert_eq!(count(&c, "#uav-list img, #uav-list b").await?, 0, "a name became HTML");
+        let items = c.find_all(Locator::Css("#uav-list li")).await?;
+        assert!(items[0].text().await?.contains("<img/src=x>"));
+        assert!(items[1].text().await?.contains("<b>bold</b>"));
+        assert_eq!(count(&c, "#log-uav img, #log-uav b").await?, 0);
+
+        // Keyboard: Tab reaches a UAV; Enter selects it.
+        let focusable = js(&c, "return [...document.querySelectorAll('#uav-list li')].map(li => li.tabIndex >= 0 || !!li.querySelector('button'))").await?;
+        assert_eq!(focusable, json!([true, true]), "UAV list items are focusable");
+        let first = c.find(Locator::Css("#uav-list li")).await?;
+        first.send_keys("\u{e007}").await?;
+        until("the first UAV selected by Enter", 5, || async {
+            Ok(c.find(Locator::Id("title")).await?.text().await?.contains("<img/src=x>"))
+        })
+        .await?;
+
+        // Every field and button has a name.
+        let unnamed = js(&c, "
+            const name = (e) => (e.getAttribute('aria-label') || (e.labels && [...e.labels].map(l => l.textContent).join(' ')) || e.title || (e.tagName === 'BUTTON' ? e.textContent : '')).trim();
+            return [...document.querySelectorAll('input, select, button')].filter(e => !e.hidden && e.type !== 'hidden' && !name(e)).map(e => e.id || e.outerHTML.slice(0, 60));").await?;
+        assert_eq!(unnamed, json!([]), "fields and buttons without a name");
+        let loop_name = js(&c, "return [...document.getElementById('iterations').labels].map(l => l.textContent.trim()).join('|')").await?;
+        assert_eq!(loop_name, json!("Loop"));
+
+        // Enter in a mission field adds the mission; the × button is named.
+        type_into(&c, "mission-x", "1").await?;
+        type_into(&c, "mission-y", "2").await?;
+        by_id(&c, "mission-z").await?.send_keys("\u{e007}").await?;
+        until("the mission added by Enter", 10, || async {
+            Ok(count(&c, "[data-testid=mission-list] li").await? == 1)
+        })
+        .await?;
+        let x = c.find(Locator::Css("[data-testid=mission-list] li button")).await?;
+        assert_eq!(x.attr("aria-label").await?.as_deref(), Some("remove mission 1"));
+
+        // Contrast of the warning text and of the walls on white: at least 4.5:1.
+        let contrast = js(&c, "
+            const lum = (hex) => { const c = hex.match(/\\w\\w/g).map(h => parseInt(h, 16) / 255).map(v => v <= 0.03928 ? v / 12.92 : ((v + 0.055) / 1.055) ** 2.4); return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; };
+            const ratio = (a, b) => { const [x, y] = [lum(a), lum(b)].sort((p, q) => q - p); return (x + 0.05) / (y + 0.05); };
+            const rgb = (s) => '#' + s.match(/\\d+/g).slice(0, 3).map(v => Number(v).toString(16).padStart(2, '0')).join('');
+            const d = document.createElement('div'); d.className = 'warn'; document.getElementById('log').appendChild(d);
+            const warn = rgb(getComputedStyle(d).color); d.remove();
+            return [ratio(warn, '#ffffff'), ratio(U.WALL_COLOR, '#ffffff')];").await?;
+        let ratios: Vec<f64> = contrast.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        assert!(ratios.iter().all(|r| *r >= 4.5), "contrast {ratios:?}");
+        assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
+        Ok(())
+    })
+    .await
+}
+
+/// Defect 5: a waypoint beyond any map gets a message; a far one draws quickly; the wheel
+/// zooms by the distance scrolled, within limits.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn huge_numbers_and_the_wheel_keep_the_map_usable() -> Result<()> {
+    with_page(local(TimeScale::Max), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        create_uav(&c, "", "0,0,-1").await?;
+        type_into(&c, "mission-x", "1e8").await?;
+        type_into(&c, "mission-y", "0").await?;
+        by_id(&c, "mission-add").await?.click().await?;
+        until("the range message", 10, || async {
+            let e = by_id(&c, "error").await?;
+            Ok(e.is_displayed().await? && e.text().await?.contains("mission x: "))
+        })
+        .await?;
+        assert_eq!(count(&c, "[data-testid=mission-list] li").await?, 0);
+        type_into(&c, "mission-x", "99999").await?;
+        by_id(&c, "mission-add").await?.click().await?;
+        until("the far waypoint", 10, || async {
+            Ok(count(&c, "[data-testid=mission-list] li").await? == 1)
+        })
+        .await?;
+        let t = js(&c, "U.fit(); const t = performance.now(); U.drawMap(); return performance.now() - t;").await?;
+        assert!(t.as_f64().unwrap() < 500.0, "one frame took {t} ms");
+
+        // 70 notches of the wheel: bounded; a small scroll zooms less than a big one.
+        let zoom = js(&c, "
+            const map = document.getElementById('map');
+            const wheel = (dy) => map.dispatchEvent(new WheelEvent('wheel', {deltaY: dy, clientX: 100, clientY: 100, bubbles: true, cancelable: true}));
+            U.fit(); const s0 = U.view.scale; wheel(-1); const small = U.view.scale / s0;
+            U.fit(); wheel(-100); const big = U.view.scale / s0;
+            for (let i = 0; i < 70; i++) wheel(-100);
+            const t = performance.now(); U.drawMap(); const frame = performance.now() - t;
+            return [small, big, U.view.scale, frame];").await?;
+        let z: Vec<f64> = zoom.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        assert!(z[0] > 1.0 && z[0] < z[1], "zoom by distance: {z:?}");
+        assert!(z[2] <= 2000.0, "zoom limited: {z:?}");
+        assert!(z[3] < 500.0, "a frame after 70 notches: {z:?}");
+        assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
+        Ok(())
+    })
+    .await
+}
+
+/// Defect 2: a state as large as a long loop's (200,000 trail points) neither kills the
+/// animation nor the update.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_long_loops_state_keeps_the_map_alive() -> Result<()> {
+    with_page(local(TimeScale::Max), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        let r = js(&c, "
+            const trail = []; for (let i = 0; i < 200000; i++) trail.push([Math.sin(i / 1000) * 5, Math.cos(i / 1000) * 5, -1 - (i % 100) / 100]);
+            const past = []; for (let k = 0; k < 50; k++) past.push(trail.slice(k * 3000, k * 3000 + 3000));
+            const history = []; for (let i = 0; i < 5000; i++) history.push([i * 0.1, 1, 0.5, 0.9]);
+            const u = {id: 77, info: {name: 'big', robot: 'stsAirRobot', agent: 'base', start: '0,0,-1', status: 'running', error: null,
+              iteration: 2000, iterations: 10000, active: 0, prefix: 'big', pictures: 'none', autosave: false,
+              missions: [{kind: 'GotoXyz', x: 5, y: 0, z: -1, text: 'GotoXyz 5,0,-1'}]},
+              live: {time: 1, position: [0, 5, -1], attitude: [0, 0, 0], velocity: [0, 0, 0], battery: null,
+                     laser: {ranges: new Array(181).fill(3), resolution: 0.0174, fov: 3.14}, sonars: [1, 2]},
+              trail_reset: true, trail, history_reset: true, history, past_reset: true, past, hits: [], files: {total: 0, recent: []}};
+            try { U.receive({type: 'state', server: {addr: 'x:1', local: true, time_scale: '1', paused: false, map: ''}, uavs: [u], log: []}); }
+            catch (e) { return String(e); }
+            return null;").await?;
+        assert_eq!(r, json!(null), "the update threw");
+        let frames = js(&c, "return window.uccFrameTimes.length").await?.as_u64().unwrap();
+        c.execute("document.getElementById('fit').click()", vec![]).await?;
+        tokio::time::sleep(Duration::from_millis(1500)).await;
+        let after = js(&c, "return window.uccFrameTimes.length").await?.as_u64().unwrap();
+        assert!(after > frames, "the animation stopped ({frames} -> {after} frames)");
+        assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
+        Ok(())
+    })
+    .await
+}
+
+/// Defect 3: the download links stay put while nothing changes (a held click reaches
+/// them), and a long run does not grow the list without bound.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn download_links_stay_put_and_the_list_stays_short() -> Result<()> {
+    with_page(local(TimeScale::Max), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        create_uav(&c, "", "0,0,-1").await?;
+        type_into(&c, "mission-x", "0.5").await?;
+        type_into(&c, "mission-y", "0").await?;
+        by_id(&c, "mission-add").await?.click().await?;
+        type_into(&c, "iterations", "8").await?;
+        by_id(&c, "start").await?.click().await?;
+        until("the run to end", 120, || async {
+            Ok(status(&c).await? == "done")
+        })
+        .await?;
+        let links = count(&c, "#files a").await?;
+        assert!((1..=12).contains(&links), "{links} links after 8 iterations");
+        let same = js(&c, "
+            const a = document.querySelector('#files a');
+            return new Promise((done) => setTimeout(() => done(a.isConnected && document.querySelector('#files a') === a), 400));").await?;
+        assert_eq!(same, json!(true), "the links were rebuilt while nothing changed");
+        // A real press held 150 ms reaches the link.
+        c.execute("window.uccClicked = null; document.getElementById('files').addEventListener('click', (e) => { window.uccClicked = e.target.textContent; e.preventDefault(); });", vec![]).await?;
+        let link = c.find(Locator::Css("#files a")).await?;
+        let press = MouseActions::new("mouse".into())
+            .then(PointerAction::MoveToElement { element: link, duration: None, x: 0.0, y: 0.0 })
+            .then(PointerAction::Down { button: 0 })
+            .then(PointerAction::Pause { duration: Duration::from_millis(150) })
+            .then(PointerAction::Up { button: 0 });
+        c.perform_actions(press).await?;
+        let clicked = js(&c, "return window.uccClicked").await?;
+        assert!(clicked.is_string(), "the click did not reach the link");
+        Ok(())
+    })
+    .await
+}
+
+/// Defect 7: the map is the largest view at 1024×700, the log is in view at 1400×900, Host
+/// and Port show the local server's address; a remote server hides the speed.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_layout_fits_small_and_large_windows() -> Result<()> {
+    for (w, h) in [(1024u32, 700u32), (1400, 900)] {
+        with_page(local(TimeScale::Max), (w, h), 1.0, |c, url, _| async move {
+            open(&c, &url).await?;
+            let r = js(&c, "
+                const rect = (id) => document.getElementById(id).getBoundingClientRect();
+                const m = rect('map'), log = rect('log-box');
+                const others = [...document.querySelectorAll('#side canvas, #plots canvas')].map(e => { const r = e.getBoundingClientRect(); return r.width * r.height; });
+                return {map_w: m.width, map_h: m.height, map_area: m.width * m.height, biggest_other: Math.max(0, ...others),
+                        log_top: log.top, vw: innerWidth, vh: innerHeight,
+                        host: document.getElementById('server-host').value, port: document.getElementById('server-port').value,
+                        speed_shown: getComputedStyle(document.getElementById('time-scale-row')).display !== 'none',
+                        addr: document.getElementById('server-info').textContent};").await?;
+            assert!(r["map_w"].as_f64().unwrap() >= 0.45 * r["vw"].as_f64().unwrap(), "{w}x{h}: {r}");
+            assert!(r["map_h"].as_f64().unwrap() >= 0.5 * r["vh"].as_f64().unwrap(), "{w}x{h}: {r}");
+            assert!(r["map_area"].as_f64().unwrap() > r["biggest_other"].as_f64().unwrap(), "{w}x{h}: {r}");
+            if w == 1400 {
+                assert!(r["log_top"].as_f64().unwrap() < r["vh"].as_f64().unwrap() - 60.0, "the log below the fold: {r}");
+            }
+            let addr = format!("{}:{}", r["host"].as_str().unwrap(), r["port"].as_str().unwrap());
+            assert!(r["addr"].as_str().unwrap().contains(&addr), "Host/Port {addr} vs {r}");
+            assert_eq!(r["speed_shown"], json!(true));
+            let dir = artifacts();
+            std::fs::create_dir_all(&dir)?;
+            std::fs::write(dir.join(format!("page-{w}x{h}.png")), c.screenshot().await?)?;
+            Ok(())
+        })
+        .await?;
+    }
+    let server = usar_server::LocalServer::start(ServerConfig::default()).await?;
+    let remote = ServerChoice::Remote(server.addr().to_string());
+    with_page(remote, (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        let shown = js(
+            &c,
+            "return getComputedStyle(document.getElementById('time-scale-row')).display !== 'none'",
+        )
+        .await?;
+        assert_eq!(
+            shown,
+            json!(false),
+            "the speed of a remote server is not ours to set"
+        );
+        Ok(())
+    })
+    .await?;
+    server.stop().await?;
+    Ok(())
+}
+
+/// Defect 8: sharp canvases on a HiDPI screen, plots with axes, a side view for each
+/// horizontal axis, and a 3D view.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn views_are_sharp_with_axes_and_in_3d() -> Result<()> {
+    with_page(
+        local(TimeScale::Max),
+        (1400, 900),
+        2.0,
+        |c, url, _| async move {
+            open(&c, &url).await?;
+            create_uav(&c, "", "0,0,-1").await?;
+            for (x, y) in [(0.0, 3.0), (0.0, -3.0)] {
+                type_into(&c, "mission-x", &format!("{x}")).await?;
+                type_into(&c, "mission-y", &format!("{y}")).await?;
+                by_id(&c, "mission-add").await?.click().await?;
+            }
+            type_into(&c, "iterations", "1").await?;
+            by_id(&c, "start").await?.click().await?;
+            until("the run to end", 120, || async {
+                Ok(status(&c).await? == "done")
+            })
+            .await?;
+            tokio::time::sleep(Duration::from_millis(500)).await;
+            let r = js(
+                &c,
+                "
+            const m = document.getElementById('map');
+            return {ratio: m.width / m.clientWidth, dpr: devicePixelRatio,
+                    axes: document.querySelectorAll('#plots .u-axis').length,
+                    east: U.side && U.side.east ? U.side.east.range : null,
+                    three: !!document.querySelector('#view3d canvas')};",
+            )
+            .await?;
+            assert!((r["ratio"].as_f64().unwrap() - 2.0).abs() < 0.05, "{r}");
+            assert!(
+                r["axes"].as_u64().unwrap() >= 6,
+                "three plots with two axes each: {r}"
+            );
+            let east = r["east"].as_array().context("no east–altitude view")?;
+            assert!(
+                east[1].as_f64().unwrap() - east[0].as_f64().unwrap() >= 5.0,
+                "an east–west leg shows its length: {r}"
+            );
+            assert_eq!(r["three"], json!(true), "{r}");
+            let dir = artifacts();
+            std::fs::create_dir_all(&dir)?;
+            std::fs::write(dir.join("views-hidpi.png"), c.screenshot().await?)?;
+            Ok(())
+        },
+    )
+    .await
+}
+
+/// Defect 10: 50 UAVs fly at once from the page on its local server.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn fifty_uavs_fly_from_the_page() -> Result<()> {
+    with_page(local(TimeScale::Factor(2.0)), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        js(&c, "
+            let id = 0;
+            for (const x of [-8, -4.5, -1, 2.5, 6]) for (let k = 0; k < 10; k++) { const y = Math.round((-9 + 1.9 * k) * 10) / 10;
+              id++;
+              U.send({op: 'create', robot: 'stsAirRobot', agent: 'base', start: `${x},${y},-1`, name: ''});
+              U.send({op: 'add_mission', uav: id, kind: 'GotoXyz', x: String(x + 1), y: String(y), z: '-2'});
+              U.send({op: 'options', uav: id, prefix: 'F' + id, pictures: 'none', autosave: false});
+              U.send({op: 'start', uav: id, iterations: '2'});
+            }").await?;
+        until("50 UAVs done", 240, || async {
+            let s = js(&c, "return [...U.uavs.values()].map(u => u.info.status)").await?;
+            let s = s.as_array().unwrap();
+            Ok(s.len() == 50 && s.iter().all(|v| v != "running" && v != "idle"))
+        })
+        .await?;
+        let s = js(&c, "return [...U.uavs.values()].filter(u => u.info.status !== 'done').map(u => u.info.name + ': ' + u.info.error)").await?;
+        assert_eq!(s, json!([]), "UAVs that did not fly");
+        Ok(())
+    })
+    .await
+}
+
+/// The page with 1000 UAVs: frame time and memory of the page itself, fed the hub's update
+/// format at 20 Hz (every UAV moving, trails growing) for 10 s. A benchmark: runs only with
+/// `UCC_GUI_BENCH=1` and prints its figures (BENCHMARKS.md). Writes the screenshots of the
+/// docs (docs/img/) when `UCC_GUI_SCREENSHOTS=1`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bench_page_with_1000_uavs() -> Result<()> {
+    if std::env::var("UCC_GUI_BENCH").as_deref() != Ok("1") {
+        eprintln!("1000-UAV page benchmark skipped: set UCC_GUI_BENCH=1 to run it");
+        return Ok(());
+    }
+    with_page(local(TimeScale::Max), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        let figures = c
+            .execute_async(
+                "const done = arguments[arguments.length - 1]; const U = window.ucc; const N = 1000;
+                 const server = {addr: '127.0.0.1:3000', local: true, time_scale: '1', paused: false, map: 'EmptyRoom'};
+                 const first = []; for (let i = 0; i < N; i++) first.push({id: i + 1, info: {name: 'U' + (i + 1), robot: 'stsAirRobot', agent: 'base', start: '0,0,-1', status: 'running', error: null, iteration: 1, iterations: 10000, active: 0, prefix: 'U', pictures: 'none', autosave: false, missions: [{kind: 'GotoXyz', x: 5, y: 0, z: -2, text: 'GotoXyz 5,0,-2'}]}, trail_reset: true, history_reset: true, past_reset: true});
+                 U.receive({type: 'state', server, uavs: first, removed: [], log: []});
+                 U.select(1);
+                 let k = 0; const t0 = performance.now(); const mem0 = performance.memory ? performance.memory.usedJSHeapSize : 0;
+                 const timer = setInterval(() => {
+                   k++; const uavs = [];
+                   for (let i = 0; i < N; i++) {
+                     const a = k * 0.02 + i, r = 2 + (i % 7), x = -9 + (i % 40) * 0.45 + Math.cos(a) * 0.3, y = -9 + Math.floor(i / 40) * 0.7 + Math.sin(a) * 0.3;
+                     const p = [x, y, -1 - (i % 3) * 0.5];
+                     uavs.push({id: i + 1, live: {time: k * 0.05, position: p, attitude: [0.05, -0.05, a], velocity: [0.3, 0.3, 0], battery: {level: 0.9, remaining: 900}},
+                                trail: [p], history: [[k * 0.05, -p[2], 0.42, 0.9]]});
+                   }
+                   U.receive({type: 'state', server, uavs, removed: [], log: []});
+                 }, 50);
+                 window.uccFrameTimes = []; for (const k in window.uccParts) window.uccParts[k] = 0; const gaps = []; let last = performance.now();
+                 function f(t) { gaps.push(t - last); last = t; if (t - t0 < 10000) requestAnimationFrame(f); else {
+                   clearInterval(timer);
+                   const q = (a, p) => { const s = [...a].sort((x, y) => x - y); return s[Math.min(s.length - 1, Math.floor(p * s.length))]; };
+                   const d = window.uccFrameTimes;
+                   done({uavs: N, draw_median_ms: q(d, 0.5), draw_p95_ms: q(d, 0.95), frames: d.length,
+                         gap_median_ms: q(gaps, 0.5), gap_p95_ms: q(gaps, 0.95), updates: k,
+                         heap_mb_start: mem0 / 1e6, heap_mb_end: performance.memory ? performance.memory.usedJSHeapSize / 1e6 : null,
+                         trail_points: [...U.uavs.values()].reduce((n, u) => n + u.trail.length, 0), parts_ms: window.uccParts});
+                 } }
+                 requestAnimationFrame(f);",
+                vec![],
+            )
+            .await?;
+        println!("ucc-gui page with 1000 UAVs, 10 s: {figures}");
+        if std::env::var("UCC_GUI_SCREENSHOTS").as_deref() == Ok("1") {
+            let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/img");
+            std::fs::write(dir.join("ucc-gui-1000-uavs.png"), c.screenshot().await?)?;
+        }
+        Ok(())
+    })
+    .await
+}
+
+/// The screenshots of docs/gui.md (docs/img/): three UAVs flying in the arena, the page at
+/// 1400×900 and 1024×700, the 3D view and the plots. Runs only with `UCC_GUI_SCREENSHOTS=1`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn screenshots_for_the_docs() -> Result<()> {
+    if std::env::var("UCC_GUI_SCREENSHOTS").as_deref() != Ok("1") {
+        eprintln!("screenshots skipped: set UCC_GUI_SCREENSHOTS=1 to write docs/img/");
+        return Ok(());
+    }
+    let arena = ServerChoice::Local(Box::new(ServerConfig {
+        map: usar_server::sim::Map::embedded("arena").context("the arena map")?,
+        time_scale: TimeScale::Factor(5.0),
+        lockstep: true,
+        ..ServerConfig::default()
+    }));
+    with_page(arena, (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        js(&c, "
+            const fly = [['Start1', [[-12, 0], [-6, 3], [-2, -4]]], ['Start2', [[12, -6], [6, -7], [3, -2]]], ['Start3', [[10, 7], [4, 7], [0, 5]]]];
+            fly.forEach(([tag, pts], i) => {
+              U.send({op: 'create', robot: 'stsAirRobot', agent: 'avoid', start: tag, name: ''});
+              for (const [x, y] of pts) U.send({op: 'add_mission', uav: i + 1, kind: 'GotoXyz', x: String(x), y: String(y), z: '-1.5'});
+              U.send({op: 'options', uav: i + 1, prefix: 'S' + (i + 1), pictures: 'none', autosave: false});
+              U.send({op: 'start', uav: i + 1, iterations: '3'});
+            });").await?;
+        until("a second iteration", 120, || async {
+            Ok(js(&c, "return [...U.uavs.values()].every(u => u.info.iteration >= 2)").await?.as_bool() == Some(true))
+        })
+        .await?;
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        js(&c, "U.select(1); U.fit(); const v = U.view3d; if (v) { v.orbit.theta = 0.6; v.orbit.phi = 0.75; v.dirty = true; }").await?;
+        tokio::time::sleep(Duration::from_millis(700)).await;
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/img");
+        std::fs::create_dir_all(&dir)?;
+        std::fs::write(dir.join("ucc-gui-1400x900.png"), c.screenshot().await?)?;
+        let view3d = c.find(Locator::Id("view3d-box")).await?;
+        std::fs::write(dir.join("ucc-gui-3d.png"), view3d.screenshot().await?)?;
+        let side = c.find(Locator::Id("side")).await?;
+        std::fs::write(dir.join("ucc-gui-plots.png"), side.screenshot().await?)?;
+        c.set_window_size(1024, 700).await?;
+        tokio::time::sleep(Duration::from_millis(1000)).await;
+        js(&c, "U.fit()").await?;
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        std::fs::write(dir.join("ucc-gui-1024x700.png"), c.screenshot().await?)?;
+        Ok(())
+    })
+    .await
 }

@@ -78,25 +78,39 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
         .await
         .unwrap();
 
-    // Pause holds the flight: the simulated time of its state stops; Resume goes on.
-    while time_of_state(&mut ws).await.is_none() {}
+    // Pause against a server without lockstep (a real USARSim) holds the UAV where it is:
+    // zero velocity set-points, not the last command (issue #23, defect 6).
+    while position_of_state(&mut ws).await.is_none() {}
     ws.send(send(json!({"op": "pause", "paused": true})))
         .await
         .unwrap();
     for _ in 0..4 {
-        time_of_state(&mut ws).await; // the pause takes effect at the flight's next event
+        position_of_state(&mut ws).await; // the pause takes effect at the flight's next step
     }
-    let paused_at = time_of_state(&mut ws).await;
-    for _ in 0..10 {
-        assert_eq!(
-            time_of_state(&mut ws).await,
-            paused_at,
-            "the flight went on while paused"
-        );
-    }
+    let paused_at = position_of_state(&mut ws).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(1500)).await;
     ws.send(send(json!({"op": "pause", "paused": false})))
         .await
         .unwrap();
+    // The first position after the pause is where the UAV was held.
+    let mut after = None;
+    for _ in 0..40 {
+        after = position_of_state(&mut ws).await;
+        if after.is_some_and(|p| p != paused_at) {
+            break;
+        }
+    }
+    let after = after.unwrap();
+    let moved = paused_at
+        .iter()
+        .zip(after)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(
+        moved < 0.5,
+        "paused at {paused_at:?}, the UAV went on to {after:?} ({moved:.2} m)"
+    );
     ws.send(send(
         json!({"op": "add_mission", "uav": 1, "kind": "GotoXyz", "x": "1", "y": "NaN", "z": "-1"}),
     ))
@@ -125,12 +139,19 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
                     log.push(l["text"].as_str().unwrap().to_owned());
                 }
                 let Some(u) = v["uavs"].get(0) else { continue };
-                trail += u["trail"].as_array().unwrap().len();
-                hits += u["hits"].as_array().unwrap().len();
-                past += u["past"].as_array().unwrap().len();
-                let done = !matches!(u["status"].as_str(), Some("running" | "stopping" | "idle"));
-                last = u.clone();
-                if done {
+                let len = |k: &str| u.get(k).and_then(Value::as_array).map_or(0, Vec::len);
+                trail += len("trail");
+                hits += len("hits");
+                past += len("past");
+                // An update carries what changed: merge it into what we know.
+                if last.is_null() {
+                    last = json!({});
+                }
+                for (k, v) in u.as_object().unwrap() {
+                    last[k] = v.clone();
+                }
+                let status = last["info"]["status"].as_str();
+                if !matches!(status, Some("running" | "stopping" | "idle")) {
                     break;
                 }
             }
@@ -138,9 +159,9 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
         }
     }
     assert_eq!(errors, ["mission y: \"NaN\" is not a finite number"]);
-    assert_eq!(last["status"], "done", "{last}");
-    assert_eq!(last["iteration"], 2);
-    assert_eq!(last["missions"].as_array().unwrap().len(), 2);
+    assert_eq!(last["info"]["status"], "done", "{last}");
+    assert_eq!(last["info"]["iteration"], 2);
+    assert_eq!(last["info"]["missions"].as_array().unwrap().len(), 2);
     assert!(trail > 20, "{trail} trail points");
     assert!(past >= 1, "the first iteration's trail for the overlay");
     assert!(
@@ -154,7 +175,7 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
         "{log:?}"
     );
     assert!(log.iter().any(|l| l.contains("sensor time")) || !log.is_empty());
-    let files: Vec<&str> = last["files"]
+    let files: Vec<&str> = last["files"]["recent"]
         .as_array()
         .unwrap()
         .iter()
@@ -166,7 +187,14 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
     );
 
     // The files are offered for download; Quit ends the control center.
-    let index = files.iter().position(|f| *f == "UAV1-results.csv").unwrap();
+    let index = last["files"]["recent"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["name"] == "UAV1-results.csv")
+        .unwrap()["index"]
+        .as_u64()
+        .unwrap();
     let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
     s.write_all(
@@ -206,8 +234,8 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
     let _ = std::fs::remove_dir_all(log_dir);
 }
 
-/// The simulated time of the next state update's first UAV.
-async fn time_of_state<S, E>(ws: &mut S) -> Option<f64>
+/// The position of the first UAV in the next state update.
+async fn position_of_state<S, E>(ws: &mut S) -> Option<[f64; 3]>
 where
     S: futures::Stream<Item = Result<Message, E>> + Unpin,
     E: std::fmt::Debug,
@@ -221,7 +249,8 @@ where
         let Message::Text(t) = m else { continue };
         let v: Value = serde_json::from_str(t.as_str()).unwrap();
         if v["type"] == "state" {
-            return v["uavs"][0]["live"]["time"].as_f64();
+            let p = v["uavs"][0]["live"]["position"].as_array()?;
+            return Some([p[0].as_f64()?, p[1].as_f64()?, p[2].as_f64()?]);
         }
     }
 }
@@ -271,26 +300,29 @@ async fn speed_and_connect() {
     assert!(hello["geometry"].as_array().is_some_and(|g| !g.is_empty()));
     let first = next_of(&mut ws, "state").await["server"].clone();
     assert_eq!(
-        (first["local"].clone(), first["speed"].clone()),
+        (first["local"].clone(), first["time_scale"].clone()),
         (json!(true), json!("1"))
     );
 
-    ws.send(send(json!({"op": "speed", "value": "fast"})))
+    ws.send(send(json!({"op": "time_scale", "value": "fast"})))
         .await
         .unwrap();
     let e = next_of(&mut ws, "error").await;
-    assert!(e["message"].as_str().unwrap().starts_with("speed: "), "{e}");
-    ws.send(send(json!({"op": "speed", "value": "max"})))
+    assert!(
+        e["message"].as_str().unwrap().starts_with("time scale: "),
+        "{e}"
+    );
+    ws.send(send(json!({"op": "time_scale", "value": "max"})))
         .await
         .unwrap();
     let mut state = next_of(&mut ws, "state").await;
     for _ in 0..50 {
-        if state["server"]["speed"] == "max" {
+        if state["server"]["time_scale"] == "max" {
             break;
         }
         state = next_of(&mut ws, "state").await;
     }
-    assert_eq!(state["server"]["speed"], "max");
+    assert_eq!(state["server"]["time_scale"], "max");
     assert_ne!(state["server"]["addr"], first["addr"], "a new local server");
 
     let nothing = std::net::TcpListener::bind("127.0.0.1:0").unwrap();

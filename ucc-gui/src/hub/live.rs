@@ -1,0 +1,119 @@
+//! The latest state of a UAV as the live panel shows it, made from the client's [`UavState`].
+
+use serde_json::{Value, json};
+use ucc_client::UavState;
+
+/// The latest state of a UAV, as the live panel shows it.
+#[derive(Debug, Clone, Default)]
+pub struct Live {
+    /// Simulated seconds.
+    pub time: f64,
+    /// Metres, world frame, z down.
+    pub position: Option<[f64; 3]>,
+    /// Roll, pitch, yaw, radians.
+    pub attitude: Option<[f64; 3]>,
+    /// m/s, world frame.
+    pub velocity: Option<[f64; 3]>,
+    /// Level (1 = full) and remaining seconds.
+    pub battery: Option<(f64, i64)>,
+    /// Ranges (index 0 rightmost), resolution and field of view (radians).
+    pub laser: Option<(Vec<f64>, f64, f64)>,
+    /// The horizontal sonars, metres.
+    pub sonars: Vec<Option<f64>>,
+    /// Free space above and below, metres.
+    pub free: (Option<f64>, Option<f64>),
+    /// Altitude sensor, metres.
+    pub altitude: Option<f64>,
+    /// The command in force: forward, right, up, yaw.
+    pub command: Option<[f64; 4]>,
+    /// Laser hits of this sample in the world frame (x, y).
+    pub hits: Vec<[f64; 2]>,
+}
+
+impl Live {
+    /// The live state of `uav` at simulated `time`; with `hits`, the laser's hits in the
+    /// world frame (the map of a server without geometry).
+    pub fn of(
+        time: f64,
+        uav: &UavState,
+        command: Option<ucc_client::SpeedCommand>,
+        hits: bool,
+    ) -> Self {
+        let v3 = |c: &ucc_client::Coordinates| [c.x, c.y, c.z];
+        let position = uav.position.as_ref().map(|p| v3(&p.value));
+        let laser = uav.laser.as_ref().map(|l| l.value.clone());
+        let mut live = Self {
+            time,
+            position,
+            attitude: uav.orientation.as_ref().map(|o| v3(&o.value)),
+            velocity: uav.velocity.as_ref().map(|v| v3(&v.value)),
+            battery: uav
+                .battery
+                .as_ref()
+                .map(|b| (b.value.level, b.value.remaining)),
+            laser: laser
+                .as_ref()
+                .map(|l| (l.ranges.clone(), l.resolution, l.fov)),
+            sonars: uav
+                .sonars
+                .iter()
+                .map(|s| s.as_ref().map(|r| r.value))
+                .collect(),
+            free: (
+                uav.free_above.as_ref().map(|r| r.value),
+                uav.free_below.as_ref().map(|r| r.value),
+            ),
+            altitude: uav.altitude.as_ref().map(|r| r.value),
+            command: command.map(|c| [c.forward, c.right, c.up, c.yaw]),
+            hits: Vec::new(),
+        };
+        if hits && let (Some(p), Some(l)) = (position, laser) {
+            let max = l.ranges.iter().copied().fold(0.0, f64::max);
+            let yaw = uav.yaw();
+            for (i, r) in l.ranges.iter().enumerate() {
+                if r.is_finite() && *r > 0.0 && *r < max * 0.99 {
+                    let a = yaw + l.bearing(i);
+                    live.hits.push([p[0] + r * a.cos(), p[1] + r * a.sin()]);
+                }
+            }
+        }
+        live
+    }
+
+    /// The JSON of the live panel; the laser and sonars only for the selected UAV.
+    pub fn to_json(&self, detail: bool) -> Value {
+        let finite = |v: f64| {
+            if v.is_finite() {
+                Value::from(v)
+            } else {
+                Value::Null
+            }
+        };
+        let arr = |a: &Option<[f64; 3]>| a.map(|a| a.map(finite));
+        let mut v = json!({
+            "time": finite(self.time),
+            "position": arr(&self.position),
+            "attitude": arr(&self.attitude),
+            "velocity": arr(&self.velocity),
+            "battery": self.battery.map(|b| json!({"level": finite(b.0), "remaining": b.1})),
+        });
+        if detail {
+            v["laser"] = self
+                .laser
+                .as_ref()
+                .map_or(Value::Null, |l| json!({"ranges": l.0.iter().map(|r| finite(*r)).collect::<Vec<_>>(), "resolution": finite(l.1), "fov": finite(l.2)}));
+            v["sonars"] = self
+                .sonars
+                .iter()
+                .map(|s| s.map_or(Value::Null, finite))
+                .collect();
+            v["free_above"] = self.free.0.map_or(Value::Null, finite);
+            v["free_below"] = self.free.1.map_or(Value::Null, finite);
+            v["altitude"] = self.altitude.map_or(Value::Null, finite);
+            v["command"] = self
+                .command
+                .map_or(Value::Null, |c| c.map(finite).into_iter().collect());
+        }
+        v
+    }
+}

@@ -1,0 +1,206 @@
+//! The hub's answers to names, numbers and long runs (issue #23's defects 1, 3, 4, 5), without
+//! a browser or a server.
+
+use std::path::{Component, Path};
+
+use ucc_gui::hub::{Action, Cursor, Hub, Request};
+
+fn hub() -> Hub {
+    Hub::new(
+        "127.0.0.1:3000".into(),
+        false,
+        std::env::temp_dir().join("ucc-gui-hub-test"),
+    )
+}
+
+fn create(hub: &mut Hub, name: &str) -> Result<u32, String> {
+    match hub.apply(Request::Create {
+        robot: "stsAirRobot".into(),
+        agent: "base".into(),
+        start: "0,0,-1".into(),
+        name: name.into(),
+    }) {
+        Ok(Action::Created(id)) => Ok(id),
+        Ok(other) => panic!("{other:?}"),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+fn goto(uav: u32, x: &str) -> Request {
+    Request::AddMission {
+        uav,
+        kind: "GotoXyz".into(),
+        x: x.into(),
+        y: "0".into(),
+        z: "-2".into(),
+        seconds: String::new(),
+    }
+}
+
+/// Defect 1: whatever the name, a run's files land directly in the log directory.
+#[test]
+fn names_never_lead_files_out_of_the_log_dir() {
+    let mut hub = hub();
+    let log_dir = hub.log_dir.clone();
+    for name in [
+        "../escaped",
+        "/abs/path",
+        "a/../../b",
+        "..",
+        ".hidden",
+        "x\\..\\y",
+    ] {
+        let Ok(id) = create(&mut hub, name) else {
+            continue; // refused with a message: fine too
+        };
+        hub.apply(goto(id, "1")).unwrap();
+        let Ok(Action::Start(_, settings, _)) = hub.apply(Request::Start {
+            uav: id,
+            iterations: "1".into(),
+        }) else {
+            panic!("{name}: no start")
+        };
+        let file = settings.file("01.log").unwrap();
+        assert_eq!(
+            file.parent(),
+            Some(log_dir.as_path()),
+            "{name:?} writes {}",
+            file.display()
+        );
+        let last = Path::new(file.file_name().unwrap());
+        assert!(
+            last.components().all(|c| matches!(c, Component::Normal(_))),
+            "{name:?}: {last:?}"
+        );
+        assert!(
+            !file.file_name().unwrap().to_string_lossy().starts_with('.'),
+            "{name:?}: a hidden file {}",
+            file.display()
+        );
+    }
+    // The prefix form refuses what the default would not have produced.
+    let id = create(&mut hub, "ok").unwrap();
+    let e = hub
+        .apply(Request::Options {
+            uav: id,
+            prefix: "../x".into(),
+            pictures: "all".into(),
+            autosave: true,
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("file prefix: "), "{e}");
+}
+
+/// Defect 4: names with control characters, or absurdly long, are refused with a message.
+#[test]
+fn names_with_control_characters_or_too_long_are_refused() {
+    let mut hub = hub();
+    for name in ["a\tb", "a\nb", "a\rGETSTARTPOSES", "nul\0", "bell\u{7}"] {
+        let e = create(&mut hub, name).unwrap_err();
+        assert!(
+            e.starts_with("name: ") && e.contains("control character"),
+            "{name:?}: {e}"
+        );
+    }
+    let long = "x".repeat(100_000);
+    let e = create(&mut hub, &long).unwrap_err();
+    assert!(e.starts_with("name: ") && e.contains("64"), "{e}");
+    assert!(e.len() < 200, "the message does not repeat the name: {e}");
+    assert!(create(&mut hub, &"y".repeat(64)).is_ok());
+    // HTML is only text: it is accepted and shown as text by the page.
+    assert!(create(&mut hub, "<b>bold</b>").is_ok());
+}
+
+/// Defect 5: coordinates beyond any map are refused, not drawn.
+#[test]
+fn huge_coordinates_are_refused() {
+    let mut hub = hub();
+    let id = create(&mut hub, "").unwrap();
+    for x in ["1e8", "1e12", "-3e5"] {
+        let e = hub.apply(goto(id, x)).unwrap_err().to_string();
+        assert!(
+            e.starts_with("mission x: ") && e.contains("100000"),
+            "{x}: {e}"
+        );
+    }
+    hub.apply(goto(id, "99999")).unwrap();
+    let e = match hub.apply(Request::Create {
+        robot: "stsAirRobot".into(),
+        agent: "base".into(),
+        start: "1e12,0,-1".into(),
+        name: String::new(),
+    }) {
+        Err(e) => e.to_string(),
+        Ok(a) => panic!("{a:?}"),
+    };
+    assert!(e.starts_with("start pose: ") && e.contains("100000"), "{e}");
+}
+
+/// Defect 3: the files of a long run are offered once each, and an update carries them only
+/// when they change.
+#[test]
+fn files_are_listed_once_and_sent_when_they_change() {
+    let mut hub = hub();
+    let id = create(&mut hub, "").unwrap();
+    hub.apply(goto(id, "1")).unwrap();
+    hub.apply(Request::Start {
+        uav: id,
+        iterations: "100".into(),
+    })
+    .unwrap();
+    let mut cursor = Cursor::default();
+    let dir = hub.log_dir.clone();
+    for i in 1..=100 {
+        hub.new_iteration(id, i);
+        let files = vec![
+            dir.join(format!("UAV1-{i:02}.log")),
+            dir.join("UAV1-overlay.png"),
+            dir.join("UAV1-results.csv"),
+        ];
+        hub.written(id, &files);
+    }
+    let u = hub.update(&mut cursor);
+    assert_eq!(u["uavs"][0]["files"]["total"], 102);
+    let files = u["uavs"][0]["files"]["recent"].as_array().unwrap();
+    assert!(files.len() <= ucc_gui::hub::update::RECENT_FILES);
+    let names: Vec<&str> = files.iter().map(|f| f["name"].as_str().unwrap()).collect();
+    assert!(names.contains(&"UAV1-100.log"), "{names:?}");
+    assert_eq!(hub.uavs[0].files.len(), 102);
+    let again = hub.update(&mut cursor);
+    assert!(
+        again["uavs"][0].get("files").is_none_or(|f| f.is_null()),
+        "unchanged files are not sent again: {}",
+        again["uavs"][0]
+    );
+}
+
+/// The overlay of a long loop stays bounded in the hub (the page's memory follows).
+#[test]
+fn a_long_loop_keeps_the_overlay_bounded() {
+    let mut hub = hub();
+    let id = create(&mut hub, "").unwrap();
+    hub.apply(goto(id, "1")).unwrap();
+    hub.apply(Request::Start {
+        uav: id,
+        iterations: "10000".into(),
+    })
+    .unwrap();
+    for i in 1..=2_000 {
+        hub.new_iteration(id, i);
+        for k in 0..200 {
+            hub.sample(
+                id,
+                i,
+                ucc_gui::hub::Live {
+                    time: k as f64 * 0.1,
+                    position: Some([k as f64 * 0.01, 0.0, -1.0]),
+                    ..Default::default()
+                },
+            );
+        }
+    }
+    let points: usize = hub.uavs[0].past.iter().map(Vec::len).sum();
+    assert!(points <= 100_000, "{points} overlay points kept");
+    assert!(hub.uavs[0].past.len() >= 10, "recent iterations kept");
+}
