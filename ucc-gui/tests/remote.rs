@@ -88,29 +88,44 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
         position_of_state(&mut ws).await; // the pause takes effect at the flight's next step
     }
     let paused_at = position_of_state(&mut ws).await.unwrap();
-    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let dist = |a: [f64; 3], b: [f64; 3]| {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (p - q).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    // While paused the UAV stays where it is (its state still arrives)...
+    let mut held = paused_at;
+    let end = tokio::time::Instant::now() + Duration::from_millis(1500);
+    while tokio::time::Instant::now() < end {
+        if let Some(p) = position_of_state(&mut ws).await {
+            held = p;
+            assert!(
+                dist(p, paused_at) < 0.5,
+                "paused at {paused_at:?}, the UAV went on to {p:?}"
+            );
+        }
+    }
     ws.send(send(json!({"op": "pause", "paused": false})))
         .await
         .unwrap();
-    // The first position after the pause is where the UAV was held.
-    let mut after = None;
+    // ...and flies on from there on Resume (no jump by what it would have flown meanwhile).
+    let mut after = held;
     for _ in 0..40 {
-        after = position_of_state(&mut ws).await;
-        if after.is_some_and(|p| p != paused_at) {
-            break;
+        match position_of_state(&mut ws).await {
+            Some(p) if p != held => {
+                after = p;
+                break;
+            }
+            _ => {}
         }
     }
-    let after = after.unwrap();
-    let moved = paused_at
-        .iter()
-        .zip(after)
-        .map(|(a, b)| (a - b).powi(2))
-        .sum::<f64>()
-        .sqrt();
     assert!(
-        moved < 0.5,
-        "paused at {paused_at:?}, the UAV went on to {after:?} ({moved:.2} m)"
+        dist(after, held) < 2.0,
+        "held at {held:?}, after Resume at {after:?}: the UAV flew on while paused"
     );
+
     ws.send(send(
         json!({"op": "add_mission", "uav": 1, "kind": "GotoXyz", "x": "1", "y": "NaN", "z": "-1"}),
     ))
@@ -150,8 +165,9 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
                 for (k, v) in u.as_object().unwrap() {
                     last[k] = v.clone();
                 }
+                // (`info` comes when it changes: until the first one here, the status is not known.)
                 let status = last["info"]["status"].as_str();
-                if !matches!(status, Some("running" | "stopping" | "idle")) {
+                if status.is_some_and(|s| !matches!(s, "running" | "stopping" | "idle")) {
                     break;
                 }
             }
@@ -182,7 +198,9 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
         .map(|f| f["name"].as_str().unwrap())
         .collect();
     assert!(
-        files.contains(&"UAV1-results.csv") && files.contains(&"UAV1-01.log"),
+        files.contains(&"UAV1-results.csv")
+            && files.contains(&"UAV1-02.log")
+            && last["files"]["total"].as_u64() >= Some(14),
         "{files:?}"
     );
 
