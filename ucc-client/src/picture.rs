@@ -1,6 +1,6 @@
 //! The map picture of the original map window: the map's walls and obstacles (or what the
 //! laser saw), the paths seen from above (x north up, y east right), the waypoints as red
-//! squares, the start, axes in metres and a scale bar; and the plots of an iteration: a
+//! squares numbered in the order flown, the start, axes in metres and a scale bar; and the plots of an iteration: a
 //! side view (altitude) and altitude, speed and battery over time. Written as SVG and PNG.
 //!
 //! PNG text is drawn with the DejaVu Sans font embedded in the crate
@@ -595,11 +595,13 @@ fn line_panel<DB: DrawingBackend>(
             });
         }
     }
-    chart.draw_series(
-        marks.iter().map(|&p| {
-            EmptyElement::at(p) + Rectangle::new([(-5, -5), (5, 5)], RED.stroke_width(2))
-        }),
-    )?;
+    // The marks (waypoints), numbered in the order flown.
+    let font = ("sans-serif", 13).into_font().color(&RED);
+    chart.draw_series(marks.iter().enumerate().map(|(i, &p)| {
+        EmptyElement::at(p)
+            + Rectangle::new([(-5, -5), (5, 5)], RED.stroke_width(2))
+            + Text::new((i + 1).to_string(), (7, -19), font.clone())
+    }))?;
     if series.len() > 1 {
         chart
             .configure_series_labels()
@@ -757,9 +759,11 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    /// The numbers of `points="x,y x,y"` attributes of the polylines of an SVG, with the
-    /// polyline's stroke colour and width.
-    fn polylines(svg: &str) -> Vec<(String, f64, Vec<(f64, f64)>)> {
+    /// A polyline of an SVG: its stroke colour, its width and its points.
+    type Polyline = (String, f64, Vec<(f64, f64)>);
+
+    /// The polylines of an SVG.
+    fn polylines(svg: &str) -> Vec<Polyline> {
         let attr = |tag: &str, name: &str| {
             tag.split(&format!(" {name}=\""))
                 .nth(1)?

@@ -415,8 +415,8 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
     if missions.is_empty() {
         bail!("no missions: give --goto x,y,z (repeatable) or --missions FILE");
     }
-    prepare_output(&args.log_dir, &args.prefix, args.force)?;
     if !args.local {
+        prepare_output(&args.log_dir, &args.prefix, args.force)?;
         let addr = format!("{}:{}", args.host, args.port);
         let lockstep = if args.lockstep {
             Lockstep::Required
@@ -457,6 +457,7 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
     }
     let geometry = MapGeometry::from(&config.map);
     check_points(&geometry, &args.start, &missions, config.map.level())?;
+    prepare_output(&args.log_dir, &args.prefix, args.force)?;
     let server = LocalServer::start(config)
         .await
         .context("cannot start the local server")?;
