@@ -4,7 +4,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use usar_proto::Command;
-use usar_server::sim::{Map, RobotCatalog, SimConfig, World};
+use usar_sim::{Map, RobotCatalog, SimConfig, World};
 
 fuzz_target!(|text: &str| {
     let mut world = World::new(Map::default_map(), RobotCatalog::embedded(), SimConfig::default());

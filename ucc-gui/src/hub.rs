@@ -358,11 +358,7 @@ impl Hub {
                     return Err(format!("robot class: {robot:?} is not a class name"));
                 }
                 if let Some(known) = &self.robot_classes {
-                    let full = if robot.contains('.') {
-                        robot.clone()
-                    } else {
-                        format!("USARBot.{robot}")
-                    };
+                    let full = usar_proto::Init::qualified_class(&robot);
                     if !known.iter().any(|k| k.eq_ignore_ascii_case(&full)) {
                         let names: Vec<&str> = known
                             .iter()

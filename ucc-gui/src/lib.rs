@@ -29,7 +29,8 @@ use axum::routing::get;
 use serde_json::json;
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
-use usar_server::{LocalServer, ServerConfig};
+use ucc_client::Backend;
+use usar_server::ServerConfig;
 
 use crate::flight::Shared;
 use crate::hub::{Action, Cursor, Hub, Request};
@@ -72,8 +73,8 @@ pub enum GuiError {
         addr: SocketAddr,
     },
     /// The local server did not start.
-    #[error("cannot start the local server: {0}")]
-    LocalServer(#[from] usar_server::ServerError),
+    #[error("cannot start {0}")]
+    LocalServer(#[from] ucc_client::backend::BackendError),
     /// Serving failed.
     #[error("cannot serve the page: {0}")]
     Io(#[from] std::io::Error),
@@ -82,7 +83,7 @@ pub enum GuiError {
 /// The local server and the configuration it was started with.
 struct Local {
     config: ServerConfig,
-    server: Option<LocalServer>,
+    server: Option<ucc_client::backend::Server>,
 }
 
 #[derive(Clone)]
@@ -150,7 +151,8 @@ pub async fn serve(
             vec!["stsAirRobot".to_owned(), "AirRobot".to_owned()],
         ),
         ServerChoice::Local(c) => {
-            let server = LocalServer::start((*c).clone()).await?;
+            let server = Backend::Local(c.clone()).start().await?;
+            let geometry = server.map().cloned();
             let robots = c
                 .robots
                 .classes()
@@ -163,7 +165,7 @@ pub async fn serve(
                     config: *c.clone(),
                     server: Some(server),
                 }),
-                Some(ucc_client::picture::MapGeometry::from(&c.map)),
+                geometry,
                 c.map.level().to_owned(),
                 robots,
             )
@@ -183,10 +185,7 @@ pub async fn serve(
     }
     hub.map = map_name;
     if let Some(l) = &local {
-        hub.speed = match l.config.time_scale {
-            usar_server::TimeScale::Max => "max".into(),
-            usar_server::TimeScale::Factor(k) => format!("{k}"),
-        };
+        hub.speed = l.config.time_scale.to_string();
     }
     let app = App {
         shared: Arc::new(Shared {
@@ -451,7 +450,8 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, String> {
                 _ = server.stop().await;
             }
             local.config.time_scale = scale;
-            let server = LocalServer::start(local.config.clone())
+            let server = Backend::Local(Box::new(local.config.clone()))
+                .start()
                 .await
                 .map_err(|e| format!("cannot restart the local server: {e}"))?;
             let mut hub = app.shared.lock();

@@ -11,7 +11,7 @@ const FULL_WARNINGS: u64 = 8;
 
 /// A client's text as the log shows it: control bytes escaped (`\u{1b}`, `\0`), at most
 /// [`SHOWN_CHARS`] characters, then the total length.
-pub(crate) struct Shown<'a>(pub(crate) &'a str);
+pub struct Shown<'a>(pub &'a str);
 
 impl fmt::Display for Shown<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -34,24 +34,24 @@ impl fmt::Display for Shown<'_> {
 /// [`FULL_WARNINGS`], then only the 16th, 32nd, 64th, ... (each with the count so far), so
 /// a flood of N bad lines writes O(log N) log lines.
 #[derive(Debug, Default, Clone, Copy)]
-pub(crate) struct Repeats {
+pub struct Repeats {
     count: u64,
 }
 
 impl Repeats {
     /// Counts one more; `Some(count)` when this one should be logged.
-    pub(crate) fn note(&mut self) -> Option<u64> {
+    pub fn note(&mut self) -> Option<u64> {
         self.count += 1;
         (self.count <= FULL_WARNINGS || self.count.is_power_of_two()).then_some(self.count)
     }
 
     /// How many there were.
-    pub(crate) fn count(self) -> u64 {
+    pub fn count(self) -> u64 {
         self.count
     }
 
     /// How many were not logged.
-    pub(crate) fn suppressed(self) -> u64 {
+    pub fn suppressed(self) -> u64 {
         // Powers of two above FULL_WARNINGS (8 = 2^3) up to count: 2^4 ..= 2^floor(log2 count).
         let powers = u64::from(self.count.checked_ilog2().unwrap_or(0).saturating_sub(3));
         let logged = self.count.min(FULL_WARNINGS) + powers;
