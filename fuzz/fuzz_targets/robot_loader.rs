@@ -3,7 +3,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use usar_proto::{Command, Init};
-use usar_server::sim::{Map, RobotCatalog, SimConfig, World};
+use usar_sim::{Map, RobotCatalog, SimConfig, World};
 
 fuzz_target!(|text: &str| {
     let Ok(robots) = RobotCatalog::from_toml(text, std::path::Path::new("fuzz.toml")) else {

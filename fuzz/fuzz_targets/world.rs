@@ -11,7 +11,7 @@ use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
 use usar_proto::Command;
-use usar_server::sim::{Map, RobotCatalog, SimConfig, World};
+use usar_sim::{Map, RobotCatalog, SimConfig, World};
 
 /// A small map: walls around 6 m × 6 m, a pillar and a PlayerStart.
 const MAP: &str = r#"

@@ -45,11 +45,11 @@ use std::collections::VecDeque;
 use usar_proto::{Barrier, Command, Nfo, ServerMessage};
 
 use crate::agent::{Agent, AgentEvent, SpeedCommand};
+use crate::error::RunError;
 use crate::geometry::Coordinates;
 use crate::mission::Mission;
-use crate::output::{FlightRecord, TrajectoryPoint};
 use crate::progress::Progress;
-use crate::runner::RunError;
+use crate::record::{FlightRecord, TrajectoryPoint};
 use crate::settings::{RunSettings, Start};
 use crate::uav::UavState;
 

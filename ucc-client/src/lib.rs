@@ -7,6 +7,7 @@
 //!   (`base`, `avoid`) and the registry of names the `ucc` program accepts;
 //! * [`flight`] — one flight, sans I/O: server messages in, commands and progress out;
 //! * [`runner`] — [`run`]: connect, spawn, fly, repeat, over a [`Connection`];
+//! * [`backend`] — [`Backend`]: a remote server, or one inside this process (`local`);
 //! * [`settings`] — [`RunSettings`]; [`progress`] — [`Progress`] events and the
 //!   [`Observer`]; [`stats`] — [`Summary`], [`Statistics`], the results table;
 //! * [`output`] and [`picture`] — the per-iteration log, trajectory CSV, map picture, plots;
@@ -61,7 +62,9 @@
 
 pub mod agent;
 pub mod agents;
+pub mod backend;
 pub mod connection;
+pub mod error;
 pub mod flight;
 pub mod geometry;
 pub mod lines;
@@ -69,18 +72,22 @@ pub mod mission;
 pub mod output;
 pub mod picture;
 pub mod progress;
+pub mod record;
 pub mod runner;
 pub mod settings;
+pub mod speed;
 pub mod stats;
 pub mod uav;
 
 pub use agent::{Agent, AgentEvent, AgentFactory, MissionRefused, SpeedCommand, Step};
+pub use backend::Backend;
 pub use connection::{Connection, ConnectionError};
+pub use error::RunError;
 pub use flight::Flight;
 pub use geometry::Coordinates;
 pub use mission::{Mission, MissionError};
 pub use progress::{Observer, Progress};
-pub use runner::{RunError, run};
+pub use runner::run;
 pub use settings::{Lockstep, Pictures, RunSettings, Start};
 pub use stats::{IterationStatus, IterationSummary, Statistics, Summary};
 pub use uav::UavState;

@@ -1,111 +1,14 @@
-//! What one iteration leaves behind ([`FlightRecord`]) and the files it is written to: the
-//! log, the trajectory CSV, the map picture and the plots ([`write_iteration`]).
+//! The files one iteration ([`FlightRecord`]) is written to: the log, the trajectory CSV,
+//! the map picture and the plots ([`write_iteration`]).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use crate::geometry::{Coordinates, body_to_world_vector};
+use crate::error::RunError;
+use crate::geometry::Coordinates;
 use crate::picture::{MapPicture, Plots};
-use crate::runner::RunError;
+pub use crate::record::{FlightRecord, TrajectoryPoint};
 use crate::settings::{Pictures, RunSettings};
-use crate::uav::{LaserScan, UavState};
-
-/// At most this many laser hit points are kept per iteration (for the map picture when the
-/// map's geometry is unknown).
-const MAX_LASER_HITS: usize = 50_000;
-
-/// What one flight recorded.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct FlightRecord {
-    /// 1-based.
-    pub iteration: usize,
-    /// The log lines.
-    pub log: Vec<String>,
-    /// One row per time stamp with a position.
-    pub trajectory: Vec<TrajectoryPoint>,
-    /// Where the laser hit something (world frame), thinned: every fourth beam.
-    pub laser_hits: Vec<Coordinates>,
-    /// Missions completed.
-    pub missions_done: usize,
-    /// Simulated time of the spawn.
-    pub start_time: Option<f64>,
-    /// Simulated time the last mission was done.
-    pub end_time: Option<f64>,
-    /// The start location, when known (a start pose, or the PlayerStart the server reported).
-    pub start: Option<Coordinates>,
-    /// The map name the server reported.
-    pub map: Option<String>,
-    /// Whether the connection was made (nothing worth a file happened otherwise).
-    pub connected: bool,
-}
-
-impl FlightRecord {
-    /// Metres flown along the trajectory.
-    pub fn distance(&self) -> f64 {
-        self.trajectory
-            .windows(2)
-            .map(|w| (w[1].position - w[0].position).norm())
-            .sum::<f64>()
-            + 0.0 // an empty sum is -0.0: no "-0.0000" in the tables
-    }
-
-    /// Simulated seconds from the spawn to the last mission done.
-    pub fn duration(&self) -> f64 {
-        match (self.start_time, self.end_time) {
-            (Some(s), Some(e)) => e - s,
-            _ => 0.0,
-        }
-    }
-
-    /// Adds the hit points of a scan taken at `position` with heading `yaw`.
-    pub fn add_laser_hits(&mut self, position: &Coordinates, yaw: f64, scan: &LaserScan) {
-        let max = scan.ranges.iter().copied().fold(0.0, f64::max);
-        for (i, &range) in scan.ranges.iter().enumerate().step_by(4) {
-            if self.laser_hits.len() >= MAX_LASER_HITS {
-                return;
-            }
-            if range.is_finite() && range > 0.0 && range < max - 1e-3 {
-                let bearing = scan.bearing(i);
-                let beam = Coordinates::new(bearing.cos(), bearing.sin(), 0.0) * range;
-                let world = body_to_world_vector(&beam, &Coordinates::new(0.0, 0.0, yaw));
-                self.laser_hits.push(position + world);
-            }
-        }
-    }
-}
-
-/// One sample of the trajectory.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TrajectoryPoint {
-    /// Simulated seconds.
-    pub time: f64,
-    /// World frame, metres, z down.
-    pub position: Coordinates,
-    /// Roll, pitch, yaw, radians.
-    pub orientation: Option<Coordinates>,
-    /// World frame, m/s.
-    pub velocity: Option<Coordinates>,
-    /// Battery level, fraction of the first value seen.
-    pub battery: Option<f64>,
-}
-
-impl TrajectoryPoint {
-    /// The row of time stamp `time`: `None` unless the position is of that time stamp; every
-    /// other reading as of it.
-    pub fn of(uav: &UavState, time: f64) -> Option<Self> {
-        let position = uav
-            .position
-            .as_ref()
-            .filter(|p| (p.time - time).abs() < 1e-9)?;
-        Some(Self {
-            time,
-            position: position.value,
-            orientation: uav.orientation.as_ref().map(|r| r.value),
-            velocity: uav.velocity.as_ref().map(|r| r.value),
-            battery: uav.battery.as_ref().map(|r| r.value.level),
-        })
-    }
-}
 
 /// The CSV header of [`write_trajectory`].
 pub const CSV_HEADER: &str = "time,x,y,z,roll,pitch,yaw,vx,vy,vz,battery";

@@ -14,7 +14,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::geometry::Coordinates;
-use crate::output::TrajectoryPoint;
+use crate::record::TrajectoryPoint;
 
 const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 /// Side of the square plotting area, pixels.

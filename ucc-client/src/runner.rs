@@ -16,13 +16,12 @@ use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
 use usar_proto::{Barrier, Command, Nfo, ServerMessage, StartPose};
 
-use crate::agent::{AgentFactory, MissionRefused};
+use crate::agent::AgentFactory;
 use crate::connection::{Connection, ConnectionError};
+pub use crate::error::RunError;
 use crate::flight::{Flight, Phase};
-use crate::geometry::Num;
-use crate::mission::Mission;
 use crate::output::{iteration_files, write_iteration};
-use crate::picture::{MapPicture, PictureError};
+use crate::picture::MapPicture;
 use crate::progress::{Observer, Progress};
 use crate::settings::{LOCKSTEP_STEP, Lockstep, Pictures, RunSettings};
 use crate::stats::{IterationStatus, IterationSummary, Summary};
@@ -33,118 +32,6 @@ const QUIET: Duration = Duration::from_millis(3);
 
 /// How long to wait for the server's greeting and for a lockstep answer.
 const HANDSHAKE: Duration = Duration::from_secs(2);
-
-/// Why a run (or an iteration) failed.
-#[derive(Debug, thiserror::Error)]
-pub enum RunError {
-    /// Nothing to fly.
-    #[error("no missions to fly")]
-    NoMissions,
-    /// The agent does not handle a mission type.
-    #[error(transparent)]
-    Refused(#[from] MissionRefused),
-    /// Talking to the server failed.
-    #[error(transparent)]
-    Connection(#[from] ConnectionError),
-    /// Lockstep was required and the server does not offer it.
-    #[error(
-        "the server at {addr} does not offer lockstep (a stock USARSim never does; start \
-         usar-server with --lockstep)"
-    )]
-    NoLockstep {
-        /// `host:port`.
-        addr: String,
-    },
-    /// INIT gave no stream.
-    #[error(
-        "spawn failed: no data from the server within {timeout:?} after INIT {class} \
-         (unknown robot class, bad start pose or tag, or no room there?)"
-    )]
-    SpawnFailed {
-        /// The class asked for.
-        class: String,
-        /// The limit.
-        timeout: Duration,
-    },
-    /// The robot streams data but nothing tells where it is.
-    #[error(
-        "the robot reports no position within {timeout:?}: it needs a Position, GroundTruth \
-         or INS sensor, or a known start for dead reckoning"
-    )]
-    NoPosition {
-        /// The limit.
-        timeout: Duration,
-    },
-    /// The stream stopped.
-    #[error("the server sent nothing for {timeout:?}")]
-    StreamStopped {
-        /// The limit.
-        timeout: Duration,
-    },
-    /// The battery ran out.
-    #[error("battery empty at t={}s", Num(*time, 2))]
-    BatteryEmpty {
-        /// Simulated seconds.
-        time: f64,
-    },
-    /// The UAV crashed (its crash sensor fired, docs/quadrotor.md).
-    #[error("crashed at t={}s: {reason}", Num(*time, 2))]
-    Crashed {
-        /// Simulated seconds.
-        time: f64,
-        /// What the UAV state knew then (speed before the impact, tilt, position).
-        reason: String,
-    },
-    /// A mission took too long.
-    #[error("mission {number} ({mission}) not done after {} simulated seconds", Num(*seconds, 1))]
-    MissionTimeout {
-        /// 1-based.
-        number: usize,
-        /// The mission.
-        mission: Mission,
-        /// The limit.
-        seconds: f64,
-    },
-    /// A GETSTARTPOSES reply did not come.
-    #[error("the server did not answer GETSTARTPOSES within {timeout:?}")]
-    NoStartPoses {
-        /// The limit.
-        timeout: Duration,
-    },
-    /// A log or trajectory file could not be written.
-    #[error("cannot write {path}: {error}")]
-    Output {
-        /// The file.
-        path: PathBuf,
-        /// Why (part of the message, so not a `source`).
-        error: std::io::Error,
-    },
-    /// A picture could not be written.
-    #[error(transparent)]
-    Picture(#[from] PictureError),
-}
-
-impl RunError {
-    /// Whether the failure would happen again in the next iteration, so that going on is
-    /// pointless (no server, a bad configuration, files that cannot be written).
-    pub fn is_fatal(&self) -> bool {
-        matches!(
-            self,
-            Self::NoMissions
-                | Self::Refused(_)
-                | Self::NoLockstep { .. }
-                | Self::Connection(
-                    ConnectionError::Connect { .. }
-                        | ConnectionError::ConnectTimeout { .. }
-                        | ConnectionError::Record { .. }
-                        | ConnectionError::Unsendable(_)
-                )
-                | Self::NoStartPoses { .. }
-                | Self::Output { .. }
-                | Self::Picture(_)
-        )
-    }
-}
 
 /// Flies `settings.missions` `settings.iterations` times, each time with a new agent from
 /// `agents`; reports progress to `observer`.
@@ -506,6 +393,7 @@ mod tests {
     use super::*;
     use crate::Coordinates;
     use crate::agents;
+    use crate::mission::Mission;
 
     #[test]
     fn each_iteration_records_to_its_own_file() {

@@ -195,11 +195,7 @@ impl Default for RunSettings {
 impl RunSettings {
     /// The INIT class name: `robot` with `USARBot.` in front unless it names a package.
     pub fn class_name(&self) -> String {
-        if self.robot.contains('.') {
-            self.robot.clone()
-        } else {
-            format!("USARBot.{}", self.robot)
-        }
+        Init::qualified_class(&self.robot)
     }
 
     /// The INIT command of every iteration.

@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::geometry::Coordinates;
-use crate::output::TrajectoryPoint;
+use crate::record::TrajectoryPoint;
 
 /// How an iteration ended.
 #[derive(Debug, Clone, PartialEq, Default)]

@@ -44,10 +44,40 @@ pub struct LaserScan {
     pub fov: f64,
 }
 
+/// A beam reading at least this fraction of the scan's farthest reading counts as no return:
+/// a beam that hits nothing reads the maximum range, which the sensor's noise blurs by a
+/// fraction of a percent, so a bare `== max` would draw the noise as walls.
+pub const NO_RETURN_FRACTION: f64 = 0.99;
+
 impl LaserScan {
     /// The bearing of beam `index` in the body frame: radians, + = right (clockwise), 0 ahead.
     pub fn bearing(&self, index: usize) -> f64 {
         self.fov / 2.0 - index as f64 * self.resolution
+    }
+
+    /// The beams that hit something, as (beam index, the hit point in the world frame) for a
+    /// scan taken at `position` with heading `yaw` (the laser level, as the stsAirRobot's).
+    /// Beams at [`NO_RETURN_FRACTION`] of the farthest reading or beyond, and readings that
+    /// are not positive finite numbers, are no hits. The one rule for the map picture and
+    /// the browser's live view.
+    pub fn hits<'a>(
+        &'a self,
+        position: &'a Coordinates,
+        yaw: f64,
+    ) -> impl Iterator<Item = (usize, Coordinates)> + 'a {
+        let max = self.ranges.iter().copied().fold(0.0, f64::max);
+        let heading = Coordinates::new(0.0, 0.0, yaw);
+        self.ranges
+            .iter()
+            .enumerate()
+            .filter(move |&(_, &range)| {
+                range.is_finite() && range > 0.0 && range < max * NO_RETURN_FRACTION
+            })
+            .map(move |(i, &range)| {
+                let bearing = self.bearing(i);
+                let beam = Coordinates::new(bearing.cos(), bearing.sin(), 0.0) * range;
+                (i, position + body_to_world_vector(&beam, &heading))
+            })
     }
 }
 
@@ -105,7 +135,7 @@ pub struct UavState {
     /// Height above the spawn point (an AltitudeSensor's `relativeAltitude`), metres, + = up.
     pub altitude: Option<Reading<f64>>,
     /// The speed command in force and when it was sent (for dead reckoning).
-    pub command: Option<Reading<crate::agent::SpeedCommand>>,
+    pub command: Option<Reading<crate::speed::SpeedCommand>>,
     /// The z of the dead-reckoning origin (the spawn point).
     reckoning_origin_z: Option<f64>,
     /// The battery value taken as "full".
@@ -384,7 +414,7 @@ impl UavState {
     }
 
     /// Notes the speed command sent at `time`.
-    pub fn set_command(&mut self, command: crate::agent::SpeedCommand, time: f64) {
+    pub fn set_command(&mut self, command: crate::speed::SpeedCommand, time: f64) {
         if self.position_source == Some(Source::DeadReckoning) {
             self.dead_reckon(time);
         }

@@ -31,7 +31,8 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
-use usar_server::{LocalServer, ServerConfig};
+use ucc_client::Backend;
+use usar_server::ServerConfig;
 
 pub use guard::check_host;
 pub use socket::{MAX_MESSAGE, MAX_PAGES, REQUESTS_PER_UPDATE};
@@ -121,8 +122,8 @@ pub enum GuiError {
         addr: SocketAddr,
     },
     /// The local server did not start.
-    #[error("cannot start the local server: {0}")]
-    LocalServer(#[from] usar_server::ServerError),
+    #[error("cannot start {0}")]
+    LocalServer(#[from] ucc_client::backend::BackendError),
     /// Serving failed.
     #[error("cannot serve the page: {0}")]
     Io(#[from] std::io::Error),
@@ -132,17 +133,7 @@ pub enum GuiError {
 struct Local {
     config: ServerConfig,
     geometry: ucc_client::picture::MapGeometry,
-    server: Option<LocalServer>,
-}
-
-/// The configuration of the server started for the page: its one owner is this process, so
-/// the per-address cap meant for strangers on a shared server does not apply (50 UAVs from
-/// one page are 50 connections from 127.0.0.1).
-fn local_config(mut config: ServerConfig) -> ServerConfig {
-    // A UAV may hold two connections for a moment between iterations.
-    config.max_connections = config.max_connections.max(2 * hub::request::MAX_UAVS);
-    config.max_connections_per_address = config.max_connections;
-    config
+    server: Option<ucc_client::backend::Server>,
 }
 
 #[derive(Clone)]
@@ -210,8 +201,10 @@ pub async fn serve(
             vec!["stsAirRobot".to_owned(), "AirRobot".to_owned()],
         ),
         ServerChoice::Local(c) => {
-            let config = local_config(*c);
-            let server = LocalServer::start(config.clone()).await?;
+            // The Backend configures it for its one owner, this process: no per-address cap
+            // (50 UAVs from one page are 50 connections from 127.0.0.1).
+            let config = *c;
+            let server = Backend::Local(Box::new(config.clone())).start().await?;
             let robots = config
                 .robots
                 .classes()

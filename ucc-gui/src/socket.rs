@@ -14,9 +14,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use serde_json::{Value, json};
-use usar_server::LocalServer;
 
-use crate::hub::{Action, Cursor, Request, RequestError, time_scale_text};
+use crate::hub::{Action, Cursor, Request, RequestError};
 use crate::{App, UPDATE_PERIOD, runs};
 
 /// The longest WebSocket message a page may send, bytes (a request is well under 1 KiB).
@@ -183,7 +182,8 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
                 _ = server.stop().await;
             }
             local.config.time_scale = scale;
-            let server = LocalServer::start(local.config.clone())
+            let server = ucc_client::Backend::Local(Box::new(local.config.clone()))
+                .start()
                 .await
                 .map_err(|e| {
                     RequestError::Server(format!("cannot restart the local server: {e}"))
@@ -194,7 +194,7 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
             let line = format!(
                 "local server at {} runs at time scale {}",
                 hub.addr,
-                time_scale_text(scale)
+                scale.to_string()
             );
             hub.log(0, "info", line);
             local.server = Some(server);

@@ -14,13 +14,13 @@ use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use tokio_util::sync::CancellationToken;
 use ucc_client::agents::{self, AgentInfo};
+use ucc_client::backend::{self, Backend};
 use ucc_client::mission::{load_missions, parse_point};
 use ucc_client::picture::MapGeometry;
 use ucc_client::runner::start_poses;
 use ucc_client::{Coordinates, Lockstep, Mission, Progress, RunSettings, Start, Summary};
 use usar_server::sim::map::Map;
-use usar_server::sim::robots::RobotCatalog;
-use usar_server::{LocalServer, ServerConfig, TimeScale};
+use usar_server::{ServerArgs, ServerConfig, TimeScale};
 
 #[derive(Parser)]
 #[command(
@@ -102,6 +102,9 @@ enum Cmd {
 }
 
 #[derive(Args)]
+// The local server's options are usar-server's, defaulting to `max`; given without --local
+// they are a usage error that says what to do (`local_only`).
+#[command(mut_arg("time_scale", |a| a.default_value("max")))]
 struct RunArgs {
     /// Server host.
     #[arg(long, default_value = "localhost")]
@@ -114,26 +117,9 @@ struct RunArgs {
     /// the same command gives the same flight on any machine.
     #[arg(long)]
     local: bool,
-    /// With --local: the map (an embedded name, any case, or a map file).
-    #[arg(long, value_name = "NAME|FILE")]
-    map: Option<String>,
-    /// With --local: a robot catalog file (docs/robots.md) instead of the embedded one.
-    #[arg(long, value_name = "FILE")]
-    robots: Option<PathBuf>,
-    /// With --local: the seed of every noise source.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// With --local: simulated seconds per wall second, or `max` (lockstep either way).
-    #[arg(long, default_value = "max", value_name = "K|max")]
-    time_scale: TimeScale,
-    /// With --local: mean wind `vx,vy[,vz]` m/s (x north, y east, z down), felt by robots
-    /// with physics such as stsQuadrotor.
-    #[arg(long, value_name = "VX,VY[,VZ]", allow_hyphen_values = true,
-          value_parser = usar_server::sim::wind::parse_velocity)]
-    wind: Option<[f64; 3]>,
-    /// With --local: gust intensity (standard deviation, m/s; seeded by --seed).
-    #[arg(long, value_name = "M/S", allow_hyphen_values = true)]
-    gusts: Option<f64>,
+    /// The local server's world (with --local).
+    #[command(flatten, next_help_heading = "The local server (with --local)")]
+    server: ServerArgs,
     /// Robot class (`stsAirRobot`, `stsQuadrotor`, `AirRobot`, or `Package.Class`).
     #[arg(long, default_value = "stsAirRobot")]
     robot: String,
@@ -255,9 +241,18 @@ fn local_only(run: &ArgMatches) {
     if run.get_flag("local") {
         return;
     }
-    let given = ["map", "robots", "seed", "time_scale", "wind", "gusts"]
-        .into_iter()
-        .find(|id| run.value_source(id) == Some(ValueSource::CommandLine));
+    let given = [
+        "map",
+        "robots",
+        "seed",
+        "threads",
+        "time_scale",
+        "wind",
+        "gusts",
+        "gust_length",
+    ]
+    .into_iter()
+    .find(|id| run.value_source(id) == Some(ValueSource::CommandLine));
     if let Some(id) = given {
         let option = format!("--{}", id.replace('_', "-"));
         let mut command = Cli::command();
@@ -415,62 +410,32 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
     if missions.is_empty() {
         bail!("no missions: give --goto x,y,z (repeatable) or --missions FILE");
     }
-    if !args.local {
-        prepare_output(&args.log_dir, &args.prefix, args.force)?;
-        let addr = format!("{}:{}", args.host, args.port);
-        let lockstep = if args.lockstep {
-            Lockstep::Required
-        } else {
-            Lockstep::Off
-        };
-        return run(args, missions, addr, lockstep, None).await;
-    }
-    let map = match &args.map {
-        None => Map::default_map(),
-        Some(name) => Map::lookup(name).with_context(|| format!("--map {name}"))?,
+    let backend = if args.local {
+        let config = args.server.config()?;
+        check_points(
+            &MapGeometry::from(&config.map),
+            &args.start,
+            &missions,
+            config.map.level(),
+        )?;
+        Backend::Local(Box::new(config))
+    } else {
+        Backend::Remote(format!("{}:{}", args.host, args.port))
     };
-    let robots = match &args.robots {
-        None => RobotCatalog::embedded(),
-        Some(path) => RobotCatalog::from_file(path)?,
-    };
-    let mut config = ServerConfig {
-        map,
-        robots,
-        time_scale: args.time_scale,
-        lockstep: true,
-        ..ServerConfig::default()
-    };
-    config.sim.seed = args.seed;
-    config.sim.wind =
-        usar_server::sim::WindConfig::overridden(config.map.wind(), args.wind, args.gusts, None)
-            .map_err(|e| anyhow::anyhow!("--wind/--gusts: {e}"))?;
-    let settings_probe = RunSettings {
+    prepare_output(&args.log_dir, &args.prefix, args.force)?;
+    let class = RunSettings {
         robot: args.robot.clone(),
         ..RunSettings::default()
-    };
-    let tag = match &args.start {
-        Start::Tag(tag) => Some(tag.as_str()),
-        Start::Pose { .. } => None,
-    };
-    if let Some(problem) = config.spawn_problem(&settings_probe.class_name(), tag) {
+    }
+    .class_name();
+    let server = backend.start().await?;
+    if let Some(problem) = server.spawn_problem(&class, &args.start) {
+        _ = server.stop().await;
         bail!("{problem}");
     }
-    let geometry = MapGeometry::from(&config.map);
-    check_points(&geometry, &args.start, &missions, config.map.level())?;
-    prepare_output(&args.log_dir, &args.prefix, args.force)?;
-    let server = LocalServer::start(config)
-        .await
-        .context("cannot start the local server")?;
-    let result = run(
-        args,
-        missions,
-        server.addr().to_string(),
-        Lockstep::Required,
-        Some(geometry),
-    )
-    .await;
+    let result = run(args, missions, &server).await;
     if let Err(e) = server.stop().await {
-        eprintln!("ucc: the local server stopped with an error: {e}");
+        eprintln!("ucc: {e}");
     }
     result
 }
@@ -543,12 +508,14 @@ fn prepare_output(dir: &Path, prefix: &str, force: bool) -> anyhow::Result<()> {
 async fn run(
     args: RunArgs,
     missions: Vec<Mission>,
-    addr: String,
-    lockstep: Lockstep,
-    map: Option<MapGeometry>,
+    server: &backend::Server,
 ) -> anyhow::Result<ExitCode> {
-    let settings = RunSettings {
-        addr,
+    let lockstep = server.lockstep(if args.lockstep {
+        Lockstep::Required
+    } else {
+        Lockstep::Off
+    });
+    let settings = server.settings(RunSettings {
         robot: args.robot,
         name: args.name,
         start: args.start,
@@ -562,9 +529,8 @@ async fn run(
         record: args.record,
         keep_going: true,
         pictures: args.pictures,
-        map,
         ..RunSettings::default()
-    };
+    });
     let bar = progress_bar(settings.iterations);
     let quiet = args.quiet;
     let began = std::time::Instant::now();
@@ -729,18 +695,14 @@ async fn demo(args: DemoArgs) -> anyhow::Result<ExitCode> {
     prepare_output(&args.output, "demo", true)?;
     let config = ServerConfig {
         time_scale: TimeScale::Factor(args.speed),
-        lockstep: true,
         ..ServerConfig::default()
     };
-    let geometry = MapGeometry::from(&config.map);
-    let server = LocalServer::start(config)
-        .await
-        .context("cannot start the demo server")?;
+    let server = Backend::Local(Box::new(config)).start().await?;
     println!(
         "ucc demo: usar-server started on {} with its embedded map",
         server.addr()
     );
-    let result = fly_demo(&server.addr().to_string(), &args, geometry).await;
+    let result = fly_demo(&server, &args).await;
     if let Err(e) = server.stop().await {
         eprintln!("ucc demo: the server stopped with an error: {e}");
     }
@@ -760,11 +722,10 @@ async fn demo(args: DemoArgs) -> anyhow::Result<ExitCode> {
 }
 
 async fn fly_demo(
-    addr: &str,
+    server: &backend::Server,
     args: &DemoArgs,
-    geometry: MapGeometry,
 ) -> anyhow::Result<(Summary, RunSettings)> {
-    let poses = start_poses(addr, Duration::from_secs(5))
+    let poses = start_poses(server.addr(), Duration::from_secs(5))
         .await
         .context("cannot read the map's start poses")?;
     let Some(pose) = poses.first() else {
@@ -780,8 +741,8 @@ async fn fly_demo(
         DEMO_OFFSETS.len(),
         args.agent.name
     );
-    let settings = RunSettings {
-        addr: addr.to_owned(),
+    // Our own server: lockstep makes the demo the same flight every time.
+    let settings = server.settings(RunSettings {
         start: Start::Tag(pose.name.clone()),
         missions: DEMO_OFFSETS
             .iter()
@@ -790,11 +751,8 @@ async fn fly_demo(
         iterations: args.iterations as usize,
         log_dir: Some(args.output.clone()),
         prefix: "demo".into(),
-        // Our own server: lockstep makes the demo the same flight every time.
-        lockstep: Lockstep::Required,
-        map: Some(geometry),
         ..RunSettings::default()
-    };
+    });
     let cancel = interrupt_token();
     let mut print = |p: &Progress| {
         if p.is_loggable() {
@@ -815,7 +773,6 @@ async fn gui(args: GuiArgs) -> anyhow::Result<ExitCode> {
         ucc_gui::ServerChoice::Local(Box::new(ServerConfig {
             map,
             time_scale: args.speed,
-            lockstep: true,
             ..ServerConfig::default()
         }))
     } else {

@@ -91,19 +91,13 @@ struct Args {
 impl Args {
     /// The INIT class name.
     fn class(&self) -> String {
-        if self.robot.contains('.') {
-            self.robot.clone()
-        } else {
-            format!("USARBot.{}", self.robot)
-        }
+        usar_proto::Init::qualified_class(&self.robot)
     }
 
     /// The parts whose rates are checked: the stsAirRobot's, plus the quadrotor's Crash.
     fn nominal(&self) -> Vec<(&'static str, f64)> {
         let mut parts = NOMINAL.to_vec();
-        if self.robot.eq_ignore_ascii_case("stsQuadrotor")
-            || self.robot.eq_ignore_ascii_case("USARBot.stsQuadrotor")
-        {
+        if self.class().eq_ignore_ascii_case("USARBot.stsQuadrotor") {
             parts.push(("Crash", 10.0));
         }
         parts
@@ -434,16 +428,14 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     let mut args = args.clone();
     plan_layout(&mut args)?;
     let args = &args;
-    use usar_server::sim::{SimConfig, World, map::Map, robots::RobotCatalog};
+    use usar_sim::{SimConfig, World, map::Map, robots::RobotCatalog};
     let map = match &args.map {
         None => Map::default_map(),
         Some(name) => Map::lookup(name)?,
     };
     let start = map.starts().first().context("no start pose")?.location;
     let config = SimConfig {
-        threads: args
-            .threads
-            .unwrap_or_else(usar_server::sim::default_threads),
+        threads: args.threads.unwrap_or_else(usar_sim::default_threads),
         ..SimConfig::default()
     };
     let mut world = World::new(map, RobotCatalog::embedded(), config);
@@ -466,7 +458,7 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     // Memory the robots hold in the world, idle (spawned, not yet stepped).
     let per_robot = live_bytes().saturating_sub(live_before) as f64 / 1024.0 / args.uavs as f64;
     let ticks = (args.seconds / world.dt()).round() as u64;
-    let mut out = usar_server::sim::Printed::default();
+    let mut out = usar_sim::Printed::default();
     let (mut messages, mut bytes) = (0u64, 0u64);
     let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
     let cpu_before = process_usage(std::process::id()).0.unwrap_or(0.0);
@@ -524,9 +516,9 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
 
 /// How many of `args.uavs` UAVs the grid of `args` puts where a robot can be on `map` (a dry
 /// run of the spawns in a world of its own).
-fn fitting(args: &Args, map: &usar_server::sim::map::Map) -> anyhow::Result<usize> {
+fn fitting(args: &Args, map: &usar_sim::map::Map) -> anyhow::Result<usize> {
     use usar_proto::{Command, Init, Vec3};
-    use usar_server::sim::{SimConfig, World, robots::RobotCatalog};
+    use usar_sim::{SimConfig, World, robots::RobotCatalog};
     let start = map
         .starts()
         .first()
@@ -556,8 +548,8 @@ fn plan_layout(args: &mut Args) -> anyhow::Result<()> {
         return Ok(()); // a running server's map is unknown here
     }
     let map = match &args.map {
-        None => usar_server::sim::map::Map::default_map(),
-        Some(name) => usar_server::sim::map::Map::lookup(name)?,
+        None => usar_sim::map::Map::default_map(),
+        Some(name) => usar_sim::map::Map::lookup(name)?,
     };
     let candidates: Vec<usize> = match args.layers {
         Some(l) => vec![l],

@@ -2,8 +2,8 @@
 //! quadrotors with rapier3d, headless and as fast as asked.
 //!
 //! Layout:
-//! * [`sim`] — the simulation: synchronous and deterministic (world, robots, sensors, maps);
-//!   no tokio, no wall clock, rapier types stay inside.
+//! * [`sim`] — the simulation, the `usar-sim` crate re-exported: synchronous and
+//!   deterministic (world, robots, sensors, maps); no tokio, no wall clock.
 //! * [`net`] — TCP sessions and the driver thread that owns the world; [`run`] serves the
 //!   protocol on a bound listener.
 //! * [`replay`] — serves a recording or a real capture to clients.
@@ -32,11 +32,13 @@
 //! # }
 //! ```
 
+mod args;
 mod local;
 pub mod net;
 pub mod replay;
-mod shown;
-pub mod sim;
 
+pub use usar_sim as sim;
+
+pub use args::{ArgsError, ServerArgs};
 pub use local::LocalServer;
 pub use net::{ServerConfig, ServerError, TimeScale, run};

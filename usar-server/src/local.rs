@@ -74,17 +74,8 @@ impl ServerConfig {
     /// words for a user (naming what exists); `None` when it would. A stock USARSim answers
     /// a bad INIT with silence, so a client of a local server asks here first.
     pub fn spawn_problem(&self, class: &str, start_tag: Option<&str>) -> Option<String> {
-        if self.robots.get(class).is_none() {
-            let known: Vec<&str> = self
-                .robots
-                .classes()
-                .iter()
-                .map(|r| r.class.as_str())
-                .collect();
-            return Some(format!(
-                "unknown robot class {class:?} (this server has: {})",
-                known.join(", ")
-            ));
+        if let Err(unknown) = self.robots.class(class) {
+            return Some(unknown.to_string());
         }
         let tag = start_tag?;
         if self.map.find_start(tag).is_some() {

@@ -7,10 +7,8 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::Parser;
 use tokio_util::sync::CancellationToken;
-use usar_server::sim::SimConfig;
 use usar_server::sim::map::Map;
-use usar_server::sim::robots::RobotCatalog;
-use usar_server::{ServerConfig, TimeScale};
+use usar_server::{ServerArgs, ServerConfig, TimeScale};
 
 /// A USARSim (UDK) stand-in: speaks the Gamebots text protocol and flies simulated
 /// quadrotors (USARBot.stsAirRobot, USARBot.AirRobot, USARBot.stsQuadrotor) headless, with
@@ -29,22 +27,8 @@ struct Args {
     /// TCP port (0 picks a free one).
     #[arg(long, default_value_t = 3000)]
     port: u16,
-    /// Map: an embedded map name (see --list-maps) or a map file (TOML, see docs/maps.md).
-    #[arg(long, value_name = "NAME|FILE")]
-    map: Option<String>,
-    /// Robot configurations (TOML, see docs/robots.md); default: the embedded catalog.
-    #[arg(long, value_name = "FILE")]
-    robots: Option<PathBuf>,
-    /// Seed of every noise source; the same seed and commands give the same run.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Threads that read the robots' sensors (default: the machine's cores). The output is
-    /// the same at any count.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
-    threads: Option<u16>,
-    /// Simulated seconds per wall second (e.g. 1, 10, 0.5), or `max` for as fast as possible.
-    #[arg(long, default_value = "1", value_name = "K|max")]
-    time_scale: TimeScale,
+    #[command(flatten)]
+    world: ServerArgs,
     /// Connections served at once; more are closed on accept.
     #[arg(long, default_value_t = 64)]
     max_connections: usize,
@@ -84,18 +68,6 @@ struct Args {
     /// List the embedded maps and exit.
     #[arg(long)]
     list_maps: bool,
-    /// Mean wind for this run, `vx,vy[,vz]` m/s (x north, y east, z down; where the air
-    /// goes), overriding the map's `[wind]`. Felt by robots with physics (stsQuadrotor).
-    #[arg(long, value_name = "VX,VY[,VZ]", allow_hyphen_values = true,
-          value_parser = usar_server::sim::wind::parse_velocity)]
-    wind: Option<[f64; 3]>,
-    /// Gust intensity for this run: standard deviation of the horizontal gusts, m/s
-    /// (Dryden-type, seeded by --seed).
-    #[arg(long, value_name = "M/S", allow_hyphen_values = true)]
-    gusts: Option<f64>,
-    /// Gust length scale for this run, m (default 20).
-    #[arg(long, value_name = "M", allow_hyphen_values = true)]
-    gust_length: Option<f64>,
 }
 
 #[derive(Debug, clap::Subcommand)]
@@ -171,21 +143,8 @@ fn main() -> ExitCode {
 }
 
 fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
-    let map = match &args.map {
-        None => Map::default_map(),
-        Some(name) => Map::lookup(name).with_context(|| format!("--map {name}"))?,
-    };
-    let robots = match &args.robots {
-        None => RobotCatalog::embedded(),
-        Some(path) => RobotCatalog::from_file(path)?,
-    };
-    let wind = usar_server::sim::WindConfig::overridden(
-        map.wind(),
-        args.wind,
-        args.gusts,
-        args.gust_length,
-    )
-    .map_err(|e| anyhow::anyhow!("--wind/--gusts/--gust-length: {e}"))?;
+    let mut config = args.world.config()?;
+    config.sim.robots_per_connection = args.robots_per_connection;
     // The recording folder before the ready line: a path that cannot be a folder is a
     // configuration error, not a failure after "listening on".
     if let Some(dir) = &args.record {
@@ -193,18 +152,6 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
             .with_context(|| format!("--record {}: cannot create the folder", dir.display()))?;
     }
     Ok(ServerConfig {
-        map,
-        robots,
-        sim: SimConfig {
-            seed: args.seed,
-            threads: args
-                .threads
-                .map_or_else(usar_server::sim::default_threads, usize::from),
-            wind,
-            robots_per_connection: args.robots_per_connection,
-            ..SimConfig::default()
-        },
-        time_scale: args.time_scale,
         max_connections: args.max_connections,
         max_connections_per_address: args.max_connections_per_address,
         lockstep: args.lockstep,
@@ -215,7 +162,7 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         lockstep_share: args.lockstep_share,
         reader_timeout: std::time::Duration::from_secs_f64(args.reader_timeout),
         record: args.record.clone(),
-        ..ServerConfig::default()
+        ..config
     })
 }
 

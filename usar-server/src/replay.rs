@@ -268,7 +268,7 @@ impl<R: std::io::BufRead> Iterator for Lines<R> {
                     {
                         return Some(Err(self.error(format!(
                             "unknown recording version {} (this usar-server reads version {RECORD_VERSION})",
-                            crate::shown::Shown(version)
+                            usar_proto::shown::Shown(version)
                         ))));
                     }
                     self.record = Some(version.is_some());
@@ -339,7 +339,7 @@ async fn replay_to(stream: TcpStream, file: &ReplayFile, pace: Pace) -> std::io:
         let mut framed = FramedRead::new(read, LineCodec::new(64 * 1024));
         while let Some(Ok(line)) = framed.next().await {
             match line {
-                Ok(line) => info!(%peer, line = %crate::shown::Shown(&line),
+                Ok(line) => info!(%peer, line = %usar_proto::shown::Shown(&line),
                     "client says (ignored in replay)"),
                 Err(error) => warn!(%peer, %error, "unreadable line"),
             }

@@ -11,10 +11,9 @@ use pyo3::types::PyDict;
 use tokio_util::sync::CancellationToken;
 use ucc_client::picture::MapGeometry;
 use ucc_client::{
-    Agent, AgentEvent, Coordinates, Lockstep, Mission, MissionRefused, Progress, RunSettings,
-    SpeedCommand, Start, Step, UavState,
+    Agent, AgentEvent, Backend, Coordinates, Lockstep, Mission, MissionRefused, Progress,
+    RunSettings, SpeedCommand, Start, Step, UavState,
 };
-use usar_server::sim::Map;
 
 use crate::core::{LASER, Observations, SONARS};
 
@@ -306,7 +305,6 @@ pub(crate) fn fly<'py>(
         }
     };
     let settings = RunSettings {
-        addr: server.clone().unwrap_or_default(),
         robot: robot.to_string(),
         start: Start::at(Coordinates::new(start.0, start.1, start.2)),
         missions,
@@ -322,7 +320,15 @@ pub(crate) fn fly<'py>(
         map: Some(MapGeometry::from(&map)),
         ..RunSettings::default()
     };
-    let result = py.detach(|| run(settings, server.is_none(), map, &factory, &cancel, quiet));
+    let backend = match server {
+        Some(addr) => Backend::Remote(addr),
+        None => Backend::Local(Box::new(usar_server::ServerConfig {
+            map,
+            time_scale: usar_server::TimeScale::Max,
+            ..usar_server::ServerConfig::default()
+        })),
+    };
+    let result = py.detach(|| run(settings, backend, &factory, &cancel, quiet));
     if let Some(e) = failure
         .lock()
         .unwrap_or_else(PoisonError::into_inner)
@@ -383,9 +389,8 @@ fn mission(m: &Bound<'_, PyAny>) -> Result<Mission, String> {
 }
 
 fn run(
-    mut settings: RunSettings,
-    local: bool,
-    map: Map,
+    settings: RunSettings,
+    backend: Backend,
     factory: &dyn ucc_client::AgentFactory,
     cancel: &CancellationToken,
     quiet: bool,
@@ -397,29 +402,20 @@ fn run(
         .build()
         .map_err(|e| format!("cannot start the runtime: {e}"))?;
     runtime.block_on(async {
-        let server = if local {
-            let server = usar_server::LocalServer::start(usar_server::ServerConfig {
-                map,
-                time_scale: usar_server::TimeScale::Max,
-                lockstep: true,
-                ..usar_server::ServerConfig::default()
-            })
-            .await
-            .map_err(|e| format!("local server: {e}"))?;
-            settings.addr = server.addr().to_string();
-            Some(server)
-        } else {
-            None
-        };
+        let server = backend.start().await.map_err(|e| e.to_string())?;
+        let asked = settings.lockstep;
+        let mut settings = server.settings(settings);
+        if asked == Lockstep::Off {
+            // `lockstep=False`: on sensor time even against our own server.
+            settings.lockstep = Lockstep::Off;
+        }
         let mut print = |p: &Progress| {
             if !quiet && p.is_loggable() {
                 println!("{p}");
             }
         };
         let result = ucc_client::run(&settings, factory, &mut print, cancel).await;
-        if let Some(server) = server {
-            let _ = server.stop().await;
-        }
+        let _ = server.stop().await;
         result.map_err(|e| format!("server {}: {e}", settings.addr))
     })
 }

@@ -1,4 +1,4 @@
-//! The in-process simulation behind the Python environments: worlds of `usar_server::sim`
+//! The in-process simulation behind the Python environments: worlds of `usar_sim`
 //! stepped in lockstep, one control period at a time, with the sensor lines folded into a
 //! [`UavState`] per UAV and written out as flat arrays. No Python types here.
 
@@ -9,8 +9,8 @@ use ucc_client::SpeedCommand;
 use ucc_client::uav::UavState;
 use usar_proto::SenData;
 use usar_proto::{Command, Init, ServerMessage, Vec3};
-use usar_server::sim::robots::{DynamicsKind, PartConfig};
-use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
+use usar_sim::robots::{DynamicsKind, PartConfig};
+use usar_sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 
 /// Horizontal sonars + SonarTop + SonarBottom.
 pub(crate) const SONARS: usize = 10;
@@ -99,20 +99,12 @@ impl Settings {
             }
         };
         let mut catalog = RobotCatalog::embedded();
-        let full = if robot.contains('.') {
-            robot.to_string()
-        } else {
-            format!("USARBot.{robot}")
-        };
-        if catalog.get(&full).is_none() {
-            let known: Vec<&str> = catalog.classes().iter().map(|c| c.class.as_str()).collect();
-            return Err(invalid(format!(
-                "robot: unknown robot class {robot:?} (known: {})",
-                known.join(", ")
-            )));
+        let full = usar_proto::Init::qualified_class(robot);
+        if let Err(unknown) = catalog.class(&full) {
+            return Err(invalid(format!("robot: {unknown}")));
         }
         let Some(class) = catalog.get_mut(&full) else {
-            return Err(invalid(format!("robot: unknown robot class {robot:?}")));
+            return Err(invalid(format!("robot: unknown robot class {full:?}")));
         };
         let dt = SimConfig::default().dt;
         let ticks = period / dt;

@@ -364,6 +364,13 @@ impl PyRemote {
     }
 }
 
+/// The INIT class name for a robot name: `stsAirRobot` -> `USARBot.stsAirRobot`; a name
+/// with a package stays as it is (`usar_proto::Init::qualified_class`).
+#[pyfunction]
+fn qualified_class(robot: &str) -> String {
+    usar_proto::Init::qualified_class(robot)
+}
+
 /// The Rust core of the `usarsim` package.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -372,6 +379,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<agents::PyCommand>()?;
     m.add_class::<agents::PyState>()?;
     m.add_function(wrap_pyfunction!(agents::fly, m)?)?;
+    m.add_function(wrap_pyfunction!(qualified_class, m)?)?;
     m.add("LASER_BEAMS", LASER)?;
     m.add("SONARS", SONARS)?;
     Ok(())

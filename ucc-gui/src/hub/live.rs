@@ -67,15 +67,9 @@ impl Live {
             command: command.map(|c| [c.forward, c.right, c.up, c.yaw]),
             hits: Vec::new(),
         };
-        if hits && let (Some(p), Some(l)) = (position, laser) {
-            let max = l.ranges.iter().copied().fold(0.0, f64::max);
-            let yaw = uav.yaw();
-            for (i, r) in l.ranges.iter().enumerate() {
-                if r.is_finite() && *r > 0.0 && *r < max * 0.99 {
-                    let a = yaw + l.bearing(i);
-                    live.hits.push([p[0] + r * a.cos(), p[1] + r * a.sin()]);
-                }
-            }
+        if hits && let (Some(p), Some(l)) = (uav.position.as_ref(), laser) {
+            let hits = l.hits(&p.value, uav.yaw());
+            live.hits.extend(hits.map(|(_, h)| [h.x, h.y]));
         }
         live
     }

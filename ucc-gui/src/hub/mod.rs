@@ -236,14 +236,6 @@ impl Shared {
     }
 }
 
-/// The time scale as the page and the request take it: `1`, `2.5`, `max`.
-pub fn time_scale_text(scale: TimeScale) -> String {
-    match scale {
-        TimeScale::Max => "max".into(),
-        TimeScale::Factor(k) => format!("{k}"),
-    }
-}
-
 impl Hub {
     /// A hub for the server at `addr`.
     pub fn new(addr: String, local: bool, log_dir: PathBuf) -> Self {

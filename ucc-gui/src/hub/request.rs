@@ -269,11 +269,7 @@ impl Hub {
             return Err(field("robot class", "empty"));
         }
         if let Some(known) = &self.robot_classes {
-            let full = if robot.contains('.') {
-                robot.to_owned()
-            } else {
-                format!("USARBot.{robot}")
-            };
+            let full = usar_proto::Init::qualified_class(robot);
             if !known.iter().any(|k| k.eq_ignore_ascii_case(&full)) {
                 let names: Vec<&str> = known
                     .iter()

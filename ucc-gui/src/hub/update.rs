@@ -8,7 +8,7 @@ use std::collections::HashMap;
 
 use serde_json::{Map, Value, json};
 
-use super::{Hub, LogLine, Uav, time_scale_text};
+use super::{Hub, LogLine, Uav};
 
 /// Files named in an update: the most recent ones (the rest are in the log directory).
 pub const RECENT_FILES: usize = 12;
@@ -189,7 +189,7 @@ impl Hub {
             "server": {
                 "addr": self.addr,
                 "local": self.local,
-                "time_scale": time_scale_text(self.time_scale),
+                "time_scale": self.time_scale.to_string(),
                 "paused": self.paused,
                 "map": self.map,
             },

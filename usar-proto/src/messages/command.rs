@@ -46,6 +46,23 @@ pub struct Init {
     pub start: Option<String>,
 }
 
+impl Init {
+    /// The package every stock robot class lives in (`USARBot.stsAirRobot`).
+    pub const PACKAGE: &'static str = "USARBot";
+
+    /// The INIT class name for a robot a user named: `robot` as given when it names a
+    /// package (`Package.Class`), otherwise with `USARBot.` in front (`stsAirRobot` ->
+    /// `USARBot.stsAirRobot`). The one home of this rule for the client, the Python
+    /// package, the browser and the benchmark.
+    pub fn qualified_class(robot: &str) -> String {
+        if robot.contains('.') {
+            robot.to_owned()
+        } else {
+            format!("{}.{robot}", Self::PACKAGE)
+        }
+    }
+}
+
 /// `DRIVE`: sticky set-points; every key is optional (§2.3).
 ///
 /// Aerial keys (`AerialVehicle`), ground keys (skid steer and Ackerman) and the generic
@@ -537,6 +554,12 @@ mod tests {
     fn cmd(line: &str) -> (Command, Vec<Deviation>) {
         let p = Command::parse(line).unwrap();
         (p.message, p.deviations)
+    }
+
+    #[test]
+    fn a_class_without_package_is_a_usarbot_class() {
+        assert_eq!(Init::qualified_class("stsAirRobot"), "USARBot.stsAirRobot");
+        assert_eq!(Init::qualified_class("My.Robot"), "My.Robot");
     }
 
     #[test]

@@ -46,6 +46,16 @@ impl TimeScale {
     pub const MAX_FACTOR: f64 = 1e6;
 }
 
+/// `max` or the factor (`1`, `0.5`, `100`): what [`FromStr`](std::str::FromStr) reads back.
+impl std::fmt::Display for TimeScale {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Max => f.write_str("max"),
+            Self::Factor(k) => write!(f, "{k}"),
+        }
+    }
+}
+
 impl std::str::FromStr for TimeScale {
     type Err = String;
 
@@ -440,6 +450,16 @@ fn is_transient(e: &std::io::Error) -> bool {
 mod tests {
     use super::*;
     use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+
+    #[test]
+    fn a_time_scale_prints_what_it_parses_from() {
+        for text in ["max", "1", "0.5", "250", "0.001"] {
+            let scale: TimeScale = text.parse().unwrap();
+            assert_eq!(scale.to_string(), text);
+            assert_eq!(scale.to_string().parse::<TimeScale>(), Ok(scale));
+        }
+        assert_eq!("MAX".parse::<TimeScale>().unwrap().to_string(), "max");
+    }
 
     #[tokio::test]
     async fn the_server_stops_with_an_error_when_the_simulation_dies() {

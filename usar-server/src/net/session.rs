@@ -26,7 +26,7 @@ use usar_proto::{Command, SYNC_WORD};
 
 use super::Registered;
 use super::driver::{Line, Request};
-use crate::shown::{Repeats, Shown};
+use usar_proto::shown::{Repeats, Shown};
 
 /// Per-connection limits.
 #[derive(Debug, Clone, Copy)]

@@ -8,6 +8,8 @@ import numpy.typing as npt
 LASER_BEAMS: int
 SONARS: int
 
+def qualified_class(robot: str) -> str: ...
+
 class Batch:
     """N worlds with K UAVs each, stepped together one control period per call."""
 

@@ -18,7 +18,7 @@ from ._task import Tasks, action_space, observation_space
 
 
 def _robot(name: str) -> str:
-    return name if "." in name else f"USARBot.{name}"
+    return _core.qualified_class(name)
 
 
 def _actions(action, n: int) -> np.ndarray:

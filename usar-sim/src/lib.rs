@@ -1,4 +1,6 @@
-//! The simulation: synchronous, deterministic, no tokio, no wall clock. Time is `tick × dt`.
+//! The USARSim stand-in's world: synchronous, deterministic, no tokio, no sockets, no wall
+//! clock. Time is `tick × dt`. The maps (`maps/`) and the robot catalog (`robots.toml`) are
+//! embedded from this crate; `usar-server` puts it on the network.
 //!
 //! * [`World`] — map geometry, robots and their sensors; driven by [`World::command`] and
 //!   [`World::step`].
@@ -6,11 +8,11 @@
 //! * [`robots`] — the robot catalog format (`docs/robots.md`) and the embedded robots.
 //! * [`sensors`] — one file per sensor type and the registry that maps part types to them.
 //!
-//! Rapier types stay inside this module. Frame everywhere: the protocol frame (x forward /
+//! Rapier types stay inside this crate. Frame everywhere: the protocol frame (x forward /
 //! north, y right / east, z down; yaw + = clockwise seen from above).
 //!
 //! ```
-//! use usar_server::sim::{map::Map, robots::RobotCatalog, SimConfig, World};
+//! use usar_sim::{map::Map, robots::RobotCatalog, SimConfig, World};
 //! use usar_proto::{Command, Init};
 //!
 //! let mut world = World::new(Map::default_map(), RobotCatalog::embedded(), SimConfig::default());
@@ -45,7 +47,7 @@ mod quadrotor_tests;
 mod tests;
 
 pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
-pub use robots::{RobotCatalog, RobotClass};
+pub use robots::{RobotCatalog, RobotClass, UnknownClass};
 pub use wind::WindConfig;
 pub use world::{Printed, World};
 

@@ -18,6 +18,17 @@ use super::scene::{BodyShape, Scene, V3, add, direction, scale, yaw_rotate};
 use super::sensors::{self, Reading, Sensor};
 use super::wind::WindConfig;
 
+/// Angles past a thousand turns are reduced to one turn, [0, 2π): the same direction,
+/// printed as a sensible number (smaller angles are kept as given, as USARSim does).
+pub(crate) fn bounded_angle(a: f64) -> f64 {
+    const MAX_ANGLE: f64 = 1000.0 * std::f64::consts::TAU;
+    if a.abs() > MAX_ANGLE {
+        a.rem_euclid(std::f64::consts::TAU)
+    } else {
+        a
+    }
+}
+
 /// STA period, s (`StatusTimer`).
 const STATUS_INTERVAL: f64 = 0.1;
 /// Every stream starts at most this long after spawn, s.
@@ -439,7 +450,7 @@ impl Robot {
             }
         }
         self.velocity = std::array::from_fn(|i| (self.position[i] - start[i]) / dt);
-        self.rotation[2] = super::world::bounded_angle(self.rotation[2] + s.yaw_rate * dt);
+        self.rotation[2] = bounded_angle(self.rotation[2] + s.yaw_rate * dt);
         let flight = &self.model.class.flight;
         let step = flight.tilt_rate * dt;
         for (angle, target) in [(0, s.roll), (1, s.pitch)] {

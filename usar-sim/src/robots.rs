@@ -13,8 +13,8 @@ pub const MAX_ROBOT_FILE: u64 = 1 << 20;
 use super::quadrotor::QuadrotorConfig;
 use super::sensors;
 
-/// The embedded catalog (`usar-server/robots.toml`).
-const EMBEDDED: &str = include_str!("../../robots.toml");
+/// The embedded catalog (`usar-sim/robots.toml`).
+const EMBEDDED: &str = include_str!("../robots.toml");
 
 /// Flight limits and behaviour (AerialVehicle / AirRobot defaults).
 #[derive(Debug, Clone, Deserialize)]
@@ -182,6 +182,16 @@ fn tenth() -> f64 {
     0.1
 }
 
+/// A robot class a catalog does not have.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown robot class {class:?} (known: {})", known.join(", "))]
+pub struct UnknownClass {
+    /// The class asked for.
+    pub class: String,
+    /// The classes the catalog has.
+    pub known: Vec<String>,
+}
+
 /// A robot class.
 #[derive(Debug, Clone)]
 pub struct RobotClass {
@@ -261,7 +271,7 @@ impl RobotCatalog {
 
     /// The built-in catalog: `USARBot.stsAirRobot` and `USARBot.AirRobot`.
     pub fn embedded() -> Self {
-        Self::parse(EMBEDDED, Path::new("usar-server/robots.toml")).unwrap_or_else(|e| {
+        Self::parse(EMBEDDED, Path::new("usar-sim/robots.toml")).unwrap_or_else(|e| {
             // Guarded by a unit test; never happens in a released binary.
             tracing::error!(error = %e, "embedded robot catalog is invalid");
             Self { robots: Vec::new() }
@@ -278,6 +288,15 @@ impl RobotCatalog {
         self.robots
             .iter()
             .find(|r| r.class.eq_ignore_ascii_case(class))
+    }
+
+    /// The class INIT names `class`, or an error naming the classes this catalog has (the
+    /// one "unknown robot class" check of the server, `ucc --local` and the Python package).
+    pub fn class(&self, class: &str) -> Result<&RobotClass, UnknownClass> {
+        self.get(class).ok_or_else(|| UnknownClass {
+            class: class.to_owned(),
+            known: self.robots.iter().map(|r| r.class.clone()).collect(),
+        })
     }
 
     /// The class, for changing it (tests, programs that tune robots).
@@ -355,7 +374,7 @@ fn positive(what: &str, v: f64) -> Result<(), String> {
     } else {
         Err(format!(
             "{what} must be a positive number, got {}",
-            crate::shown::Number(v)
+            usar_proto::shown::Number(v)
         ))
     }
 }
@@ -379,7 +398,7 @@ fn at_most(what: &str, v: f64, max: f64) -> Result<(), String> {
     if v > max {
         return Err(format!(
             "{what} must be at most {max}, got {}",
-            crate::shown::Number(v)
+            usar_proto::shown::Number(v)
         ));
     }
     Ok(())
@@ -460,7 +479,7 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
     if !(part.noise.is_finite() && (0.0..=100.0).contains(&part.noise)) {
         return Err(format!(
             "noise must be >= 0, got {}",
-            crate::shown::Number(part.noise)
+            usar_proto::shown::Number(part.noise)
         ));
     }
     (kind.build)(part).map(drop)
@@ -500,6 +519,18 @@ fn check_actuator(a: &ActuatorConfig) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_unknown_class_names_the_known_ones() {
+        let catalog = RobotCatalog::embedded();
+        assert!(catalog.class("usarbot.STSAIRROBOT").is_ok());
+        let e = catalog.class("USARBot.Nope").unwrap_err().to_string();
+        assert!(
+            e.starts_with("unknown robot class \"USARBot.Nope\" (known: "),
+            "{e}"
+        );
+        assert!(e.contains("USARBot.stsAirRobot"), "{e}");
+    }
 
     #[test]
     fn embedded_catalog() {

@@ -7,12 +7,12 @@ use tracing::{debug, warn};
 use usar_proto::{Command, Conf, Geo, Init, ItemQuery, Nfo, ServerMessage, StartPose};
 
 use super::map::{self, Map};
-use super::robot::{Model, Robot, Spawn};
+use super::robot::{Model, Robot, Spawn, bounded_angle};
 use super::robots::RobotCatalog;
 use super::scene::{Scene, V3};
 use super::wind::WindConfig;
 use super::{ClientId, SimConfig};
-use crate::shown::{Repeats, Shown};
+use usar_proto::shown::{Repeats, Shown};
 
 /// Ticks between BVH refits (leaf updates only ever grow the tree's inner boxes).
 const REFIT_EVERY: u64 = 200;
@@ -68,17 +68,6 @@ fn spawn_location(v: usar_proto::Vec3) -> V3 {
 /// An INIT rotation: non-finite components are 0, the rest bounded by [`bounded_angle`].
 fn spawn_rotation(v: usar_proto::Vec3) -> V3 {
     V3::from(v).map(|x| if x.is_finite() { bounded_angle(x) } else { 0.0 })
-}
-
-/// Angles past a thousand turns are reduced to one turn, [0, 2π): the same direction,
-/// printed as a sensible number (smaller angles are kept as given, as USARSim does).
-pub(crate) fn bounded_angle(a: f64) -> f64 {
-    const MAX_ANGLE: f64 = 1000.0 * std::f64::consts::TAU;
-    if a.abs() > MAX_ANGLE {
-        a.rem_euclid(std::f64::consts::TAU)
-    } else {
-        a
-    }
 }
 
 impl World {

@@ -4,8 +4,8 @@ use serde::Deserialize;
 use usar_proto::{ConfItem, SenData};
 
 use super::{Reading, Sensor, settings};
-use crate::sim::noise::Noise;
-use crate::sim::robots::PartConfig;
+use crate::noise::Noise;
+use crate::robots::PartConfig;
 
 /// Camera settings (`[USARSensor.USARCamera]`, degrees as CONF reports them).
 #[derive(Debug, Clone, Deserialize)]

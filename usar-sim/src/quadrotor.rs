@@ -176,7 +176,7 @@ impl QuadrotorConfig {
             if v > max {
                 return Err(format!(
                     "{what} must be at most {max}, got {}",
-                    crate::shown::Number(v)
+                    usar_proto::shown::Number(v)
                 ));
             }
         }

@@ -4,8 +4,8 @@ use serde::Deserialize;
 use usar_proto::SenData;
 
 use super::{Reading, Sensor, settings};
-use crate::sim::noise::Noise;
-use crate::sim::robots::PartConfig;
+use crate::noise::Noise;
+use crate::robots::PartConfig;
 
 /// Altitude settings.
 #[derive(Debug, Clone, Deserialize)]

@@ -7,8 +7,8 @@ use serde::Deserialize;
 use usar_proto::SenData;
 
 use super::{Reading, Sensor, settings};
-use crate::sim::noise::Noise;
-use crate::sim::robots::PartConfig;
+use crate::noise::Noise;
+use crate::robots::PartConfig;
 
 /// What makes the sensor read `True`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]

@@ -3,8 +3,8 @@
 use usar_proto::SenData;
 
 use super::{NoSettings, Reading, Sensor, settings};
-use crate::sim::noise::Noise;
-use crate::sim::robots::PartConfig;
+use crate::noise::Noise;
+use crate::robots::PartConfig;
 
 /// MissionTime settings: none.
 pub type MissionTimeConfig = NoSettings;

@@ -6,9 +6,9 @@ use serde::Deserialize;
 use usar_proto::{ConfItem, NamedRange, SenData};
 
 use super::{Reading, Sensor, f32ish, from_uu, settings, to_uu};
-use crate::sim::noise::Noise;
-use crate::sim::robots::PartConfig;
-use crate::sim::scene::direction;
+use crate::noise::Noise;
+use crate::robots::PartConfig;
+use crate::scene::direction;
 
 /// How a reading is computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
@@ -71,11 +71,11 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
             part.name
         ));
     }
-    if config.max_range > crate::sim::map::LIMIT {
+    if config.max_range > crate::map::LIMIT {
         return Err(format!(
             "part `{}`: max_range must be at most {} m",
             part.name,
-            crate::sim::map::LIMIT
+            crate::map::LIMIT
         ));
     }
     if !((0.0..=std::f64::consts::PI).contains(&config.beam_angle)

@@ -5,10 +5,10 @@
 use usar_proto::{SenData, Vec3};
 
 use super::{NoSettings, Reading, Sensor, settings};
-use crate::sim::dynamics::ImuTruth;
-use crate::sim::noise::Noise;
-use crate::sim::robots::PartConfig;
-use crate::sim::scene::{V3, yaw_rotate};
+use crate::dynamics::ImuTruth;
+use crate::noise::Noise;
+use crate::robots::PartConfig;
+use crate::scene::{V3, yaw_rotate};
 
 /// IMU settings: none (the engine adds no noise to the IMU either).
 pub type ImuConfig = NoSettings;

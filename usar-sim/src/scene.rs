@@ -22,6 +22,12 @@ use rapier3d::prelude::{
 /// A plain f64 vector in the protocol frame.
 pub(crate) type V3 = [f64; 3];
 
+/// Metres: every coordinate and size in a map (and every robot position) lies within
+/// ±`LIMIT` of the origin on each axis. The world ends there: no motion goes further
+/// (`Scene::sweep`); f32 (the physics' precision) still resolves centimetres at this
+/// distance.
+pub const LIMIT: f64 = 100_000.0;
+
 /// Extra room (m) around each BVH leaf so small moves do not touch the tree.
 const LEAF_MARGIN: f32 = 0.05;
 /// Gap (m) kept between a swept robot and what it hits.
@@ -483,7 +489,7 @@ impl Scene {
     ) -> (V3, Option<V3>) {
         let mut contact = None;
         // The world ends at ±LIMIT on every axis (docs/limits.md): no motion leaves it.
-        let limit = super::map::LIMIT;
+        let limit = LIMIT;
         let motion: V3 =
             std::array::from_fn(|i| (centre[i] + motion[i]).clamp(-limit, limit) - centre[i]);
         let cylinder = shape.cylinder();

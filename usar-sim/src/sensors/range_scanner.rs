@@ -8,9 +8,9 @@ use serde::Deserialize;
 use usar_proto::{ConfItem, Scan, SenData};
 
 use super::{Reading, Sensor, f32ish, from_uu, settings, to_uu};
-use crate::sim::noise::Noise;
-use crate::sim::robots::PartConfig;
-use crate::sim::scene::direction;
+use crate::noise::Noise;
+use crate::robots::PartConfig;
+use crate::scene::direction;
 
 /// Scanner settings (defaults: `[USARSensor.RangeScanner]`; the Hokuyo sets fov 4.189,
 /// resolution 0.0184086914, interval 0.3).
@@ -62,11 +62,11 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
             part.name
         ));
     }
-    if config.max_range > crate::sim::map::LIMIT {
+    if config.max_range > crate::map::LIMIT {
         return Err(format!(
             "part `{}`: max_range must be at most {} m",
             part.name,
-            crate::sim::map::LIMIT
+            crate::map::LIMIT
         ));
     }
     let fov_uu = to_uu(config.fov);

@@ -3,8 +3,8 @@
 use usar_proto::{ConfItem, SenData};
 
 use super::{NoSettings, Reading, Sensor, interval_conf, settings};
-use crate::sim::noise::Noise;
-use crate::sim::robots::PartConfig;
+use crate::noise::Noise;
+use crate::robots::PartConfig;
 
 /// GroundTruth settings: none.
 pub type GroundTruthConfig = NoSettings;

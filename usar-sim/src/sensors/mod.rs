@@ -287,7 +287,7 @@ pub(crate) fn from_uu(uu: i32) -> f64 {
 pub(crate) mod testing {
     //! A box at a known distance, and a reading next to it.
     use super::*;
-    use crate::sim::scene::BodyShape;
+    use crate::scene::BodyShape;
     use rapier3d::math::Pose;
     use rapier3d::prelude::ColliderBuilder;
 

@@ -55,13 +55,13 @@ impl WindConfig {
         if !(self.gusts.is_finite() && (0.0..=MAX_WIND).contains(&self.gusts)) {
             return Err(format!(
                 "wind gusts must be between 0 and {MAX_WIND} m/s, got {}",
-                crate::shown::Number(self.gusts)
+                usar_proto::shown::Number(self.gusts)
             ));
         }
         if !(self.gust_length.is_finite() && self.gust_length > 0.0) {
             return Err(format!(
                 "wind gust_length must be a positive number of metres, got {}",
-                crate::shown::Number(self.gust_length)
+                usar_proto::shown::Number(self.gust_length)
             ));
         }
         Ok(())

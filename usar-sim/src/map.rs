@@ -16,27 +16,19 @@ const EMBEDDED: &[(&str, &str, &str)] = &[
     (
         "empty_room",
         "empty_room.toml",
-        include_str!("../../../maps/empty_room.toml"),
+        include_str!("../maps/empty_room.toml"),
     ),
-    (
-        "arena",
-        "arena.toml",
-        include_str!("../../../maps/arena.toml"),
-    ),
-    ("city", "city.toml", include_str!("../../../maps/city.toml")),
+    ("arena", "arena.toml", include_str!("../maps/arena.toml")),
+    ("city", "city.toml", include_str!("../maps/city.toml")),
 ];
 
 /// OBJ files referenced by the embedded maps.
-const EMBEDDED_OBJ: &[(&str, &str)] = &[("tower.obj", include_str!("../../../maps/tower.obj"))];
+const EMBEDDED_OBJ: &[(&str, &str)] = &[("tower.obj", include_str!("../maps/tower.obj"))];
 
 /// The short name of the default map.
 const DEFAULT_MAP: &str = "empty_room";
 
-/// Metres: every coordinate and size in a map (and every robot position) lies within
-/// ±`LIMIT` of the origin on each axis. The world ends there: no motion goes further
-/// (`Scene::sweep`); f32 (the physics' precision) still resolves centimetres at this
-/// distance.
-pub const LIMIT: f64 = 100_000.0;
+pub use crate::scene::LIMIT;
 
 /// Metres: INIT locations are held this far inside [`LIMIT`].
 pub const EDGE_MARGIN: f64 = 10.0;
@@ -596,7 +588,7 @@ fn within(values: &[&[f64; 3]], limit: f64) -> Result<(), String> {
         None => Ok(()),
         Some(x) => Err(format!(
             "{} is out of range: numbers must be within ±{limit}",
-            crate::shown::Number(*x)
+            usar_proto::shown::Number(*x)
         )),
     }
 }
@@ -760,7 +752,7 @@ mod tests {
 #[cfg(test)]
 mod config_error_tests {
     use super::{ConfigError, ConfigFile, Map};
-    use crate::sim::RobotCatalog;
+    use crate::RobotCatalog;
     use std::path::Path;
 
     /// One error type for every configuration file, telling which kind it was.

@@ -1,0 +1,127 @@
+//! The command-line options of a world that `usar-server` and `ucc run --local` share: one
+//! `clap::Args` struct, so both programs spell, check and default them alike.
+
+use std::path::PathBuf;
+
+use crate::sim::map::Map;
+use crate::sim::robots::RobotCatalog;
+use crate::sim::{ConfigError, WindConfig, default_threads};
+use crate::{ServerConfig, TimeScale};
+
+/// The map, robots, seed, sensor threads, time scale and wind of a server.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ServerArgs {
+    /// Map: an embedded map name (any case; `usar-server --list-maps`) or a map file (TOML,
+    /// see docs/maps.md).
+    #[arg(long, value_name = "NAME|FILE")]
+    pub map: Option<String>,
+    /// Robot configurations (TOML, see docs/robots.md); default: the embedded catalog.
+    #[arg(long, value_name = "FILE")]
+    pub robots: Option<PathBuf>,
+    /// Seed of every noise source; the same seed and commands give the same run.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Threads that read the robots' sensors (default: the machine's cores). The output is
+    /// the same at any count.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
+    /// Simulated seconds per wall second (e.g. 1, 10, 0.5), or `max` for as fast as possible.
+    #[arg(long, default_value = "1", value_name = "K|max")]
+    pub time_scale: TimeScale,
+    /// Mean wind for this run, `vx,vy[,vz]` m/s (x north, y east, z down; where the air
+    /// goes), overriding the map's `[wind]`. Felt by robots with physics (stsQuadrotor).
+    #[arg(long, value_name = "VX,VY[,VZ]", allow_hyphen_values = true,
+          value_parser = crate::sim::wind::parse_velocity)]
+    pub wind: Option<[f64; 3]>,
+    /// Gust intensity for this run: standard deviation of the horizontal gusts, m/s
+    /// (Dryden-type, seeded by --seed).
+    #[arg(long, value_name = "M/S", allow_hyphen_values = true)]
+    pub gusts: Option<f64>,
+    /// Gust length scale for this run, m (default 20).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub gust_length: Option<f64>,
+}
+
+/// Options that do not make a world: a map or catalog that does not load, or wind out of
+/// range. The text names the option.
+#[derive(Debug, thiserror::Error)]
+pub enum ArgsError {
+    /// `--map` or `--robots` did not load.
+    #[error("{option}: {source}")]
+    File {
+        /// `--map NAME` or `--robots FILE`.
+        option: String,
+        /// Why.
+        source: ConfigError,
+    },
+    /// `--wind`, `--gusts` or `--gust-length` out of range.
+    #[error("--wind/--gusts/--gust-length: {0}")]
+    Wind(String),
+}
+
+impl ServerArgs {
+    /// The server these options describe (everything else as `ServerConfig::default()`).
+    pub fn config(&self) -> Result<ServerConfig, ArgsError> {
+        let map = match &self.map {
+            None => Map::default_map(),
+            Some(name) => Map::lookup(name).map_err(|source| ArgsError::File {
+                option: format!("--map {name}"),
+                source,
+            })?,
+        };
+        let robots = match &self.robots {
+            None => RobotCatalog::embedded(),
+            Some(path) => RobotCatalog::from_file(path).map_err(|source| ArgsError::File {
+                option: format!("--robots {}", path.display()),
+                source,
+            })?,
+        };
+        let wind = WindConfig::overridden(map.wind(), self.wind, self.gusts, self.gust_length)
+            .map_err(ArgsError::Wind)?;
+        let mut config = ServerConfig {
+            map,
+            robots,
+            time_scale: self.time_scale,
+            ..ServerConfig::default()
+        };
+        config.sim.seed = self.seed;
+        config.sim.threads = self.threads.map_or_else(default_threads, usize::from);
+        config.sim.wind = wind;
+        Ok(config)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Program {
+        #[command(flatten)]
+        server: ServerArgs,
+    }
+
+    #[test]
+    fn options_make_the_server_and_name_what_is_wrong() {
+        let args =
+            Program::parse_from(["p", "--map", "ARENA", "--seed", "7", "--time-scale", "max"]);
+        let config = args.server.config().unwrap();
+        assert_eq!(config.map.level(), Map::embedded("arena").unwrap().level());
+        assert_eq!((config.sim.seed, config.time_scale), (7, TimeScale::Max));
+        let bad = Program::parse_from(["p", "--map", "nowhere.toml"])
+            .server
+            .config();
+        assert!(
+            bad.unwrap_err()
+                .to_string()
+                .starts_with("--map nowhere.toml: ")
+        );
+        let bad = Program::parse_from(["p", "--gusts", "-1"]).server.config();
+        assert!(
+            bad.unwrap_err()
+                .to_string()
+                .starts_with("--wind/--gusts/--gust-length: ")
+        );
+    }
+}
