@@ -191,11 +191,7 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
             let mut hub = app.shared.lock();
             hub.addr = server.addr().to_string();
             hub.time_scale = scale;
-            let line = format!(
-                "local server at {} runs at time scale {}",
-                hub.addr,
-                scale.to_string()
-            );
+            let line = format!("local server at {} runs at time scale {scale}", hub.addr);
             hub.log(0, "info", line);
             local.server = Some(server);
             Ok(None)
