@@ -511,6 +511,9 @@ async fn sixty_four_connections_are_served_and_the_next_is_refused() {
         // 16 connections per address is the default limit.
         let mut c = Client::connect_from(server.addr, 2 + i / 16).await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO "));
+        // Each has sent a line: none makes room for a newcomer (limits.rs).
+        c.send("GETSTARTPOSES").await;
+        assert!(c.raw_line().await.unwrap().starts_with("NFO {StartPoses "));
         clients.push(c);
     }
     let mut extra = Client::connect_from(server.addr, 100).await;
