@@ -72,7 +72,7 @@ pub enum RunError {
         reason: String,
     },
     /// A mission took too long.
-    #[error("mission {number} ({mission}) not done after {} simulated seconds", Num(*seconds, 1))]
+    #[error("mission {number} ({mission}) not done after {} simulated seconds{hint}", Num(*seconds, 1))]
     MissionTimeout {
         /// 1-based.
         number: usize,
@@ -80,6 +80,8 @@ pub enum RunError {
         mission: Mission,
         /// The limit.
         seconds: f64,
+        /// Empty, or what may explain it (a waypoint far below the UAV: z points down).
+        hint: String,
     },
     /// A GETSTARTPOSES reply did not come.
     #[error("the server did not answer GETSTARTPOSES within {timeout:?}")]

@@ -46,7 +46,7 @@ use usar_proto::{Barrier, Command, Nfo, ServerMessage};
 
 use crate::agent::{Agent, AgentEvent, SpeedCommand};
 use crate::error::RunError;
-use crate::geometry::Coordinates;
+use crate::geometry::{Coordinates, Num};
 use crate::mission::Mission;
 use crate::progress::Progress;
 use crate::record::{FlightRecord, TrajectoryPoint};
@@ -422,14 +422,17 @@ impl Flight {
         }
         let (index, since) = self.mission_start;
         if time - since > self.mission_timeout {
+            let mission = self
+                .missions
+                .get(index)
+                .cloned()
+                .unwrap_or(Mission::Hover { seconds: 0.0 });
+            let hint = below_hint(&mission, self.uav.position.as_ref().map(|p| p.value));
             self.fail(RunError::MissionTimeout {
                 number: index + 1,
-                mission: self
-                    .missions
-                    .get(index)
-                    .cloned()
-                    .unwrap_or(Mission::Hover { seconds: 0.0 }),
+                mission,
                 seconds: self.mission_timeout,
+                hint,
             });
         }
     }
@@ -476,6 +479,19 @@ impl Flight {
             self.record
                 .add_laser_hits(&position.value, self.uav.yaw(), &laser.value);
         }
+    }
+}
+
+/// What may explain a waypoint that was never reached: one far below where the UAV got to
+/// (z points down, so a sign slip puts a waypoint under the floor), said with the rule.
+fn below_hint(mission: &Mission, position: Option<Coordinates>) -> String {
+    match (mission.target(), position) {
+        (Some(target), Some(at)) if target.z - at.z > 0.5 => format!(
+            "; the waypoint is {} m below where the UAV stopped (z points down: z = 1 is 1 m \
+             below z = 0) — is it under the floor?",
+            Num(target.z - at.z, 1)
+        ),
+        _ => String::new(),
     }
 }
 

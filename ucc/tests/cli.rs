@@ -300,6 +300,47 @@ fn points_under_the_floor_or_in_a_wall_are_refused_on_the_local_server() {
     }
 }
 
+/// The defect: against a server of one's own, `--goto 2,0,1` from a valid start (a metre
+/// under the floor: z points down) waited out the mission timeout and said only "not done".
+#[test]
+fn a_waypoint_under_the_floor_on_a_remote_server_says_z_points_down() {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let server = rt
+        .block_on(usar_server::LocalServer::start(usar_server::ServerConfig {
+            lockstep: true,
+            time_scale: usar_server::TimeScale::Max,
+            ..usar_server::ServerConfig::default()
+        }))
+        .unwrap();
+    let dir = scratch("under-the-floor-remote");
+    let port = server.addr().port().to_string();
+    let (code, out, err) = ucc_output(&[
+        "run",
+        "--host",
+        "127.0.0.1",
+        "--port",
+        &port,
+        "--lockstep",
+        "--start",
+        "0,0,-1",
+        "--goto",
+        "2,0,1",
+        "--mission-timeout",
+        "5",
+        "--log-dir",
+        dir.to_str().unwrap(),
+    ]);
+    rt.block_on(server.stop()).unwrap();
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(
+        err.contains("not done after 5")
+            && err.contains("below where the UAV stopped")
+            && err.contains("z points down"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn decode_and_encode_give_back_the_capture() {
     use std::io::Write;

@@ -47,12 +47,12 @@ pub struct ServerArgs {
 #[derive(Debug, thiserror::Error)]
 pub enum ArgsError {
     /// `--map` or `--robots` did not load.
-    #[error("{option}: {source}")]
+    #[error("{option}: {error}")]
     File {
         /// `--map NAME` or `--robots FILE`.
         option: String,
-        /// Why.
-        source: ConfigError,
+        /// Why (part of the message, so not a `source`: the cause is said once).
+        error: ConfigError,
     },
     /// `--wind`, `--gusts` or `--gust-length` out of range.
     #[error("--wind/--gusts/--gust-length: {0}")]
@@ -64,16 +64,16 @@ impl ServerArgs {
     pub fn config(&self) -> Result<ServerConfig, ArgsError> {
         let map = match &self.map {
             None => Map::default_map(),
-            Some(name) => Map::lookup(name).map_err(|source| ArgsError::File {
+            Some(name) => Map::lookup(name).map_err(|error| ArgsError::File {
                 option: format!("--map {name}"),
-                source,
+                error,
             })?,
         };
         let robots = match &self.robots {
             None => RobotCatalog::embedded(),
-            Some(path) => RobotCatalog::from_file(path).map_err(|source| ArgsError::File {
+            Some(path) => RobotCatalog::from_file(path).map_err(|error| ArgsError::File {
                 option: format!("--robots {}", path.display()),
-                source,
+                error,
             })?,
         };
         let wind = WindConfig::overridden(map.wind(), self.wind, self.gusts, self.gust_length)
