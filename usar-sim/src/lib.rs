@@ -6,6 +6,7 @@
 //!   [`World::step`].
 //! * [`map`] — the map format (`docs/maps.md`) and the embedded maps.
 //! * [`robots`] — the robot catalog format (`docs/robots.md`) and the embedded robots.
+//! * [`part`] — one sensor part of a class ([`part::PartConfig`]), read by both.
 //! * [`sensors`] — one file per sensor type and the registry that maps part types to them.
 //!
 //! Rapier types stay inside this crate. Frame everywhere: the protocol frame (x forward /
@@ -33,6 +34,7 @@ mod dynamics;
 pub mod map;
 mod noise;
 mod obj;
+pub mod part;
 pub mod quadrotor;
 mod robot;
 pub mod robots;

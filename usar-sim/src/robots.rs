@@ -12,6 +12,7 @@ use super::map::{ConfigError, ConfigFile, line_of, read_text};
 pub const MAX_ROBOT_FILE: u64 = 1 << 20;
 use super::quadrotor::QuadrotorConfig;
 use super::sensors;
+pub use crate::part::PartConfig;
 
 /// The embedded catalog (`usar-sim/robots.toml`).
 const EMBEDDED: &str = include_str!("../robots.toml");
@@ -111,32 +112,6 @@ impl Default for CollisionConfig {
             height: 0.2,
         }
     }
-}
-
-/// A sensor part: where it is and what it is; type-specific settings stay in `settings` and
-/// are checked against the sensor's `XxxConfig` when the catalog is read.
-#[derive(Debug, Clone, Deserialize)]
-pub struct PartConfig {
-    /// The sensor type (`Sonar`, `RangeScanner`, `IMU`, ...; case-insensitive).
-    #[serde(rename = "type")]
-    pub kind: String,
-    /// The part name (`{Name ..}`).
-    pub name: String,
-    /// Mount position, body frame (x forward, y right, z down), m.
-    #[serde(default)]
-    pub position: [f64; 3],
-    /// Mount direction: roll, pitch (+ = up), yaw (+ = right), rad.
-    #[serde(default)]
-    pub direction: [f64; 3],
-    /// Seconds between readings; the type's default when absent.
-    #[serde(default)]
-    pub interval: Option<f64>,
-    /// Gaussian noise standard deviation (0 = off), in the reading's unit.
-    #[serde(default)]
-    pub noise: f64,
-    /// The type-specific settings (the sensor's `XxxConfig` fields).
-    #[serde(flatten)]
-    pub settings: toml::Table,
 }
 
 /// One joint of an actuator.

@@ -5,7 +5,7 @@ use usar_proto::SenData;
 
 use super::{Reading, Sensor, settings};
 use crate::noise::Noise;
-use crate::robots::PartConfig;
+use crate::part::PartConfig;
 
 /// Altitude settings.
 #[derive(Debug, Clone, Deserialize)]

@@ -5,7 +5,7 @@ use usar_proto::{ConfItem, SenData};
 
 use super::{Reading, Sensor, settings};
 use crate::noise::Noise;
-use crate::robots::PartConfig;
+use crate::part::PartConfig;
 
 /// Camera settings (`[USARSensor.USARCamera]`, degrees as CONF reports them).
 #[derive(Debug, Clone, Deserialize)]

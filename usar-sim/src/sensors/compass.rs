@@ -7,7 +7,7 @@ use usar_proto::SenData;
 
 use super::{Reading, Sensor, settings};
 use crate::noise::Noise;
-use crate::robots::PartConfig;
+use crate::part::PartConfig;
 
 /// Compass settings.
 #[derive(Debug, Clone, Deserialize)]

@@ -4,7 +4,7 @@ use usar_proto::{ConfItem, SenData};
 
 use super::{NoSettings, Reading, Sensor, interval_conf, settings};
 use crate::noise::Noise;
-use crate::robots::PartConfig;
+use crate::part::PartConfig;
 
 /// GroundTruth settings: none.
 pub type GroundTruthConfig = NoSettings;

@@ -7,7 +7,7 @@ use usar_proto::{SenData, Vec3};
 use super::{NoSettings, Reading, Sensor, settings};
 use crate::dynamics::ImuTruth;
 use crate::noise::Noise;
-use crate::robots::PartConfig;
+use crate::part::PartConfig;
 use crate::scene::{V3, yaw_rotate};
 
 /// IMU settings: none (the engine adds no noise to the IMU either).

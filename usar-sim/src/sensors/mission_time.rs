@@ -4,7 +4,7 @@ use usar_proto::SenData;
 
 use super::{NoSettings, Reading, Sensor, settings};
 use crate::noise::Noise;
-use crate::robots::PartConfig;
+use crate::part::PartConfig;
 
 /// MissionTime settings: none.
 pub type MissionTimeConfig = NoSettings;

@@ -37,7 +37,7 @@ use usar_proto::{ConfItem, SenData};
 
 use super::dynamics::{ImuTruth, M3, mul, mul_t};
 use super::noise::Noise;
-use super::robots::PartConfig;
+use super::part::PartConfig;
 use super::scene::{Scene, V3, add, scale, yaw_rotate};
 
 /// What a sensor sees when it takes a reading.

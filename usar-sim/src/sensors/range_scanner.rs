@@ -9,7 +9,7 @@ use usar_proto::{ConfItem, Scan, SenData};
 
 use super::{Reading, Sensor, f32ish, from_uu, settings, to_uu};
 use crate::noise::Noise;
-use crate::robots::PartConfig;
+use crate::part::PartConfig;
 use crate::scene::direction;
 
 /// Scanner settings (defaults: `[USARSensor.RangeScanner]`; the Hokuyo sets fov 4.189,

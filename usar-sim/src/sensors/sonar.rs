@@ -7,7 +7,7 @@ use usar_proto::{ConfItem, NamedRange, SenData};
 
 use super::{Reading, Sensor, f32ish, from_uu, settings, to_uu};
 use crate::noise::Noise;
-use crate::robots::PartConfig;
+use crate::part::PartConfig;
 use crate::scene::direction;
 
 /// How a reading is computed.

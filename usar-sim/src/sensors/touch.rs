@@ -8,7 +8,7 @@ use usar_proto::SenData;
 
 use super::{Reading, Sensor, settings};
 use crate::noise::Noise;
-use crate::robots::PartConfig;
+use crate::part::PartConfig;
 
 /// What makes the sensor read `True`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
