@@ -111,6 +111,7 @@ pub fn write_iteration(
         let picture = MapPicture {
             title: format!("{} — iteration {}", settings.prefix, record.iteration),
             paths: vec![record.trajectory.iter().map(|p| p.position).collect()],
+            repeats: Vec::new(),
             waypoints: settings.waypoints(),
             start: record
                 .start

@@ -25,7 +25,7 @@ const Y_LABELS: u32 = 60;
 const CAPTION: u32 = 40;
 
 /// Paths of more iterations than this share one legend entry (and one colour).
-const LEGEND_ITERATIONS: usize = 8;
+pub(crate) const LEGEND_ITERATIONS: usize = 8;
 
 /// The colours of the paths of a few iterations: dark enough on white, none red (the
 /// waypoints) or green (the start), none yellow.
@@ -120,6 +120,8 @@ pub struct MapPicture {
     pub title: String,
     /// One path per iteration (world frame, z ignored).
     pub paths: Vec<Vec<Coordinates>>,
+    /// How many iterations flew each path (missing entries: one).
+    pub repeats: Vec<usize>,
     /// The waypoints.
     pub waypoints: Vec<Coordinates>,
     /// The start position.
@@ -282,16 +284,20 @@ impl MapPicture {
                 .legend(move |(x, y)| Circle::new((x + 10, y), 2, wall.filled()));
         }
 
-        let n = self.paths.len();
+        let repeats = |i: usize| self.repeats.get(i).copied().unwrap_or(1).max(1);
+        let n: usize = (0..self.paths.len()).map(repeats).sum();
         let many = n > LEGEND_ITERATIONS;
         for (i, path) in self.paths.iter().enumerate() {
-            // Many paths: one colour, translucent, so that where they agree is darker. A few:
-            // a colour each, and each later one narrower than the one before, so that paths
-            // that agree show as stripes instead of the last one hiding the others.
+            // Many paths: one colour, translucent, so that where they agree is darker (a path
+            // flown k times as dark as k paths drawn over each other). A few: a colour each,
+            // and each later one narrower than the one before, so that paths that agree show
+            // as stripes instead of the last one hiding the others.
             let (color, width) = if many {
-                (PATH_COLOURS[0].mix(0.4), 1)
+                let alpha = 1.0 - 0.6f64.powi(repeats(i).min(64) as i32);
+                (PATH_COLOURS[0].mix(alpha), 1)
             } else {
-                (PATH_COLOURS[i].to_rgba(), 2 + 3 * (n - 1 - i) as u32)
+                let k = self.paths.len();
+                (PATH_COLOURS[i].to_rgba(), 2 + 3 * (k - 1 - i) as u32)
             };
             let series = chart
                 .draw_series(LineSeries::new(
@@ -300,7 +306,7 @@ impl MapPicture {
                 ))
                 .map_err(err)?;
             // One legend entry per iteration for a few; one for all of many.
-            let label = match (self.paths.len(), many) {
+            let label = match (n, many) {
                 (1, _) => Some("path".to_owned()),
                 (n, true) if i == 0 => Some(format!("paths of {n} iterations")),
                 (_, true) => None,
@@ -688,6 +694,7 @@ mod tests {
         let picture = MapPicture {
             title: "test map".into(),
             paths: vec![path.clone(), path.iter().map(|p| p * 0.5).collect()],
+            repeats: Vec::new(),
             waypoints: vec![
                 Coordinates::new(2.0, 1.0, -1.0),
                 Coordinates::new(4.0, -1.0, -1.0),
@@ -731,6 +738,7 @@ mod tests {
         let picture = MapPicture {
             title: "many".into(),
             paths: vec![path; 237],
+            repeats: Vec::new(),
             start: Some(Coordinates::zeros()),
             laser_hits: vec![Coordinates::new(1.0, 1.0, -1.0)],
             ..MapPicture::default()
@@ -808,6 +816,7 @@ mod tests {
         let picture = |n: usize| MapPicture {
             title: format!("{n}"),
             paths: vec![path.clone(); n],
+            repeats: Vec::new(),
             waypoints: waypoints.clone(),
             start: Some(Coordinates::zeros()),
             ..MapPicture::default()

@@ -42,6 +42,14 @@ impl FlightRecord {
             + 0.0 // an empty sum is -0.0: no "-0.0000" in the tables
     }
 
+    /// Simulated seconds from the first to the last trajectory sample.
+    pub fn simulated_seconds(&self) -> f64 {
+        match (self.trajectory.first(), self.trajectory.last()) {
+            (Some(a), Some(b)) => b.time - a.time,
+            _ => 0.0,
+        }
+    }
+
     /// Simulated seconds from the spawn to the last mission done.
     pub fn duration(&self) -> f64 {
         match (self.start_time, self.end_time) {

@@ -24,7 +24,7 @@ use crate::output::{iteration_files, write_iteration};
 use crate::picture::MapPicture;
 use crate::progress::{Observer, Progress};
 use crate::settings::{LOCKSTEP_STEP, Lockstep, Pictures, RunSettings};
-use crate::stats::{IterationStatus, IterationSummary, Summary};
+use crate::stats::{IterationStatus, IterationSummary, ResultsTable, Summary};
 
 /// Without lockstep, the readings of one time stamp are taken as complete when nothing more
 /// arrives for this long (a server writes a time stamp's lines together).
@@ -63,6 +63,7 @@ pub async fn run(
         })?;
     }
     let mut summary = Summary::default();
+    let mut results = settings.file("results.csv").map(ResultsTable::new);
     let mut lockstep = settings.lockstep;
     let mut failure = None;
     // The files of the last iteration flown, being written.
@@ -98,7 +99,7 @@ pub async fn run(
         };
         // Nothing flown and nothing to fly (no server, an unwritable recording): the error
         // alone, without a failed iteration's report or files that would show nothing.
-        if summary.iterations.is_empty()
+        if summary.flown == 0
             && !flight.record().connected
             && let Some(e) = failure.take_if(|e| e.is_fatal())
         {
@@ -118,6 +119,7 @@ pub async fn run(
             missions_done: record.missions_done,
             duration: record.duration(),
             distance: record.distance(),
+            simulated_seconds: record.simulated_seconds(),
             trajectory: record.trajectory.clone(),
             files: iteration_files(settings, &record),
         };
@@ -136,7 +138,20 @@ pub async fn run(
             },
             IterationStatus::Interrupted => Progress::Interrupted { iteration },
         });
-        summary.iterations.push(iteration_summary);
+        let deviation = summary.add(
+            iteration_summary.clone(),
+            settings.kept_iterations,
+            settings.pictures != Pictures::None && settings.log_dir.is_some(),
+        );
+        if let Some(table) = &mut results {
+            table
+                .row(&iteration_summary, deviation)
+                .map_err(|error| RunError::Output {
+                    path: table.path().to_owned(),
+                    error,
+                })?;
+            summary.results = Some(table.path().to_owned());
+        }
         match failure.take() {
             Some(e) if !settings.keep_going || e.is_fatal() => {
                 written(writing.take(), observer).await?;
@@ -169,38 +184,38 @@ async fn written(
     Ok(())
 }
 
-/// Writes the overlay and the results table.
+/// Writes the overlay.
 fn finish(
     settings: &RunSettings,
     summary: &mut Summary,
     observer: &mut dyn Observer,
 ) -> Result<(), RunError> {
     if settings.pictures != Pictures::None
-        && !summary.iterations.is_empty()
+        && summary.flown > 0
         && let Some(base) = settings.file("overlay")
     {
-        let n = summary.iterations.len();
+        let n = summary.flown;
+        let (paths, left_out) = summary.overlay_paths();
         let picture = MapPicture {
             title: format!(
-                "{} — {n} iteration{}{}",
+                "{} — {n} iteration{}{}{}",
                 settings.prefix,
                 if n == 1 { "" } else { "s" },
+                if left_out > 0 {
+                    format!(" ({} different paths drawn)", paths.len())
+                } else {
+                    String::new()
+                },
                 if summary.interrupted {
                     " (interrupted)"
                 } else {
                     ""
                 }
             ),
-            paths: summary
-                .iterations
-                .iter()
-                .map(IterationSummary::path)
-                .collect(),
+            paths: paths.iter().map(|(p, _)| p.clone()).collect(),
+            repeats: paths.iter().map(|(_, n)| *n).collect(),
             waypoints: settings.waypoints(),
-            start: summary
-                .iterations
-                .iter()
-                .find_map(|i| i.trajectory.first().map(|p| p.position)),
+            start: summary.start(),
             geometry: settings.map.clone(),
             laser_hits: Vec::new(),
         };
@@ -208,15 +223,6 @@ fn finish(
         observer.progress(&Progress::Written {
             files: summary.overlay.clone(),
         });
-    }
-    if let Some(path) = settings.file("results.csv") {
-        summary
-            .write_results(&path)
-            .map_err(|error| RunError::Output {
-                path: path.clone(),
-                error,
-            })?;
-        summary.results = Some(path);
     }
     Ok(())
 }

@@ -167,6 +167,10 @@ pub struct RunSettings {
     /// The map's walls and obstacles, when known (a local server's map file), for the
     /// pictures; without it the pictures draw what the laser saw.
     pub map: Option<MapGeometry>,
+    /// How many iterations [`Summary::iterations`](crate::Summary::iterations) keeps whole,
+    /// trajectory included (default 100): a long loop's memory stays flat; the statistics,
+    /// the results table, the overlay and the files cover every iteration.
+    pub kept_iterations: usize,
 }
 
 impl Default for RunSettings {
@@ -188,6 +192,7 @@ impl Default for RunSettings {
             keep_going: false,
             pictures: Pictures::All,
             map: None,
+            kept_iterations: 100,
         }
     }
 }

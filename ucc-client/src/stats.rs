@@ -41,7 +41,10 @@ pub struct IterationSummary {
     pub duration: f64,
     /// Metres flown (along the recorded path).
     pub distance: f64,
-    /// The recorded trajectory.
+    /// Simulated seconds from the first to the last trajectory sample.
+    pub simulated_seconds: f64,
+    /// The recorded trajectory; empty in the iterations a run does not keep whole
+    /// (see [`RunSettings::kept_iterations`](crate::RunSettings::kept_iterations)).
     pub trajectory: Vec<TrajectoryPoint>,
     /// Files written for this iteration.
     pub files: Vec<PathBuf>,
@@ -61,31 +64,57 @@ impl IterationSummary {
         }
     }
 
-    /// Simulated seconds from the first to the last trajectory sample.
-    pub fn simulated_seconds(&self) -> f64 {
-        match (self.trajectory.first(), self.trajectory.last()) {
-            (Some(a), Some(b)) => b.time - a.time,
-            _ => 0.0,
-        }
-    }
-
     /// The path: the trajectory's positions.
     pub fn path(&self) -> Vec<Coordinates> {
         self.trajectory.iter().map(|p| p.position).collect()
     }
 }
 
+/// The overlay draws at most this many different paths; more iterations that flew a path
+/// already drawn make it darker, other ones are counted in its title.
+pub const OVERLAY_PATHS: usize = 1000;
+
+/// Paths are simplified to this many metres before they are kept for the overlay (a
+/// picture's pixel is several centimetres).
+const OVERLAY_TOLERANCE: f64 = 0.01;
+
 /// The result of a whole run.
+///
+/// Its memory does not grow with the number of iterations: the figures are kept as running
+/// sums, the results table is written as each iteration ends, the overlay keeps each
+/// different path once, and only the first
+/// [`RunSettings::kept_iterations`](crate::RunSettings::kept_iterations) iterations are
+/// kept whole in [`iterations`](Self::iterations).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Summary {
-    /// One entry per iteration flown, completed, failed or interrupted.
+    /// The first iterations flown, completed, failed or interrupted, whole.
     pub iterations: Vec<IterationSummary>,
+    /// Iterations flown, also those beyond [`iterations`](Self::iterations).
+    pub flown: usize,
+    /// Missions completed in all iterations.
+    pub missions_done: usize,
+    /// Files written for the iterations.
+    pub files_written: usize,
+    /// The first failed iteration's error.
+    pub first_error: Option<String>,
     /// The overlay pictures (every iteration's path on one map).
     pub overlay: Vec<PathBuf>,
     /// The results table (`PREFIX-results.csv`), when a log directory is set.
     pub results: Option<PathBuf>,
     /// Whether the run was stopped before its last iteration ended.
     pub interrupted: bool,
+    statistics: Statistics,
+    durations: Running,
+    distances: Running,
+    /// The first completed iteration's path: the others' deviations are measured from it.
+    reference: Option<Vec<Coordinates>>,
+    /// The first iteration's start.
+    start: Option<Coordinates>,
+    /// The different paths for the overlay (simplified), each with how many iterations
+    /// flew it.
+    paths: Vec<(Vec<Coordinates>, usize)>,
+    /// Iterations whose path the overlay leaves out (more than [`OVERLAY_PATHS`]).
+    paths_left_out: usize,
 }
 
 /// Figures over the iterations of a run.
@@ -110,80 +139,206 @@ pub struct Statistics {
 impl Summary {
     /// The figures of the run.
     pub fn statistics(&self) -> Statistics {
-        let done: Vec<&IterationSummary> = self.iterations.iter().filter(|i| i.is_done()).collect();
-        let first = done.first().map(|i| i.path());
         Statistics {
-            completed: done.len(),
-            failed: self
-                .iterations
-                .iter()
-                .filter(|i| i.error().is_some())
-                .count(),
-            duration: mean_and_spread(done.iter().map(|i| i.duration)),
-            distance: mean_and_spread(done.iter().map(|i| i.distance)),
-            max_deviation: first.as_ref().map_or(0.0, |first| {
-                done.iter()
-                    .map(|i| hausdorff(first, &i.path()))
-                    .fold(0.0, f64::max)
-            }),
+            duration: self.durations.mean_and_spread(),
+            distance: self.distances.mean_and_spread(),
             // + 0.0: an empty sum is -0.0.
-            simulated_seconds: self
-                .iterations
-                .iter()
-                .map(IterationSummary::simulated_seconds)
-                .sum::<f64>()
-                + 0.0,
+            simulated_seconds: self.statistics.simulated_seconds + 0.0,
+            ..self.statistics.clone()
         }
     }
 
-    /// How far each iteration's path lies from the first completed one's (metres).
-    fn deviations(&self) -> Vec<Option<f64>> {
-        let first = self
-            .iterations
-            .iter()
-            .find(|i| i.is_done())
-            .map(|i| i.path());
-        self.iterations
-            .iter()
-            .map(|i| first.as_ref().map(|f| hausdorff(f, &i.path())))
-            .collect()
+    /// Counts an iteration; keeps it whole if fewer than `keep` are kept, and its path for
+    /// the overlay if `overlay`. Returns how far its path lies from the first completed
+    /// iteration's (symmetric Hausdorff distance, metres), or `None` before one completed.
+    pub fn add(
+        &mut self,
+        mut iteration: IterationSummary,
+        keep: usize,
+        overlay: bool,
+    ) -> Option<f64> {
+        let path = iteration.path();
+        if iteration.is_done() {
+            self.statistics.completed += 1;
+            self.durations.add(iteration.duration);
+            self.distances.add(iteration.distance);
+            if self.reference.is_none() {
+                self.reference = Some(path.clone());
+            }
+        }
+        if let Some(error) = iteration.error() {
+            self.statistics.failed += 1;
+            self.first_error.get_or_insert_with(|| error.to_owned());
+        }
+        let deviation = self.reference.as_ref().map(|r| hausdorff(r, &path));
+        if iteration.is_done()
+            && let Some(d) = deviation
+        {
+            self.statistics.max_deviation = self.statistics.max_deviation.max(d);
+        }
+        self.statistics.simulated_seconds += iteration.simulated_seconds;
+        self.flown += 1;
+        self.missions_done += iteration.missions_done;
+        self.files_written += iteration.files.len();
+        if self.start.is_none() {
+            self.start = path.first().copied();
+        }
+        if overlay && !path.is_empty() {
+            self.add_path(simplify(&path, OVERLAY_TOLERANCE));
+        }
+        if self.iterations.len() < keep {
+            self.iterations.push(iteration);
+        } else {
+            iteration.trajectory = Vec::new();
+        }
+        deviation
     }
 
-    /// Writes one line per iteration: its number, status, missions done, completion time,
-    /// path length, distance of its path from the first one's, simulated time, and the error.
-    pub fn write_results(&self, path: &Path) -> std::io::Result<()> {
-        let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    fn add_path(&mut self, path: Vec<Coordinates>) {
+        // A few iterations keep a path each (the picture gives each its own colour).
+        if self.paths.len() >= LEGEND_PATHS
+            && let Some((_, n)) = self.paths.iter_mut().find(|(p, _)| *p == path)
+        {
+            *n += 1;
+        } else if self.paths.len() < OVERLAY_PATHS {
+            self.paths.push((path, 1));
+        } else {
+            self.paths_left_out += 1;
+        }
+    }
+
+    /// The paths for the overlay, each with the number of iterations that flew it, and how
+    /// many iterations' paths are left out.
+    pub fn overlay_paths(&self) -> (&[(Vec<Coordinates>, usize)], usize) {
+        (&self.paths, self.paths_left_out)
+    }
+
+    /// Where the first iteration started.
+    pub fn start(&self) -> Option<Coordinates> {
+        self.start
+    }
+}
+
+/// Up to this many iterations' paths are kept apart for the overlay even when equal, so that
+/// the picture can give each a colour and a legend entry.
+const LEGEND_PATHS: usize = crate::picture::LEGEND_ITERATIONS;
+
+/// The results table, written a row at a time as iterations end (so that a run stopped by
+/// anything has the rows of every iteration that ended).
+pub struct ResultsTable {
+    path: PathBuf,
+    out: Option<std::io::BufWriter<std::fs::File>>,
+    rows: usize,
+}
+
+impl ResultsTable {
+    /// A table to write at `path`; the file is made at the first row.
+    pub fn new(path: PathBuf) -> Self {
+        Self {
+            path,
+            out: None,
+            rows: 0,
+        }
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Writes one line: the iteration's number, status, missions done, completion time,
+    /// path length, distance of its path from the first completed one's (empty before one
+    /// completed), simulated time, and the error.
+    pub fn row(&mut self, i: &IterationSummary, deviation: Option<f64>) -> std::io::Result<()> {
+        let out = match &mut self.out {
+            Some(out) => out,
+            None => {
+                let mut out = std::io::BufWriter::new(std::fs::File::create(&self.path)?);
+                writeln!(
+                    out,
+                    "iteration,status,missions_done,duration_s,distance_m,deviation_m,simulated_s,error"
+                )?;
+                self.out.insert(out)
+            }
+        };
+        self.rows += 1;
         writeln!(
             out,
-            "iteration,status,missions_done,duration_s,distance_m,deviation_m,simulated_s,error"
+            "{},{},{},{:.4},{:.4},{},{:.4},{}",
+            self.rows,
+            i.status.word(),
+            i.missions_done,
+            i.duration,
+            i.distance,
+            deviation.map_or(String::new(), |d| format!("{d:.4}")),
+            i.simulated_seconds,
+            i.error().unwrap_or("").replace([',', '\n'], " "),
         )?;
-        for (n, (i, deviation)) in self.iterations.iter().zip(self.deviations()).enumerate() {
-            writeln!(
-                out,
-                "{},{},{},{:.4},{:.4},{},{:.4},{}",
-                n + 1,
-                i.status.word(),
-                i.missions_done,
-                i.duration,
-                i.distance,
-                deviation.map_or(String::new(), |d| format!("{d:.4}")),
-                i.simulated_seconds(),
-                i.error().unwrap_or("").replace([',', '\n'], " "),
-            )?;
-        }
         out.flush()
     }
 }
 
-fn mean_and_spread(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let values: Vec<f64> = values.collect();
-    if values.is_empty() {
-        return (0.0, 0.0);
+/// Running mean and spread (Welford).
+#[derive(Debug, Clone, PartialEq, Default)]
+struct Running {
+    n: usize,
+    mean: f64,
+    m2: f64,
+}
+
+impl Running {
+    fn add(&mut self, v: f64) {
+        self.n += 1;
+        let d = v - self.mean;
+        self.mean += d / self.n as f64;
+        self.m2 += d * (v - self.mean);
     }
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
-    (mean, var.sqrt())
+
+    /// Mean and (population) standard deviation; zeros when empty.
+    fn mean_and_spread(&self) -> (f64, f64) {
+        if self.n == 0 {
+            return (0.0, 0.0);
+        }
+        (self.mean, (self.m2 / self.n as f64).max(0.0).sqrt())
+    }
+}
+
+/// The path with the points dropped that lie within `tolerance` of the line between the
+/// points kept around them (Ramer–Douglas–Peucker); the ends are kept.
+fn simplify(path: &[Coordinates], tolerance: f64) -> Vec<Coordinates> {
+    if path.len() < 3 {
+        return path.to_vec();
+    }
+    let mut keep = vec![false; path.len()];
+    keep[0] = true;
+    keep[path.len() - 1] = true;
+    let mut spans = vec![(0, path.len() - 1)];
+    while let Some((a, b)) = spans.pop() {
+        let (pa, pb) = (path[a], path[b]);
+        let ab = pb - pa;
+        let len2 = ab.norm_squared();
+        let distance = |p: &Coordinates| {
+            let t = if len2 > 0.0 {
+                ((p - pa).dot(&ab) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (p - (pa + ab * t)).norm()
+        };
+        let far = (a + 1..b)
+            .map(|i| (i, distance(&path[i])))
+            .fold((a, 0.0), |m, c| if c.1 > m.1 { c } else { m });
+        if far.1 > tolerance {
+            keep[far.0] = true;
+            spans.push((a, far.0));
+            spans.push((far.0, b));
+        }
+    }
+    path.iter()
+        .zip(keep)
+        .filter(|(_, k)| *k)
+        .map(|(p, _)| *p)
+        .collect()
 }
 
 /// The symmetric Hausdorff distance between two sampled paths.

@@ -127,24 +127,20 @@ pub fn spawn_run(
                             "run stopped; its files are written".to_owned(),
                         )
                     } else if failed > 0 {
-                        let first = summary
-                            .iterations
-                            .iter()
-                            .find_map(|i| i.error())
-                            .map(str::to_owned);
+                        let first = summary.first_error.clone();
                         (
                             Status::Failed,
                             first.clone(),
                             format!(
                                 "run ended: {failed} of {} iteration(s) failed",
-                                summary.iterations.len()
+                                summary.flown
                             ),
                         )
                     } else {
                         (
                             Status::Done,
                             None,
-                            format!("run ended: {} iteration(s) done", summary.iterations.len()),
+                            format!("run ended: {} iteration(s) done", summary.flown),
                         )
                     };
                     hub.log(

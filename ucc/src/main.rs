@@ -574,11 +574,13 @@ async fn run(
     }
     let failed = summary.statistics().failed;
     if failed > 0 {
-        let first = summary.iterations.iter().find_map(|i| i.error());
+        let first = &summary.first_error;
         eprintln!(
             "ucc: error: {failed} of {} iteration(s) failed{}",
-            summary.iterations.len(),
-            first.map_or(String::new(), |e| format!(" (first: {e})"))
+            summary.flown,
+            first
+                .as_ref()
+                .map_or(String::new(), |e| format!(" (first: {e})"))
         );
         return Ok(ExitCode::FAILURE);
     }
@@ -649,25 +651,23 @@ async fn tap(
 }
 
 fn print_summary(summary: &Summary, settings: &RunSettings) {
-    let missions: usize = summary.iterations.iter().map(|i| i.missions_done).sum();
     println!(
-        "{}: {} iteration(s), {missions} mission(s) completed",
+        "{}: {} iteration(s), {} mission(s) completed",
         if summary.interrupted {
             "interrupted"
         } else {
             "done"
         },
-        summary.iterations.len()
+        summary.flown,
+        summary.missions_done
     );
     if let Some(dir) = &settings.log_dir {
-        let per_iteration: Vec<&PathBuf> =
-            summary.iterations.iter().flat_map(|i| &i.files).collect();
         println!("files are in {}", dir.display());
         // Name every file of a short run; for a long one only the overlay and the table.
-        let listed = if summary.iterations.len() <= 3 {
-            per_iteration.clone()
+        let listed: Vec<&PathBuf> = if summary.flown <= 3 {
+            summary.iterations.iter().flat_map(|i| &i.files).collect()
         } else {
-            println!("  ({} files of the iterations)", per_iteration.len());
+            println!("  ({} files of the iterations)", summary.files_written);
             Vec::new()
         };
         for file in listed

@@ -59,16 +59,33 @@ fn twenty_iterations_complete_and_the_overlay_shows_them() {
         let csv = dir.join(format!("UCCLOG-{i:02}-trajectory.csv"));
         assert!(std::fs::metadata(&csv).unwrap().len() > 100, "{csv:?}");
     }
-    // The overlay draws one path per iteration: an SVG polyline of many points each (the
-    // legend's and the scale's lines have two).
+    // The overlay draws every iteration's path, the legend counting them all. Lockstep
+    // flies the same path each time: the first eight are drawn apart, the other twelve as
+    // one line as dark as twelve translucent lines over each other (1 - 0.6^13).
     let svg = std::fs::read_to_string(dir.join("UCCLOG-overlay.svg")).unwrap();
-    let paths = svg
+    assert!(svg.contains("paths of 20 iterations"), "legend");
+    let opacities: Vec<f64> = svg
         .split("<polyline")
         .skip(1)
-        .filter_map(|p| p.split(" points=\"").nth(1)?.split('"').next())
-        .filter(|points| points.split_whitespace().count() > 10)
-        .count();
-    assert_eq!(paths, 20, "paths in the overlay");
+        .filter(|p| p.contains("#1F77B4") && p.contains("stroke-width=\"1\""))
+        .filter_map(|p| {
+            p.split("opacity=\"")
+                .nth(1)?
+                .split('"')
+                .next()?
+                .parse()
+                .ok()
+        })
+        .collect();
+    assert_eq!(opacities.len(), 8, "paths in the overlay: {opacities:?}");
+    assert!(
+        (opacities[0] - (1.0 - 0.6f64.powi(13))).abs() < 1e-6,
+        "{opacities:?}"
+    );
+    assert!(
+        opacities[1..].iter().all(|o| (o - 0.4).abs() < 1e-9),
+        "{opacities:?}"
+    );
     let png = std::fs::metadata(dir.join("UCCLOG-overlay.png")).unwrap();
     assert!(png.len() > 1000);
     std::fs::remove_dir_all(&dir).unwrap();

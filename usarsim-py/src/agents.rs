@@ -318,6 +318,8 @@ pub(crate) fn fly<'py>(
             Lockstep::Off
         },
         map: Some(MapGeometry::from(&map)),
+        // `fly` returns every iteration, trajectory included.
+        kept_iterations: usize::MAX,
         ..RunSettings::default()
     };
     let backend = match server {
