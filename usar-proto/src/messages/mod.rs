@@ -94,7 +94,9 @@ impl ServerMessage {
         } else if is("STA") {
             Sta::read(r("sta")).map(|m| Some(Self::Sta(m)))
         } else if is("SEN") {
-            Sen::read(r("sen")).map(|m| Some(Self::Sen(m)))
+            // A reading without its fields prints with a trailing space: only a line with one
+            // may be one, so that it prints back exactly.
+            Sen::read(r("sen"), line.ends_with(' ')).map(|m| Some(Self::Sen(m)))
         } else if is("CONF") {
             Conf::read(r("conf")).map(|m| m.map(Self::Conf))
         } else if is("GEO") {

@@ -2,7 +2,8 @@
 //! UT2004 sonar and encoder layouts).
 //!
 //! Header: `SEN [{Time t}] {Type T}`, then the data, each group preceded by one space; a
-//! sensor without data (Camera) leaves the trailing space: `SEN {Time 477.7743} {Type Camera} `.
+//! sensor without data (Camera) leaves the trailing space: `SEN {Time 477.7743} {Type Camera} `;
+//! so does a reading of a known type that came without its fields ([`SenData::Empty`]).
 
 use super::line::Line;
 use super::server::{GpsFix, NamedRange, NamedTick, Scan, Sen, SenData};
@@ -36,13 +37,26 @@ impl SenData {
             Self::MagneticCompass { .. } => "MagneticCompass",
             Self::MissionTime { .. } => "MissionTime",
             Self::Camera => "Camera",
+            Self::Empty { kind } => kind,
             Self::Position { .. } => "Position",
             Self::Velocity { .. } => "Velocity",
             Self::Other { kind, .. } => kind,
         }
     }
 
-    fn read(kind: &str, d: Reader<'_, '_>) -> Result<Self, ParseError> {
+    /// `may_be_empty`: the line ended with a space, as one without data does.
+    fn read(kind: &str, d: Reader<'_, '_>, may_be_empty: bool) -> Result<Self, ParseError> {
+        match Self::read_typed(kind, d) {
+            // UDK sends a known type with no data at all now and then (an Odometry before it
+            // has a pose): typed, the fields absent.
+            Err(_) if may_be_empty && d.pairs.is_empty() => Ok(Self::Empty {
+                kind: kind.to_owned(),
+            }),
+            read => read,
+        }
+    }
+
+    fn read_typed(kind: &str, d: Reader<'_, '_>) -> Result<Self, ParseError> {
         let name = || d.string("Name");
         let is = |k: &str| kind.eq_ignore_ascii_case(k);
         Ok(if is("IMU") {
@@ -311,7 +325,7 @@ impl SenData {
             Self::MissionTime { name, minutes } => {
                 w.text("Name", name).int("Minutes", *minutes);
             }
-            Self::Camera => {}
+            Self::Camera | Self::Empty { .. } => {}
             Self::Position { name, location } => {
                 w.text("Name", name).fs_vec("Location", *location, P);
             }
@@ -390,7 +404,8 @@ fn write_coordinate(out: &mut String, degrees: i64, minutes: f64, hemisphere: ch
 }
 
 impl Sen {
-    pub(crate) fn read(r: Reader<'_, '_>) -> Result<Self, ParseError> {
+    /// `may_be_empty`: the line ended with a space (see [`SenData::Empty`]).
+    pub(crate) fn read(r: Reader<'_, '_>, may_be_empty: bool) -> Result<Self, ParseError> {
         let Some(at) = r
             .pairs
             .iter()
@@ -401,7 +416,7 @@ impl Sen {
         let kind = r.pairs[at].value;
         Ok(Self {
             time: read_time(&r.sub(kind, &r.pairs[..at]))?,
-            data: SenData::read(kind, r.sub(kind, &r.pairs[at + 1..]))?,
+            data: SenData::read(kind, r.sub(kind, &r.pairs[at + 1..]), may_be_empty)?,
         })
     }
 
@@ -422,7 +437,7 @@ impl SenData {
     /// 0 when the data prints no group (the header then ends with a space).
     fn pairs_hint(&self) -> usize {
         match self {
-            Self::Camera => 0,
+            Self::Camera | Self::Empty { .. } => 0,
             Self::Sonar { readings, .. } => readings.len(),
             Self::Encoder { ticks, .. } => ticks.len(),
             Self::Other { groups, .. } => groups.len(),
@@ -525,6 +540,14 @@ mod tests {
         assert_eq!(
             data("SEN {Time 477.7743} {Type Camera} ").1,
             SenData::Camera
+        );
+        // A real UDK line (0.3 % of a capture): a known type without its fields; printed
+        // back byte for byte (round_trip).
+        assert_eq!(
+            data("SEN {Time 53.8669} {Type Odometry} ").1,
+            SenData::Empty {
+                kind: "Odometry".into()
+            }
         );
         let (t, _) = data(
             "SEN {Type INS} {Name InsTest} {Location 0.00,0.00,-0.20} {Orientation 0.00,0.00,0.00}",

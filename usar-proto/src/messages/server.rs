@@ -249,6 +249,12 @@ pub enum SenData {
     },
     /// `{Type Camera}` with no data (the line ends with a space).
     Camera,
+    /// `{Type T}` of a known type that came without its fields (UDK sends e.g.
+    /// `SEN {Time 53.8669} {Type Odometry} ` now and then); the line ends with a space.
+    Empty {
+        /// The type.
+        kind: String,
+    },
     /// stsAirRobot `{Type Position} {Name n} {Location x,y,z}` (§9).
     Position {
         /// Part name.
