@@ -7,12 +7,12 @@
 //! (docs/lockstep.md) is the flight loop's business ([`crate::flight`]): here a `SYNC` is a
 //! command and its answer a message like any other.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
 use tokio::net::TcpStream;
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
-use usar_proto::record::{Direction, RecordWriter};
+use usar_proto::record::{Direction, RecordFile, RecordWriter};
 use usar_proto::shown::{Repeats, Shown};
 use usar_proto::{Command, ServerMessage};
 
@@ -77,28 +77,24 @@ pub struct Connection {
     unreadable: Repeats,
 }
 
-/// The recording of a connection: written until the first error, which is logged once
-/// (naming the file) and returned by [`Connection::disconnect`].
+/// The recording of a connection: written until the first error, which
+/// [`Connection::disconnect`] returns (the file is cut back to whole lines).
 #[derive(Debug)]
 struct Recorder {
-    writer: Option<RecordWriter>,
-    path: PathBuf,
+    file: RecordFile,
     error: Option<std::io::Error>,
 }
 
 impl Recorder {
     fn write(&mut self, time: Option<f64>, direction: Direction, line: &str) {
-        let Some(w) = &mut self.writer else {
-            return;
-        };
-        if let Some(time) = time {
-            w.set_time(time);
-        }
-        if let Err(error) = w.write(direction, line) {
-            tracing::warn!(file = %self.path.display(), %error,
-                "cannot write the recording; it is incomplete from here on");
-            self.writer = None;
-            self.error = Some(error);
+        let written = self.file.with(|w| {
+            if let Some(time) = time {
+                w.set_time(time);
+            }
+            w.write(direction, line)
+        });
+        if let Err(stopped) = written {
+            self.error = Some(stopped.error);
         }
     }
 }
@@ -115,15 +111,11 @@ impl Connection {
         timeout: Duration,
         path: &Path,
     ) -> Result<Self, ConnectionError> {
-        let writer = RecordWriter::create(path).map_err(|error| ConnectionError::Record {
+        let file = RecordFile::create(path).map_err(|error| ConnectionError::Record {
             path: path.display().to_string(),
             error,
         })?;
-        let recorder = Recorder {
-            writer: Some(writer),
-            path: path.to_owned(),
-            error: None,
-        };
+        let recorder = Recorder { file, error: None };
         Self::open(addr, timeout, Some(recorder)).await
     }
 
@@ -257,10 +249,10 @@ impl Connection {
     pub async fn disconnect(mut self) -> Result<(), ConnectionError> {
         use tokio::io::AsyncWriteExt;
         if let Some(r) = &mut self.recorder {
-            let flushed = r.writer.as_mut().map_or(Ok(()), RecordWriter::flush);
+            let flushed = r.file.with(RecordWriter::flush).map_err(|s| s.error);
             if let Some(error) = r.error.take().or(flushed.err()) {
                 return Err(ConnectionError::Record {
-                    path: r.path.display().to_string(),
+                    path: r.file.path().display().to_string(),
                     error,
                 });
             }

@@ -24,7 +24,7 @@ use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
 use ucc_client::runner::record_path;
-use usar_proto::record::{Direction, RecordWriter};
+use usar_proto::record::{Direction, RecordFile, RecordWriter};
 use usar_proto::shown::{Repeats, Shown};
 use usar_proto::{Command, ServerMessage};
 
@@ -160,18 +160,18 @@ impl Tap {
     }
 }
 
-/// One session's recording: written until the first error, which is reported once.
+/// One session's recording: written until the first error, which is reported once (the
+/// file is cut back to whole lines).
 struct Recording {
-    writer: Option<RecordWriter>,
-    path: PathBuf,
+    file: Option<RecordFile>,
 }
 
 impl Recording {
     fn create(path: &Path, first: Option<RecordWriter>) -> Self {
-        let writer = match first {
-            Some(w) => Some(w),
-            None => match RecordWriter::create(path) {
-                Ok(w) => Some(w),
+        let file = match first {
+            Some(w) => Some(RecordFile::new(w, path)),
+            None => match RecordFile::create(path) {
+                Ok(file) => Some(file),
                 Err(error) => {
                     warn!(file = %path.display(), %error,
                         "cannot create the recording; this connection is forwarded unrecorded");
@@ -179,20 +179,17 @@ impl Recording {
                 }
             },
         };
-        Self {
-            writer,
-            path: path.to_owned(),
-        }
+        Self { file }
     }
 
     /// Runs `write` on the writer; on its first error, says so and stops recording.
     fn with(&mut self, write: impl FnOnce(&mut RecordWriter) -> std::io::Result<()>) {
-        if let Some(w) = &mut self.writer
-            && let Err(error) = write(w)
+        if let Some(file) = &mut self.file
+            && let Err(stopped) = file.with(write)
         {
-            warn!(file = %self.path.display(), %error,
-                "cannot write the recording; it is incomplete, the rest of this connection is not recorded");
-            self.writer = None;
+            warn!(file = %file.path().display(), error = %stopped.error,
+                kept_bytes = stopped.kept.as_ref().ok().copied(),
+                "cannot write the recording; it ends here (whole lines kept), the rest of this connection is not recorded");
         }
     }
 }

@@ -109,8 +109,15 @@ struct Tap {
 }
 
 impl Tap {
-    /// Starts `ucc tap` in front of `upstream` (through `sh` for `ulimit -n`).
-    fn start(upstream: SocketAddr, dir: &std::path::Path, fd_limit: u32, extra: &[&str]) -> Self {
+    /// Starts `ucc tap` in front of `upstream` (through `sh` for `ulimit -n`), recording
+    /// to `record`, its log in `dir`.
+    fn start(
+        upstream: SocketAddr,
+        dir: &std::path::Path,
+        record: &std::path::Path,
+        fd_limit: u32,
+        extra: &[&str],
+    ) -> Self {
         let log = dir.join("tap.log");
         let bin = std::env::var_os("UCC_BIN").unwrap_or_else(|| env!("CARGO_BIN_EXE_ucc").into());
         let mut child = Command::new("sh")
@@ -119,7 +126,7 @@ impl Tap {
             .arg(bin)
             .args(["tap", "--listen", "0", "--upstream", &upstream.to_string()])
             .arg("--record")
-            .arg(dir.join("session.usarlog"))
+            .arg(record)
             .args(extra)
             .env("RUST_LOG", "warn")
             .stdout(Stdio::piped())
@@ -278,7 +285,14 @@ async fn the_tap_survives_the_attack_suite() {
     .await
     .unwrap();
     let dir = scratch("tap-attack");
-    let mut tap = Tap::start(server.addr(), &dir, 48, &["--max-connections", "32"]);
+    let record = dir.join("session.usarlog");
+    let mut tap = Tap::start(
+        server.addr(),
+        &dir,
+        &record,
+        48,
+        &["--max-connections", "32"],
+    );
     let baseline = healthy_rate(tap.addr, "Base").await;
     println!("baseline: {baseline:.1} lines/s");
     assert!(
@@ -378,4 +392,110 @@ async fn the_tap_survives_the_attack_suite() {
     drop(tap);
     server.stop().await.unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A tmpfs of `size` mounted on a fresh folder (`None` where this process may not mount).
+struct Tmpfs(PathBuf);
+
+impl Tmpfs {
+    fn mount(name: &str, size: &str) -> Option<Self> {
+        let dir = scratch(name);
+        let ok = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
+            .arg(&dir)
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            Some(Self(dir))
+        } else {
+            eprintln!("cannot mount a tmpfs here (not root?): test skipped");
+            None
+        }
+    }
+}
+
+impl Drop for Tmpfs {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(&self.0).status();
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A recording cut by a full disk: it ends with a whole line, and every line reads.
+fn assert_whole_lines(path: &std::path::Path) {
+    let text = std::fs::read_to_string(path).unwrap();
+    assert!(text.len() > 1000, "{} bytes recorded", text.len());
+    assert!(
+        text.ends_with('\n'),
+        "the recording ends mid-line: {:?}",
+        &text[text.len().saturating_sub(80)..]
+    );
+    for line in text.lines() {
+        usar_proto::record::parse_entry(line).unwrap_or_else(|e| panic!("{line:?}: {e}"));
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_full_disk_ends_the_taps_recording_at_a_whole_line_and_the_tap_goes_on() {
+    let Some(disk) = Tmpfs::mount("tap-full", "16k") else {
+        return;
+    };
+    let server = usar_server::LocalServer::start(usar_server::ServerConfig {
+        time_scale: usar_server::TimeScale::Factor(1.0),
+        ..usar_server::ServerConfig::default()
+    })
+    .await
+    .unwrap();
+    let dir = scratch("tap-full-log");
+    let record = disk.0.join("session.usarlog");
+    let mut tap = Tap::start(server.addr(), &dir, &record, 256, &[]);
+    // Three seconds of an stsAirRobot's lines are several times the disk.
+    let rate = healthy_rate(tap.addr, "Full").await;
+    assert!(rate > 20.0, "the client gets {rate:.1} lines/s");
+    assert!(tap.alive(), "the tap ended");
+    let log = std::fs::read_to_string(&tap.log).unwrap();
+    assert_eq!(
+        log.matches("cannot write the recording").count(),
+        1,
+        "said once: {log}"
+    );
+    assert!(log.contains(&record.display().to_string()), "{log}");
+    assert_whole_lines(&record);
+}
+
+#[test]
+fn a_full_disk_ends_a_runs_recording_at_a_whole_line_and_the_error_says_it_once() {
+    let Some(disk) = Tmpfs::mount("run-full", "16k") else {
+        return;
+    };
+    let logs = scratch("run-full-logs");
+    let record = disk.0.join("flight.usarlog");
+    let out = ucc()
+        .args(["run", "--local", "--start", "0,0,-1", "--goto", "3,0,-1"])
+        .args([
+            "--goto",
+            "0,0,-1",
+            "--pictures",
+            "none",
+            "--quiet",
+            "--log-dir",
+        ])
+        .arg(&logs)
+        .arg("--record")
+        .arg(&record)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&record.display().to_string()) && stderr.contains("No space left"),
+        "{stderr}"
+    );
+    assert_eq!(
+        stderr.matches("No space left").count(),
+        1,
+        "the cause said once: {stderr}"
+    );
+    assert_whole_lines(&record);
 }

@@ -2,7 +2,8 @@
 //! (docs/recording.md): a header line, then one line per protocol line,
 //! `<time> <C|S> <line>`, time in simulated seconds with 4 decimals.
 
-use std::io::Write;
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
 
 /// The first line of every recording.
 pub const HEADER: &str = "# usar-record 1";
@@ -116,6 +117,96 @@ impl<W: Write> RecordWriter<W> {
     }
 }
 
+/// A recording file that stops at its first write error (a full disk) and cuts the file back
+/// to its last whole line, so that what was written stays readable; `usar-server --record`,
+/// `ucc run --record` and `ucc tap` each say so in their own words.
+#[derive(Debug)]
+pub struct RecordFile {
+    writer: Option<RecordWriter>,
+    path: PathBuf,
+}
+
+/// Why a [`RecordFile`] stopped.
+#[derive(Debug)]
+pub struct RecordStopped {
+    /// The write error.
+    pub error: std::io::Error,
+    /// The bytes of whole lines kept, or why the file could not be cut.
+    pub kept: std::io::Result<u64>,
+}
+
+impl RecordFile {
+    /// Creates (or truncates) the file at `path` and writes the header.
+    pub fn create(path: &Path) -> std::io::Result<Self> {
+        Ok(Self::new(RecordWriter::create(path)?, path))
+    }
+
+    /// A recording already started on the file at `path`.
+    pub fn new(writer: RecordWriter, path: &Path) -> Self {
+        Self {
+            writer: Some(writer),
+            path: path.to_owned(),
+        }
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Whether every entry so far was written.
+    pub fn is_complete(&self) -> bool {
+        self.writer.is_some()
+    }
+
+    /// Runs `write` on the writer (after a failure: nothing). On the first failure the
+    /// recording stops, the file is cut back to its last whole line, and the error is
+    /// returned, once.
+    pub fn with(
+        &mut self,
+        write: impl FnOnce(&mut RecordWriter) -> std::io::Result<()>,
+    ) -> Result<(), RecordStopped> {
+        let Some(writer) = &mut self.writer else {
+            return Ok(());
+        };
+        write(writer).map_err(|error| {
+            // Dropping the writer tries to write its buffer once more; the cut comes after.
+            drop(self.writer.take());
+            RecordStopped {
+                error,
+                kept: cut_to_whole_lines(&self.path),
+            }
+        })
+    }
+}
+
+/// Truncates the file at `path` after its last `\n`; returns its new length.
+pub fn cut_to_whole_lines(path: &Path) -> std::io::Result<u64> {
+    const BLOCK: u64 = 64 * 1024;
+    let mut file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)?;
+    let mut end = file.metadata()?.len();
+    let mut block = vec![0; BLOCK as usize];
+    while end > 0 {
+        let start = end.saturating_sub(BLOCK);
+        let len = (end - start) as usize;
+        file.seek(SeekFrom::Start(start))?;
+        file.read_exact(&mut block[..len])?;
+        if let Some(i) = block[..len].iter().rposition(|&b| b == b'\n') {
+            let keep = start + i as u64 + 1;
+            if keep != file.metadata()?.len() {
+                file.set_len(keep)?;
+            }
+            return Ok(keep);
+        }
+        end = start;
+    }
+    file.set_len(0)?;
+    Ok(0)
+}
+
 /// Reads one line of a recording; `Ok(None)` for blank lines and `#` comments.
 pub fn parse_entry(line: &str) -> Result<Option<Entry<'_>>, RecordError> {
     let line = line.trim_end_matches(['\r', '\n']);
@@ -143,6 +234,25 @@ pub fn parse_entry(line: &str) -> Result<Option<Entry<'_>>, RecordError> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_cut_keeps_whole_lines() {
+        let dir = std::env::temp_dir().join(format!("usar-cut-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("r.usarlog");
+        let mut text = "# usar-record 1\n".to_owned();
+        text.push_str(&"0.1000 S STA {Time 0.1000}\n".repeat(5000));
+        text.push_str("0.2000 S STA {Ti");
+        std::fs::write(&path, &text).unwrap();
+        let kept = cut_to_whole_lines(&path).unwrap();
+        let after = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(kept as usize, after.len());
+        assert!(after.ends_with("{Time 0.1000}\n"));
+        assert_eq!(after.lines().count(), 5001);
+        std::fs::write(&path, "no newline at all").unwrap();
+        assert_eq!(cut_to_whole_lines(&path).unwrap(), 0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     use super::*;
 
     #[test]
