@@ -31,8 +31,6 @@ pub(crate) fn bounded_angle(a: f64) -> f64 {
 
 /// STA period, s (`StatusTimer`).
 const STATUS_INTERVAL: f64 = 0.1;
-/// Every stream starts at most this long after spawn, s.
-const FIRST_OUTPUT: f64 = 0.1;
 /// `Battery` without a battery part.
 const NO_BATTERY: i64 = 99_999;
 
@@ -51,6 +49,14 @@ fn limited(value: f64, limit: f64, key: &str) -> f64 {
     value.clamp(-limit, limit)
 }
 
+/// A robot's phase: where in each interval its timers fire, as a fraction of 2⁶⁴. The
+/// robot of serial `n` (spawn order) gets the fractional part of n × 0.618… (Fibonacci
+/// hashing): serial 0 gets 0, and any number of robots spawned on one tick spread evenly
+/// over every interval, so their sensors do not all read on the same tick.
+fn phase(serial: u64) -> u64 {
+    serial.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
 /// A periodic output: interval and next due tick.
 #[derive(Debug, Clone, Copy)]
 struct Timer {
@@ -59,12 +65,14 @@ struct Timer {
 }
 
 impl Timer {
-    /// First due within `FIRST_OUTPUT` of `spawn`, then every `interval`.
-    fn new(interval: f64, spawn: u64, dt: f64) -> Self {
+    /// Started at `spawn`, as UDK's timers: first due one `interval` after it, earlier by
+    /// the robot's `phase` of an interval (never later), then every `interval`.
+    fn new(interval: f64, spawn: u64, dt: f64, phase: u64) -> Self {
         let every = ticks(interval, dt);
+        let early = ((u128::from(phase) * u128::from(every)) >> 64) as u64;
         Self {
             every,
-            due: spawn + every.min(ticks(FIRST_OUTPUT, dt)),
+            due: spawn + every - early,
         }
     }
 
@@ -221,11 +229,12 @@ impl Robot {
         if scene.overlaps(shape, spawn.position, None) {
             return None;
         }
+        let phase = phase(spawn.serial);
         let parts = model
             .parts
             .iter()
             .map(|p| Part {
-                timer: Timer::new(p.interval, spawn.tick, spawn.dt),
+                timer: Timer::new(p.interval, spawn.tick, spawn.dt, phase),
                 forced: false,
                 noise: Noise::new(spawn.seed, spawn.serial, p.index, p.noise),
                 sensor: p.sensor.clone_box(),
@@ -240,7 +249,7 @@ impl Robot {
                     .iter()
                     .map(|j| 0.0f64.clamp(j.min, j.max))
                     .collect(),
-                timer: Timer::new(a.interval, spawn.tick, spawn.dt),
+                timer: Timer::new(a.interval, spawn.tick, spawn.dt, phase),
                 config: a.clone(),
             })
             .collect();
@@ -277,7 +286,7 @@ impl Robot {
             contact: false,
             spawn_tick: spawn.tick,
             spawn_z: spawn.position[2],
-            status: Timer::new(STATUS_INTERVAL, spawn.tick, spawn.dt),
+            status: Timer::new(STATUS_INTERVAL, spawn.tick, spawn.dt, phase),
             parts,
             actuators,
         })
