@@ -207,7 +207,13 @@ pub(crate) fn suite(args: &Args) -> anyhow::Result<()> {
             runs.push(figures);
         }
         let summary = summarize(&runs);
-        say!("{:<24} {:>12} {:>12} {:>12}", "figure", "min", "median", "max");
+        say!(
+            "{:<24} {:>12} {:>12} {:>12}",
+            "figure",
+            "min",
+            "median",
+            "max"
+        );
         for (name, [min, median, max]) in &summary {
             say!("{name:<24} {min:>12.2} {median:>12.2} {max:>12.2}");
         }
@@ -252,11 +258,7 @@ fn summarize(runs: &[BTreeMap<&'static str, f64>]) -> BTreeMap<&'static str, [f6
     for name in runs.iter().flat_map(|r| r.keys()) {
         let mut values: Vec<f64> = runs.iter().filter_map(|r| r.get(name).copied()).collect();
         values.sort_by(f64::total_cmp);
-        let stat = [
-            values[0],
-            quantile(&values, 0.5),
-            values[values.len() - 1],
-        ];
+        let stat = [values[0], quantile(&values, 0.5), values[values.len() - 1]];
         summary.insert(*name, stat);
     }
     summary
@@ -279,13 +281,7 @@ fn compare(now: &Value, previous: &Path) {
             return;
         }
     };
-    let key = |v: &Value| {
-        (
-            v["machine"].clone(),
-            v["build"].clone(),
-            v["suite"].clone(),
-        )
-    };
+    let key = |v: &Value| (v["machine"].clone(), v["build"].clone(), v["suite"].clone());
     if key(&before) != key(now) {
         say!(
             "compare: {} is of another machine, build or size ({} {} {}); not compared",
@@ -305,7 +301,13 @@ fn compare(now: &Value, previous: &Path) {
             continue;
         };
         for &(name, lower_is_better, margin) in WATCHED {
-            let median = |v: &Value| v["min_median_max"][name].as_array().unwrap_or(&empty).get(1)?.as_f64();
+            let median = |v: &Value| {
+                v["min_median_max"][name]
+                    .as_array()
+                    .unwrap_or(&empty)
+                    .get(1)?
+                    .as_f64()
+            };
             let (Some(now), Some(then)) = (median(&bench), median(was)) else {
                 continue;
             };

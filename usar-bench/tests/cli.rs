@@ -165,15 +165,21 @@ fn the_quick_suite_writes_its_figures_and_flags_a_slower_tick_without_failing() 
     let out = dir.join("quick.json");
     let (code, text, err) = bench(&["--suite", "--quick", "--out", out.to_str().unwrap()]);
     assert_eq!(code, Some(0), "{err}");
-    assert!(text.contains("machine: ") && text.contains("load average after"), "{text}");
-    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap())
-        .expect("the suite's JSON");
+    assert!(
+        text.contains("machine: ") && text.contains("load average after"),
+        "{text}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).expect("the suite's JSON");
     assert!(json["machine"]["cores"].as_u64().unwrap() >= 1, "{json}");
     assert_eq!(json["load_average_before"].as_array().unwrap().len(), 3);
     let first = &json["benchmarks"][0];
     assert_eq!(first["runs"].as_array().unwrap().len(), 3, "{first}");
     for figure in ["tick_p50_us", "tick_p99_us", "tick_p999_us", "tick_max_us"] {
-        assert!(first["min_median_max"][figure][1].as_f64().unwrap() > 0.0, "{figure}");
+        assert!(
+            first["min_median_max"][figure][1].as_f64().unwrap() > 0.0,
+            "{figure}"
+        );
     }
     // The same machine's previous run, with a tick half as long: flagged, not failed.
     let mut previous = json.clone();

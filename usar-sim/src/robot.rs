@@ -494,6 +494,20 @@ impl Robot {
         ))
     }
 
+    /// The next tick at which [`Robot::emit`] has output: the earliest timer, at once
+    /// after a SET asked for a reading, never for a robot no connection controls.
+    pub(crate) fn next_due(&self) -> u64 {
+        if self.owner.is_none() {
+            return u64::MAX;
+        }
+        if self.parts.iter().any(|p| p.forced) {
+            return 0;
+        }
+        let parts = self.parts.iter().map(|p| p.timer.due);
+        let actuators = self.actuators.iter().map(|a| a.timer.due);
+        parts.chain(actuators).fold(self.status.due, u64::min)
+    }
+
     /// Appends the output due at `tick` (STA, then sensors in part order, then ASTA).
     pub(crate) fn emit(
         &mut self,
@@ -560,6 +574,13 @@ impl Robot {
                 let data = part.sensor.read(&reading, &mut part.noise);
                 let time = part.sensor.timestamped().then_some(Time::udk(time));
                 out.push((owner, ServerMessage::Sen(Sen { time, data })));
+            }
+        } else {
+            // Silent for ever (the battery does not recharge): the timers move on, so that
+            // only STA's keeps the robot due.
+            for part in &mut self.parts {
+                part.timer.fire(tick);
+                part.forced = false;
             }
         }
         for actuator in &mut self.actuators {
