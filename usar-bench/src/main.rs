@@ -322,8 +322,23 @@ struct SimCost {
     /// Allocations (and reallocations) per tick, counted by the allocator: the same in
     /// every run of the same world, whatever the machine's load.
     allocations: f64,
+    /// The stepping thread's CPU time per tick, µs: median, 99.9th percentile, longest.
+    /// Unlike the wall time it does not grow while the thread waits for a core (a loaded
+    /// machine); with one sensor thread it is the whole tick's work.
+    cpu_p50: f64,
+    cpu_p999: f64,
+    cpu_max: f64,
+    /// Bytes printed per tick: median and most (the same in every run).
+    bytes_p50: f64,
+    bytes_max: f64,
     /// Bytes allocated per idle robot (spawned, before the first tick), KiB.
     memory: f64,
+}
+
+/// CPU time of the calling thread.
+fn thread_cpu() -> Duration {
+    let t = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
+    Duration::new(t.tv_sec.max(0) as u64, t.tv_nsec.clamp(0, 999_999_999) as u32)
 }
 
 /// The value at fraction `p` (0 to 1) of `sorted` (ascending, not empty): the nearest rank.
@@ -503,6 +518,8 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     let began = Instant::now();
     let mut step_time = Duration::ZERO;
     let mut tick_times = Vec::with_capacity(ticks as usize);
+    let mut tick_cpu = Vec::with_capacity(ticks as usize);
+    let mut tick_bytes = Vec::with_capacity(ticks as usize);
     let mut allocations = 0;
     for tick in 0..ticks {
         if tick % 20 == 0 {
@@ -518,13 +535,15 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
             }
         }
         let counted = ALLOCATOR.stats();
-        let t = Instant::now();
+        let (t, cpu_at) = (Instant::now(), thread_cpu());
         world.step_printed(&mut out);
         let took = t.elapsed();
+        tick_cpu.push((thread_cpu().saturating_sub(cpu_at)).as_secs_f64() * 1e6);
         let counted = ALLOCATOR.stats() - counted;
         allocations += counted.allocations + counted.reallocations;
         step_time += took;
         tick_times.push(took.as_secs_f64() * 1e6);
+        let bytes_before = bytes;
         for (_, text) in out.robots() {
             if args.digest {
                 digest = text.iter().fold(digest, |h, &b| {
@@ -534,6 +553,7 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
             messages += text.iter().filter(|&&b| b == b'\n').count() as u64;
             bytes += text.len() as u64;
         }
+        tick_bytes.push((bytes - bytes_before) as f64);
     }
     let wall = began.elapsed().as_secs_f64();
     let cpu = process_usage(std::process::id()).0.unwrap_or(0.0) - cpu_before;
@@ -552,6 +572,8 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     say!("memory: {per_robot:.2} KiB allocated per idle robot (spawned, before the first tick)");
     let slowest = (0..tick_times.len()).max_by(|&a, &b| tick_times[a].total_cmp(&tick_times[b]));
     tick_times.sort_by(f64::total_cmp);
+    tick_cpu.sort_by(f64::total_cmp);
+    tick_bytes.sort_by(f64::total_cmp);
     let cost = SimCost {
         tick,
         cpu: cpu * 1e6 / ticks as f64,
@@ -562,6 +584,11 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
         rtf: args.seconds / step_time.as_secs_f64(),
         allocations: allocations as f64 / ticks as f64,
         memory: per_robot,
+        cpu_p50: quantile(&tick_cpu, 0.5),
+        cpu_p999: quantile(&tick_cpu, 0.999),
+        cpu_max: quantile(&tick_cpu, 1.0),
+        bytes_p50: quantile(&tick_bytes, 0.5),
+        bytes_max: quantile(&tick_bytes, 1.0),
     };
     say!(
         "tick µs: p50 {:.0}, p99 {:.0}, p99.9 {:.0}, max {:.0} (tick {}); {:.1} allocations per tick",
@@ -571,6 +598,14 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
         cost.max,
         slowest.map_or(0, |i| i + 1),
         cost.allocations
+    );
+    say!(
+        "tick CPU µs (stepping thread): p50 {:.0}, p99.9 {:.0}, max {:.0}; bytes per tick: p50 {:.0}, max {:.0}",
+        cost.cpu_p50,
+        cost.cpu_p999,
+        cost.cpu_max,
+        cost.bytes_p50,
+        cost.bytes_max
     );
     if args.digest {
         say!("digest of the output: {digest:016x}");

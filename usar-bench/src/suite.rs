@@ -25,6 +25,7 @@ pub(crate) const COUNT_MARGIN: f64 = 0.01;
 const WATCHED: &[(&str, bool, f64)] = &[
     ("tick_mean_us", true, WALL_MARGIN),
     ("tick_p99_us", true, WALL_MARGIN),
+    ("thread_cpu_p50_us", true, WALL_MARGIN),
     ("allocations_per_tick", true, COUNT_MARGIN),
     ("real_time_factor", false, WALL_MARGIN),
 ];
@@ -87,6 +88,11 @@ fn sim_figures(c: &SimCost) -> BTreeMap<&'static str, f64> {
         ("cpu_us_per_tick", c.cpu),
         ("allocations_per_tick", c.allocations),
         ("kib_per_idle_robot", c.memory),
+        ("thread_cpu_p50_us", c.cpu_p50),
+        ("thread_cpu_p999_us", c.cpu_p999),
+        ("thread_cpu_max_us", c.cpu_max),
+        ("bytes_per_tick_p50", c.bytes_p50),
+        ("bytes_per_tick_max", c.bytes_max),
     ])
 }
 
