@@ -50,11 +50,12 @@ fn limited(value: f64, limit: f64, key: &str) -> f64 {
 }
 
 /// A robot's phase: where in each interval its timers fire, as a fraction of 2⁶⁴. The
-/// robot of serial `n` (spawn order) gets the fractional part of n × 0.618… (Fibonacci
-/// hashing): serial 0 gets 0, and any number of robots spawned on one tick spread evenly
-/// over every interval, so their sensors do not all read on the same tick.
-fn phase(serial: u64) -> u64 {
-    serial.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+/// robot spawned while `n` others are in the world gets the fractional part of n × 0.618…
+/// (Fibonacci hashing): a lone robot gets 0 (so a client that flies, leaves and spawns
+/// again sees the same ticks every time), and any number of robots spawned on one tick
+/// spread evenly over every interval, so their sensors do not all read on the same tick.
+fn phase(others: u64) -> u64 {
+    others.wrapping_mul(0x9E37_79B9_7F4A_7C15)
 }
 
 /// A periodic output: interval and next due tick.
@@ -179,6 +180,8 @@ struct Actuator {
 pub(crate) struct Spawn<'a> {
     pub(crate) model: &'a Arc<Model>,
     pub(crate) serial: u64,
+    /// Robots in the world when it spawns (its timers' phase).
+    pub(crate) others: u64,
     pub(crate) owner: ClientId,
     pub(crate) position: V3,
     pub(crate) rotation: V3,
@@ -229,7 +232,7 @@ impl Robot {
         if scene.overlaps(shape, spawn.position, None) {
             return None;
         }
-        let phase = phase(spawn.serial);
+        let phase = phase(spawn.others);
         let parts = model
             .parts
             .iter()

@@ -306,6 +306,7 @@ impl World {
         let spawn = Spawn {
             model,
             serial: self.next_serial,
+            others: self.robots.len() as u64,
             owner: client,
             position,
             rotation,
