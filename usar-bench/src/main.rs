@@ -86,6 +86,22 @@ struct Args {
     /// quadrotor with the same parts plus a Crash touch sensor), or `Package.Class`.
     #[arg(long, default_value = "stsAirRobot")]
     robot: String,
+    /// Run the headline benchmarks (each three times; the other options are ignored but
+    /// --server-bin), print min/median/max of every figure with the machine and its load
+    /// average, and write them as JSON to --out.
+    #[arg(long)]
+    suite: bool,
+    /// With --suite: small sizes (under a minute in a debug build), for CI.
+    #[arg(long, requires = "suite")]
+    quick: bool,
+    /// With --suite: the JSON file to write.
+    #[arg(long, default_value = "usar-bench-suite.json", requires = "suite")]
+    out: PathBuf,
+    /// With --suite: an earlier suite's JSON file; every figure worse than there by more
+    /// than its margin (25 % for wall-clock figures, 1 % for allocations) is flagged with a
+    /// `SLOWER` line, when both are of the same machine, build and size. Never an error.
+    #[arg(long, requires = "suite")]
+    compare: Option<PathBuf>,
 }
 
 impl Args {
@@ -189,6 +205,8 @@ macro_rules! say {
     }};
 }
 
+mod suite;
+
 fn main() -> std::process::ExitCode {
     let args = Args::parse();
     // A user's mistake (a map that does not exist, a host that does not answer) is one
@@ -204,6 +222,9 @@ fn main() -> std::process::ExitCode {
 
 fn bench(args: &Args) -> anyhow::Result<()> {
     let args = args.clone();
+    if args.suite {
+        return suite::suite(&args);
+    }
     if args.sim_only && !args.scaling.is_empty() {
         return scaling(&args);
     }
@@ -287,10 +308,45 @@ fn print(args: &Args, r: &Report) {
 #[derive(Debug, Clone, Copy)]
 struct SimCost {
     /// Wall time of a tick: moving the robots, reading their sensors and printing the
-    /// lines (as the server does it), µs.
+    /// lines (as the server does it), µs; the mean over the run.
     tick: f64,
     /// CPU time of the whole process (all threads), µs per tick (10 ms resolution).
     cpu: f64,
+    /// The ticks' wall times, µs: median, 99th and 99.9th percentiles, longest.
+    p50: f64,
+    p99: f64,
+    p999: f64,
+    max: f64,
+    /// Simulated seconds per second of ticks.
+    rtf: f64,
+    /// Allocations (and reallocations) per tick, counted by the allocator: the same in
+    /// every run of the same world, whatever the machine's load.
+    allocations: f64,
+    /// The stepping thread's CPU time per tick, µs: median, 99.9th percentile, longest.
+    /// Unlike the wall time it does not grow while the thread waits for a core (a loaded
+    /// machine); with one sensor thread it is the whole tick's work.
+    cpu_p50: f64,
+    cpu_p999: f64,
+    cpu_max: f64,
+    /// Bytes printed per tick: median and most (the same in every run).
+    bytes_p50: f64,
+    bytes_max: f64,
+    /// Bytes allocated per idle robot (spawned, before the first tick), KiB.
+    memory: f64,
+}
+
+/// CPU time of the calling thread.
+fn thread_cpu() -> Duration {
+    let t = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
+    Duration::new(
+        t.tv_sec.max(0) as u64,
+        t.tv_nsec.clamp(0, 999_999_999) as u32,
+    )
+}
+
+/// The value at fraction `p` (0 to 1) of `sorted` (ascending, not empty): the nearest rank.
+fn quantile(sorted: &[f64], p: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
 /// The scaling curve (--sim-only --scaling): each count --runs times, a table of
@@ -457,13 +513,17 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     }
     // Memory the robots hold in the world, idle (spawned, not yet stepped).
     let per_robot = live_bytes().saturating_sub(live_before) as f64 / 1024.0 / args.uavs as f64;
-    let ticks = (args.seconds / world.dt()).round() as u64;
+    let ticks = ((args.seconds / world.dt()).round() as u64).max(1);
     let mut out = usar_sim::Printed::default();
     let (mut messages, mut bytes) = (0u64, 0u64);
     let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
     let cpu_before = process_usage(std::process::id()).0.unwrap_or(0.0);
     let began = Instant::now();
     let mut step_time = Duration::ZERO;
+    let mut tick_times = Vec::with_capacity(ticks as usize);
+    let mut tick_cpu = Vec::with_capacity(ticks as usize);
+    let mut tick_bytes = Vec::with_capacity(ticks as usize);
+    let mut allocations = 0;
     for tick in 0..ticks {
         if tick % 20 == 0 {
             let v = if (tick / 200) % 2 == 0 { 0.2 } else { -0.2 };
@@ -477,9 +537,16 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
                 );
             }
         }
-        let t = Instant::now();
+        let counted = ALLOCATOR.stats();
+        let (t, cpu_at) = (Instant::now(), thread_cpu());
         world.step_printed(&mut out);
-        step_time += t.elapsed();
+        let took = t.elapsed();
+        tick_cpu.push((thread_cpu().saturating_sub(cpu_at)).as_secs_f64() * 1e6);
+        let counted = ALLOCATOR.stats() - counted;
+        allocations += counted.allocations + counted.reallocations;
+        step_time += took;
+        tick_times.push(took.as_secs_f64() * 1e6);
+        let bytes_before = bytes;
         for (_, text) in out.robots() {
             if args.digest {
                 digest = text.iter().fold(digest, |h, &b| {
@@ -489,6 +556,7 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
             messages += text.iter().filter(|&&b| b == b'\n').count() as u64;
             bytes += text.len() as u64;
         }
+        tick_bytes.push((bytes - bytes_before) as f64);
     }
     let wall = began.elapsed().as_secs_f64();
     let cpu = process_usage(std::process::id()).0.unwrap_or(0.0) - cpu_before;
@@ -505,13 +573,47 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
         bytes as f64 / 1e6
     );
     say!("memory: {per_robot:.2} KiB allocated per idle robot (spawned, before the first tick)");
+    let slowest = (0..tick_times.len()).max_by(|&a, &b| tick_times[a].total_cmp(&tick_times[b]));
+    tick_times.sort_by(f64::total_cmp);
+    tick_cpu.sort_by(f64::total_cmp);
+    tick_bytes.sort_by(f64::total_cmp);
+    let cost = SimCost {
+        tick,
+        cpu: cpu * 1e6 / ticks as f64,
+        p50: quantile(&tick_times, 0.5),
+        p99: quantile(&tick_times, 0.99),
+        p999: quantile(&tick_times, 0.999),
+        max: quantile(&tick_times, 1.0),
+        rtf: args.seconds / step_time.as_secs_f64(),
+        allocations: allocations as f64 / ticks as f64,
+        memory: per_robot,
+        cpu_p50: quantile(&tick_cpu, 0.5),
+        cpu_p999: quantile(&tick_cpu, 0.999),
+        cpu_max: quantile(&tick_cpu, 1.0),
+        bytes_p50: quantile(&tick_bytes, 0.5),
+        bytes_max: quantile(&tick_bytes, 1.0),
+    };
+    say!(
+        "tick µs: p50 {:.0}, p99 {:.0}, p99.9 {:.0}, max {:.0} (tick {}); {:.1} allocations per tick",
+        cost.p50,
+        cost.p99,
+        cost.p999,
+        cost.max,
+        slowest.map_or(0, |i| i + 1),
+        cost.allocations
+    );
+    say!(
+        "tick CPU µs (stepping thread): p50 {:.0}, p99.9 {:.0}, max {:.0}; bytes per tick: p50 {:.0}, max {:.0}",
+        cost.cpu_p50,
+        cost.cpu_p999,
+        cost.cpu_max,
+        cost.bytes_p50,
+        cost.bytes_max
+    );
     if args.digest {
         say!("digest of the output: {digest:016x}");
     }
-    Ok(SimCost {
-        tick,
-        cpu: cpu * 1e6 / ticks as f64,
-    })
+    Ok(cost)
 }
 
 /// How many of `args.uavs` UAVs the grid of `args` puts where a robot can be on `map` (a dry

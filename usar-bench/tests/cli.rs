@@ -155,3 +155,50 @@ fn user_errors_are_one_line_naming_what_and_where() {
         assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
     }
 }
+
+/// `--suite --quick` as CI runs it: every benchmark three times, the machine and load in the
+/// JSON file, and a figure worse than the previous run's flagged without failing.
+#[test]
+fn the_quick_suite_writes_its_figures_and_flags_a_slower_tick_without_failing() {
+    let dir = std::env::temp_dir().join(format!("usar-bench-suite-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("quick.json");
+    let (code, text, err) = bench(&["--suite", "--quick", "--out", out.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        text.contains("machine: ") && text.contains("load average after"),
+        "{text}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).expect("the suite's JSON");
+    assert!(json["machine"]["cores"].as_u64().unwrap() >= 1, "{json}");
+    assert_eq!(json["load_average_before"].as_array().unwrap().len(), 3);
+    let first = &json["benchmarks"][0];
+    assert_eq!(first["runs"].as_array().unwrap().len(), 3, "{first}");
+    for figure in ["tick_p50_us", "tick_p99_us", "tick_p999_us", "tick_max_us"] {
+        assert!(
+            first["min_median_max"][figure][1].as_f64().unwrap() > 0.0,
+            "{figure}"
+        );
+    }
+    // The same machine's previous run, with a tick half as long: flagged, not failed.
+    let mut previous = json.clone();
+    let median = &mut previous["benchmarks"][0]["min_median_max"]["tick_mean_us"][1];
+    *median = (median.as_f64().unwrap() / 2.0).into();
+    let before = dir.join("previous.json");
+    std::fs::write(&before, previous.to_string()).unwrap();
+    let (code, text, err) = bench(&[
+        "--suite",
+        "--quick",
+        "--out",
+        out.to_str().unwrap(),
+        "--compare",
+        before.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        text.contains("SLOWER: world alone, 500 stsAirRobots: tick_mean_us"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

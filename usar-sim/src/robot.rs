@@ -31,8 +31,6 @@ pub(crate) fn bounded_angle(a: f64) -> f64 {
 
 /// STA period, s (`StatusTimer`).
 const STATUS_INTERVAL: f64 = 0.1;
-/// Every stream starts at most this long after spawn, s.
-const FIRST_OUTPUT: f64 = 0.1;
 /// `Battery` without a battery part.
 const NO_BATTERY: i64 = 99_999;
 
@@ -51,6 +49,15 @@ fn limited(value: f64, limit: f64, key: &str) -> f64 {
     value.clamp(-limit, limit)
 }
 
+/// A robot's phase: where in each interval its timers fire, as a fraction of 2⁶⁴. The
+/// robot spawned while `n` others are in the world gets the fractional part of n × 0.618…
+/// (Fibonacci hashing): a lone robot gets 0 (so a client that flies, leaves and spawns
+/// again sees the same ticks every time), and any number of robots spawned on one tick
+/// spread evenly over every interval, so their sensors do not all read on the same tick.
+fn phase(others: u64) -> u64 {
+    others.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
 /// A periodic output: interval and next due tick.
 #[derive(Debug, Clone, Copy)]
 struct Timer {
@@ -59,12 +66,14 @@ struct Timer {
 }
 
 impl Timer {
-    /// First due within `FIRST_OUTPUT` of `spawn`, then every `interval`.
-    fn new(interval: f64, spawn: u64, dt: f64) -> Self {
+    /// Started at `spawn`, as UDK's timers: first due one `interval` after it, earlier by
+    /// the robot's `phase` of an interval (never later), then every `interval`.
+    fn new(interval: f64, spawn: u64, dt: f64, phase: u64) -> Self {
         let every = ticks(interval, dt);
+        let early = ((u128::from(phase) * u128::from(every)) >> 64) as u64;
         Self {
             every,
-            due: spawn + every.min(ticks(FIRST_OUTPUT, dt)),
+            due: spawn + every - early,
         }
     }
 
@@ -171,6 +180,8 @@ struct Actuator {
 pub(crate) struct Spawn<'a> {
     pub(crate) model: &'a Arc<Model>,
     pub(crate) serial: u64,
+    /// Robots in the world when it spawns (its timers' phase).
+    pub(crate) others: u64,
     pub(crate) owner: ClientId,
     pub(crate) position: V3,
     pub(crate) rotation: V3,
@@ -221,11 +232,12 @@ impl Robot {
         if scene.overlaps(shape, spawn.position, None) {
             return None;
         }
+        let phase = phase(spawn.others);
         let parts = model
             .parts
             .iter()
             .map(|p| Part {
-                timer: Timer::new(p.interval, spawn.tick, spawn.dt),
+                timer: Timer::new(p.interval, spawn.tick, spawn.dt, phase),
                 forced: false,
                 noise: Noise::new(spawn.seed, spawn.serial, p.index, p.noise),
                 sensor: p.sensor.clone_box(),
@@ -240,7 +252,7 @@ impl Robot {
                     .iter()
                     .map(|j| 0.0f64.clamp(j.min, j.max))
                     .collect(),
-                timer: Timer::new(a.interval, spawn.tick, spawn.dt),
+                timer: Timer::new(a.interval, spawn.tick, spawn.dt, phase),
                 config: a.clone(),
             })
             .collect();
@@ -277,7 +289,7 @@ impl Robot {
             contact: false,
             spawn_tick: spawn.tick,
             spawn_z: spawn.position[2],
-            status: Timer::new(STATUS_INTERVAL, spawn.tick, spawn.dt),
+            status: Timer::new(STATUS_INTERVAL, spawn.tick, spawn.dt, phase),
             parts,
             actuators,
         })
@@ -485,6 +497,20 @@ impl Robot {
         ))
     }
 
+    /// The next tick at which [`Robot::emit`] has output: the earliest timer, at once
+    /// after a SET asked for a reading, never for a robot no connection controls.
+    pub(crate) fn next_due(&self) -> u64 {
+        if self.owner.is_none() {
+            return u64::MAX;
+        }
+        if self.parts.iter().any(|p| p.forced) {
+            return 0;
+        }
+        let parts = self.parts.iter().map(|p| p.timer.due);
+        let actuators = self.actuators.iter().map(|a| a.timer.due);
+        parts.chain(actuators).fold(self.status.due, u64::min)
+    }
+
     /// Appends the output due at `tick` (STA, then sensors in part order, then ASTA).
     pub(crate) fn emit(
         &mut self,
@@ -551,6 +577,13 @@ impl Robot {
                 let data = part.sensor.read(&reading, &mut part.noise);
                 let time = part.sensor.timestamped().then_some(Time::udk(time));
                 out.push((owner, ServerMessage::Sen(Sen { time, data })));
+            }
+        } else {
+            // Silent for ever (the battery does not recharge): the timers move on, so that
+            // only STA's keeps the robot due.
+            for part in &mut self.parts {
+                part.timer.fire(tick);
+                part.forced = false;
             }
         }
         for actuator in &mut self.actuators {

@@ -580,22 +580,24 @@ fn kind_of(m: &ServerMessage) -> Option<String> {
 fn output_intervals_over_five_seconds() {
     let mut w = world();
     let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
-    let mut first = Vec::new();
-    w.step(&mut first);
-    for _ in 1..20 {
-        w.step(&mut first);
+    // The first robot's timers start at its spawn, as UDK's: each stream speaks first one
+    // interval after it (STA and the 0.1 s sensors, then the sonars, then the laser).
+    let mut seen = Vec::new();
+    for (seconds, expected) in [(0.1, 1 + 3), (0.2, 1 + 3 + 10), (0.3, 1 + 3 + 10 + 1)] {
+        while w.time() < seconds - 1e-9 {
+            w.step(&mut seen);
+        }
+        let kinds = count(&seen, kind_of);
+        assert_eq!(kinds.len(), expected, "by {seconds} s: {kinds:?}");
     }
-    // Everything has spoken within 0.1 s of the spawn.
-    let early = count(&first, kind_of);
-    assert_eq!(early.len(), 1 + 3 + 10 + 1, "{early:?}");
-    let out = run(&mut w, 4.9);
-    let all = count(&[first, out].concat(), kind_of);
+    let out = run(&mut w, 4.7);
+    let all = count(&[seen, out].concat(), kind_of);
     assert_eq!(all["STA"], 50);
     assert_eq!(all["IMU"], 50);
     assert_eq!(all["Position"], 50);
     assert_eq!(all["Sonar0"], 25);
     assert_eq!(all["SonarBottom"], 25);
-    assert_eq!(all["Scanner"], 17); // 0.1 s, then every 0.3 s up to 4.9 s
+    assert_eq!(all["Scanner"], 16); // every 0.3 s from 0.3 s to 4.8 s
     let air = spawn(&mut w, AIR, [5.0, 5.0, -1.0], 0.0);
     let out = run(&mut w, 5.0);
     let mine: Vec<_> = out.into_iter().filter(|(k, _)| *k == air).collect();
@@ -792,7 +794,7 @@ fn act_moves_the_camera_joint_and_set_scan_forces_a_scan() {
     );
 
     let sts = spawn(&mut w, STS, [5.0, 5.0, -1.0], 0.0);
-    run(&mut w, 0.15); // after the first scan (0.1 s), before the second (0.4 s)
+    run(&mut w, 0.15); // after its first scan (0.115 s, its phase), before the second (0.415 s)
     let set = Set {
         kind: "RangeScanner".into(),
         name: None,
@@ -954,4 +956,40 @@ fn output_is_identical_at_any_thread_count_and_without_shortcuts() {
             "output differs at {threads} threads (shortcuts {shortcuts}, printed {printed})"
         );
     }
+}
+
+/// The scanner readings of each tick of `seconds` (after `skip` seconds), `robots`
+/// stsAirRobots spawned on one tick in a grid on the city's plaza.
+fn scans_per_tick(robots: usize, skip: f64, seconds: f64) -> Vec<usize> {
+    let mut w = World::new(
+        Map::embedded("city").expect("city"),
+        RobotCatalog::embedded(),
+        SimConfig::default(),
+    );
+    for i in 0..robots {
+        let (x, y) = ((i % 12) as f64, (i / 12) as f64);
+        spawn(&mut w, STS, [x * 1.5 - 8.0, y * 1.5 - 8.0, -2.0], 0.0);
+    }
+    assert_eq!(w.robot_count(), robots);
+    run(&mut w, skip);
+    (0..(seconds / w.dt()).round() as u64)
+        .map(|_| {
+            let mut out = Vec::new();
+            w.step(&mut out);
+            count(&out, kind_of).get("Scanner").copied().unwrap_or(0)
+        })
+        .collect()
+}
+
+#[test]
+fn robots_spawned_on_one_tick_read_their_lasers_on_different_ticks() {
+    // 120 lasers every 0.3 s (60 ticks): two or three per tick, never all on one.
+    let scans = scans_per_tick(120, 0.5, 0.6);
+    assert_eq!(scans.iter().sum::<usize>(), 240, "{scans:?}");
+    assert!(scans.iter().all(|&n| (1..=3).contains(&n)), "{scans:?}");
+}
+
+#[test]
+fn the_phases_are_the_same_for_the_same_spawn_order() {
+    assert_eq!(scans_per_tick(50, 0.0, 0.4), scans_per_tick(50, 0.0, 0.4));
 }

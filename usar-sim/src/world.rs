@@ -36,6 +36,11 @@ pub struct World {
     scene: Scene,
     /// Ordered by serial (spawn order): the order of movement and of output.
     robots: Vec<Robot>,
+    /// Each robot's next due tick ([`Robot::next_due`]), at its index in `robots`: a tick
+    /// scans this dense array, not the robots, to find the few that have output.
+    due: Vec<u64>,
+    /// This tick's robots with output due (indices into `robots`, ascending); reused.
+    speaking: Vec<usize>,
     /// Connection → serial of the robot it controls.
     clients: BTreeMap<ClientId, Option<u64>>,
     next_client: u64,
@@ -102,6 +107,8 @@ impl World {
             models: HashMap::new(),
             scene,
             robots: Vec::new(),
+            due: Vec::new(),
+            speaking: Vec::new(),
             clients: BTreeMap::new(),
             next_client: 0,
             next_serial: 0,
@@ -152,6 +159,7 @@ impl World {
             .into_iter()
             .partition(|r| r.spawned_by == client);
         self.robots = kept;
+        self.due = self.robots.iter().map(Robot::next_due).collect();
         for robot in gone {
             robot.despawn(&mut self.scene);
         }
@@ -179,13 +187,14 @@ impl World {
     pub fn step(&mut self, out: &mut Vec<(ClientId, ServerMessage)>) {
         self.advance();
         let (tick, dt) = (self.tick, self.dt);
-        let (robots, scene) = (&mut self.robots, &self.scene);
+        let scene = &self.scene;
         let mut parts: Vec<Vec<(ClientId, ServerMessage)>> = Vec::new();
-        let used = for_threads(robots, self.threads, &mut parts, |run, lines| {
-            for robot in run {
-                robot.emit(scene, tick, dt, lines);
-            }
-        });
+        let used = for_threads(
+            Speakers::at(tick, &mut self.robots, &mut self.due, &mut self.speaking),
+            self.threads,
+            &mut parts,
+            |robot, lines| robot.emit(scene, tick, dt, lines),
+        );
         for part in &mut parts[..used] {
             out.append(part);
         }
@@ -197,13 +206,16 @@ impl World {
     pub fn step_printed(&mut self, out: &mut Printed) {
         self.advance();
         let (tick, dt) = (self.tick, self.dt);
-        let (robots, scene) = (&mut self.robots, &self.scene);
-        out.used = for_threads(robots, self.threads, &mut out.parts, |run, part| {
+        for part in &mut out.parts {
             part.clear();
-            for robot in run {
-                part.print(robot, scene, tick, dt);
-            }
-        });
+        }
+        let scene = &self.scene;
+        out.used = for_threads(
+            Speakers::at(tick, &mut self.robots, &mut self.due, &mut self.speaking),
+            self.threads,
+            &mut out.parts,
+            |robot, part| part.print(robot, scene, tick, dt),
+        );
     }
 
     /// Moves every robot one tick.
@@ -294,6 +306,7 @@ impl World {
         let spawn = Spawn {
             model,
             serial: self.next_serial,
+            others: self.robots.len() as u64,
             owner: client,
             position,
             rotation,
@@ -318,14 +331,17 @@ impl World {
         if let Some(old) = previous.and_then(|s| self.robot_mut(s)) {
             old.owner = None;
         }
+        self.due.push(robot.next_due());
         self.robots.push(robot);
     }
 
+    /// The index in `robots` of the robot `serial`.
+    fn index_of(&self, serial: u64) -> Option<usize> {
+        self.robots.binary_search_by_key(&serial, |r| r.serial).ok()
+    }
+
     fn robot_mut(&mut self, serial: u64) -> Option<&mut Robot> {
-        let index = self
-            .robots
-            .binary_search_by_key(&serial, |r| r.serial)
-            .ok()?;
+        let index = self.index_of(serial)?;
         self.robots.get_mut(index)
     }
 
@@ -333,9 +349,10 @@ impl World {
     fn robot_command(&mut self, client: ClientId, command: Command) -> Vec<ServerMessage> {
         let (tick, dt) = (self.tick, self.dt);
         let serial = self.clients.get(&client).copied().flatten();
-        let Some(robot) = serial.and_then(|s| self.robot_mut(s)) else {
+        let Some(index) = serial.and_then(|s| self.index_of(s)) else {
             return Vec::new();
         };
+        let robot = &mut self.robots[index];
         if robot.is_dead(tick, dt) {
             return Vec::new();
         }
@@ -364,6 +381,8 @@ impl World {
             }
             _ => {}
         }
+        // A SET may have asked for a reading on the next tick.
+        self.due[index] = self.robots[index].next_due();
         Vec::new()
     }
 
@@ -440,35 +459,105 @@ impl PrintedPart {
     }
 }
 
-/// `work` on contiguous runs of `robots` on up to `threads` threads (at least
-/// [`ROBOTS_PER_THREAD`] robots each), each run with its own state from `states` (grown as
-/// needed, in robot order); returns how many runs there were. Sensors only read the scene,
-/// so what each run gives does not depend on the thread count.
+/// The robots with output due at a tick ([`World::speakers`]).
+struct Speakers<'a> {
+    robots: &'a mut [Robot],
+    /// Each robot's next due tick, at its index.
+    due: &'a mut [u64],
+    /// The indices of the robots due now, ascending.
+    speaking: &'a [usize],
+}
+
+impl<'a> Speakers<'a> {
+    /// The robots of `robots` with output due at `tick` (`speaking` is reused).
+    fn at(
+        tick: u64,
+        robots: &'a mut [Robot],
+        due: &'a mut [u64],
+        speaking: &'a mut Vec<usize>,
+    ) -> Self {
+        speaking.clear();
+        speaking.extend(
+            due.iter()
+                .enumerate()
+                .filter(|&(_, &due)| due <= tick)
+                .map(|(i, _)| i),
+        );
+        Speakers {
+            robots,
+            due,
+            speaking,
+        }
+    }
+
+    /// `work` on each robot due, in order, then its next due tick noted.
+    fn each(self, base: usize, mut work: impl FnMut(&mut Robot)) {
+        for &i in self.speaking {
+            let robot = &mut self.robots[i - base];
+            work(robot);
+            self.due[i - base] = robot.next_due();
+        }
+    }
+
+    /// Split into `runs` contiguous runs with about as many speaking robots each, with
+    /// the index of each run's first robot.
+    fn split(self, runs: usize) -> Vec<(usize, Self)> {
+        let chunk = self.speaking.len().div_ceil(runs.max(1)).max(1);
+        let (mut robots, mut due, mut base) = (self.robots, self.due, 0);
+        let mut out = Vec::new();
+        for speaking in self.speaking.chunks(chunk) {
+            let end = speaking[speaking.len() - 1] + 1 - base;
+            let (run, rest) = robots.split_at_mut(end);
+            let (run_due, rest_due) = due.split_at_mut(end);
+            out.push((
+                base,
+                Speakers {
+                    robots: run,
+                    due: run_due,
+                    speaking,
+                },
+            ));
+            (robots, due, base) = (rest, rest_due, base + end);
+        }
+        out
+    }
+}
+
+/// `work` on each robot with output due, on up to `threads` threads (at least
+/// [`ROBOTS_PER_THREAD`] robots each, contiguous runs), each run with its own state from
+/// `states` (grown as needed, in robot order); returns how many runs there were. Sensors
+/// only read the scene, so what each run gives does not depend on the thread count.
 fn for_threads<S: Default + Send>(
-    robots: &mut [Robot],
+    speakers: Speakers<'_>,
     threads: usize,
     states: &mut Vec<S>,
-    work: impl Fn(&mut [Robot], &mut S) + Sync,
+    work: impl Fn(&mut Robot, &mut S) + Sync,
 ) -> usize {
-    let threads = threads.min(robots.len() / ROBOTS_PER_THREAD).max(1);
+    let threads = threads
+        .min(speakers.speaking.len() / ROBOTS_PER_THREAD)
+        .max(1);
     if states.len() < threads {
         states.resize_with(threads, S::default);
     }
     if threads == 1 {
-        work(robots, &mut states[0]);
+        let state = &mut states[0];
+        speakers.each(0, |robot| work(robot, state));
         return 1;
     }
-    let chunk = robots.len().div_ceil(threads);
-    let mut runs = robots.chunks_mut(chunk).zip(states.iter_mut());
-    let Some((mine, my_state)) = runs.next() else {
+    let mut runs = speakers.split(threads).into_iter().zip(states.iter_mut());
+    let Some(((base, mine), my_state)) = runs.next() else {
         return 0;
     };
     let work = &work;
+    let run = move |base: usize, run: Speakers<'_>, state: &mut S| {
+        run.each(base, |robot| work(robot, state));
+    };
+    let run = &run;
     std::thread::scope(|scope| {
         let others: Vec<_> = runs
-            .map(|(run, state)| scope.spawn(move || work(run, state)))
+            .map(|((base, speakers), state)| scope.spawn(move || run(base, speakers, state)))
             .collect();
-        work(mine, my_state);
+        run(base, mine, my_state);
         let count = 1 + others.len();
         for other in others {
             if let Err(panic) = other.join() {
