@@ -640,3 +640,34 @@ fn gusts_are_seeded_and_repeat_bit_for_bit() {
     assert_eq!(first, gusty_flight(5));
     assert_ne!(first, gusty_flight(6), "the seed drives the gusts");
 }
+
+/// A map of one square floor `size` metres wide whose top is z = 0.
+fn floor_map(size: f64) -> Map {
+    let text = format!(
+        "level = \"Floor\"\n[[start]]\ntag = \"S\"\nlocation = [0.0, 0.0, -3.0]\n\
+         rotation = [0.0, 0.0, 0.0]\n[[box]]\ncenter = [0.0, 0.0, 0.5]\nsize = [{size}, {size}, 1.0]\n"
+    );
+    Map::from_toml(&text, std::path::Path::new("floor.toml")).expect("floor map")
+}
+
+#[test]
+fn a_descent_rests_on_floors_of_ten_metres_to_a_kilometre_without_sinking() {
+    // The body is 0.2 m high and stops a 1 cm skin above what it meets: its centre rests at
+    // z = -0.11 over a floor whose top is z = 0, whatever the floor's size.
+    for size in [10.0, 100.0, 200.0, 400.0, 1000.0] {
+        let mut w = World::new(
+            floor_map(size),
+            RobotCatalog::embedded(),
+            SimConfig::default(),
+        );
+        let c = spawn(&mut w, [0.0, 0.0, -3.0], 0.0);
+        command(&mut w, c, "DRIVE {AltitudeVelocity -1.2}");
+        run(&mut w, 5.0);
+        let (p, _, _) = state(&w, c);
+        assert!(
+            (p[2] + 0.11).abs() < 0.002,
+            "floor {size} m: rests at z {:.4}, expected -0.110",
+            p[2]
+        );
+    }
+}
