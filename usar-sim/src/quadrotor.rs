@@ -37,6 +37,16 @@ const MAX_TARGET: f64 = 100.0;
 /// rad: the held heading stays this close to the actual one.
 const MAX_YAW_LAG: f64 = 0.5;
 
+/// m/s: impacts slower than this do not bounce (a resting body would jitter).
+const BOUNCE_MIN: f64 = 0.1;
+
+/// rad: the landing gear's tilt at which its righting torque reaches N·r (a stiff gear).
+const GEAR_COMPLIANCE: f64 = 0.05;
+
+/// m: a body resting on a surface probes this far into it each tick (it stays
+/// in contact; off an edge it falls).
+const PROBE: f64 = 0.001;
+
 /// Rotor arrangement.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -89,6 +99,12 @@ pub struct QuadrotorConfig {
     pub rate_gain: f64,
     /// rad/s: largest commanded roll/pitch rate.
     pub max_tilt_rate: f64,
+    /// Coulomb friction coefficient μ against every surface (static = kinetic).
+    pub friction: f64,
+    /// Coefficient of restitution e of an impact (normal speed after / before).
+    pub restitution: f64,
+    /// m, distance from the centre to the landing-gear feet.
+    pub gear_radius: f64,
 }
 
 impl Default for QuadrotorConfig {
@@ -111,6 +127,9 @@ impl Default for QuadrotorConfig {
             attitude_gain: 8.0,
             rate_gain: 20.0,
             max_tilt_rate: 4.0,
+            friction: 0.5,
+            restitution: 0.2,
+            gear_radius: 0.2,
         }
     }
 }
@@ -133,6 +152,7 @@ impl QuadrotorConfig {
             ("quadrotor.attitude_gain", self.attitude_gain),
             ("quadrotor.rate_gain", self.rate_gain),
             ("quadrotor.max_tilt_rate", self.max_tilt_rate),
+            ("quadrotor.gear_radius", self.gear_radius),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{what} must be a positive number, got {v}"));
@@ -146,6 +166,8 @@ impl QuadrotorConfig {
                 "quadrotor.velocity_integral_gain",
                 self.velocity_integral_gain,
             ),
+            ("quadrotor.friction", self.friction),
+            ("quadrotor.restitution", self.restitution),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!("{what} must be >= 0, got {v}"));
@@ -172,6 +194,9 @@ impl QuadrotorConfig {
             ("quadrotor.attitude_gain", self.attitude_gain, 100.0),
             ("quadrotor.rate_gain", self.rate_gain, 200.0),
             ("quadrotor.max_tilt_rate", self.max_tilt_rate, 100.0),
+            ("quadrotor.friction", self.friction, 10.0),
+            ("quadrotor.restitution", self.restitution, 1.0),
+            ("quadrotor.gear_radius", self.gear_radius, 100.0),
         ] {
             if v > max {
                 return Err(format!(
@@ -278,6 +303,9 @@ pub(crate) struct Quadrotor {
     gusts: Gusts,
     imu: ImuTruth,
     contact: bool,
+    /// Outward normal of the surface the body touched in the last tick (it is then held
+    /// by it: [`Quadrotor::hold`]).
+    surface: Option<V3>,
     /// The integration blew up once (logged once).
     diverged: bool,
 }
@@ -397,6 +425,7 @@ impl Quadrotor {
                 body_rates: [0.0; 3],
             },
             contact: false,
+            surface: None,
             diverged: false,
             config,
             limits,
@@ -548,6 +577,91 @@ impl Quadrotor {
         std::array::from_fn(|i| (base[i] + share * yaw[i]).clamp(lo, hi).sqrt())
     }
 
+    /// The velocity after an impact on a surface of outward normal `n`: the normal speed
+    /// reversed and scaled by the restitution (below [`BOUNCE_MIN`] it is removed), the
+    /// tangential speed reduced by the friction impulse μ·|Δv_n| (Coulomb, impulse form).
+    fn impact(&self, v: V3, n: V3) -> V3 {
+        let vn = dot(v, n);
+        if vn >= 0.0 {
+            return v;
+        }
+        let e = if -vn > BOUNCE_MIN {
+            self.config.restitution
+        } else {
+            0.0
+        };
+        let tangent: V3 = std::array::from_fn(|i| v[i] - vn * n[i]);
+        let slide = norm(tangent);
+        let keep = if slide > 0.0 {
+            (1.0 - self.config.friction * (1.0 + e) * -vn / slide).max(0.0)
+        } else {
+            0.0
+        };
+        std::array::from_fn(|i| keep * tangent[i] - e * vn * n[i])
+    }
+
+    /// A substep on the surface of outward normal `n` the body touched: while the net force
+    /// presses it on the surface, the surface carries the pressing component N, Coulomb
+    /// friction (at most μ·N) holds or brakes the tangential motion, and — on a floor (a
+    /// normal within 45° of up) — the landing gear rights the body: feet `gear_radius` from
+    /// the centre give at most N·r of torque towards the nearest resting attitude
+    /// (upright, or on its back), with a compliance of [`GEAR_COMPLIANCE`] and critical
+    /// damping, added to the rotors' torque. Yaw is held by the feet's friction (at most
+    /// μ·N·r).
+    fn hold(&mut self, n: V3, r: &M3, h: f64, v: &mut V3, force: &mut V3, torque: &mut V3) {
+        let c = &self.config;
+        let pressing = -dot(*force, n);
+        let vn = dot(*v, n);
+        if pressing <= 0.0 || vn > 1e-9 {
+            return; // lifting off
+        }
+        for i in 0..3 {
+            force[i] += pressing * n[i];
+            v[i] -= vn * n[i];
+        }
+        // Friction: the tangential force that would stop the body within this substep.
+        let stop: V3 = std::array::from_fn(|i| force[i] + c.mass * v[i] / h);
+        let limit = c.friction * pressing;
+        let need = norm(stop);
+        let f = if need <= limit { 1.0 } else { limit / need };
+        for i in 0..3 {
+            force[i] -= f * stop[i];
+        }
+        if n[2] > -std::f64::consts::FRAC_1_SQRT_2 {
+            return; // a wall or a steep slope: no gear contact
+        }
+        let most = pressing * c.gear_radius;
+        // The body's down axis and the resting direction it turns to (into the surface,
+        // or out of it for a body on its back), in the body frame.
+        let down = mul_t(r, n.map(|x| -x));
+        let target = if down[2] >= 0.0 {
+            down
+        } else {
+            down.map(|x| -x)
+        };
+        let axis = cross([0.0, 0.0, 1.0], target);
+        let sin = norm(axis);
+        let angle = sin.atan2(target[2]);
+        for i in 0..3 {
+            let (inertia, w) = (c.inertia[i], self.rates[i]);
+            if i < 2 {
+                let stiffness = most / GEAR_COMPLIANCE;
+                let damping = 2.0 * (stiffness * inertia).sqrt();
+                let spring = if sin > 0.0 {
+                    (stiffness * angle).min(most) * axis[i] / sin
+                } else {
+                    0.0
+                };
+                torque[i] += spring - damping * w;
+            } else {
+                // Yaw: the feet's friction, static up to μ·N·r.
+                let stop = torque[i] + inertia * w / h;
+                let limit = c.friction * most;
+                torque[i] -= stop.clamp(-limit, limit);
+            }
+        }
+    }
+
     /// Thrust (N) and body torque of the current rotor speeds.
     fn wrench(&self) -> (f64, V3) {
         let (kf, km) = (
@@ -616,14 +730,17 @@ impl Dynamics for Quadrotor {
             for (speed, target) in self.speeds.iter_mut().zip(command) {
                 *speed += (target - *speed) * self.motor_alpha;
             }
-            let (thrust, torque) = self.wrench();
+            let (thrust, mut torque) = self.wrench();
             let air = sub(v, wind);
             let drag = c.drag_linear + c.drag_quadratic * norm(air);
-            let accel: V3 = std::array::from_fn(|i| {
-                (-r[i][2] * thrust - drag * air[i]) / c.mass + if i == 2 { GRAVITY } else { 0.0 }
+            let mut force: V3 = std::array::from_fn(|i| {
+                -r[i][2] * thrust - drag * air[i] + if i == 2 { c.mass * GRAVITY } else { 0.0 }
             });
+            if let Some(n) = self.surface {
+                self.hold(n, &r, h, &mut v, &mut force, &mut torque);
+            }
             for i in 0..3 {
-                v[i] += accel[i] * h;
+                v[i] += force[i] / c.mass * h;
                 p[i] += v[i] * h;
             }
             let w = self.rates;
@@ -663,18 +780,26 @@ impl Dynamics for Quadrotor {
                 reason: "the integration diverged (check the quadrotor parameters)".into(),
             });
         }
-        let (moved, hit) = f.scene.sweep_contact(f.body, f.shape, start, sub(p, start));
+        let mut motion = sub(p, start);
+        if let Some(n) = self.surface {
+            // Resting on a surface: probe it (a body that slid off an edge falls).
+            if dot(motion, n) <= 0.0 {
+                motion = std::array::from_fn(|i| motion[i] - PROBE * n[i]);
+            }
+        }
+        let (moved, hit) = f.scene.sweep_contact(f.body, f.shape, start, motion);
         *f.position = moved;
         let r = quat_matrix(self.q);
         self.contact = hit.is_some();
+        self.surface = hit;
         let mut crash = None;
         if let Some(normal) = hit {
             let speed = (-dot(v, normal)).max(0.0);
             let tilt = r[2][2].clamp(-1.0, 1.0).acos();
-            v = std::array::from_fn(|i| (moved[i] - start[i]) / dt);
-            if self.mode == Mode::Off {
-                self.rates = [0.0; 3];
-            } else if speed > self.limits.crash_speed || tilt > self.limits.crash_tilt {
+            v = self.impact(v, normal);
+            if self.mode != Mode::Off
+                && (speed > self.limits.crash_speed || tilt > self.limits.crash_tilt)
+            {
                 crash = Some(Crash {
                     speed,
                     tilt,
@@ -720,6 +845,5 @@ impl Dynamics for Quadrotor {
 
     fn crash(&mut self) {
         self.mode = Mode::Off;
-        self.rates = [0.0; 3];
     }
 }

@@ -397,10 +397,14 @@ fn three_metres_per_second_into_a_wall_is_a_crash() {
     assert!(crash.first() == Some(&false) && crash.last() == Some(&true));
     // It fell to the floor (z = 0, the body 0.1 m high) and stays there, commands ignored.
     run(&mut w, 3.0);
-    let (p, v, _) = state(&w, c);
+    let (p, v, r) = state(&w, c);
     assert!(
         p[2] > -0.15 && p[0] < 9.56,
         "on the floor by the wall: {p:?}"
+    );
+    assert!(
+        r[0].abs() < 0.02 && r[1].abs() < 0.02,
+        "at rest on its gear: {r:?}"
     );
     drive(
         &mut w,
@@ -670,4 +674,220 @@ fn a_descent_rests_on_floors_of_ten_metres_to_a_kilometre_without_sinking() {
             p[2]
         );
     }
+}
+
+// ---- contact: the quadrotor alone over a floor (top z = 0), without drag ----
+
+/// A quadrotor on a floor, stepped directly (its velocity can be set).
+struct Rig {
+    scene: scene::Scene,
+    body: rapier3d::prelude::ColliderHandle,
+    shape: scene::BodyShape,
+    quad: quadrotor::Quadrotor,
+    p: [f64; 3],
+    v: [f64; 3],
+    r: [f64; 3],
+}
+
+const DT: f64 = 0.005;
+/// The body's centre resting on the floor: half its height plus the 1 cm skin.
+const REST_Z: f64 = -0.11;
+
+fn rig(config: quadrotor::QuadrotorConfig, p: [f64; 3], r: [f64; 3]) -> Rig {
+    let mut scene = scene::Scene::new();
+    scene.insert(
+        rapier3d::prelude::ColliderBuilder::cuboid(50.0, 50.0, 0.5)
+            .position(rapier3d::math::Pose::translation(0.0, 0.0, 0.5)),
+    );
+    let shape = scene::BodyShape {
+        radius: 0.45,
+        half_height: 0.1,
+    };
+    let body = scene.insert_body(shape, p);
+    let limits = quadrotor::Limits {
+        max_tilt: 0.44,
+        max_climb: 2.0,
+        crash_speed: 1.0,
+        crash_tilt: 1.05,
+    };
+    let quad = quadrotor::Quadrotor::new(config, limits, r, WindConfig::default(), 0, 1, DT);
+    Rig {
+        scene,
+        body,
+        shape,
+        quad,
+        p,
+        v: [0.0; 3],
+        r,
+    }
+}
+
+impl Rig {
+    fn step(&mut self) -> Option<dynamics::Crash> {
+        use dynamics::Dynamics;
+        self.quad.step(dynamics::Flight {
+            scene: &mut self.scene,
+            body: self.body,
+            shape: self.shape,
+            position: &mut self.p,
+            velocity: &mut self.v,
+            rotation: &mut self.r,
+            dt: DT,
+        })
+    }
+
+    fn run(&mut self, seconds: f64) {
+        for _ in 0..(seconds / DT).round() as u64 {
+            self.step();
+        }
+    }
+
+    /// Motors off (as after a crash).
+    fn off(&mut self) {
+        dynamics::Dynamics::crash(&mut self.quad);
+    }
+}
+
+fn dragless() -> quadrotor::QuadrotorConfig {
+    quadrotor::QuadrotorConfig {
+        drag_linear: 0.0,
+        drag_quadratic: 0.0,
+        ..quadrotor::QuadrotorConfig::default()
+    }
+}
+
+#[test]
+fn a_body_sliding_on_the_floor_stops_after_v_squared_over_two_mu_g() {
+    let config = dragless();
+    let mu = config.friction;
+    let mut rig = rig(config, [0.0, 0.0, REST_Z], [0.0; 3]);
+    rig.off();
+    rig.run(0.1); // settle on the floor
+    rig.v = [2.0, 0.0, 0.0];
+    let x0 = rig.p[0];
+    let mut stopped = None;
+    for i in 0..400 {
+        rig.step();
+        if stopped.is_none() && rig.v[0].abs() < 1e-9 {
+            stopped = Some(f64::from(i + 1) * DT);
+        }
+    }
+    let distance = rig.p[0] - x0;
+    let expected = 2.0f64.powi(2) / (2.0 * mu * GRAVITY);
+    assert!(
+        (distance / expected - 1.0).abs() < 0.03,
+        "slid {distance:.3} m, Coulomb friction says {expected:.3} m"
+    );
+    let t = stopped.expect("stopped");
+    let expected = 2.0 / (mu * GRAVITY);
+    assert!(
+        (t / expected - 1.0).abs() < 0.03,
+        "stopped after {t:.3} s, expected {expected:.3} s"
+    );
+    let at_rest = rig.p;
+    rig.run(5.0);
+    assert_eq!(rig.p, at_rest, "stands still");
+    assert!(
+        (rig.p[2] - REST_Z).abs() < 1e-3,
+        "on the floor: {:?}",
+        rig.p
+    );
+}
+
+#[test]
+fn a_dropped_body_bounces_to_e_squared_of_its_height() {
+    let config = dragless();
+    let e = config.restitution;
+    let drop = 2.0;
+    let mut rig = rig(config, [0.0, 0.0, REST_Z - drop], [0.0; 3]);
+    rig.off();
+    // Fall, bounce, and record the highest point after the bounce.
+    let mut bounced = false;
+    let mut apex = f64::INFINITY;
+    for _ in 0..(1.2 / DT) as u64 {
+        rig.step();
+        bounced |= rig.v[2] < 0.0;
+        if bounced {
+            apex = apex.min(rig.p[2]);
+        }
+    }
+    assert!(bounced, "bounced");
+    let height = REST_Z - apex;
+    let expected = e * e * drop;
+    assert!(
+        (height / expected - 1.0).abs() < 0.05,
+        "bounced {height:.3} m up, e² h = {expected:.3} m"
+    );
+}
+
+#[test]
+fn a_body_dropped_tilted_rights_itself_on_its_gear_and_stands_still() {
+    let mut rig = rig(dragless(), [0.0, 0.0, -0.6], [0.35, -0.2, 1.0]);
+    rig.off();
+    rig.run(3.0);
+    let (p, r) = (rig.p, rig.r);
+    assert!(
+        r[0].abs() < 0.01 && r[1].abs() < 0.01,
+        "level on its gear: roll {:.3}°, pitch {:.3}°",
+        r[0].to_degrees(),
+        r[1].to_degrees()
+    );
+    rig.run(5.0);
+    let moved = (0..3).map(|i| (rig.p[i] - p[i]).abs()).fold(0.0, f64::max);
+    assert!(moved < 1e-4, "stands still: moved {moved} m");
+    assert!((rig.r[2] - r[2]).abs() < 1e-4, "no yaw creep");
+}
+
+#[test]
+fn the_attitude_keeps_turning_after_a_crash() {
+    // A crash stops the motors, not the body's spin: the rates carry on in the fall.
+    let mut rig = rig(dragless(), [0.0, 0.0, -20.0], [0.0; 3]);
+    command_rotors(&mut rig, [750.0, 650.0, 650.0, 750.0]);
+    rig.run(0.1);
+    rig.off();
+    rig.run(0.3); // the rotors spin down
+    let rates = dynamics::Dynamics::imu(&rig.quad).body_rates;
+    assert!(rates[1].abs() > 0.5, "pitching: {rates:?}");
+    let before = dynamics::Dynamics::attitude(&rig.quad);
+    rig.run(0.2);
+    let after = dynamics::Dynamics::attitude(&rig.quad);
+    // The angle of the rotation between the two attitudes.
+    let m = dynamics::mat_mul(&dynamics::transpose(&before), &after);
+    let turned = ((m[0][0] + m[1][1] + m[2][2] - 1.0) / 2.0)
+        .clamp(-1.0, 1.0)
+        .acos();
+    let expected = dynamics::norm(rates) * 0.2;
+    assert!(
+        (turned / expected - 1.0).abs() < 0.05,
+        "turned {turned:.3} rad in 0.2 s, rates {rates:?} give {expected:.3}"
+    );
+}
+
+fn command_rotors(rig: &mut Rig, w: [f64; 4]) {
+    dynamics::Dynamics::low_level(&mut rig.quad, dynamics::LowLevel::Rotors(w));
+}
+
+#[test]
+fn a_landed_quadrotor_stands_still_under_zero_command() {
+    let mut w = world();
+    let c = spawn(&mut w, [0.0, 0.0, -1.0], 0.0);
+    command(&mut w, c, "DRIVE {AltitudeVelocity -0.5}");
+    run(&mut w, 3.0);
+    command(
+        &mut w,
+        c,
+        "DRIVE {AltitudeVelocity 0} {LinearVelocity 0} {LateralVelocity 0}",
+    );
+    run(&mut w, 1.0);
+    let (p, _, r) = state(&w, c);
+    assert!((p[2] + 0.11).abs() < 0.01, "landed: {p:?}");
+    run(&mut w, 10.0);
+    let (q, v, s) = state(&w, c);
+    let moved = (0..3).map(|i| (q[i] - p[i]).abs()).fold(0.0, f64::max);
+    assert!(moved < 0.005, "moved {moved} m: {p:?} → {q:?}, v {v:?}");
+    assert!(
+        s[0].abs() < 0.02 && s[1].abs() < 0.02,
+        "level: {s:?} (was {r:?})"
+    );
+    assert!(!w.crashed(c));
 }
