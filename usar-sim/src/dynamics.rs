@@ -148,6 +148,15 @@ pub(crate) trait Dynamics: std::fmt::Debug + Send {
     fn contact(&self) -> bool;
     /// Stops the motors for good (after a crash).
     fn crash(&mut self);
+    /// The battery's state, for a model with an energy model (`None`: the class's battery
+    /// is USARSim's timer).
+    fn gauge(&self) -> Option<super::power::Gauge> {
+        None
+    }
+    /// Rotor speeds, rad/s, in rotor order.
+    fn rotor_speeds(&self) -> Option<[f64; 4]> {
+        None
+    }
 }
 
 // ---- small vector/matrix helpers (f64, row-major) ----

@@ -35,6 +35,7 @@ pub mod map;
 mod noise;
 mod obj;
 pub mod part;
+pub mod power;
 pub mod quadrotor;
 mod robot;
 pub mod robots;

@@ -21,6 +21,7 @@ use super::dynamics::{
     Crash, Dynamics, Flight, GRAVITY, ImuTruth, LowLevel, M3, SetPoints, cross, dot, mul_t, norm,
     sub, transpose, wrap_angle,
 };
+use super::power::{Battery, BatteryConfig, Gauge, rotor_power};
 use super::scene::{V3, yaw_rotate};
 use super::wind::{Gusts, WindConfig};
 
@@ -36,6 +37,9 @@ const MAX_TARGET: f64 = 100.0;
 
 /// rad: the held heading stays this close to the actual one.
 const MAX_YAW_LAG: f64 = 0.5;
+
+/// m/s: the autopilot's descent when the battery reaches its reserve.
+const LAND_SPEED: f64 = 0.5;
 
 /// m/s: impacts slower than this do not bounce (a resting body would jitter).
 const BOUNCE_MIN: f64 = 0.1;
@@ -105,6 +109,14 @@ pub struct QuadrotorConfig {
     pub restitution: f64,
     /// m, distance from the centre to the landing-gear feet.
     pub gear_radius: f64,
+    /// m, rotor (propeller) radius.
+    pub rotor_radius: f64,
+    /// Figure of merit of a rotor: ideal induced power over the shaft power in hover.
+    pub figure_of_merit: f64,
+    /// kg/m³, air density.
+    pub air_density: f64,
+    /// The battery, used when the class has one (`battery = ..`).
+    pub battery: BatteryConfig,
 }
 
 impl Default for QuadrotorConfig {
@@ -130,6 +142,10 @@ impl Default for QuadrotorConfig {
             friction: 0.5,
             restitution: 0.2,
             gear_radius: 0.2,
+            rotor_radius: 0.15,
+            figure_of_merit: 0.6,
+            air_density: 1.225,
+            battery: BatteryConfig::default(),
         }
     }
 }
@@ -153,6 +169,9 @@ impl QuadrotorConfig {
             ("quadrotor.rate_gain", self.rate_gain),
             ("quadrotor.max_tilt_rate", self.max_tilt_rate),
             ("quadrotor.gear_radius", self.gear_radius),
+            ("quadrotor.rotor_radius", self.rotor_radius),
+            ("quadrotor.figure_of_merit", self.figure_of_merit),
+            ("quadrotor.air_density", self.air_density),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{what} must be a positive number, got {v}"));
@@ -197,6 +216,9 @@ impl QuadrotorConfig {
             ("quadrotor.friction", self.friction, 10.0),
             ("quadrotor.restitution", self.restitution, 1.0),
             ("quadrotor.gear_radius", self.gear_radius, 100.0),
+            ("quadrotor.rotor_radius", self.rotor_radius, 100.0),
+            ("quadrotor.figure_of_merit", self.figure_of_merit, 1.0),
+            ("quadrotor.air_density", self.air_density, 100.0),
         ] {
             if v > max {
                 return Err(format!(
@@ -205,6 +227,7 @@ impl QuadrotorConfig {
                 ));
             }
         }
+        self.battery.check()?;
         if self.rotor_speed_min >= self.rotor_speed_max {
             return Err("quadrotor.rotor_speed_min must be below rotor_speed_max".into());
         }
@@ -251,6 +274,8 @@ pub(crate) struct Limits {
     pub(crate) crash_speed: f64,
     /// rad of tilt at a contact that still is no crash.
     pub(crate) crash_tilt: f64,
+    /// The class has a battery: the energy model runs (otherwise energy is unlimited).
+    pub(crate) battery: bool,
 }
 
 /// Who commands the rotors.
@@ -270,6 +295,9 @@ enum Mode {
     },
     /// QUAD {Rotors}.
     Rotors([f64; 4]),
+    /// The battery reached its reserve: the autopilot descends at [`LAND_SPEED`] and
+    /// stops the motors on the ground; commands are ignored.
+    Land,
     /// Crashed: motors off.
     Off,
 }
@@ -308,6 +336,12 @@ pub(crate) struct Quadrotor {
     surface: Option<V3>,
     /// The integration blew up once (logged once).
     diverged: bool,
+    /// The energy model (`None`: unlimited energy).
+    battery: Option<Battery>,
+    /// rad/s, the rotors' top speed at the battery's voltage.
+    top_speed: f64,
+    /// Rotor disk area, m².
+    disk: f64,
 }
 
 /// The rotation of a unit quaternion (w, x, y, z): body → world.
@@ -427,6 +461,9 @@ impl Quadrotor {
             contact: false,
             surface: None,
             diverged: false,
+            battery: limits.battery.then(|| Battery::new(config.battery.clone())),
+            top_speed: config.rotor_speed_max,
+            disk: std::f64::consts::PI * config.rotor_radius.powi(2),
             config,
             limits,
         }
@@ -442,9 +479,10 @@ impl Quadrotor {
         }
         let c = &self.config;
         let m = c.mass;
+        let top = self.top_speed.max(c.rotor_speed_min);
         let (desired, thrust, yaw_ff) = match self.mode {
             Mode::Off => return [0.0; 4],
-            Mode::Rotors(w) => return w.map(|w| w.clamp(c.rotor_speed_min, c.rotor_speed_max)),
+            Mode::Rotors(w) => return w.map(|w| w.clamp(c.rotor_speed_min, top)),
             Mode::Attitude {
                 roll,
                 pitch,
@@ -456,9 +494,13 @@ impl Quadrotor {
                 let desired = super::dynamics::euler_to_matrix([roll, pitch, self.yaw_ref]);
                 (desired, thrust, yaw_rate)
             }
-            Mode::Level | Mode::Velocity(_) => {
+            Mode::Level | Mode::Velocity(_) | Mode::Land => {
                 let set = match self.mode {
                     Mode::Velocity(s) => Some(s),
+                    Mode::Land => Some(SetPoints {
+                        altitude: -LAND_SPEED,
+                        ..SetPoints::default()
+                    }),
                     _ => None,
                 };
                 let climb = set.map_or(0.0, |s| s.altitude.clamp(-MAX_TARGET, MAX_TARGET));
@@ -551,10 +593,10 @@ impl Quadrotor {
         let gyro = cross(w, iw);
         let torque: V3 =
             std::array::from_fn(|i| inertia[i] * c.rate_gain * (want[i] - w[i]) + gyro[i]);
-        let thrust = thrust.clamp(0.0, 4.0 * c.thrust_coefficient * c.rotor_speed_max.powi(2));
+        let thrust = thrust.clamp(0.0, 4.0 * c.thrust_coefficient * top.powi(2));
         // Mixer with priorities: thrust, roll and pitch first; yaw gets what the rotor speed
         // limits leave (a saturated yaw demand must not cost the attitude).
-        let (lo, hi) = (c.rotor_speed_min.powi(2), c.rotor_speed_max.powi(2));
+        let (lo, hi) = (c.rotor_speed_min.powi(2), top.powi(2));
         let base: [f64; 4] = std::array::from_fn(|i| {
             let u: f64 = (0..3)
                 .map(|j| self.unmix[i][j] * [thrust, torque[0], torque[1]][j])
@@ -662,6 +704,38 @@ impl Quadrotor {
         }
     }
 
+    /// Draws the rotors' and the avionics' power for `h` seconds; the battery's voltage sets
+    /// the rotors' top speed (`rotor_speed_max` at full charge, in proportion below: a
+    /// motor's no-load speed is K_v·V); at the reserve the autopilot lands, empty the
+    /// motors stop.
+    fn use_energy(&mut self, climb: f64, h: f64) {
+        let Some(battery) = &mut self.battery else {
+            return;
+        };
+        let c = &self.config;
+        let shaft: f64 = self
+            .speeds
+            .iter()
+            .map(|w| {
+                let thrust = c.thrust_coefficient * w * w;
+                rotor_power(thrust, climb, self.disk, c.air_density, c.figure_of_merit)
+            })
+            .sum();
+        let power = if self.mode == Mode::Off && shaft == 0.0 {
+            0.0
+        } else {
+            battery.electrical(shaft)
+        };
+        battery.draw(power, h);
+        self.top_speed = c.rotor_speed_max * battery.voltage_ratio();
+        if battery.empty() {
+            self.mode = Mode::Off;
+        } else if battery.at_reserve() && !matches!(self.mode, Mode::Off | Mode::Land) {
+            self.mode = Mode::Land;
+            self.hold_z = None;
+        }
+    }
+
     /// Thrust (N) and body torque of the current rotor speeds.
     fn wrench(&self) -> (f64, V3) {
         let (kf, km) = (
@@ -686,7 +760,7 @@ impl Quadrotor {
 
 impl Dynamics for Quadrotor {
     fn drive(&mut self, set: &SetPoints) {
-        if self.mode != Mode::Off {
+        if !matches!(self.mode, Mode::Off | Mode::Land) {
             if !matches!(self.mode, Mode::Velocity(_)) {
                 self.integral = [0.0; 3];
                 self.hold_z = None;
@@ -696,7 +770,7 @@ impl Dynamics for Quadrotor {
     }
 
     fn low_level(&mut self, command: LowLevel) {
-        if self.mode == Mode::Off {
+        if matches!(self.mode, Mode::Off | Mode::Land) {
             return;
         }
         self.mode = match command {
@@ -731,6 +805,9 @@ impl Dynamics for Quadrotor {
                 *speed += (target - *speed) * self.motor_alpha;
             }
             let (thrust, mut torque) = self.wrench();
+            // Air through the rotors along the thrust (+ = climbing).
+            let climb = -dot([r[0][2], r[1][2], r[2][2]], sub(v, wind));
+            self.use_energy(climb, h);
             let air = sub(v, wind);
             let drag = c.drag_linear + c.drag_quadratic * norm(air);
             let mut force: V3 = std::array::from_fn(|i| {
@@ -792,6 +869,9 @@ impl Dynamics for Quadrotor {
         let r = quat_matrix(self.q);
         self.contact = hit.is_some();
         self.surface = hit;
+        if self.mode == Mode::Land && hit.is_some_and(|n| n[2] < -0.7) {
+            self.mode = Mode::Off; // landed: the autopilot stops the motors
+        }
         let mut crash = None;
         if let Some(normal) = hit {
             let speed = (-dot(v, normal)).max(0.0);
@@ -845,5 +925,13 @@ impl Dynamics for Quadrotor {
 
     fn crash(&mut self) {
         self.mode = Mode::Off;
+    }
+
+    fn gauge(&self) -> Option<Gauge> {
+        self.battery.as_ref().map(Battery::gauge)
+    }
+
+    fn rotor_speeds(&self) -> Option<[f64; 4]> {
+        Some(self.speeds)
     }
 }

@@ -709,6 +709,7 @@ fn rig(config: quadrotor::QuadrotorConfig, p: [f64; 3], r: [f64; 3]) -> Rig {
         max_climb: 2.0,
         crash_speed: 1.0,
         crash_tilt: 1.05,
+        battery: true,
     };
     let quad = quadrotor::Quadrotor::new(config, limits, r, WindConfig::default(), 0, 1, DT);
     Rig {
@@ -890,4 +891,144 @@ fn a_landed_quadrotor_stands_still_under_zero_command() {
         "level: {s:?} (was {r:?})"
     );
     assert!(!w.crashed(c));
+}
+
+// ---- energy ----
+
+/// The embedded catalog with Battery and Rotors parts on the stsQuadrotor and its battery
+/// charged to `charge`.
+fn with_gauges(charge: f64) -> RobotCatalog {
+    let mut catalog = RobotCatalog::embedded();
+    let q = catalog.get_mut(QUAD).expect("stsQuadrotor");
+    q.quadrotor.battery.charge = charge;
+    for kind in ["Battery", "Rotors"] {
+        q.parts.push(part::PartConfig {
+            kind: kind.into(),
+            name: kind.into(),
+            position: [0.0; 3],
+            direction: [0.0; 3],
+            interval: None,
+            noise: 0.0,
+            settings: toml::Table::new(),
+        });
+    }
+    catalog
+}
+
+/// The last `{Type kind}` line's value of `key`.
+fn last_value(out: &[(ClientId, ServerMessage)], kind: &str, key: &str) -> Vec<f64> {
+    let line = out
+        .iter()
+        .rev()
+        .find_map(|(_, m)| match m {
+            ServerMessage::Sen(sen) => match &sen.data {
+                SenData::Other { kind: k, groups } if k == kind => groups
+                    .iter()
+                    .flat_map(|g| &g.pairs)
+                    .find(|p| p.key == key)
+                    .map(|p| p.value.clone()),
+                _ => None,
+            },
+            _ => None,
+        })
+        .expect("a reading");
+    line.split(',')
+        .map(|v| v.parse().expect("number"))
+        .collect()
+}
+
+fn battery_status(out: &[(ClientId, ServerMessage)]) -> i64 {
+    out.iter()
+        .rev()
+        .find_map(|(_, m)| match m {
+            ServerMessage::Sta(sta) => Some(sta.battery),
+            _ => None,
+        })
+        .expect("STA")
+}
+
+#[test]
+fn hover_power_matches_momentum_theory_with_the_figure_of_merit() {
+    let catalog = with_gauges(1.0);
+    let q = catalog.get(QUAD).expect("class").quadrotor.clone();
+    let mut w = world_with(catalog, None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -3.0], 0.0);
+    let out = run(&mut w, 5.0);
+    let (v, i) = (
+        last_value(&out, "Battery", "Voltage")[0],
+        last_value(&out, "Battery", "Current")[0],
+    );
+    let shaft = (v * i - q.battery.avionics_power) * q.battery.motor_efficiency;
+    // Momentum theory: each rotor carries a quarter of the weight; ideal induced power
+    // T^{3/2}/sqrt(2ρA), divided by the figure of merit.
+    let area = std::f64::consts::PI * q.rotor_radius.powi(2);
+    let t = q.mass * GRAVITY / 4.0;
+    let theory = 4.0 * t.powf(1.5) / ((2.0 * q.air_density * area).sqrt() * q.figure_of_merit);
+    assert!(
+        (shaft / theory - 1.0).abs() < 0.1,
+        "hover shaft power {shaft:.1} W, momentum theory {theory:.1} W"
+    );
+    // The STA's battery is the time left above the reserve at this draw.
+    let charge = last_value(&out, "Battery", "Charge")[0];
+    let left = (charge - q.battery.reserve) * q.battery.capacity * 3600.0 / i;
+    let sta = battery_status(&out) as f64;
+    assert!(
+        (sta / left - 1.0).abs() < 0.02,
+        "STA {sta} s, expected {left:.0} s"
+    );
+    assert!(
+        (900.0..1500.0).contains(&sta),
+        "about 20 minutes of hover: {sta}"
+    );
+    // Climbing draws more: less time left.
+    command(&mut w, c, "DRIVE {AltitudeVelocity 2}");
+    let out = run(&mut w, 1.0);
+    assert!(
+        last_value(&out, "Battery", "Current")[0] > i * 1.1,
+        "climbing draws more: {} A vs {i} A",
+        last_value(&out, "Battery", "Current")[0]
+    );
+    assert!((battery_status(&out) as f64) < sta - 50.0);
+}
+
+#[test]
+fn a_sagging_battery_lowers_the_rotors_top_speed_with_its_voltage() {
+    for charge in [1.0, 0.3] {
+        let mut w = world_with(with_gauges(charge), None, 0);
+        let c = spawn(&mut w, [0.0, 0.0, -30.0], 0.0);
+        command(&mut w, c, "QUAD {Rotors 1000,1000,1000,1000}");
+        let out = run(&mut w, 0.5);
+        let v = last_value(&out, "Battery", "Voltage")[0];
+        let speeds = last_value(&out, "Rotors", "Speeds");
+        let top = 1000.0 * v / 12.6;
+        for s in speeds {
+            assert!(
+                (s / top - 1.0).abs() < 0.01,
+                "charge {charge}: rotor at {s} rad/s, K_v·V gives {top:.1}"
+            );
+        }
+        if charge < 1.0 {
+            assert!(top < 900.0, "sagged: {v} V");
+        }
+    }
+}
+
+#[test]
+fn a_battery_at_its_reserve_lands_the_quadrotor_and_reads_empty() {
+    // 0.2 % above the 5 % reserve: about 3 s of hover.
+    let mut w = world_with(with_gauges(0.052), None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -3.0], 0.0);
+    command(&mut w, c, "DRIVE {LinearVelocity 1}");
+    let out = run(&mut w, 4.0);
+    assert_eq!(battery_status(&out), 0, "USARSim's empty state");
+    // Commands are ignored; the autopilot descends and lands.
+    command(&mut w, c, "DRIVE {AltitudeVelocity 2}");
+    run(&mut w, 8.0);
+    let (p, v, r) = state(&w, c);
+    assert!((p[2] + 0.11).abs() < 0.01, "landed: {p:?}");
+    assert!(
+        dynamics::norm(v) < 1e-3 && r[0].abs() < 0.02,
+        "at rest: {v:?} {r:?}"
+    );
+    assert!(!w.crashed(c), "a landing, not a crash");
 }

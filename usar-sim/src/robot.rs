@@ -254,6 +254,7 @@ impl Robot {
                     max_climb: class.flight.max_altitude_speed,
                     crash_speed: class.crash.speed,
                     crash_tilt: class.crash.tilt.to_radians(),
+                    battery: class.battery.is_some(),
                 },
                 spawn.rotation,
                 spawn.wind,
@@ -295,6 +296,10 @@ impl Robot {
 
     /// Remaining battery seconds as STA reports them (rounded up, so 0 means empty).
     fn battery_left(&self, tick: u64, dt: f64) -> i64 {
+        if let Some(gauge) = self.dynamics.as_ref().and_then(|d| d.gauge()) {
+            // The energy model: seconds left above the reserve at the average draw.
+            return gauge.time_left.ceil().clamp(0.0, NO_BATTERY as f64) as i64;
+        }
         match self.model.class.battery {
             None => NO_BATTERY,
             Some(capacity) => {
@@ -401,8 +406,8 @@ impl Robot {
     pub(crate) fn fly(&mut self, scene: &mut Scene, tick: u64, dt: f64) {
         let dead = self.is_dead(tick, dt);
         if let Some(dynamics) = &mut self.dynamics {
-            if dead && self.crashed.is_none() {
-                dynamics.crash(); // an empty battery stops the motors
+            if dead && self.crashed.is_none() && dynamics.gauge().is_none() {
+                dynamics.crash(); // an empty timer stops the motors
             }
             let crash = dynamics.step(Flight {
                 scene,
@@ -522,6 +527,8 @@ impl Robot {
             let yaw = self.rotation[2];
             let tilt = self.tilt();
             let imu = self.dynamics.as_ref().map(|d| d.imu());
+            let gauge = self.dynamics.as_ref().and_then(|d| d.gauge());
+            let rotors = self.dynamics.as_ref().and_then(|d| d.rotor_speeds());
             let hits = self.cast_single_rays(scene, tick, tilt.as_ref());
             for (i, (part, model)) in self.parts.iter_mut().zip(&self.model.parts).enumerate() {
                 let due = part.timer.fire(tick);
@@ -544,6 +551,8 @@ impl Robot {
                     pitch,
                     tilt,
                     imu,
+                    gauge,
+                    rotors,
                     contact: self.contact,
                     crashed: self.crashed.is_some(),
                     ray_hit: hits.get(i).copied().flatten(),
