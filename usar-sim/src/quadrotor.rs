@@ -38,6 +38,10 @@ const MAX_TARGET: f64 = 100.0;
 /// rad: the held heading stays this close to the actual one.
 const MAX_YAW_LAG: f64 = 0.5;
 
+/// Fraction of the rotors' top thrust the velocity controller asks for at most (the rest
+/// is room for the attitude).
+const THRUST_MARGIN: f64 = 0.9;
+
 /// m/s: the autopilot's descent when the battery reaches its reserve.
 const LAND_SPEED: f64 = 0.5;
 
@@ -79,13 +83,17 @@ pub struct QuadrotorConfig {
     pub thrust_coefficient: f64,
     /// N·m per (rad/s)²: rotor drag torque = k · ω².
     pub torque_coefficient: f64,
-    /// s, first-order lag of a rotor's speed behind its command.
+    /// s, first-order lag of a rotor's speed behind a higher command (spin-up).
     pub motor_time_constant: f64,
+    /// s, the lag behind a lower command (spin-down: without active braking the rotor
+    /// coasts down, slower than the motor drives it up).
+    pub motor_time_constant_down: f64,
     /// rad/s, idle speed in flight (the controller never commands less).
     pub rotor_speed_min: f64,
     /// rad/s.
     pub rotor_speed_max: f64,
-    /// N·s/m: force against the airspeed (rotor drag, dominant at low speed).
+    /// N·s/m: force against the airspeed at hover rotor speed (rotor drag, dominant at low
+    /// speed; it grows in proportion to the mean rotor speed).
     pub drag_linear: f64,
     /// N·s²/m²: ½ρ·C_d·A of the airframe.
     pub drag_quadratic: f64,
@@ -115,6 +123,8 @@ pub struct QuadrotorConfig {
     pub figure_of_merit: f64,
     /// kg/m³, air density.
     pub air_density: f64,
+    /// Ground effect (Cheeseman–Bennett) on.
+    pub ground_effect: bool,
     /// The battery, used when the class has one (`battery = ..`).
     pub battery: BatteryConfig,
 }
@@ -128,6 +138,7 @@ impl Default for QuadrotorConfig {
             thrust_coefficient: 6.4e-6,
             torque_coefficient: 1.0e-7,
             motor_time_constant: 0.03,
+            motor_time_constant_down: 0.03,
             rotor_speed_min: 100.0,
             rotor_speed_max: 1000.0,
             drag_linear: 0.25,
@@ -145,6 +156,7 @@ impl Default for QuadrotorConfig {
             rotor_radius: 0.15,
             figure_of_merit: 0.6,
             air_density: 1.225,
+            ground_effect: true,
             battery: BatteryConfig::default(),
         }
     }
@@ -162,6 +174,10 @@ impl QuadrotorConfig {
             ("quadrotor.thrust_coefficient", self.thrust_coefficient),
             ("quadrotor.torque_coefficient", self.torque_coefficient),
             ("quadrotor.motor_time_constant", self.motor_time_constant),
+            (
+                "quadrotor.motor_time_constant_down",
+                self.motor_time_constant_down,
+            ),
             ("quadrotor.rotor_speed_max", self.rotor_speed_max),
             ("quadrotor.velocity_gain", self.velocity_gain),
             ("quadrotor.altitude_gain", self.altitude_gain),
@@ -198,6 +214,11 @@ impl QuadrotorConfig {
             (
                 "quadrotor.motor_time_constant",
                 self.motor_time_constant,
+                10.0,
+            ),
+            (
+                "quadrotor.motor_time_constant_down",
+                self.motor_time_constant_down,
                 10.0,
             ),
             ("quadrotor.rotor_speed_max", self.rotor_speed_max, 1e5),
@@ -311,8 +332,10 @@ pub(crate) struct Quadrotor {
     rotors: [(f64, f64, f64); 4],
     /// [T, τx, τy, τz] → ω² per rotor.
     unmix: [[f64; 4]; 4],
-    /// Motor lag factor per substep.
-    motor_alpha: f64,
+    /// Motor lag factors per substep: spin-up, spin-down.
+    motor_alpha: (f64, f64),
+    /// Thrust factor of each rotor's ground effect (1 out of it), per tick.
+    ground: [f64; 4],
     /// Substeps per tick.
     substeps: usize,
     /// Attitude, body → world, as a unit quaternion (w, x, y, z).
@@ -444,7 +467,11 @@ impl Quadrotor {
         Self {
             unmix: invert4(mix),
             rotors,
-            motor_alpha: 1.0 - (-h / config.motor_time_constant).exp(),
+            motor_alpha: (
+                1.0 - (-h / config.motor_time_constant).exp(),
+                1.0 - (-h / config.motor_time_constant_down).exp(),
+            ),
+            ground: [1.0; 4],
             substeps,
             q: euler_quat(rotation),
             rates: [0.0; 3],
@@ -558,6 +585,18 @@ impl Quadrotor {
                 // pushing down).
                 let mut force = [m * accel[0], m * accel[1], m * (accel[2] - GRAVITY)];
                 force[2] = force[2].min(-0.2 * m * GRAVITY);
+                // Thrust runs out: the horizontal part (the attitude) wins, the climb gets
+                // what is left (a climb demand must not starve the forward motion).
+                let most = THRUST_MARGIN * 4.0 * c.thrust_coefficient * top * top;
+                if norm(force) > most {
+                    let horizontal = force[0].hypot(force[1]);
+                    let keep = horizontal.min(most * self.limits.max_tilt.sin());
+                    if horizontal > 0.0 {
+                        force[0] *= keep / horizontal;
+                        force[1] *= keep / horizontal;
+                    }
+                    force[2] = -(most * most - keep * keep).sqrt();
+                }
                 let b3 = force.map(|f| -f / norm(force));
                 let heading = [self.yaw_ref.cos(), self.yaw_ref.sin(), 0.0];
                 let b2 = cross(b3, heading);
@@ -597,12 +636,20 @@ impl Quadrotor {
         // Mixer with priorities: thrust, roll and pitch first; yaw gets what the rotor speed
         // limits leave (a saturated yaw demand must not cost the attitude).
         let (lo, hi) = (c.rotor_speed_min.powi(2), top.powi(2));
-        let base: [f64; 4] = std::array::from_fn(|i| {
-            let u: f64 = (0..3)
-                .map(|j| self.unmix[i][j] * [thrust, torque[0], torque[1]][j])
-                .sum();
-            u.clamp(lo, hi)
+        // Roll and pitch before the collective: the collective moves within the room the
+        // roll and pitch differences leave (all four rotors within their limits).
+        let tilt: [f64; 4] =
+            std::array::from_fn(|i| self.unmix[i][1] * torque[0] + self.unmix[i][2] * torque[1]);
+        let (floor, ceiling) = (0..4).fold((f64::MIN, f64::MAX), |(a, b), i| {
+            (a.max(lo - tilt[i]), b.min(hi - tilt[i]))
         });
+        let collective = self.unmix[0][0] * thrust;
+        let collective = if floor <= ceiling {
+            collective.clamp(floor, ceiling)
+        } else {
+            (floor + ceiling) / 2.0
+        };
+        let base: [f64; 4] = std::array::from_fn(|i| (collective + tilt[i]).clamp(lo, hi));
         let yaw: [f64; 4] = std::array::from_fn(|i| self.unmix[i][3] * torque[2]);
         let share = (0..4).fold(1.0f64, |share, i| {
             let room = if yaw[i] > 0.0 {
@@ -718,6 +765,8 @@ impl Quadrotor {
             .iter()
             .map(|w| {
                 let thrust = c.thrust_coefficient * w * w;
+                // (In ground effect the same power gives more thrust: the power is that of
+                // the thrust out of it.)
                 rotor_power(thrust, climb, self.disk, c.air_density, c.figure_of_merit)
             })
             .sum();
@@ -736,6 +785,33 @@ impl Quadrotor {
         }
     }
 
+    /// Each rotor's thrust factor near the ground (Cheeseman & Bennett, *The effect of the
+    /// ground on a helicopter rotor in forward flight*, ARC R&M 3021, 1955):
+    /// `T/T∞ = 1 / (1 − (R/4z)²)` at the height `z` of the rotor above the surface below
+    /// it (one ray straight down from each rotor hub); `z` is taken as at least `R/2`
+    /// (the formula's pole is at `R/4`; at most 4/3); beyond `4R` the effect (under 0.4 %)
+    /// is left out.
+    fn ground_effect(
+        &self,
+        scene: &super::scene::Scene,
+        body: rapier3d::prelude::ColliderHandle,
+        centre: V3,
+    ) -> [f64; 4] {
+        let radius = self.config.rotor_radius;
+        let r = quat_matrix(self.q);
+        std::array::from_fn(|i| {
+            let (x, y, _) = self.rotors[i];
+            let hub: V3 = std::array::from_fn(|k| centre[k] + r[k][0] * x + r[k][1] * y);
+            match scene.cast_ray(hub, [0.0, 0.0, 1.0], 4.0 * radius, Some(body)) {
+                Some(z) => {
+                    let k = radius / (4.0 * z.max(radius / 2.0));
+                    1.0 / (1.0 - k * k)
+                }
+                None => 1.0,
+            }
+        })
+    }
+
     /// Thrust (N) and body torque of the current rotor speeds.
     fn wrench(&self) -> (f64, V3) {
         let (kf, km) = (
@@ -746,7 +822,7 @@ impl Quadrotor {
         let mut torque = [0.0; 3];
         for (i, &(x, y, spin)) in self.rotors.iter().enumerate() {
             let w2 = self.speeds[i] * self.speeds[i];
-            let t = kf * w2;
+            let t = kf * w2 * self.ground[i];
             thrust += t;
             // r × (0, 0, -t) = (-y·t, x·t, 0); the reaction torque turns the body against
             // the rotor's spin.
@@ -798,18 +874,29 @@ impl Dynamics for Quadrotor {
         let c = self.config.clone();
         let mean = self.gusts.mean();
         let wind = self.gusts.step(dt, norm(sub(v, mean)));
+        self.ground = if c.ground_effect {
+            self.ground_effect(f.scene, f.body, start)
+        } else {
+            [1.0; 4]
+        };
         for _ in 0..self.substeps {
             let r = quat_matrix(self.q);
             let command = self.control(p, v, &r, h);
             for (speed, target) in self.speeds.iter_mut().zip(command) {
-                *speed += (target - *speed) * self.motor_alpha;
+                let alpha = if target > *speed {
+                    self.motor_alpha.0
+                } else {
+                    self.motor_alpha.1
+                };
+                *speed += (target - *speed) * alpha;
             }
             let (thrust, mut torque) = self.wrench();
             // Air through the rotors along the thrust (+ = climbing).
             let climb = -dot([r[0][2], r[1][2], r[2][2]], sub(v, wind));
             self.use_energy(climb, h);
             let air = sub(v, wind);
-            let drag = c.drag_linear + c.drag_quadratic * norm(air);
+            let spin = self.speeds.iter().sum::<f64>() / (4.0 * c.hover_speed());
+            let drag = c.drag_linear * spin + c.drag_quadratic * norm(air);
             let mut force: V3 = std::array::from_fn(|i| {
                 -r[i][2] * thrust - drag * air[i] + if i == 2 { c.mass * GRAVITY } else { 0.0 }
             });

@@ -150,7 +150,9 @@ fn the_accelerometer_reads_only_idle_thrust_and_drag_in_free_fall() {
         if let Some((a, _)) = imu_lines(&out).pop() {
             // Falling level: idle thrust and drag push up; gravity does not show.
             let speed = v[2];
-            let drag = (q.drag_linear + q.drag_quadratic * speed) * speed;
+            // Rotor drag grows with the rotor speed (idle here), airframe drag with v².
+            let spin = q.rotor_speed_min / q.hover_speed();
+            let drag = (q.drag_linear * spin + q.drag_quadratic * speed) * speed;
             let expected = (idle + drag) / q.mass;
             assert!(a.x.abs() < 1e-9 && a.y.abs() < 1e-9, "{a:?}");
             assert!(
@@ -870,27 +872,35 @@ fn command_rotors(rig: &mut Rig, w: [f64; 4]) {
 
 #[test]
 fn a_landed_quadrotor_stands_still_under_zero_command() {
-    let mut w = world();
-    let c = spawn(&mut w, [0.0, 0.0, -1.0], 0.0);
-    command(&mut w, c, "DRIVE {AltitudeVelocity -0.5}");
-    run(&mut w, 3.0);
-    command(
-        &mut w,
-        c,
+    for zero in [
         "DRIVE {AltitudeVelocity 0} {LinearVelocity 0} {LateralVelocity 0}",
-    );
-    run(&mut w, 1.0);
-    let (p, _, r) = state(&w, c);
-    assert!((p[2] + 0.11).abs() < 0.01, "landed: {p:?}");
-    run(&mut w, 10.0);
-    let (q, v, s) = state(&w, c);
-    let moved = (0..3).map(|i| (q[i] - p[i]).abs()).fold(0.0, f64::max);
-    assert!(moved < 0.005, "moved {moved} m: {p:?} → {q:?}, v {v:?}");
-    assert!(
-        s[0].abs() < 0.02 && s[1].abs() < 0.02,
-        "level: {s:?} (was {r:?})"
-    );
-    assert!(!w.crashed(c));
+        "QUAD {Rotors 0,0,0,0}",
+    ] {
+        let mut w = world();
+        let c = spawn(&mut w, [0.0, 0.0, -1.0], 0.0);
+        command(&mut w, c, "DRIVE {AltitudeVelocity -0.5}");
+        run(&mut w, 3.0);
+        command(&mut w, c, zero);
+        run(&mut w, 3.0);
+        let (p, _, r) = state(&w, c);
+        // Holding the altitude, ground effect may lift it a few centimetres; idle, it sits.
+        assert!((p[2] + 0.11).abs() < 0.05, "{zero}: landed: {p:?}");
+        run(&mut w, 10.0);
+        let (q, v, s) = state(&w, c);
+        // No skating: the horizontal position stays within millimetres (vertically the
+        // altitude hold settles against the ground effect, within the 5 cm above).
+        let moved = (q[0] - p[0]).hypot(q[1] - p[1]);
+        assert!(
+            moved < 0.005,
+            "{zero}: moved {moved} m: {p:?} → {q:?}, v {v:?}"
+        );
+        assert!((q[2] + 0.11).abs() < 0.05, "{zero}: on the ground: {q:?}");
+        assert!(
+            s[0].abs() < 0.02 && s[1].abs() < 0.02,
+            "{zero}: level: {s:?} (was {r:?})"
+        );
+        assert!(!w.crashed(c));
+    }
 }
 
 // ---- energy ----
@@ -1031,4 +1041,80 @@ fn a_battery_at_its_reserve_lands_the_quadrotor_and_reads_empty() {
         "at rest: {v:?} {r:?}"
     );
     assert!(!w.crashed(c), "a landing, not a crash");
+}
+
+// ---- rotor aerodynamics ----
+
+#[test]
+fn ground_effect_matches_cheeseman_bennett_at_half_one_and_two_radii() {
+    // Rotors of 0.3 m radius held at hover speed above the floor; the thrust is read from the
+    // body's acceleration in the first tick: T = m(g − a).
+    let radius = 0.3;
+    let thrust_at = |height: f64, ground_effect: bool| {
+        let config = quadrotor::QuadrotorConfig {
+            rotor_radius: radius,
+            ground_effect,
+            ..dragless()
+        };
+        let hover = config.hover_speed();
+        let mass = config.mass;
+        let mut rig = rig(config, [0.0, 0.0, -height], [0.0; 3]);
+        command_rotors(&mut rig, [hover; 4]);
+        rig.step();
+        mass * (GRAVITY - rig.v[2] / DT)
+    };
+    for ratio in [0.5, 1.0, 2.0] {
+        let h = ratio * radius;
+        let ratio_measured = thrust_at(h, true) / thrust_at(h, false);
+        let k = 1.0 / (4.0 * ratio);
+        let expected = 1.0 / (1.0 - k * k);
+        assert!(
+            (ratio_measured - expected).abs() < 1e-3,
+            "h/R {ratio}: thrust × {ratio_measured:.4}, Cheeseman–Bennett {expected:.4}"
+        );
+    }
+    // Far from the ground, none.
+    assert!((thrust_at(5.0, true) / thrust_at(5.0, false) - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn rotors_spin_up_and_down_with_their_own_time_constants() {
+    let config = quadrotor::QuadrotorConfig {
+        motor_time_constant: 0.02,
+        motor_time_constant_down: 0.08,
+        ..dragless()
+    };
+    let mut rig = rig(config, [0.0, 0.0, -20.0], [0.0; 3]);
+    let speed = |rig: &Rig| dynamics::Dynamics::rotor_speeds(&rig.quad).expect("rotors")[0];
+    command_rotors(&mut rig, [400.0; 4]);
+    rig.run(1.0);
+    // A step 400 → 800: 63 % of the way after τ_up; then back: 63 % after τ_down.
+    for (target, tau) in [(800.0, 0.02), (400.0, 0.08)] {
+        let start = speed(&rig);
+        command_rotors(&mut rig, [target; 4]);
+        rig.run(tau);
+        let done = (speed(&rig) - start) / (target - start);
+        assert!(
+            (done - (1.0 - (-1.0f64).exp())).abs() < 0.01,
+            "after τ = {tau} s: {done:.3} of the step"
+        );
+        rig.run(1.0);
+    }
+}
+
+#[test]
+fn a_climb_demand_at_the_thrust_limit_leaves_the_forward_motion_its_tilt() {
+    // A vehicle with little thrust in reserve (1.25 × its weight) asked to climb and fly
+    // forward at once: the forward speed is reached, the climb gets what is left.
+    let mut catalog = without_drag();
+    let q = catalog.get_mut(QUAD).expect("class");
+    q.quadrotor.rotor_speed_max = q.quadrotor.hover_speed() * 1.25f64.sqrt();
+    q.battery = None;
+    let mut w = world_with(catalog, None, 0);
+    let c = spawn(&mut w, [-8.0, 0.0, -1.0], 0.0);
+    command(&mut w, c, "DRIVE {LinearVelocity 2} {AltitudeVelocity 2}");
+    run(&mut w, 3.0);
+    let (_, v, _) = state(&w, c);
+    assert!(v[0] > 1.8, "forward speed {:.2} m/s of 2", v[0]);
+    assert!(v[2] < -0.3, "still climbing: {:.2} m/s", -v[2]);
 }
