@@ -51,9 +51,9 @@ const BOUNCE_MIN: f64 = 0.1;
 /// rad: the landing gear's tilt at which its righting torque reaches N·r (a stiff gear).
 const GEAR_COMPLIANCE: f64 = 0.05;
 
-/// m: a body resting on a surface probes this far into it each tick (it stays
-/// in contact; off an edge it falls).
-const PROBE: f64 = 0.001;
+/// m: a body resting on a surface is still held by it while the surface is within this
+/// distance of the body's extent (the 1 cm skin and a margin).
+const PROBE: f64 = 0.02;
 
 /// Rotor arrangement.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
@@ -134,7 +134,7 @@ impl Default for QuadrotorConfig {
         Self {
             mass: 1.3,
             arm_length: 0.3,
-            inertia: [0.015, 0.015, 0.03],
+            inertia: [0.0218, 0.0207, 0.0377],
             thrust_coefficient: 6.4e-6,
             torque_coefficient: 1.0e-7,
             motor_time_constant: 0.03,
@@ -944,14 +944,24 @@ impl Dynamics for Quadrotor {
                 reason: "the integration diverged (check the quadrotor parameters)".into(),
             });
         }
-        let mut motion = sub(p, start);
-        if let Some(n) = self.surface {
-            // Resting on a surface: probe it (a body that slid off an edge falls).
-            if dot(motion, n) <= 0.0 {
-                motion = std::array::from_fn(|i| motion[i] - PROBE * n[i]);
+        let motion = sub(p, start);
+        let (moved, mut hit) = f.scene.sweep_contact(f.body, f.shape, start, motion);
+        if let Some(n) = self
+            .surface
+            .filter(|&n| hit.is_none() && dot(motion, n) <= 0.0)
+        {
+            // Resting on a surface and not leaving it: still held if it is still there
+            // (a ray along −n from the centre; off an edge the body falls).
+            let reach = n[2].abs() * f.shape.half_height
+                + (1.0 - n[2] * n[2]).max(0.0).sqrt() * f.shape.radius
+                + PROBE;
+            if f.scene
+                .cast_ray(moved, n.map(|x| -x), reach, Some(f.body))
+                .is_some()
+            {
+                hit = Some(n);
             }
         }
-        let (moved, hit) = f.scene.sweep_contact(f.body, f.shape, start, motion);
         *f.position = moved;
         let r = quat_matrix(self.q);
         self.contact = hit.is_some();

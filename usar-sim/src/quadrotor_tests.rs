@@ -1118,3 +1118,93 @@ fn a_climb_demand_at_the_thrust_limit_leaves_the_forward_motion_its_tilt() {
     assert!(v[0] > 1.8, "forward speed {:.2} m/s of 2", v[0]);
     assert!(v[2] < -0.3, "still climbing: {:.2} m/s", -v[2]);
 }
+
+// ---- parameters ----
+
+/// Inertia (x, y, z) of a solid box of `mass` and sides `size` centred at `at`.
+fn box_inertia(mass: f64, size: [f64; 3], at: [f64; 3]) -> [f64; 3] {
+    let [a, b, c] = size.map(|s| s * s / 12.0);
+    let [x, y, z] = at.map(|v| v * v);
+    [
+        mass * (b + c + y + z),
+        mass * (a + c + x + z),
+        mass * (a + b + x + y),
+    ]
+}
+
+#[test]
+fn the_default_inertia_is_that_of_the_documented_body() {
+    // docs/robots.md, "Where the quadrotor defaults come from": an AR-100B-sized body of
+    // 1.3 kg in x configuration (arms at 45°, 0.3 m), z down.
+    let d = 0.3 * std::f64::consts::FRAC_1_SQRT_2;
+    let mut total = [0.0; 3];
+    let mut mass = 0.0;
+    let mut add = |m: f64, i: [f64; 3]| {
+        mass += m;
+        for k in 0..3 {
+            total[k] += i[k];
+        }
+    };
+    for (sx, sy) in [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)] {
+        // Motor and propeller, 75 g, a point at the arm's end.
+        add(0.075, box_inertia(0.075, [0.0; 3], [sx * d, sy * d, 0.0]));
+        // Arm, 35 g, a thin rod from the centre: ∫ r² dm = m·L²/3 per coordinate.
+        add(
+            0.035,
+            [0.035 * d * d / 3.0, 0.035 * d * d / 3.0, 0.035 * 0.09 / 3.0],
+        );
+    }
+    // Two skids of 50 g, 0.3 m long along x, at y = ±0.15 m, 0.12 m below the centre.
+    for y in [0.15, -0.15] {
+        add(0.05, box_inertia(0.05, [0.3, 0.0, 0.0], [0.0, y, 0.12]));
+    }
+    // The 3S 4 Ah battery, 330 g, 0.14 × 0.045 × 0.03 m, 5 cm below the centre.
+    add(
+        0.33,
+        box_inertia(0.33, [0.14, 0.045, 0.03], [0.0, 0.0, 0.05]),
+    );
+    // The hub (frame plates, autopilot, ESCs, payload): the rest, a 0.2 × 0.2 × 0.06 m box.
+    let hub = 1.3 - (4.0 * (0.075 + 0.035) + 2.0 * 0.05 + 0.33);
+    add(hub, box_inertia(hub, [0.2, 0.2, 0.06], [0.0; 3]));
+    let q = quadrotor::QuadrotorConfig::default();
+    assert!((mass - q.mass).abs() < 1e-12);
+    for k in 0..3 {
+        assert!(
+            (total[k] - q.inertia[k]).abs() < 5e-5,
+            "axis {k}: body {:.5} kg·m², default {}",
+            total[k],
+            q.inertia[k]
+        );
+    }
+    let catalog = RobotCatalog::embedded();
+    assert_eq!(
+        catalog.get(QUAD).expect("class").quadrotor.inertia,
+        q.inertia
+    );
+}
+
+#[test]
+fn the_crazyflie_preset_hovers_at_gym_pybullet_drones_hover_rpm() {
+    let mut w = world();
+    let c = w.connect();
+    w.command(
+        c,
+        Command::Init(Init {
+            class_name: "USARBot.Crazyflie".into(),
+            location: Some([0.0, 0.0, -1.0].into()),
+            ..Init::default()
+        }),
+    );
+    let out = run(&mut w, 10.0);
+    let (p, _, _) = state(&w, c);
+    assert!(
+        (p[2] + 1.0).abs() < 0.02 && p[0].abs() < 0.02 && p[1].abs() < 0.02,
+        "hovers: {p:?}"
+    );
+    // gym-pybullet-drones: HOVER_RPM = sqrt(m·g / (4·KF)) = 14468 rpm for the cf2x.
+    let rpm = last_value(&out, "Rotors", "Speeds")[0] * 60.0 / std::f64::consts::TAU;
+    assert!((rpm / 14468.0 - 1.0).abs() < 0.01, "hover at {rpm:.0} rpm");
+    // About seven minutes of flight on its 250 mAh battery.
+    let left = battery_status(&out) as f64;
+    assert!((300.0..600.0).contains(&left), "{left} s left");
+}
