@@ -1168,12 +1168,10 @@ fn the_default_inertia_is_that_of_the_documented_body() {
     add(hub, box_inertia(hub, [0.2, 0.2, 0.06], [0.0; 3]));
     let q = quadrotor::QuadrotorConfig::default();
     assert!((mass - q.mass).abs() < 1e-12);
-    for k in 0..3 {
+    for (k, (body, default)) in total.iter().zip(q.inertia).enumerate() {
         assert!(
-            (total[k] - q.inertia[k]).abs() < 5e-5,
-            "axis {k}: body {:.5} kg·m², default {}",
-            total[k],
-            q.inertia[k]
+            (body - default).abs() < 5e-5,
+            "axis {k}: body {body:.5} kg·m², default {default}"
         );
     }
     let catalog = RobotCatalog::embedded();
