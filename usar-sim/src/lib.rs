@@ -50,6 +50,7 @@ mod quadrotor_tests;
 mod tests;
 
 pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
+pub use noise::ErrorModel;
 pub use robots::{RobotCatalog, RobotClass, UnknownClass};
 pub use wind::WindConfig;
 pub use world::{Printed, World};

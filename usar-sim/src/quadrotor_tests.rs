@@ -24,6 +24,17 @@ fn world() -> World {
     world_with(RobotCatalog::embedded(), None, 0)
 }
 
+/// `catalog` with the stsQuadrotor's IMU errors off (tests of the dynamics' truth).
+fn exact_imu(mut catalog: RobotCatalog) -> RobotCatalog {
+    let q = catalog.get_mut(QUAD).expect("stsQuadrotor");
+    for p in &mut q.parts {
+        if p.kind == "IMU" {
+            p.settings = toml::Table::new();
+        }
+    }
+    catalog
+}
+
 /// The embedded catalog with the stsQuadrotor's drag set to zero.
 fn without_drag() -> RobotCatalog {
     let mut catalog = RobotCatalog::embedded();
@@ -107,7 +118,7 @@ fn touch(out: &[(ClientId, ServerMessage)], name: &str) -> Vec<bool> {
 
 #[test]
 fn hover_holds_altitude_for_thirty_seconds_with_thrust_equal_to_weight() {
-    let mut w = world();
+    let mut w = world_with(exact_imu(RobotCatalog::embedded()), None, 0);
     let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.3);
     let mut out = Vec::new();
     let mut worst: f64 = 0.0;
@@ -134,7 +145,7 @@ fn hover_holds_altitude_for_thirty_seconds_with_thrust_equal_to_weight() {
 
 #[test]
 fn the_accelerometer_reads_only_idle_thrust_and_drag_in_free_fall() {
-    let catalog = RobotCatalog::embedded();
+    let catalog = exact_imu(RobotCatalog::embedded());
     let q = catalog.get(QUAD).expect("class").quadrotor.clone();
     let mut w = world_with(catalog, None, 0);
     let c = spawn(&mut w, [0.0, 0.0, -4.5], 0.0);
@@ -1205,4 +1216,33 @@ fn the_crazyflie_preset_hovers_at_gym_pybullet_drones_hover_rpm() {
     // About seven minutes of flight on its 250 mAh battery.
     let left = battery_status(&out) as f64;
     assert!((300.0..600.0).contains(&left), "{left} s left");
+}
+
+// ---- sensor errors ----
+
+#[test]
+fn the_imu_errors_are_seeded_per_part_and_average_out_to_the_truth() {
+    // The stsQuadrotor's MPU-6000-class IMU hovering: readings scatter with the configured
+    // noise around g (plus the turn-on bias), repeat for a seed, differ for another.
+    let record = |seed: u64| {
+        let mut w = world_with(RobotCatalog::embedded(), None, seed);
+        spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+        imu_lines(&run(&mut w, 20.0))
+    };
+    let (a, b, c) = (record(1), record(1), record(2));
+    assert_eq!(a, b);
+    assert_ne!(a, c);
+    let z: Vec<f64> = a.iter().skip(20).map(|(acc, _)| acc.z).collect();
+    let mean = z.iter().sum::<f64>() / z.len() as f64;
+    let std = (z.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / z.len() as f64).sqrt();
+    assert!((mean - GRAVITY).abs() < 0.2, "mean {mean}");
+    assert!(
+        (std / 0.04 - 1.0).abs() < 0.3,
+        "noise std {std}, configured 0.04"
+    );
+    // Quantised to the 16 g range's 0.0048 m/s² steps.
+    assert!(
+        z.iter()
+            .all(|v| ((v / 0.0048).round() * 0.0048 - v).abs() < 1e-9)
+    );
 }
