@@ -190,6 +190,11 @@ impl Battery {
         self.soc <= 0.0
     }
 
+    /// Loses a fraction of the charge left (a fault).
+    pub(crate) fn lose(&mut self, fraction: f64) {
+        self.soc *= 1.0 - fraction.clamp(0.0, 1.0);
+    }
+
     pub(crate) fn gauge(&self) -> Gauge {
         let above = (self.soc - self.config.reserve).max(0.0) * self.config.capacity * 3600.0;
         let average = self.average.unwrap_or(0.0);

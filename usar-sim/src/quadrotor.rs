@@ -365,6 +365,8 @@ pub(crate) struct Quadrotor {
     top_speed: f64,
     /// Rotor disk area, m².
     disk: f64,
+    /// Fraction of each rotor's thrust and torque left (motor faults).
+    health: [f64; 4],
 }
 
 /// The rotation of a unit quaternion (w, x, y, z): body → world.
@@ -491,6 +493,7 @@ impl Quadrotor {
             battery: limits.battery.then(|| Battery::new(config.battery.clone())),
             top_speed: config.rotor_speed_max,
             disk: std::f64::consts::PI * config.rotor_radius.powi(2),
+            health: [1.0; 4],
             config,
             limits,
         }
@@ -763,8 +766,9 @@ impl Quadrotor {
         let shaft: f64 = self
             .speeds
             .iter()
-            .map(|w| {
-                let thrust = c.thrust_coefficient * w * w;
+            .zip(self.health)
+            .map(|(w, health)| {
+                let thrust = c.thrust_coefficient * w * w * health;
                 // (In ground effect the same power gives more thrust: the power is that of
                 // the thrust out of it.)
                 rotor_power(thrust, climb, self.disk, c.air_density, c.figure_of_merit)
@@ -821,7 +825,7 @@ impl Quadrotor {
         let mut thrust = 0.0;
         let mut torque = [0.0; 3];
         for (i, &(x, y, spin)) in self.rotors.iter().enumerate() {
-            let w2 = self.speeds[i] * self.speeds[i];
+            let w2 = self.speeds[i] * self.speeds[i] * self.health[i];
             let t = kf * w2 * self.ground[i];
             thrust += t;
             // r × (0, 0, -t) = (-y·t, x·t, 0); the reaction torque turns the body against
@@ -1030,5 +1034,22 @@ impl Dynamics for Quadrotor {
 
     fn rotor_speeds(&self) -> Option<[f64; 4]> {
         Some(self.speeds)
+    }
+
+    fn fault(&mut self, fault: &super::dynamics::Fault) -> bool {
+        match *fault {
+            super::dynamics::Fault::Motor { rotor, thrust } => {
+                self.health[rotor] = thrust;
+                true
+            }
+            super::dynamics::Fault::Battery { loss } => match &mut self.battery {
+                Some(battery) => {
+                    battery.lose(loss);
+                    true
+                }
+                None => false,
+            },
+            super::dynamics::Fault::Sensor { .. } => false,
+        }
     }
 }

@@ -1246,3 +1246,147 @@ fn the_imu_errors_are_seeded_per_part_and_average_out_to_the_truth() {
             .all(|v| ((v / 0.0048).round() * 0.0048 - v).abs() < 1e-9)
     );
 }
+
+// ---- faults ----
+
+#[test]
+fn a_motor_failure_at_hover_yaw_spins_and_falls_as_the_torque_balance_predicts() {
+    let q = quadrotor::QuadrotorConfig::default();
+    let mut rig = rig(q.clone(), [0.0, 0.0, -40.0], [0.0; 3]);
+    rig.run(1.0);
+    // Rotor 1 (front-right, counter-clockwise) stops giving thrust and torque.
+    let dead = dynamics::Fault::Motor {
+        rotor: 0,
+        thrust: 0.0,
+    };
+    assert!(dynamics::Dynamics::fault(&mut rig.quad, &dead));
+    let health = [0.0, 1.0, 1.0, 1.0];
+    let spin = [1.0, -1.0, 1.0, -1.0];
+    let yaw_torque = |w: [f64; 4]| -> f64 {
+        (0..4)
+            .map(|i| spin[i] * health[i] * q.torque_coefficient * w[i] * w[i])
+            .sum()
+    };
+    let state = |rig: &Rig| {
+        (
+            dynamics::Dynamics::imu(&rig.quad).body_rates,
+            dynamics::Dynamics::rotor_speeds(&rig.quad).expect("rotors"),
+        )
+    };
+    let (mut checked, mut worst) = (0, 0.0f64);
+    for _ in 0..(1.5 / DT) as u64 {
+        let (w0, s0) = state(&rig);
+        rig.step();
+        let (w1, s1) = state(&rig);
+        // Euler's equation about z: Izz·ω̇z = τz − (ω × Iω)z.
+        let gyro = |w: [f64; 3]| w[0] * w[1] * (q.inertia[1] - q.inertia[0]);
+        let predicted =
+            ((yaw_torque(s0) + yaw_torque(s1)) / 2.0 - (gyro(w0) + gyro(w1)) / 2.0) / q.inertia[2];
+        let measured = (w1[2] - w0[2]) / DT;
+        if predicted.abs() > 1.0 {
+            worst = worst.max((measured / predicted - 1.0).abs());
+            checked += 1;
+        }
+    }
+    assert!(
+        checked > 100 && worst < 0.1,
+        "{checked} ticks, worst error {worst:.3}"
+    );
+    // The net drag torque of the surviving rotors turns it counter-clockwise (yaw −), with
+    // nothing to stop it: a spin.
+    let (w, speeds) = state(&rig);
+    assert!(w[2] < -3.0, "spinning at {:.1} rad/s", w[2]);
+    // Holding roll and pitch about the 2–4 diagonal would need rotor 3 as weak as the dead
+    // rotor 1, so at most the clockwise pair lifts: less than the weight. It falls.
+    let top = speeds.iter().fold(0.0f64, |a, &b| a.max(b));
+    assert!(2.0 * q.thrust_coefficient * top * top < q.mass * GRAVITY * 1.02);
+    assert!(
+        rig.v[2] > 0.5 && rig.p[2] > -39.0,
+        "falling: {:?} {:?}",
+        rig.p,
+        rig.v
+    );
+}
+
+#[test]
+fn sensor_and_battery_faults() {
+    let mut w = world_with(with_gauges(1.0), None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+    run(&mut w, 1.0);
+    let positions = |out: &[(ClientId, ServerMessage)]| -> Vec<String> {
+        out.iter()
+            .filter(|(_, m)| matches!(m, ServerMessage::Sen(s) if matches!(s.data, SenData::Position { .. })))
+            .map(|(_, m)| m.to_string().split("{Type").nth(1).unwrap_or_default().to_string())
+            .collect()
+    };
+    command(&mut w, c, "DRIVE {LinearVelocity 1}");
+    command(&mut w, c, "FAULT {Sensor Position} {Mode Freeze}");
+    let frozen = positions(&run(&mut w, 1.0));
+    assert!(
+        frozen.len() >= 9 && frozen.windows(2).all(|p| p[0] == p[1]),
+        "{frozen:?}"
+    );
+    command(&mut w, c, "FAULT {Sensor Position} {Mode Silent}");
+    assert!(positions(&run(&mut w, 1.0)).is_empty());
+    command(&mut w, c, "FAULT {Sensor Position} {Mode Ok}");
+    let live = positions(&run(&mut w, 1.0));
+    assert!(live.len() >= 9 && live[0] != live[live.len() - 1]);
+    // The battery loses half its charge at once.
+    let before = last_value(&run(&mut w, 0.1), "Battery", "Charge")[0];
+    command(&mut w, c, "FAULT {Battery 0.5}");
+    let after = last_value(&run(&mut w, 0.1), "Battery", "Charge")[0];
+    assert!((after / before - 0.5).abs() < 0.001, "{before} → {after}");
+}
+
+fn faulty_flight(seed: u64) -> String {
+    let wind = WindConfig {
+        velocity: [1.0, 0.0, 0.0],
+        gusts: 1.0,
+        gust_length: 15.0,
+    };
+    let mut w = world_with(RobotCatalog::embedded(), Some(wind), seed);
+    let a = spawn(&mut w, [-5.0, -5.0, -2.0], 0.0);
+    let mut out = run(&mut w, 1.0);
+    command(&mut w, a, "DRIVE {LinearVelocity 1}");
+    command(&mut w, a, "FAULT {Motor 2} {Thrust 0.7}");
+    command(&mut w, a, "FAULT {Sensor Sonar0} {Mode Freeze}");
+    out.extend(run(&mut w, 3.0));
+    printed(&out)
+}
+
+#[test]
+fn faulty_flights_repeat_bit_for_bit() {
+    let a = faulty_flight(9);
+    assert_eq!(a, faulty_flight(9));
+    assert_ne!(a, faulty_flight(10));
+}
+
+#[test]
+fn bad_fault_lines_say_what_is_wrong() {
+    let parse = |line: &str| {
+        let Command::Other(m) = Command::parse(line).unwrap().message else {
+            panic!("not an unknown command")
+        };
+        dynamics::parse_fault(&m)
+    };
+    assert!(parse("FAULT {Motor 5}").unwrap_err().contains("1 to 4"));
+    assert!(
+        parse("FAULT {Motor 1} {Thrust 2}")
+            .unwrap_err()
+            .contains("[0, 1]")
+    );
+    assert!(parse("FAULT {Battery x}").unwrap_err().contains("finite"));
+    assert!(
+        parse("FAULT {Sensor IMU} {Mode melt}")
+            .unwrap_err()
+            .contains("Freeze")
+    );
+    assert!(parse("FAULT {Foo 1}").unwrap_err().contains("Motor"));
+    assert_eq!(
+        parse("FAULT {Motor 2} {Thrust 0.5}"),
+        Ok(dynamics::Fault::Motor {
+            rotor: 1,
+            thrust: 0.5
+        })
+    );
+}

@@ -10,7 +10,7 @@ use usar_proto::{
 };
 
 use super::ClientId;
-use super::dynamics::{self, Crash, Dynamics, Flight, LowLevel, M3, SetPoints};
+use super::dynamics::{self, Crash, Dynamics, Fault, Flight, LowLevel, M3, SensorFault, SetPoints};
 use super::noise::Noise;
 use super::quadrotor::{self, Quadrotor};
 use super::robots::{ActuatorConfig, DynamicsKind, RobotClass};
@@ -157,6 +157,9 @@ struct Part {
     forced: bool,
     noise: Noise,
     sensor: Box<dyn Sensor>,
+    /// A `FAULT {Sensor ..}` in force, and the reading a frozen part repeats.
+    fault: SensorFault,
+    frozen: Option<usar_proto::SenData>,
 }
 
 /// An actuator: joint values move to their targets at once.
@@ -229,6 +232,8 @@ impl Robot {
                 forced: false,
                 noise: Noise::new(spawn.seed, spawn.serial, p.index, p.noise),
                 sensor: p.sensor.clone_box(),
+                fault: SensorFault::Ok,
+                frozen: None,
             })
             .collect();
         let actuators = class
@@ -336,6 +341,29 @@ impl Robot {
                 class = %self.class_name(),
                 "QUAD ignored: the robot is kinematic (dynamics = \"quadrotor\" in its class)"
             ),
+        }
+    }
+
+    /// Applies a `FAULT` (docs/quadrotor.md#faults), logged at `info` with the time.
+    pub(crate) fn fault(&mut self, fault: &Fault, time: f64) {
+        let applied = match fault {
+            Fault::Sensor { name, mode } => {
+                let mut found = false;
+                for (part, model) in self.parts.iter_mut().zip(&self.model.parts) {
+                    if model.name.eq_ignore_ascii_case(name) {
+                        part.fault = *mode;
+                        part.frozen = None;
+                        found = true;
+                    }
+                }
+                found
+            }
+            _ => self.dynamics.as_mut().is_some_and(|d| d.fault(fault)),
+        };
+        if applied {
+            tracing::info!(serial = self.serial, class = %self.class_name(), time, "fault: {fault:?}");
+        } else {
+            warn!(serial = self.serial, class = %self.class_name(), "FAULT ignored: the robot has no such part: {fault:?}");
         }
     }
 
@@ -557,7 +585,16 @@ impl Robot {
                     crashed: self.crashed.is_some(),
                     ray_hit: hits.get(i).copied().flatten(),
                 };
-                let data = part.sensor.read(&reading, &mut part.noise);
+                if part.fault == SensorFault::Silent {
+                    continue;
+                }
+                let data = match (&part.frozen, part.fault) {
+                    (Some(data), SensorFault::Freeze) => data.clone(),
+                    _ => part.sensor.read(&reading, &mut part.noise),
+                };
+                if part.fault == SensorFault::Freeze && part.frozen.is_none() {
+                    part.frozen = Some(data.clone());
+                }
                 let time = part.sensor.timestamped().then_some(Time::udk(time));
                 out.push((owner, ServerMessage::Sen(Sen { time, data })));
             }

@@ -349,6 +349,13 @@ impl World {
                     Err(error) => warn!(?client, %error, "QUAD ignored"),
                 }
             }
+            // The FAULT extension (docs/quadrotor.md#faults).
+            Command::Other(message) if message.kind.eq_ignore_ascii_case("FAULT") => {
+                match super::dynamics::parse_fault(&message) {
+                    Ok(fault) => robot.fault(&fault, tick as f64 * dt),
+                    Err(error) => warn!(?client, %error, "FAULT ignored"),
+                }
+            }
             Command::GetConf(query) => return conf(robot, &query).into_iter().collect(),
             Command::GetGeo(query) => return geo(robot, &query).into_iter().collect(),
             Command::Set(set) => robot.set(&set.kind, set.name.as_deref(), &set.opcode),
