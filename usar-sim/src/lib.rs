@@ -31,6 +31,7 @@
 //! ```
 
 mod dynamics;
+pub mod faults;
 pub mod map;
 mod noise;
 mod obj;
@@ -73,6 +74,8 @@ pub struct SimConfig {
     pub wind: Option<WindConfig>,
     /// Robots one connection may spawn (USARSim: one); further INITs are ignored (logged).
     pub robots_per_connection: usize,
+    /// Faults scheduled in simulated time (`--faults FILE`, docs/quadrotor.md#faults).
+    pub faults: faults::FaultPlan,
 }
 
 impl Default for SimConfig {
@@ -83,6 +86,7 @@ impl Default for SimConfig {
             threads: default_threads(),
             wind: None,
             robots_per_connection: 1,
+            faults: faults::FaultPlan::default(),
         }
     }
 }

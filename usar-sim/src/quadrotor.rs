@@ -136,7 +136,7 @@ impl Default for QuadrotorConfig {
             arm_length: 0.3,
             inertia: [0.0218, 0.0207, 0.0377],
             thrust_coefficient: 6.4e-6,
-            torque_coefficient: 1.0e-7,
+            torque_coefficient: 1.25e-7,
             motor_time_constant: 0.03,
             motor_time_constant_down: 0.03,
             rotor_speed_min: 100.0,

@@ -1390,3 +1390,37 @@ fn bad_fault_lines_say_what_is_wrong() {
         })
     );
 }
+
+#[test]
+fn a_faults_file_fails_a_motor_at_its_time() {
+    let plan = faults::FaultPlan::from_toml(
+        "[[fault]]\ntime = 2.0\nrobot = 1\nline = \"FAULT {Motor 1} {Thrust 0}\"\n",
+    )
+    .expect("plan");
+    let run_with = |plan: faults::FaultPlan| {
+        let mut w = World::new(
+            floor_map(1000.0),
+            RobotCatalog::embedded(),
+            SimConfig {
+                faults: plan,
+                ..SimConfig::default()
+            },
+        );
+        let c = spawn(&mut w, [0.0, 0.0, -30.0], 0.0);
+        let before = printed(&run(&mut w, 1.99));
+        run(&mut w, 2.0);
+        (before, state(&w, c))
+    };
+    let (quiet, healthy) = run_with(faults::FaultPlan::default());
+    let (before, failed) = run_with(plan);
+    assert_eq!(quiet, before, "nothing changes before the fault's time");
+    assert!(
+        (healthy.0[2] + 30.0).abs() < 0.05,
+        "hovers: {:?}",
+        healthy.0
+    );
+    assert!(
+        failed.0[2] > -29.0 && failed.2[2].abs() > 0.5,
+        "falls spinning: {failed:?}"
+    );
+}

@@ -45,6 +45,8 @@ pub struct World {
     robots_per_connection: usize,
     /// Warnings about each connection's commands (summarised past the first few).
     complaints: BTreeMap<ClientId, Repeats>,
+    /// Faults still to come, in time order.
+    faults: std::collections::VecDeque<super::faults::PlannedFault>,
 }
 
 /// Whether to log a warning about `client`'s command: the first few in full, then a
@@ -108,6 +110,7 @@ impl World {
             threads: config.threads.max(1),
             robots_per_connection: config.robots_per_connection,
             complaints: BTreeMap::new(),
+            faults: config.faults.faults.iter().cloned().collect(),
         }
     }
 
@@ -210,6 +213,19 @@ impl World {
     fn advance(&mut self) {
         self.tick += 1;
         let (tick, dt) = (self.tick, self.dt);
+        while self
+            .faults
+            .front()
+            .is_some_and(|f| f.time <= tick as f64 * dt + 1e-9)
+        {
+            let Some(f) = self.faults.pop_front() else {
+                break;
+            };
+            match self.robot_mut(f.serial) {
+                Some(robot) => robot.fault(&f.fault, tick as f64 * dt),
+                None => warn!(robot = f.serial + 1, "planned fault skipped: no such robot"),
+            }
+        }
         self.scene.refresh();
         for robot in &mut self.robots {
             robot.fly(&mut self.scene, tick, dt);
