@@ -40,6 +40,10 @@ pub struct ServerArgs {
     /// Gust length scale for this run, m (default 20).
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub gust_length: Option<f64>,
+    /// Faults scheduled in simulated time (TOML, see docs/quadrotor.md#faults): `FAULT`
+    /// lines for robots by spawn number.
+    #[arg(long, value_name = "FILE")]
+    pub faults: Option<PathBuf>,
 }
 
 /// Options that do not make a world: a map or catalog that does not load, or wind out of
@@ -57,6 +61,9 @@ pub enum ArgsError {
     /// `--wind`, `--gusts` or `--gust-length` out of range.
     #[error("--wind/--gusts/--gust-length: {0}")]
     Wind(String),
+    /// `--faults FILE` did not load.
+    #[error("--faults {0}")]
+    Faults(String),
 }
 
 impl ServerArgs {
@@ -87,6 +94,10 @@ impl ServerArgs {
         config.sim.seed = self.seed;
         config.sim.threads = self.threads.map_or_else(default_threads, usize::from);
         config.sim.wind = wind;
+        if let Some(path) = &self.faults {
+            config.sim.faults =
+                crate::sim::faults::FaultPlan::from_file(path).map_err(ArgsError::Faults)?;
+        }
         Ok(config)
     }
 }

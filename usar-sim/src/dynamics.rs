@@ -96,6 +96,83 @@ pub(crate) fn parse_quad(message: &Message) -> Result<LowLevel, String> {
     Err("QUAD needs {Attitude roll,pitch,yawrate} {Thrust t} or {Rotors w1,w2,w3,w4}".into())
 }
 
+/// A fault of the `FAULT` protocol extension (docs/quadrotor.md#faults).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Fault {
+    /// Rotor `rotor` (0-based) gives `thrust` (0 = failed, 1 = healthy) of its thrust and
+    /// drag torque.
+    Motor { rotor: usize, thrust: f64 },
+    /// The battery loses this fraction of the charge it has.
+    Battery { loss: f64 },
+    /// Part `name` goes silent, freezes, or works again.
+    Sensor { name: String, mode: SensorFault },
+}
+
+/// What a sensor fault does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum SensorFault {
+    /// Working.
+    Ok,
+    /// No lines.
+    Silent,
+    /// The reading at the fault repeats.
+    Freeze,
+}
+
+/// Parses `FAULT {Motor i} {Thrust f}`, `FAULT {Battery f}` or `FAULT {Sensor name}
+/// {Mode Silent|Freeze|Ok}`; the error says what is wrong.
+pub(crate) fn parse_fault(message: &Message) -> Result<Fault, String> {
+    let number = |key: &str| -> Result<f64, String> {
+        let text = message.get(key).unwrap_or_default();
+        text.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{{{key} {text}}}: expected a finite number"))
+    };
+    let fraction = |key: &str| -> Result<f64, String> {
+        let v = number(key)?;
+        if (0.0..=1.0).contains(&v) {
+            Ok(v)
+        } else {
+            Err(format!("{{{key} {v}}}: expected a fraction within [0, 1]"))
+        }
+    };
+    if message.get("Motor").is_some() {
+        let rotor = number("Motor")?;
+        if !(rotor.fract() == 0.0 && (1.0..=4.0).contains(&rotor)) {
+            return Err(format!("{{Motor {rotor}}}: expected a rotor number 1 to 4"));
+        }
+        let thrust = if message.get("Thrust").is_some() {
+            fraction("Thrust")?
+        } else {
+            0.0
+        };
+        return Ok(Fault::Motor {
+            rotor: rotor as usize - 1,
+            thrust,
+        });
+    }
+    if message.get("Battery").is_some() {
+        return Ok(Fault::Battery {
+            loss: fraction("Battery")?,
+        });
+    }
+    if let Some(name) = message.get("Sensor") {
+        let mode = match message.get("Mode").unwrap_or_default().trim() {
+            m if m.eq_ignore_ascii_case("silent") => SensorFault::Silent,
+            m if m.eq_ignore_ascii_case("freeze") => SensorFault::Freeze,
+            m if m.eq_ignore_ascii_case("ok") => SensorFault::Ok,
+            m => return Err(format!("{{Mode {m}}}: expected Silent, Freeze or Ok")),
+        };
+        return Ok(Fault::Sensor {
+            name: name.trim().to_string(),
+            mode,
+        });
+    }
+    Err("FAULT needs {Motor i} [{Thrust f}], {Battery f} or {Sensor name} {Mode m}".into())
+}
+
 /// What a flight model moves in one tick.
 pub(crate) struct Flight<'a> {
     pub(crate) scene: &'a mut Scene,
@@ -148,6 +225,20 @@ pub(crate) trait Dynamics: std::fmt::Debug + Send {
     fn contact(&self) -> bool;
     /// Stops the motors for good (after a crash).
     fn crash(&mut self);
+    /// The battery's state, for a model with an energy model (`None`: the class's battery
+    /// is USARSim's timer).
+    fn gauge(&self) -> Option<super::power::Gauge> {
+        None
+    }
+    /// Rotor speeds, rad/s, in rotor order.
+    fn rotor_speeds(&self) -> Option<[f64; 4]> {
+        None
+    }
+    /// A motor or battery fault; `false` when the model has no such part.
+    fn fault(&mut self, fault: &Fault) -> bool {
+        let _ = fault;
+        false
+    }
 }
 
 // ---- small vector/matrix helpers (f64, row-major) ----

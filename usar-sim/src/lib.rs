@@ -31,10 +31,12 @@
 //! ```
 
 mod dynamics;
+pub mod faults;
 pub mod map;
 mod noise;
 mod obj;
 pub mod part;
+pub mod power;
 pub mod quadrotor;
 mod robot;
 pub mod robots;
@@ -49,6 +51,7 @@ mod quadrotor_tests;
 mod tests;
 
 pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
+pub use noise::ErrorModel;
 pub use robots::{RobotCatalog, RobotClass, UnknownClass};
 pub use wind::WindConfig;
 pub use world::{Printed, World};
@@ -71,6 +74,8 @@ pub struct SimConfig {
     pub wind: Option<WindConfig>,
     /// Robots one connection may spawn (USARSim: one); further INITs are ignored (logged).
     pub robots_per_connection: usize,
+    /// Faults scheduled in simulated time (`--faults FILE`, docs/quadrotor.md#faults).
+    pub faults: faults::FaultPlan,
 }
 
 impl Default for SimConfig {
@@ -81,6 +86,7 @@ impl Default for SimConfig {
             threads: default_threads(),
             wind: None,
             robots_per_connection: 1,
+            faults: faults::FaultPlan::default(),
         }
     }
 }

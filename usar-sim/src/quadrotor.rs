@@ -21,6 +21,7 @@ use super::dynamics::{
     Crash, Dynamics, Flight, GRAVITY, ImuTruth, LowLevel, M3, SetPoints, cross, dot, mul_t, norm,
     sub, transpose, wrap_angle,
 };
+use super::power::{Battery, BatteryConfig, Gauge, rotor_power};
 use super::scene::{V3, yaw_rotate};
 use super::wind::{Gusts, WindConfig};
 
@@ -36,6 +37,23 @@ const MAX_TARGET: f64 = 100.0;
 
 /// rad: the held heading stays this close to the actual one.
 const MAX_YAW_LAG: f64 = 0.5;
+
+/// Fraction of the rotors' top thrust the velocity controller asks for at most (the rest
+/// is room for the attitude).
+const THRUST_MARGIN: f64 = 0.9;
+
+/// m/s: the autopilot's descent when the battery reaches its reserve.
+const LAND_SPEED: f64 = 0.5;
+
+/// m/s: impacts slower than this do not bounce (a resting body would jitter).
+const BOUNCE_MIN: f64 = 0.1;
+
+/// rad: the landing gear's tilt at which its righting torque reaches N·r (a stiff gear).
+const GEAR_COMPLIANCE: f64 = 0.05;
+
+/// m: a body resting on a surface is still held by it while the surface is within this
+/// distance of the body's extent (the 1 cm skin and a margin).
+const PROBE: f64 = 0.02;
 
 /// Rotor arrangement.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
@@ -65,13 +83,17 @@ pub struct QuadrotorConfig {
     pub thrust_coefficient: f64,
     /// N·m per (rad/s)²: rotor drag torque = k · ω².
     pub torque_coefficient: f64,
-    /// s, first-order lag of a rotor's speed behind its command.
+    /// s, first-order lag of a rotor's speed behind a higher command (spin-up).
     pub motor_time_constant: f64,
+    /// s, the lag behind a lower command (spin-down: without active braking the rotor
+    /// coasts down, slower than the motor drives it up).
+    pub motor_time_constant_down: f64,
     /// rad/s, idle speed in flight (the controller never commands less).
     pub rotor_speed_min: f64,
     /// rad/s.
     pub rotor_speed_max: f64,
-    /// N·s/m: force against the airspeed (rotor drag, dominant at low speed).
+    /// N·s/m: force against the airspeed at hover rotor speed (rotor drag, dominant at low
+    /// speed; it grows in proportion to the mean rotor speed).
     pub drag_linear: f64,
     /// N·s²/m²: ½ρ·C_d·A of the airframe.
     pub drag_quadratic: f64,
@@ -89,6 +111,22 @@ pub struct QuadrotorConfig {
     pub rate_gain: f64,
     /// rad/s: largest commanded roll/pitch rate.
     pub max_tilt_rate: f64,
+    /// Coulomb friction coefficient μ against every surface (static = kinetic).
+    pub friction: f64,
+    /// Coefficient of restitution e of an impact (normal speed after / before).
+    pub restitution: f64,
+    /// m, distance from the centre to the landing-gear feet.
+    pub gear_radius: f64,
+    /// m, rotor (propeller) radius.
+    pub rotor_radius: f64,
+    /// Figure of merit of a rotor: ideal induced power over the shaft power in hover.
+    pub figure_of_merit: f64,
+    /// kg/m³, air density.
+    pub air_density: f64,
+    /// Ground effect (Cheeseman–Bennett) on.
+    pub ground_effect: bool,
+    /// The battery, used when the class has one (`battery = ..`).
+    pub battery: BatteryConfig,
 }
 
 impl Default for QuadrotorConfig {
@@ -96,10 +134,11 @@ impl Default for QuadrotorConfig {
         Self {
             mass: 1.3,
             arm_length: 0.3,
-            inertia: [0.015, 0.015, 0.03],
+            inertia: [0.0218, 0.0207, 0.0377],
             thrust_coefficient: 6.4e-6,
-            torque_coefficient: 1.0e-7,
+            torque_coefficient: 1.25e-7,
             motor_time_constant: 0.03,
+            motor_time_constant_down: 0.03,
             rotor_speed_min: 100.0,
             rotor_speed_max: 1000.0,
             drag_linear: 0.25,
@@ -111,6 +150,14 @@ impl Default for QuadrotorConfig {
             attitude_gain: 8.0,
             rate_gain: 20.0,
             max_tilt_rate: 4.0,
+            friction: 0.5,
+            restitution: 0.2,
+            gear_radius: 0.2,
+            rotor_radius: 0.15,
+            figure_of_merit: 0.6,
+            air_density: 1.225,
+            ground_effect: true,
+            battery: BatteryConfig::default(),
         }
     }
 }
@@ -127,12 +174,20 @@ impl QuadrotorConfig {
             ("quadrotor.thrust_coefficient", self.thrust_coefficient),
             ("quadrotor.torque_coefficient", self.torque_coefficient),
             ("quadrotor.motor_time_constant", self.motor_time_constant),
+            (
+                "quadrotor.motor_time_constant_down",
+                self.motor_time_constant_down,
+            ),
             ("quadrotor.rotor_speed_max", self.rotor_speed_max),
             ("quadrotor.velocity_gain", self.velocity_gain),
             ("quadrotor.altitude_gain", self.altitude_gain),
             ("quadrotor.attitude_gain", self.attitude_gain),
             ("quadrotor.rate_gain", self.rate_gain),
             ("quadrotor.max_tilt_rate", self.max_tilt_rate),
+            ("quadrotor.gear_radius", self.gear_radius),
+            ("quadrotor.rotor_radius", self.rotor_radius),
+            ("quadrotor.figure_of_merit", self.figure_of_merit),
+            ("quadrotor.air_density", self.air_density),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{what} must be a positive number, got {v}"));
@@ -146,6 +201,8 @@ impl QuadrotorConfig {
                 "quadrotor.velocity_integral_gain",
                 self.velocity_integral_gain,
             ),
+            ("quadrotor.friction", self.friction),
+            ("quadrotor.restitution", self.restitution),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!("{what} must be >= 0, got {v}"));
@@ -157,6 +214,11 @@ impl QuadrotorConfig {
             (
                 "quadrotor.motor_time_constant",
                 self.motor_time_constant,
+                10.0,
+            ),
+            (
+                "quadrotor.motor_time_constant_down",
+                self.motor_time_constant_down,
                 10.0,
             ),
             ("quadrotor.rotor_speed_max", self.rotor_speed_max, 1e5),
@@ -172,6 +234,12 @@ impl QuadrotorConfig {
             ("quadrotor.attitude_gain", self.attitude_gain, 100.0),
             ("quadrotor.rate_gain", self.rate_gain, 200.0),
             ("quadrotor.max_tilt_rate", self.max_tilt_rate, 100.0),
+            ("quadrotor.friction", self.friction, 10.0),
+            ("quadrotor.restitution", self.restitution, 1.0),
+            ("quadrotor.gear_radius", self.gear_radius, 100.0),
+            ("quadrotor.rotor_radius", self.rotor_radius, 100.0),
+            ("quadrotor.figure_of_merit", self.figure_of_merit, 1.0),
+            ("quadrotor.air_density", self.air_density, 100.0),
         ] {
             if v > max {
                 return Err(format!(
@@ -180,6 +248,7 @@ impl QuadrotorConfig {
                 ));
             }
         }
+        self.battery.check()?;
         if self.rotor_speed_min >= self.rotor_speed_max {
             return Err("quadrotor.rotor_speed_min must be below rotor_speed_max".into());
         }
@@ -226,6 +295,8 @@ pub(crate) struct Limits {
     pub(crate) crash_speed: f64,
     /// rad of tilt at a contact that still is no crash.
     pub(crate) crash_tilt: f64,
+    /// The class has a battery: the energy model runs (otherwise energy is unlimited).
+    pub(crate) battery: bool,
 }
 
 /// Who commands the rotors.
@@ -245,6 +316,9 @@ enum Mode {
     },
     /// QUAD {Rotors}.
     Rotors([f64; 4]),
+    /// The battery reached its reserve: the autopilot descends at [`LAND_SPEED`] and
+    /// stops the motors on the ground; commands are ignored.
+    Land,
     /// Crashed: motors off.
     Off,
 }
@@ -258,8 +332,10 @@ pub(crate) struct Quadrotor {
     rotors: [(f64, f64, f64); 4],
     /// [T, τx, τy, τz] → ω² per rotor.
     unmix: [[f64; 4]; 4],
-    /// Motor lag factor per substep.
-    motor_alpha: f64,
+    /// Motor lag factors per substep: spin-up, spin-down.
+    motor_alpha: (f64, f64),
+    /// Thrust factor of each rotor's ground effect (1 out of it), per tick.
+    ground: [f64; 4],
     /// Substeps per tick.
     substeps: usize,
     /// Attitude, body → world, as a unit quaternion (w, x, y, z).
@@ -278,8 +354,19 @@ pub(crate) struct Quadrotor {
     gusts: Gusts,
     imu: ImuTruth,
     contact: bool,
+    /// Outward normal of the surface the body touched in the last tick (it is then held
+    /// by it: [`Quadrotor::hold`]).
+    surface: Option<V3>,
     /// The integration blew up once (logged once).
     diverged: bool,
+    /// The energy model (`None`: unlimited energy).
+    battery: Option<Battery>,
+    /// rad/s, the rotors' top speed at the battery's voltage.
+    top_speed: f64,
+    /// Rotor disk area, m².
+    disk: f64,
+    /// Fraction of each rotor's thrust and torque left (motor faults).
+    health: [f64; 4],
 }
 
 /// The rotation of a unit quaternion (w, x, y, z): body → world.
@@ -382,7 +469,11 @@ impl Quadrotor {
         Self {
             unmix: invert4(mix),
             rotors,
-            motor_alpha: 1.0 - (-h / config.motor_time_constant).exp(),
+            motor_alpha: (
+                1.0 - (-h / config.motor_time_constant).exp(),
+                1.0 - (-h / config.motor_time_constant_down).exp(),
+            ),
+            ground: [1.0; 4],
             substeps,
             q: euler_quat(rotation),
             rates: [0.0; 3],
@@ -397,7 +488,12 @@ impl Quadrotor {
                 body_rates: [0.0; 3],
             },
             contact: false,
+            surface: None,
             diverged: false,
+            battery: limits.battery.then(|| Battery::new(config.battery.clone())),
+            top_speed: config.rotor_speed_max,
+            disk: std::f64::consts::PI * config.rotor_radius.powi(2),
+            health: [1.0; 4],
             config,
             limits,
         }
@@ -413,9 +509,10 @@ impl Quadrotor {
         }
         let c = &self.config;
         let m = c.mass;
+        let top = self.top_speed.max(c.rotor_speed_min);
         let (desired, thrust, yaw_ff) = match self.mode {
             Mode::Off => return [0.0; 4],
-            Mode::Rotors(w) => return w.map(|w| w.clamp(c.rotor_speed_min, c.rotor_speed_max)),
+            Mode::Rotors(w) => return w.map(|w| w.clamp(c.rotor_speed_min, top)),
             Mode::Attitude {
                 roll,
                 pitch,
@@ -427,9 +524,13 @@ impl Quadrotor {
                 let desired = super::dynamics::euler_to_matrix([roll, pitch, self.yaw_ref]);
                 (desired, thrust, yaw_rate)
             }
-            Mode::Level | Mode::Velocity(_) => {
+            Mode::Level | Mode::Velocity(_) | Mode::Land => {
                 let set = match self.mode {
                     Mode::Velocity(s) => Some(s),
+                    Mode::Land => Some(SetPoints {
+                        altitude: -LAND_SPEED,
+                        ..SetPoints::default()
+                    }),
                     _ => None,
                 };
                 let climb = set.map_or(0.0, |s| s.altitude.clamp(-MAX_TARGET, MAX_TARGET));
@@ -487,6 +588,18 @@ impl Quadrotor {
                 // pushing down).
                 let mut force = [m * accel[0], m * accel[1], m * (accel[2] - GRAVITY)];
                 force[2] = force[2].min(-0.2 * m * GRAVITY);
+                // Thrust runs out: the horizontal part (the attitude) wins, the climb gets
+                // what is left (a climb demand must not starve the forward motion).
+                let most = THRUST_MARGIN * 4.0 * c.thrust_coefficient * top * top;
+                if norm(force) > most {
+                    let horizontal = force[0].hypot(force[1]);
+                    let keep = horizontal.min(most * self.limits.max_tilt.sin());
+                    if horizontal > 0.0 {
+                        force[0] *= keep / horizontal;
+                        force[1] *= keep / horizontal;
+                    }
+                    force[2] = -(most * most - keep * keep).sqrt();
+                }
                 let b3 = force.map(|f| -f / norm(force));
                 let heading = [self.yaw_ref.cos(), self.yaw_ref.sin(), 0.0];
                 let b2 = cross(b3, heading);
@@ -522,16 +635,24 @@ impl Quadrotor {
         let gyro = cross(w, iw);
         let torque: V3 =
             std::array::from_fn(|i| inertia[i] * c.rate_gain * (want[i] - w[i]) + gyro[i]);
-        let thrust = thrust.clamp(0.0, 4.0 * c.thrust_coefficient * c.rotor_speed_max.powi(2));
+        let thrust = thrust.clamp(0.0, 4.0 * c.thrust_coefficient * top.powi(2));
         // Mixer with priorities: thrust, roll and pitch first; yaw gets what the rotor speed
         // limits leave (a saturated yaw demand must not cost the attitude).
-        let (lo, hi) = (c.rotor_speed_min.powi(2), c.rotor_speed_max.powi(2));
-        let base: [f64; 4] = std::array::from_fn(|i| {
-            let u: f64 = (0..3)
-                .map(|j| self.unmix[i][j] * [thrust, torque[0], torque[1]][j])
-                .sum();
-            u.clamp(lo, hi)
+        let (lo, hi) = (c.rotor_speed_min.powi(2), top.powi(2));
+        // Roll and pitch before the collective: the collective moves within the room the
+        // roll and pitch differences leave (all four rotors within their limits).
+        let tilt: [f64; 4] =
+            std::array::from_fn(|i| self.unmix[i][1] * torque[0] + self.unmix[i][2] * torque[1]);
+        let (floor, ceiling) = (0..4).fold((f64::MIN, f64::MAX), |(a, b), i| {
+            (a.max(lo - tilt[i]), b.min(hi - tilt[i]))
         });
+        let collective = self.unmix[0][0] * thrust;
+        let collective = if floor <= ceiling {
+            collective.clamp(floor, ceiling)
+        } else {
+            (floor + ceiling) / 2.0
+        };
+        let base: [f64; 4] = std::array::from_fn(|i| (collective + tilt[i]).clamp(lo, hi));
         let yaw: [f64; 4] = std::array::from_fn(|i| self.unmix[i][3] * torque[2]);
         let share = (0..4).fold(1.0f64, |share, i| {
             let room = if yaw[i] > 0.0 {
@@ -548,6 +669,153 @@ impl Quadrotor {
         std::array::from_fn(|i| (base[i] + share * yaw[i]).clamp(lo, hi).sqrt())
     }
 
+    /// The velocity after an impact on a surface of outward normal `n`: the normal speed
+    /// reversed and scaled by the restitution (below [`BOUNCE_MIN`] it is removed), the
+    /// tangential speed reduced by the friction impulse μ·|Δv_n| (Coulomb, impulse form).
+    fn impact(&self, v: V3, n: V3) -> V3 {
+        let vn = dot(v, n);
+        if vn >= 0.0 {
+            return v;
+        }
+        let e = if -vn > BOUNCE_MIN {
+            self.config.restitution
+        } else {
+            0.0
+        };
+        let tangent: V3 = std::array::from_fn(|i| v[i] - vn * n[i]);
+        let slide = norm(tangent);
+        let keep = if slide > 0.0 {
+            (1.0 - self.config.friction * (1.0 + e) * -vn / slide).max(0.0)
+        } else {
+            0.0
+        };
+        std::array::from_fn(|i| keep * tangent[i] - e * vn * n[i])
+    }
+
+    /// A substep on the surface of outward normal `n` the body touched: while the net force
+    /// presses it on the surface, the surface carries the pressing component N, Coulomb
+    /// friction (at most μ·N) holds or brakes the tangential motion, and — on a floor (a
+    /// normal within 45° of up) — the landing gear rights the body: feet `gear_radius` from
+    /// the centre give at most N·r of torque towards the nearest resting attitude
+    /// (upright, or on its back), with a compliance of [`GEAR_COMPLIANCE`] and critical
+    /// damping, added to the rotors' torque. Yaw is held by the feet's friction (at most
+    /// μ·N·r).
+    fn hold(&mut self, n: V3, r: &M3, h: f64, v: &mut V3, force: &mut V3, torque: &mut V3) {
+        let c = &self.config;
+        let pressing = -dot(*force, n);
+        let vn = dot(*v, n);
+        if pressing <= 0.0 || vn > 1e-9 {
+            return; // lifting off
+        }
+        for i in 0..3 {
+            force[i] += pressing * n[i];
+            v[i] -= vn * n[i];
+        }
+        // Friction: the tangential force that would stop the body within this substep.
+        let stop: V3 = std::array::from_fn(|i| force[i] + c.mass * v[i] / h);
+        let limit = c.friction * pressing;
+        let need = norm(stop);
+        let f = if need <= limit { 1.0 } else { limit / need };
+        for i in 0..3 {
+            force[i] -= f * stop[i];
+        }
+        if n[2] > -std::f64::consts::FRAC_1_SQRT_2 {
+            return; // a wall or a steep slope: no gear contact
+        }
+        let most = pressing * c.gear_radius;
+        // The body's down axis and the resting direction it turns to (into the surface,
+        // or out of it for a body on its back), in the body frame.
+        let down = mul_t(r, n.map(|x| -x));
+        let target = if down[2] >= 0.0 {
+            down
+        } else {
+            down.map(|x| -x)
+        };
+        let axis = cross([0.0, 0.0, 1.0], target);
+        let sin = norm(axis);
+        let angle = sin.atan2(target[2]);
+        for i in 0..3 {
+            let (inertia, w) = (c.inertia[i], self.rates[i]);
+            if i < 2 {
+                let stiffness = most / GEAR_COMPLIANCE;
+                let damping = 2.0 * (stiffness * inertia).sqrt();
+                let spring = if sin > 0.0 {
+                    (stiffness * angle).min(most) * axis[i] / sin
+                } else {
+                    0.0
+                };
+                torque[i] += spring - damping * w;
+            } else {
+                // Yaw: the feet's friction, static up to μ·N·r.
+                let stop = torque[i] + inertia * w / h;
+                let limit = c.friction * most;
+                torque[i] -= stop.clamp(-limit, limit);
+            }
+        }
+    }
+
+    /// Draws the rotors' and the avionics' power for `h` seconds; the battery's voltage sets
+    /// the rotors' top speed (`rotor_speed_max` at full charge, in proportion below: a
+    /// motor's no-load speed is K_v·V); at the reserve the autopilot lands, empty the
+    /// motors stop.
+    fn use_energy(&mut self, climb: f64, h: f64) {
+        let Some(battery) = &mut self.battery else {
+            return;
+        };
+        let c = &self.config;
+        let shaft: f64 = self
+            .speeds
+            .iter()
+            .zip(self.health)
+            .map(|(w, health)| {
+                let thrust = c.thrust_coefficient * w * w * health;
+                // (In ground effect the same power gives more thrust: the power is that of
+                // the thrust out of it.)
+                rotor_power(thrust, climb, self.disk, c.air_density, c.figure_of_merit)
+            })
+            .sum();
+        let power = if self.mode == Mode::Off && shaft == 0.0 {
+            0.0
+        } else {
+            battery.electrical(shaft)
+        };
+        battery.draw(power, h);
+        self.top_speed = c.rotor_speed_max * battery.voltage_ratio();
+        if battery.empty() {
+            self.mode = Mode::Off;
+        } else if battery.at_reserve() && !matches!(self.mode, Mode::Off | Mode::Land) {
+            self.mode = Mode::Land;
+            self.hold_z = None;
+        }
+    }
+
+    /// Each rotor's thrust factor near the ground (Cheeseman & Bennett, *The effect of the
+    /// ground on a helicopter rotor in forward flight*, ARC R&M 3021, 1955):
+    /// `T/T∞ = 1 / (1 − (R/4z)²)` at the height `z` of the rotor above the surface below
+    /// it (one ray straight down from each rotor hub); `z` is taken as at least `R/2`
+    /// (the formula's pole is at `R/4`; at most 4/3); beyond `4R` the effect (under 0.4 %)
+    /// is left out.
+    fn ground_effect(
+        &self,
+        scene: &super::scene::Scene,
+        body: rapier3d::prelude::ColliderHandle,
+        centre: V3,
+    ) -> [f64; 4] {
+        let radius = self.config.rotor_radius;
+        let r = quat_matrix(self.q);
+        std::array::from_fn(|i| {
+            let (x, y, _) = self.rotors[i];
+            let hub: V3 = std::array::from_fn(|k| centre[k] + r[k][0] * x + r[k][1] * y);
+            match scene.cast_ray(hub, [0.0, 0.0, 1.0], 4.0 * radius, Some(body)) {
+                Some(z) => {
+                    let k = radius / (4.0 * z.max(radius / 2.0));
+                    1.0 / (1.0 - k * k)
+                }
+                None => 1.0,
+            }
+        })
+    }
+
     /// Thrust (N) and body torque of the current rotor speeds.
     fn wrench(&self) -> (f64, V3) {
         let (kf, km) = (
@@ -557,8 +825,8 @@ impl Quadrotor {
         let mut thrust = 0.0;
         let mut torque = [0.0; 3];
         for (i, &(x, y, spin)) in self.rotors.iter().enumerate() {
-            let w2 = self.speeds[i] * self.speeds[i];
-            let t = kf * w2;
+            let w2 = self.speeds[i] * self.speeds[i] * self.health[i];
+            let t = kf * w2 * self.ground[i];
             thrust += t;
             // r × (0, 0, -t) = (-y·t, x·t, 0); the reaction torque turns the body against
             // the rotor's spin.
@@ -572,7 +840,7 @@ impl Quadrotor {
 
 impl Dynamics for Quadrotor {
     fn drive(&mut self, set: &SetPoints) {
-        if self.mode != Mode::Off {
+        if !matches!(self.mode, Mode::Off | Mode::Land) {
             if !matches!(self.mode, Mode::Velocity(_)) {
                 self.integral = [0.0; 3];
                 self.hold_z = None;
@@ -582,7 +850,7 @@ impl Dynamics for Quadrotor {
     }
 
     fn low_level(&mut self, command: LowLevel) {
-        if self.mode == Mode::Off {
+        if matches!(self.mode, Mode::Off | Mode::Land) {
             return;
         }
         self.mode = match command {
@@ -610,20 +878,37 @@ impl Dynamics for Quadrotor {
         let c = self.config.clone();
         let mean = self.gusts.mean();
         let wind = self.gusts.step(dt, norm(sub(v, mean)));
+        self.ground = if c.ground_effect {
+            self.ground_effect(f.scene, f.body, start)
+        } else {
+            [1.0; 4]
+        };
         for _ in 0..self.substeps {
             let r = quat_matrix(self.q);
             let command = self.control(p, v, &r, h);
             for (speed, target) in self.speeds.iter_mut().zip(command) {
-                *speed += (target - *speed) * self.motor_alpha;
+                let alpha = if target > *speed {
+                    self.motor_alpha.0
+                } else {
+                    self.motor_alpha.1
+                };
+                *speed += (target - *speed) * alpha;
             }
-            let (thrust, torque) = self.wrench();
+            let (thrust, mut torque) = self.wrench();
+            // Air through the rotors along the thrust (+ = climbing).
+            let climb = -dot([r[0][2], r[1][2], r[2][2]], sub(v, wind));
+            self.use_energy(climb, h);
             let air = sub(v, wind);
-            let drag = c.drag_linear + c.drag_quadratic * norm(air);
-            let accel: V3 = std::array::from_fn(|i| {
-                (-r[i][2] * thrust - drag * air[i]) / c.mass + if i == 2 { GRAVITY } else { 0.0 }
+            let spin = self.speeds.iter().sum::<f64>() / (4.0 * c.hover_speed());
+            let drag = c.drag_linear * spin + c.drag_quadratic * norm(air);
+            let mut force: V3 = std::array::from_fn(|i| {
+                -r[i][2] * thrust - drag * air[i] + if i == 2 { c.mass * GRAVITY } else { 0.0 }
             });
+            if let Some(n) = self.surface {
+                self.hold(n, &r, h, &mut v, &mut force, &mut torque);
+            }
             for i in 0..3 {
-                v[i] += accel[i] * h;
+                v[i] += force[i] / c.mass * h;
                 p[i] += v[i] * h;
             }
             let w = self.rates;
@@ -663,18 +948,39 @@ impl Dynamics for Quadrotor {
                 reason: "the integration diverged (check the quadrotor parameters)".into(),
             });
         }
-        let (moved, hit) = f.scene.sweep_contact(f.body, f.shape, start, sub(p, start));
+        let motion = sub(p, start);
+        let (moved, mut hit) = f.scene.sweep_contact(f.body, f.shape, start, motion);
+        if let Some(n) = self
+            .surface
+            .filter(|&n| hit.is_none() && dot(motion, n) <= 0.0)
+        {
+            // Resting on a surface and not leaving it: still held if it is still there
+            // (a ray along −n from the centre; off an edge the body falls).
+            let reach = n[2].abs() * f.shape.half_height
+                + (1.0 - n[2] * n[2]).max(0.0).sqrt() * f.shape.radius
+                + PROBE;
+            if f.scene
+                .cast_ray(moved, n.map(|x| -x), reach, Some(f.body))
+                .is_some()
+            {
+                hit = Some(n);
+            }
+        }
         *f.position = moved;
         let r = quat_matrix(self.q);
         self.contact = hit.is_some();
+        self.surface = hit;
+        if self.mode == Mode::Land && hit.is_some_and(|n| n[2] < -0.7) {
+            self.mode = Mode::Off; // landed: the autopilot stops the motors
+        }
         let mut crash = None;
         if let Some(normal) = hit {
             let speed = (-dot(v, normal)).max(0.0);
             let tilt = r[2][2].clamp(-1.0, 1.0).acos();
-            v = std::array::from_fn(|i| (moved[i] - start[i]) / dt);
-            if self.mode == Mode::Off {
-                self.rates = [0.0; 3];
-            } else if speed > self.limits.crash_speed || tilt > self.limits.crash_tilt {
+            v = self.impact(v, normal);
+            if self.mode != Mode::Off
+                && (speed > self.limits.crash_speed || tilt > self.limits.crash_tilt)
+            {
                 crash = Some(Crash {
                     speed,
                     tilt,
@@ -720,6 +1026,30 @@ impl Dynamics for Quadrotor {
 
     fn crash(&mut self) {
         self.mode = Mode::Off;
-        self.rates = [0.0; 3];
+    }
+
+    fn gauge(&self) -> Option<Gauge> {
+        self.battery.as_ref().map(Battery::gauge)
+    }
+
+    fn rotor_speeds(&self) -> Option<[f64; 4]> {
+        Some(self.speeds)
+    }
+
+    fn fault(&mut self, fault: &super::dynamics::Fault) -> bool {
+        match *fault {
+            super::dynamics::Fault::Motor { rotor, thrust } => {
+                self.health[rotor] = thrust;
+                true
+            }
+            super::dynamics::Fault::Battery { loss } => match &mut self.battery {
+                Some(battery) => {
+                    battery.lose(loss);
+                    true
+                }
+                None => false,
+            },
+            super::dynamics::Fault::Sensor { .. } => false,
+        }
     }
 }

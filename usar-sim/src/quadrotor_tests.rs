@@ -24,6 +24,17 @@ fn world() -> World {
     world_with(RobotCatalog::embedded(), None, 0)
 }
 
+/// `catalog` with the stsQuadrotor's IMU errors off (tests of the dynamics' truth).
+fn exact_imu(mut catalog: RobotCatalog) -> RobotCatalog {
+    let q = catalog.get_mut(QUAD).expect("stsQuadrotor");
+    for p in &mut q.parts {
+        if p.kind == "IMU" {
+            p.settings = toml::Table::new();
+        }
+    }
+    catalog
+}
+
 /// The embedded catalog with the stsQuadrotor's drag set to zero.
 fn without_drag() -> RobotCatalog {
     let mut catalog = RobotCatalog::embedded();
@@ -107,7 +118,7 @@ fn touch(out: &[(ClientId, ServerMessage)], name: &str) -> Vec<bool> {
 
 #[test]
 fn hover_holds_altitude_for_thirty_seconds_with_thrust_equal_to_weight() {
-    let mut w = world();
+    let mut w = world_with(exact_imu(RobotCatalog::embedded()), None, 0);
     let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.3);
     let mut out = Vec::new();
     let mut worst: f64 = 0.0;
@@ -134,7 +145,7 @@ fn hover_holds_altitude_for_thirty_seconds_with_thrust_equal_to_weight() {
 
 #[test]
 fn the_accelerometer_reads_only_idle_thrust_and_drag_in_free_fall() {
-    let catalog = RobotCatalog::embedded();
+    let catalog = exact_imu(RobotCatalog::embedded());
     let q = catalog.get(QUAD).expect("class").quadrotor.clone();
     let mut w = world_with(catalog, None, 0);
     let c = spawn(&mut w, [0.0, 0.0, -4.5], 0.0);
@@ -150,7 +161,9 @@ fn the_accelerometer_reads_only_idle_thrust_and_drag_in_free_fall() {
         if let Some((a, _)) = imu_lines(&out).pop() {
             // Falling level: idle thrust and drag push up; gravity does not show.
             let speed = v[2];
-            let drag = (q.drag_linear + q.drag_quadratic * speed) * speed;
+            // Rotor drag grows with the rotor speed (idle here), airframe drag with v².
+            let spin = q.rotor_speed_min / q.hover_speed();
+            let drag = (q.drag_linear * spin + q.drag_quadratic * speed) * speed;
             let expected = (idle + drag) / q.mass;
             assert!(a.x.abs() < 1e-9 && a.y.abs() < 1e-9, "{a:?}");
             assert!(
@@ -397,10 +410,14 @@ fn three_metres_per_second_into_a_wall_is_a_crash() {
     assert!(crash.first() == Some(&false) && crash.last() == Some(&true));
     // It fell to the floor (z = 0, the body 0.1 m high) and stays there, commands ignored.
     run(&mut w, 3.0);
-    let (p, v, _) = state(&w, c);
+    let (p, v, r) = state(&w, c);
     assert!(
         p[2] > -0.15 && p[0] < 9.56,
         "on the floor by the wall: {p:?}"
+    );
+    assert!(
+        r[0].abs() < 0.02 && r[1].abs() < 0.02,
+        "at rest on its gear: {r:?}"
     );
     drive(
         &mut w,
@@ -639,4 +656,771 @@ fn gusts_are_seeded_and_repeat_bit_for_bit() {
     let first = gusty_flight(5);
     assert_eq!(first, gusty_flight(5));
     assert_ne!(first, gusty_flight(6), "the seed drives the gusts");
+}
+
+/// A map of one square floor `size` metres wide whose top is z = 0.
+fn floor_map(size: f64) -> Map {
+    let text = format!(
+        "level = \"Floor\"\n[[start]]\ntag = \"S\"\nlocation = [0.0, 0.0, -3.0]\n\
+         rotation = [0.0, 0.0, 0.0]\n[[box]]\ncenter = [0.0, 0.0, 0.5]\nsize = [{size}, {size}, 1.0]\n"
+    );
+    Map::from_toml(&text, std::path::Path::new("floor.toml")).expect("floor map")
+}
+
+#[test]
+fn a_descent_rests_on_floors_of_ten_metres_to_a_kilometre_without_sinking() {
+    // The body is 0.2 m high and stops a 1 cm skin above what it meets: its centre rests at
+    // z = -0.11 over a floor whose top is z = 0, whatever the floor's size.
+    for size in [10.0, 100.0, 200.0, 400.0, 1000.0] {
+        let mut w = World::new(
+            floor_map(size),
+            RobotCatalog::embedded(),
+            SimConfig::default(),
+        );
+        let c = spawn(&mut w, [0.0, 0.0, -3.0], 0.0);
+        command(&mut w, c, "DRIVE {AltitudeVelocity -1.2}");
+        run(&mut w, 5.0);
+        let (p, _, _) = state(&w, c);
+        assert!(
+            (p[2] + 0.11).abs() < 0.002,
+            "floor {size} m: rests at z {:.4}, expected -0.110",
+            p[2]
+        );
+    }
+}
+
+// ---- contact: the quadrotor alone over a floor (top z = 0), without drag ----
+
+/// A quadrotor on a floor, stepped directly (its velocity can be set).
+struct Rig {
+    scene: scene::Scene,
+    body: rapier3d::prelude::ColliderHandle,
+    shape: scene::BodyShape,
+    quad: quadrotor::Quadrotor,
+    p: [f64; 3],
+    v: [f64; 3],
+    r: [f64; 3],
+}
+
+const DT: f64 = 0.005;
+/// The body's centre resting on the floor: half its height plus the 1 cm skin.
+const REST_Z: f64 = -0.11;
+
+fn rig(config: quadrotor::QuadrotorConfig, p: [f64; 3], r: [f64; 3]) -> Rig {
+    let mut scene = scene::Scene::new();
+    scene.insert(
+        rapier3d::prelude::ColliderBuilder::cuboid(50.0, 50.0, 0.5)
+            .position(rapier3d::math::Pose::translation(0.0, 0.0, 0.5)),
+    );
+    let shape = scene::BodyShape {
+        radius: 0.45,
+        half_height: 0.1,
+    };
+    let body = scene.insert_body(shape, p);
+    let limits = quadrotor::Limits {
+        max_tilt: 0.44,
+        max_climb: 2.0,
+        crash_speed: 1.0,
+        crash_tilt: 1.05,
+        battery: true,
+    };
+    let quad = quadrotor::Quadrotor::new(config, limits, r, WindConfig::default(), 0, 1, DT);
+    Rig {
+        scene,
+        body,
+        shape,
+        quad,
+        p,
+        v: [0.0; 3],
+        r,
+    }
+}
+
+impl Rig {
+    fn step(&mut self) -> Option<dynamics::Crash> {
+        use dynamics::Dynamics;
+        self.quad.step(dynamics::Flight {
+            scene: &mut self.scene,
+            body: self.body,
+            shape: self.shape,
+            position: &mut self.p,
+            velocity: &mut self.v,
+            rotation: &mut self.r,
+            dt: DT,
+        })
+    }
+
+    fn run(&mut self, seconds: f64) {
+        for _ in 0..(seconds / DT).round() as u64 {
+            self.step();
+        }
+    }
+
+    /// Motors off (as after a crash).
+    fn off(&mut self) {
+        dynamics::Dynamics::crash(&mut self.quad);
+    }
+}
+
+fn dragless() -> quadrotor::QuadrotorConfig {
+    quadrotor::QuadrotorConfig {
+        drag_linear: 0.0,
+        drag_quadratic: 0.0,
+        ..quadrotor::QuadrotorConfig::default()
+    }
+}
+
+#[test]
+fn a_body_sliding_on_the_floor_stops_after_v_squared_over_two_mu_g() {
+    let config = dragless();
+    let mu = config.friction;
+    let mut rig = rig(config, [0.0, 0.0, REST_Z], [0.0; 3]);
+    rig.off();
+    rig.run(0.1); // settle on the floor
+    rig.v = [2.0, 0.0, 0.0];
+    let x0 = rig.p[0];
+    let mut stopped = None;
+    for i in 0..400 {
+        rig.step();
+        if stopped.is_none() && rig.v[0].abs() < 1e-9 {
+            stopped = Some(f64::from(i + 1) * DT);
+        }
+    }
+    let distance = rig.p[0] - x0;
+    let expected = 2.0f64.powi(2) / (2.0 * mu * GRAVITY);
+    assert!(
+        (distance / expected - 1.0).abs() < 0.03,
+        "slid {distance:.3} m, Coulomb friction says {expected:.3} m"
+    );
+    let t = stopped.expect("stopped");
+    let expected = 2.0 / (mu * GRAVITY);
+    assert!(
+        (t / expected - 1.0).abs() < 0.03,
+        "stopped after {t:.3} s, expected {expected:.3} s"
+    );
+    let at_rest = rig.p;
+    rig.run(5.0);
+    assert_eq!(rig.p, at_rest, "stands still");
+    assert!(
+        (rig.p[2] - REST_Z).abs() < 1e-3,
+        "on the floor: {:?}",
+        rig.p
+    );
+}
+
+#[test]
+fn a_dropped_body_bounces_to_e_squared_of_its_height() {
+    let config = dragless();
+    let e = config.restitution;
+    let drop = 2.0;
+    let mut rig = rig(config, [0.0, 0.0, REST_Z - drop], [0.0; 3]);
+    rig.off();
+    // Fall, bounce, and record the highest point after the bounce.
+    let mut bounced = false;
+    let mut apex = f64::INFINITY;
+    for _ in 0..(1.2 / DT) as u64 {
+        rig.step();
+        bounced |= rig.v[2] < 0.0;
+        if bounced {
+            apex = apex.min(rig.p[2]);
+        }
+    }
+    assert!(bounced, "bounced");
+    let height = REST_Z - apex;
+    let expected = e * e * drop;
+    assert!(
+        (height / expected - 1.0).abs() < 0.05,
+        "bounced {height:.3} m up, e² h = {expected:.3} m"
+    );
+}
+
+#[test]
+fn a_body_dropped_tilted_rights_itself_on_its_gear_and_stands_still() {
+    let mut rig = rig(dragless(), [0.0, 0.0, -0.6], [0.35, -0.2, 1.0]);
+    rig.off();
+    rig.run(3.0);
+    let (p, r) = (rig.p, rig.r);
+    assert!(
+        r[0].abs() < 0.01 && r[1].abs() < 0.01,
+        "level on its gear: roll {:.3}°, pitch {:.3}°",
+        r[0].to_degrees(),
+        r[1].to_degrees()
+    );
+    rig.run(5.0);
+    let moved = (0..3).map(|i| (rig.p[i] - p[i]).abs()).fold(0.0, f64::max);
+    assert!(moved < 1e-4, "stands still: moved {moved} m");
+    assert!((rig.r[2] - r[2]).abs() < 1e-4, "no yaw creep");
+}
+
+#[test]
+fn the_attitude_keeps_turning_after_a_crash() {
+    // A crash stops the motors, not the body's spin: the rates carry on in the fall.
+    let mut rig = rig(dragless(), [0.0, 0.0, -20.0], [0.0; 3]);
+    command_rotors(&mut rig, [750.0, 650.0, 650.0, 750.0]);
+    rig.run(0.1);
+    rig.off();
+    rig.run(0.3); // the rotors spin down
+    let rates = dynamics::Dynamics::imu(&rig.quad).body_rates;
+    assert!(rates[1].abs() > 0.5, "pitching: {rates:?}");
+    let before = dynamics::Dynamics::attitude(&rig.quad);
+    rig.run(0.2);
+    let after = dynamics::Dynamics::attitude(&rig.quad);
+    // The angle of the rotation between the two attitudes.
+    let m = dynamics::mat_mul(&dynamics::transpose(&before), &after);
+    let turned = ((m[0][0] + m[1][1] + m[2][2] - 1.0) / 2.0)
+        .clamp(-1.0, 1.0)
+        .acos();
+    let expected = dynamics::norm(rates) * 0.2;
+    assert!(
+        (turned / expected - 1.0).abs() < 0.05,
+        "turned {turned:.3} rad in 0.2 s, rates {rates:?} give {expected:.3}"
+    );
+}
+
+fn command_rotors(rig: &mut Rig, w: [f64; 4]) {
+    dynamics::Dynamics::low_level(&mut rig.quad, dynamics::LowLevel::Rotors(w));
+}
+
+#[test]
+fn a_landed_quadrotor_stands_still_under_zero_command() {
+    for zero in [
+        "DRIVE {AltitudeVelocity 0} {LinearVelocity 0} {LateralVelocity 0}",
+        "QUAD {Rotors 0,0,0,0}",
+    ] {
+        let mut w = world();
+        let c = spawn(&mut w, [0.0, 0.0, -1.0], 0.0);
+        command(&mut w, c, "DRIVE {AltitudeVelocity -0.5}");
+        run(&mut w, 3.0);
+        command(&mut w, c, zero);
+        run(&mut w, 3.0);
+        let (p, _, r) = state(&w, c);
+        // Holding the altitude, ground effect may lift it a few centimetres; idle, it sits.
+        assert!((p[2] + 0.11).abs() < 0.05, "{zero}: landed: {p:?}");
+        run(&mut w, 10.0);
+        let (q, v, s) = state(&w, c);
+        // No skating: the horizontal position stays within millimetres (vertically the
+        // altitude hold settles against the ground effect, within the 5 cm above).
+        let moved = (q[0] - p[0]).hypot(q[1] - p[1]);
+        assert!(
+            moved < 0.005,
+            "{zero}: moved {moved} m: {p:?} → {q:?}, v {v:?}"
+        );
+        assert!((q[2] + 0.11).abs() < 0.05, "{zero}: on the ground: {q:?}");
+        assert!(
+            s[0].abs() < 0.02 && s[1].abs() < 0.02,
+            "{zero}: level: {s:?} (was {r:?})"
+        );
+        assert!(!w.crashed(c));
+    }
+}
+
+// ---- energy ----
+
+/// The embedded catalog with Battery and Rotors parts on the stsQuadrotor and its battery
+/// charged to `charge`.
+fn with_gauges(charge: f64) -> RobotCatalog {
+    let mut catalog = RobotCatalog::embedded();
+    let q = catalog.get_mut(QUAD).expect("stsQuadrotor");
+    q.quadrotor.battery.charge = charge;
+    for kind in ["Battery", "Rotors"] {
+        q.parts.push(part::PartConfig {
+            kind: kind.into(),
+            name: kind.into(),
+            position: [0.0; 3],
+            direction: [0.0; 3],
+            interval: None,
+            noise: 0.0,
+            settings: toml::Table::new(),
+        });
+    }
+    catalog
+}
+
+/// The last `{Type kind}` line's value of `key`.
+fn last_value(out: &[(ClientId, ServerMessage)], kind: &str, key: &str) -> Vec<f64> {
+    let line = out
+        .iter()
+        .rev()
+        .find_map(|(_, m)| match m {
+            ServerMessage::Sen(sen) => match &sen.data {
+                SenData::Other { kind: k, groups } if k == kind => groups
+                    .iter()
+                    .flat_map(|g| &g.pairs)
+                    .find(|p| p.key == key)
+                    .map(|p| p.value.clone()),
+                _ => None,
+            },
+            _ => None,
+        })
+        .expect("a reading");
+    line.split(',')
+        .map(|v| v.parse().expect("number"))
+        .collect()
+}
+
+fn battery_status(out: &[(ClientId, ServerMessage)]) -> i64 {
+    out.iter()
+        .rev()
+        .find_map(|(_, m)| match m {
+            ServerMessage::Sta(sta) => Some(sta.battery),
+            _ => None,
+        })
+        .expect("STA")
+}
+
+#[test]
+fn hover_power_matches_momentum_theory_with_the_figure_of_merit() {
+    let catalog = with_gauges(1.0);
+    let q = catalog.get(QUAD).expect("class").quadrotor.clone();
+    let mut w = world_with(catalog, None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -3.0], 0.0);
+    let out = run(&mut w, 5.0);
+    let (v, i) = (
+        last_value(&out, "Battery", "Voltage")[0],
+        last_value(&out, "Battery", "Current")[0],
+    );
+    let shaft = (v * i - q.battery.avionics_power) * q.battery.motor_efficiency;
+    // Momentum theory: each rotor carries a quarter of the weight; ideal induced power
+    // T^{3/2}/sqrt(2ρA), divided by the figure of merit.
+    let area = std::f64::consts::PI * q.rotor_radius.powi(2);
+    let t = q.mass * GRAVITY / 4.0;
+    let theory = 4.0 * t.powf(1.5) / ((2.0 * q.air_density * area).sqrt() * q.figure_of_merit);
+    assert!(
+        (shaft / theory - 1.0).abs() < 0.1,
+        "hover shaft power {shaft:.1} W, momentum theory {theory:.1} W"
+    );
+    // The STA's battery is the time left above the reserve at this draw.
+    let charge = last_value(&out, "Battery", "Charge")[0];
+    let left = (charge - q.battery.reserve) * q.battery.capacity * 3600.0 / i;
+    let sta = battery_status(&out) as f64;
+    assert!(
+        (sta / left - 1.0).abs() < 0.02,
+        "STA {sta} s, expected {left:.0} s"
+    );
+    assert!(
+        (900.0..1500.0).contains(&sta),
+        "about 20 minutes of hover: {sta}"
+    );
+    // Climbing draws more: less time left.
+    command(&mut w, c, "DRIVE {AltitudeVelocity 2}");
+    let out = run(&mut w, 1.0);
+    assert!(
+        last_value(&out, "Battery", "Current")[0] > i * 1.1,
+        "climbing draws more: {} A vs {i} A",
+        last_value(&out, "Battery", "Current")[0]
+    );
+    assert!((battery_status(&out) as f64) < sta - 50.0);
+}
+
+#[test]
+fn a_sagging_battery_lowers_the_rotors_top_speed_with_its_voltage() {
+    for charge in [1.0, 0.3] {
+        let mut w = world_with(with_gauges(charge), None, 0);
+        let c = spawn(&mut w, [0.0, 0.0, -30.0], 0.0);
+        command(&mut w, c, "QUAD {Rotors 1000,1000,1000,1000}");
+        let out = run(&mut w, 0.5);
+        let v = last_value(&out, "Battery", "Voltage")[0];
+        let speeds = last_value(&out, "Rotors", "Speeds");
+        let top = 1000.0 * v / 12.6;
+        for s in speeds {
+            assert!(
+                (s / top - 1.0).abs() < 0.01,
+                "charge {charge}: rotor at {s} rad/s, K_v·V gives {top:.1}"
+            );
+        }
+        if charge < 1.0 {
+            assert!(top < 900.0, "sagged: {v} V");
+        }
+    }
+}
+
+#[test]
+fn a_battery_at_its_reserve_lands_the_quadrotor_and_reads_empty() {
+    // 0.2 % above the 5 % reserve: about 3 s of hover.
+    let mut w = world_with(with_gauges(0.052), None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -3.0], 0.0);
+    command(&mut w, c, "DRIVE {LinearVelocity 1}");
+    let out = run(&mut w, 4.0);
+    assert_eq!(battery_status(&out), 0, "USARSim's empty state");
+    // Commands are ignored; the autopilot descends and lands.
+    command(&mut w, c, "DRIVE {AltitudeVelocity 2}");
+    run(&mut w, 8.0);
+    let (p, v, r) = state(&w, c);
+    assert!((p[2] + 0.11).abs() < 0.01, "landed: {p:?}");
+    assert!(
+        dynamics::norm(v) < 1e-3 && r[0].abs() < 0.02,
+        "at rest: {v:?} {r:?}"
+    );
+    assert!(!w.crashed(c), "a landing, not a crash");
+}
+
+// ---- rotor aerodynamics ----
+
+#[test]
+fn ground_effect_matches_cheeseman_bennett_at_half_one_and_two_radii() {
+    // Rotors of 0.3 m radius held at hover speed above the floor; the thrust is read from the
+    // body's acceleration in the first tick: T = m(g − a).
+    let radius = 0.3;
+    let thrust_at = |height: f64, ground_effect: bool| {
+        let config = quadrotor::QuadrotorConfig {
+            rotor_radius: radius,
+            ground_effect,
+            ..dragless()
+        };
+        let hover = config.hover_speed();
+        let mass = config.mass;
+        let mut rig = rig(config, [0.0, 0.0, -height], [0.0; 3]);
+        command_rotors(&mut rig, [hover; 4]);
+        rig.step();
+        mass * (GRAVITY - rig.v[2] / DT)
+    };
+    for ratio in [0.5, 1.0, 2.0] {
+        let h = ratio * radius;
+        let ratio_measured = thrust_at(h, true) / thrust_at(h, false);
+        let k = 1.0 / (4.0 * ratio);
+        let expected = 1.0 / (1.0 - k * k);
+        assert!(
+            (ratio_measured - expected).abs() < 1e-3,
+            "h/R {ratio}: thrust × {ratio_measured:.4}, Cheeseman–Bennett {expected:.4}"
+        );
+    }
+    // Far from the ground, none.
+    assert!((thrust_at(5.0, true) / thrust_at(5.0, false) - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn rotors_spin_up_and_down_with_their_own_time_constants() {
+    let config = quadrotor::QuadrotorConfig {
+        motor_time_constant: 0.02,
+        motor_time_constant_down: 0.08,
+        ..dragless()
+    };
+    let mut rig = rig(config, [0.0, 0.0, -20.0], [0.0; 3]);
+    let speed = |rig: &Rig| dynamics::Dynamics::rotor_speeds(&rig.quad).expect("rotors")[0];
+    command_rotors(&mut rig, [400.0; 4]);
+    rig.run(1.0);
+    // A step 400 → 800: 63 % of the way after τ_up; then back: 63 % after τ_down.
+    for (target, tau) in [(800.0, 0.02), (400.0, 0.08)] {
+        let start = speed(&rig);
+        command_rotors(&mut rig, [target; 4]);
+        rig.run(tau);
+        let done = (speed(&rig) - start) / (target - start);
+        assert!(
+            (done - (1.0 - (-1.0f64).exp())).abs() < 0.01,
+            "after τ = {tau} s: {done:.3} of the step"
+        );
+        rig.run(1.0);
+    }
+}
+
+#[test]
+fn a_climb_demand_at_the_thrust_limit_leaves_the_forward_motion_its_tilt() {
+    // A vehicle with little thrust in reserve (1.25 × its weight) asked to climb and fly
+    // forward at once: the forward speed is reached, the climb gets what is left.
+    let mut catalog = without_drag();
+    let q = catalog.get_mut(QUAD).expect("class");
+    q.quadrotor.rotor_speed_max = q.quadrotor.hover_speed() * 1.25f64.sqrt();
+    q.battery = None;
+    let mut w = world_with(catalog, None, 0);
+    let c = spawn(&mut w, [-8.0, 0.0, -1.0], 0.0);
+    command(&mut w, c, "DRIVE {LinearVelocity 2} {AltitudeVelocity 2}");
+    run(&mut w, 3.0);
+    let (_, v, _) = state(&w, c);
+    assert!(v[0] > 1.8, "forward speed {:.2} m/s of 2", v[0]);
+    assert!(v[2] < -0.3, "still climbing: {:.2} m/s", -v[2]);
+}
+
+// ---- parameters ----
+
+/// Inertia (x, y, z) of a solid box of `mass` and sides `size` centred at `at`.
+fn box_inertia(mass: f64, size: [f64; 3], at: [f64; 3]) -> [f64; 3] {
+    let [a, b, c] = size.map(|s| s * s / 12.0);
+    let [x, y, z] = at.map(|v| v * v);
+    [
+        mass * (b + c + y + z),
+        mass * (a + c + x + z),
+        mass * (a + b + x + y),
+    ]
+}
+
+#[test]
+fn the_default_inertia_is_that_of_the_documented_body() {
+    // docs/robots.md, "Where the quadrotor defaults come from": an AR-100B-sized body of
+    // 1.3 kg in x configuration (arms at 45°, 0.3 m), z down.
+    let d = 0.3 * std::f64::consts::FRAC_1_SQRT_2;
+    let mut total = [0.0; 3];
+    let mut mass = 0.0;
+    let mut add = |m: f64, i: [f64; 3]| {
+        mass += m;
+        for k in 0..3 {
+            total[k] += i[k];
+        }
+    };
+    for (sx, sy) in [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)] {
+        // Motor and propeller, 75 g, a point at the arm's end.
+        add(0.075, box_inertia(0.075, [0.0; 3], [sx * d, sy * d, 0.0]));
+        // Arm, 35 g, a thin rod from the centre: ∫ r² dm = m·L²/3 per coordinate.
+        add(
+            0.035,
+            [0.035 * d * d / 3.0, 0.035 * d * d / 3.0, 0.035 * 0.09 / 3.0],
+        );
+    }
+    // Two skids of 50 g, 0.3 m long along x, at y = ±0.15 m, 0.12 m below the centre.
+    for y in [0.15, -0.15] {
+        add(0.05, box_inertia(0.05, [0.3, 0.0, 0.0], [0.0, y, 0.12]));
+    }
+    // The 3S 4 Ah battery, 330 g, 0.14 × 0.045 × 0.03 m, 5 cm below the centre.
+    add(
+        0.33,
+        box_inertia(0.33, [0.14, 0.045, 0.03], [0.0, 0.0, 0.05]),
+    );
+    // The hub (frame plates, autopilot, ESCs, payload): the rest, a 0.2 × 0.2 × 0.06 m box.
+    let hub = 1.3 - (4.0 * (0.075 + 0.035) + 2.0 * 0.05 + 0.33);
+    add(hub, box_inertia(hub, [0.2, 0.2, 0.06], [0.0; 3]));
+    let q = quadrotor::QuadrotorConfig::default();
+    assert!((mass - q.mass).abs() < 1e-12);
+    for (k, (body, default)) in total.iter().zip(q.inertia).enumerate() {
+        assert!(
+            (body - default).abs() < 5e-5,
+            "axis {k}: body {body:.5} kg·m², default {default}"
+        );
+    }
+    let catalog = RobotCatalog::embedded();
+    assert_eq!(
+        catalog.get(QUAD).expect("class").quadrotor.inertia,
+        q.inertia
+    );
+}
+
+#[test]
+fn the_crazyflie_preset_hovers_at_gym_pybullet_drones_hover_rpm() {
+    let mut w = world();
+    let c = w.connect();
+    w.command(
+        c,
+        Command::Init(Init {
+            class_name: "USARBot.Crazyflie".into(),
+            location: Some([0.0, 0.0, -1.0].into()),
+            ..Init::default()
+        }),
+    );
+    let out = run(&mut w, 10.0);
+    let (p, _, _) = state(&w, c);
+    assert!(
+        (p[2] + 1.0).abs() < 0.02 && p[0].abs() < 0.02 && p[1].abs() < 0.02,
+        "hovers: {p:?}"
+    );
+    // gym-pybullet-drones: HOVER_RPM = sqrt(m·g / (4·KF)) = 14468 rpm for the cf2x.
+    let rpm = last_value(&out, "Rotors", "Speeds")[0] * 60.0 / std::f64::consts::TAU;
+    assert!((rpm / 14468.0 - 1.0).abs() < 0.01, "hover at {rpm:.0} rpm");
+    // About seven minutes of flight on its 250 mAh battery.
+    let left = battery_status(&out) as f64;
+    assert!((300.0..600.0).contains(&left), "{left} s left");
+}
+
+// ---- sensor errors ----
+
+#[test]
+fn the_imu_errors_are_seeded_per_part_and_average_out_to_the_truth() {
+    // The stsQuadrotor's MPU-6000-class IMU hovering: readings scatter with the configured
+    // noise around g (plus the turn-on bias), repeat for a seed, differ for another.
+    let record = |seed: u64| {
+        let mut w = world_with(RobotCatalog::embedded(), None, seed);
+        spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+        imu_lines(&run(&mut w, 20.0))
+    };
+    let (a, b, c) = (record(1), record(1), record(2));
+    assert_eq!(a, b);
+    assert_ne!(a, c);
+    let z: Vec<f64> = a.iter().skip(20).map(|(acc, _)| acc.z).collect();
+    let mean = z.iter().sum::<f64>() / z.len() as f64;
+    let std = (z.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / z.len() as f64).sqrt();
+    assert!((mean - GRAVITY).abs() < 0.2, "mean {mean}");
+    assert!(
+        (std / 0.04 - 1.0).abs() < 0.3,
+        "noise std {std}, configured 0.04"
+    );
+    // Quantised to the 16 g range's 0.0048 m/s² steps.
+    assert!(
+        z.iter()
+            .all(|v| ((v / 0.0048).round() * 0.0048 - v).abs() < 1e-9)
+    );
+}
+
+// ---- faults ----
+
+#[test]
+fn a_motor_failure_at_hover_yaw_spins_and_falls_as_the_torque_balance_predicts() {
+    let q = quadrotor::QuadrotorConfig::default();
+    let mut rig = rig(q.clone(), [0.0, 0.0, -40.0], [0.0; 3]);
+    rig.run(1.0);
+    // Rotor 1 (front-right, counter-clockwise) stops giving thrust and torque.
+    let dead = dynamics::Fault::Motor {
+        rotor: 0,
+        thrust: 0.0,
+    };
+    assert!(dynamics::Dynamics::fault(&mut rig.quad, &dead));
+    let health = [0.0, 1.0, 1.0, 1.0];
+    let spin = [1.0, -1.0, 1.0, -1.0];
+    let yaw_torque = |w: [f64; 4]| -> f64 {
+        (0..4)
+            .map(|i| spin[i] * health[i] * q.torque_coefficient * w[i] * w[i])
+            .sum()
+    };
+    let state = |rig: &Rig| {
+        (
+            dynamics::Dynamics::imu(&rig.quad).body_rates,
+            dynamics::Dynamics::rotor_speeds(&rig.quad).expect("rotors"),
+        )
+    };
+    let (mut checked, mut worst) = (0, 0.0f64);
+    for _ in 0..(1.5 / DT) as u64 {
+        let (w0, s0) = state(&rig);
+        rig.step();
+        let (w1, s1) = state(&rig);
+        // Euler's equation about z: Izz·ω̇z = τz − (ω × Iω)z.
+        let gyro = |w: [f64; 3]| w[0] * w[1] * (q.inertia[1] - q.inertia[0]);
+        let predicted =
+            ((yaw_torque(s0) + yaw_torque(s1)) / 2.0 - (gyro(w0) + gyro(w1)) / 2.0) / q.inertia[2];
+        let measured = (w1[2] - w0[2]) / DT;
+        if predicted.abs() > 1.0 {
+            worst = worst.max((measured / predicted - 1.0).abs());
+            checked += 1;
+        }
+    }
+    assert!(
+        checked > 100 && worst < 0.1,
+        "{checked} ticks, worst error {worst:.3}"
+    );
+    // The net drag torque of the surviving rotors turns it counter-clockwise (yaw −), with
+    // nothing to stop it: a spin.
+    let (w, speeds) = state(&rig);
+    assert!(w[2] < -3.0, "spinning at {:.1} rad/s", w[2]);
+    // Holding roll and pitch about the 2–4 diagonal would need rotor 3 as weak as the dead
+    // rotor 1, so at most the clockwise pair lifts: less than the weight. It falls.
+    let top = speeds.iter().fold(0.0f64, |a, &b| a.max(b));
+    assert!(2.0 * q.thrust_coefficient * top * top < q.mass * GRAVITY * 1.02);
+    assert!(
+        rig.v[2] > 0.5 && rig.p[2] > -39.0,
+        "falling: {:?} {:?}",
+        rig.p,
+        rig.v
+    );
+}
+
+#[test]
+fn sensor_and_battery_faults() {
+    let mut w = world_with(with_gauges(1.0), None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+    run(&mut w, 1.0);
+    let positions = |out: &[(ClientId, ServerMessage)]| -> Vec<String> {
+        out.iter()
+            .filter(|(_, m)| matches!(m, ServerMessage::Sen(s) if matches!(s.data, SenData::Position { .. })))
+            .map(|(_, m)| m.to_string().split("{Type").nth(1).unwrap_or_default().to_string())
+            .collect()
+    };
+    command(&mut w, c, "DRIVE {LinearVelocity 1}");
+    command(&mut w, c, "FAULT {Sensor Position} {Mode Freeze}");
+    let frozen = positions(&run(&mut w, 1.0));
+    assert!(
+        frozen.len() >= 9 && frozen.windows(2).all(|p| p[0] == p[1]),
+        "{frozen:?}"
+    );
+    command(&mut w, c, "FAULT {Sensor Position} {Mode Silent}");
+    assert!(positions(&run(&mut w, 1.0)).is_empty());
+    command(&mut w, c, "FAULT {Sensor Position} {Mode Ok}");
+    let live = positions(&run(&mut w, 1.0));
+    assert!(live.len() >= 9 && live[0] != live[live.len() - 1]);
+    // The battery loses half its charge at once.
+    let before = last_value(&run(&mut w, 0.1), "Battery", "Charge")[0];
+    command(&mut w, c, "FAULT {Battery 0.5}");
+    let after = last_value(&run(&mut w, 0.1), "Battery", "Charge")[0];
+    assert!((after / before - 0.5).abs() < 0.001, "{before} → {after}");
+}
+
+fn faulty_flight(seed: u64) -> String {
+    let wind = WindConfig {
+        velocity: [1.0, 0.0, 0.0],
+        gusts: 1.0,
+        gust_length: 15.0,
+    };
+    let mut w = world_with(RobotCatalog::embedded(), Some(wind), seed);
+    let a = spawn(&mut w, [-5.0, -5.0, -2.0], 0.0);
+    let mut out = run(&mut w, 1.0);
+    command(&mut w, a, "DRIVE {LinearVelocity 1}");
+    command(&mut w, a, "FAULT {Motor 2} {Thrust 0.7}");
+    command(&mut w, a, "FAULT {Sensor Sonar0} {Mode Freeze}");
+    out.extend(run(&mut w, 3.0));
+    printed(&out)
+}
+
+#[test]
+fn faulty_flights_repeat_bit_for_bit() {
+    let a = faulty_flight(9);
+    assert_eq!(a, faulty_flight(9));
+    assert_ne!(a, faulty_flight(10));
+}
+
+#[test]
+fn bad_fault_lines_say_what_is_wrong() {
+    let parse = |line: &str| {
+        let Command::Other(m) = Command::parse(line).unwrap().message else {
+            panic!("not an unknown command")
+        };
+        dynamics::parse_fault(&m)
+    };
+    assert!(parse("FAULT {Motor 5}").unwrap_err().contains("1 to 4"));
+    assert!(
+        parse("FAULT {Motor 1} {Thrust 2}")
+            .unwrap_err()
+            .contains("[0, 1]")
+    );
+    assert!(parse("FAULT {Battery x}").unwrap_err().contains("finite"));
+    assert!(
+        parse("FAULT {Sensor IMU} {Mode melt}")
+            .unwrap_err()
+            .contains("Freeze")
+    );
+    assert!(parse("FAULT {Foo 1}").unwrap_err().contains("Motor"));
+    assert_eq!(
+        parse("FAULT {Motor 2} {Thrust 0.5}"),
+        Ok(dynamics::Fault::Motor {
+            rotor: 1,
+            thrust: 0.5
+        })
+    );
+}
+
+#[test]
+fn a_faults_file_fails_a_motor_at_its_time() {
+    let plan = faults::FaultPlan::from_toml(
+        "[[fault]]\ntime = 2.0\nrobot = 1\nline = \"FAULT {Motor 1} {Thrust 0}\"\n",
+    )
+    .expect("plan");
+    let run_with = |plan: faults::FaultPlan| {
+        let mut w = World::new(
+            floor_map(1000.0),
+            RobotCatalog::embedded(),
+            SimConfig {
+                faults: plan,
+                ..SimConfig::default()
+            },
+        );
+        let c = spawn(&mut w, [0.0, 0.0, -30.0], 0.0);
+        let before = printed(&run(&mut w, 1.99));
+        run(&mut w, 2.0);
+        (before, state(&w, c))
+    };
+    let (quiet, healthy) = run_with(faults::FaultPlan::default());
+    let (before, failed) = run_with(plan);
+    assert_eq!(quiet, before, "nothing changes before the fault's time");
+    assert!(
+        (healthy.0[2] + 30.0).abs() < 0.05,
+        "hovers: {:?}",
+        healthy.0
+    );
+    assert!(
+        failed.0[2] > -29.0 && failed.2[2].abs() > 0.5,
+        "falls spinning: {failed:?}"
+    );
 }

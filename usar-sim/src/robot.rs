@@ -10,7 +10,7 @@ use usar_proto::{
 };
 
 use super::ClientId;
-use super::dynamics::{self, Crash, Dynamics, Flight, LowLevel, M3, SetPoints};
+use super::dynamics::{self, Crash, Dynamics, Fault, Flight, LowLevel, M3, SensorFault, SetPoints};
 use super::noise::Noise;
 use super::quadrotor::{self, Quadrotor};
 use super::robots::{ActuatorConfig, DynamicsKind, RobotClass};
@@ -166,6 +166,9 @@ struct Part {
     forced: bool,
     noise: Noise,
     sensor: Box<dyn Sensor>,
+    /// A `FAULT {Sensor ..}` in force, and the reading a frozen part repeats.
+    fault: SensorFault,
+    frozen: Option<usar_proto::SenData>,
 }
 
 /// An actuator: joint values move to their targets at once.
@@ -241,6 +244,8 @@ impl Robot {
                 forced: false,
                 noise: Noise::new(spawn.seed, spawn.serial, p.index, p.noise),
                 sensor: p.sensor.clone_box(),
+                fault: SensorFault::Ok,
+                frozen: None,
             })
             .collect();
         let actuators = class
@@ -266,6 +271,7 @@ impl Robot {
                     max_climb: class.flight.max_altitude_speed,
                     crash_speed: class.crash.speed,
                     crash_tilt: class.crash.tilt.to_radians(),
+                    battery: class.battery.is_some(),
                 },
                 spawn.rotation,
                 spawn.wind,
@@ -307,6 +313,10 @@ impl Robot {
 
     /// Remaining battery seconds as STA reports them (rounded up, so 0 means empty).
     fn battery_left(&self, tick: u64, dt: f64) -> i64 {
+        if let Some(gauge) = self.dynamics.as_ref().and_then(|d| d.gauge()) {
+            // The energy model: seconds left above the reserve at the average draw.
+            return gauge.time_left.ceil().clamp(0.0, NO_BATTERY as f64) as i64;
+        }
         match self.model.class.battery {
             None => NO_BATTERY,
             Some(capacity) => {
@@ -343,6 +353,29 @@ impl Robot {
                 class = %self.class_name(),
                 "QUAD ignored: the robot is kinematic (dynamics = \"quadrotor\" in its class)"
             ),
+        }
+    }
+
+    /// Applies a `FAULT` (docs/quadrotor.md#faults), logged at `info` with the time.
+    pub(crate) fn fault(&mut self, fault: &Fault, time: f64) {
+        let applied = match fault {
+            Fault::Sensor { name, mode } => {
+                let mut found = false;
+                for (part, model) in self.parts.iter_mut().zip(&self.model.parts) {
+                    if model.name.eq_ignore_ascii_case(name) {
+                        part.fault = *mode;
+                        part.frozen = None;
+                        found = true;
+                    }
+                }
+                found
+            }
+            _ => self.dynamics.as_mut().is_some_and(|d| d.fault(fault)),
+        };
+        if applied {
+            tracing::info!(serial = self.serial, class = %self.class_name(), time, "fault: {fault:?}");
+        } else {
+            warn!(serial = self.serial, class = %self.class_name(), "FAULT ignored: the robot has no such part: {fault:?}");
         }
     }
 
@@ -413,8 +446,8 @@ impl Robot {
     pub(crate) fn fly(&mut self, scene: &mut Scene, tick: u64, dt: f64) {
         let dead = self.is_dead(tick, dt);
         if let Some(dynamics) = &mut self.dynamics {
-            if dead && self.crashed.is_none() {
-                dynamics.crash(); // an empty battery stops the motors
+            if dead && self.crashed.is_none() && dynamics.gauge().is_none() {
+                dynamics.crash(); // an empty timer stops the motors
             }
             let crash = dynamics.step(Flight {
                 scene,
@@ -548,6 +581,8 @@ impl Robot {
             let yaw = self.rotation[2];
             let tilt = self.tilt();
             let imu = self.dynamics.as_ref().map(|d| d.imu());
+            let gauge = self.dynamics.as_ref().and_then(|d| d.gauge());
+            let rotors = self.dynamics.as_ref().and_then(|d| d.rotor_speeds());
             let hits = self.cast_single_rays(scene, tick, tilt.as_ref());
             for (i, (part, model)) in self.parts.iter_mut().zip(&self.model.parts).enumerate() {
                 let due = part.timer.fire(tick);
@@ -570,11 +605,22 @@ impl Robot {
                     pitch,
                     tilt,
                     imu,
+                    gauge,
+                    rotors,
                     contact: self.contact,
                     crashed: self.crashed.is_some(),
                     ray_hit: hits.get(i).copied().flatten(),
                 };
-                let data = part.sensor.read(&reading, &mut part.noise);
+                if part.fault == SensorFault::Silent {
+                    continue;
+                }
+                let data = match (&part.frozen, part.fault) {
+                    (Some(data), SensorFault::Freeze) => data.clone(),
+                    _ => part.sensor.read(&reading, &mut part.noise),
+                };
+                if part.fault == SensorFault::Freeze && part.frozen.is_none() {
+                    part.frozen = Some(data.clone());
+                }
                 let time = part.sensor.timestamped().then_some(Time::udk(time));
                 out.push((owner, ServerMessage::Sen(Sen { time, data })));
             }

@@ -50,6 +50,8 @@ pub struct World {
     robots_per_connection: usize,
     /// Warnings about each connection's commands (summarised past the first few).
     complaints: BTreeMap<ClientId, Repeats>,
+    /// Faults still to come, in time order.
+    faults: std::collections::VecDeque<super::faults::PlannedFault>,
 }
 
 /// Whether to log a warning about `client`'s command: the first few in full, then a
@@ -115,6 +117,7 @@ impl World {
             threads: config.threads.max(1),
             robots_per_connection: config.robots_per_connection,
             complaints: BTreeMap::new(),
+            faults: config.faults.faults.iter().cloned().collect(),
         }
     }
 
@@ -222,6 +225,19 @@ impl World {
     fn advance(&mut self) {
         self.tick += 1;
         let (tick, dt) = (self.tick, self.dt);
+        while self
+            .faults
+            .front()
+            .is_some_and(|f| f.time <= tick as f64 * dt + 1e-9)
+        {
+            let Some(f) = self.faults.pop_front() else {
+                break;
+            };
+            match self.robot_mut(f.serial) {
+                Some(robot) => robot.fault(&f.fault, tick as f64 * dt),
+                None => warn!(robot = f.serial + 1, "planned fault skipped: no such robot"),
+            }
+        }
         self.scene.refresh();
         for robot in &mut self.robots {
             robot.fly(&mut self.scene, tick, dt);
@@ -364,6 +380,13 @@ impl World {
                 match super::dynamics::parse_quad(&message) {
                     Ok(command) => robot.low_level(command),
                     Err(error) => warn!(?client, %error, "QUAD ignored"),
+                }
+            }
+            // The FAULT extension (docs/quadrotor.md#faults).
+            Command::Other(message) if message.kind.eq_ignore_ascii_case("FAULT") => {
+                match super::dynamics::parse_fault(&message) {
+                    Ok(fault) => robot.fault(&fault, tick as f64 * dt),
+                    Err(error) => warn!(?client, %error, "FAULT ignored"),
                 }
             }
             Command::GetConf(query) => return conf(robot, &query).into_iter().collect(),

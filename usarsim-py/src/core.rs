@@ -416,7 +416,9 @@ impl Observations {
         self.angular_velocity
             .extend(xyz(s.angular_velocity.as_ref()));
         self.battery
-            .push(s.battery.as_ref().map_or(1.0, |b| b.value.level));
+            // At most 1: a quadrotor's battery reports the time left at the current draw,
+            // which grows above the first report when the draw falls (docs/quadrotor.md).
+            .push(s.battery.as_ref().map_or(1.0, |b| b.value.level.min(1.0)));
         self.touched.push(touched || s.crashed());
         self.crashed.push(s.crashed());
         self.time.push(time);

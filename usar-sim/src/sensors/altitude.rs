@@ -4,7 +4,7 @@ use serde::Deserialize;
 use usar_proto::SenData;
 
 use super::{Reading, Sensor, settings};
-use crate::noise::Noise;
+use crate::noise::{ErrorModel, Errors, Noise};
 use crate::part::PartConfig;
 
 /// Altitude settings.
@@ -13,24 +13,33 @@ use crate::part::PartConfig;
 pub struct AltitudeConfig {
     /// Height of the spawn point above sea level, m (`ASL`).
     pub sea_level: f64,
+    /// Barometric altimeter errors (m, on the relative altitude); off by default.
+    pub error: ErrorModel,
 }
 
 impl Default for AltitudeConfig {
     fn default() -> Self {
-        Self { sea_level: 111.0 }
+        Self {
+            sea_level: 111.0,
+            error: ErrorModel::default(),
+        }
     }
 }
 
 #[derive(Debug, Clone)]
-struct Altitude(AltitudeConfig);
+struct Altitude(AltitudeConfig, Errors<1>);
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
-    Ok(Box::new(Altitude(settings(part)?)))
+    let c: AltitudeConfig = settings(part)?;
+    c.error.check(&format!("part `{}`: error", part.name))?;
+    let errors = Errors::new(c.error.clone());
+    Ok(Box::new(Altitude(c, errors)))
 }
 
 impl Sensor for Altitude {
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
-        let relative = noise.apply(at.spawn_z - at.position[2]);
+        let [truth] = self.1.apply([at.spawn_z - at.position[2]], at.time, noise);
+        let relative = noise.apply(truth);
         SenData::AltitudeSensor {
             name: at.name.to_string(),
             relative,

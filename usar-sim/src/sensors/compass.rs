@@ -6,7 +6,7 @@ use serde::Deserialize;
 use usar_proto::SenData;
 
 use super::{Reading, Sensor, settings};
-use crate::noise::Noise;
+use crate::noise::{ErrorModel, Errors, Noise};
 use crate::part::PartConfig;
 
 /// Compass settings.
@@ -15,26 +15,32 @@ use crate::part::PartConfig;
 pub struct CompassConfig {
     /// Reproduce the engine's double conversion (default `true`).
     pub usarsim_quirk: bool,
+    /// Heading errors (rad, on the yaw before the conversion); off by default.
+    pub error: ErrorModel,
 }
 
 impl Default for CompassConfig {
     fn default() -> Self {
         Self {
             usarsim_quirk: true,
+            error: ErrorModel::default(),
         }
     }
 }
 
 #[derive(Debug, Clone)]
-struct Compass(CompassConfig);
+struct Compass(CompassConfig, Errors<1>);
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
-    Ok(Box::new(Compass(settings(part)?)))
+    let c: CompassConfig = settings(part)?;
+    c.error.check(&format!("part `{}`: error", part.name))?;
+    let errors = Errors::new(c.error.clone());
+    Ok(Box::new(Compass(c, errors)))
 }
 
 impl Sensor for Compass {
-    fn read(&mut self, at: &Reading<'_>, _noise: &mut Noise) -> SenData {
-        let yaw = at.rotation[2];
+    fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
+        let [yaw] = self.1.apply([at.rotation[2]], at.time, noise);
         let angle = if self.0.usarsim_quirk {
             f64::from(yaw.trunc() as f32 / 10_430.378)
         } else {

@@ -4,24 +4,42 @@
 
 use usar_proto::{SenData, Vec3};
 
-use super::{NoSettings, Reading, Sensor, settings};
+use serde::Deserialize;
+
+use super::{Reading, Sensor, settings};
 use crate::dynamics::ImuTruth;
-use crate::noise::Noise;
+use crate::noise::{ErrorModel, Errors, Noise};
 use crate::part::PartConfig;
 use crate::scene::{V3, yaw_rotate};
 
-/// IMU settings: none (the engine adds no noise to the IMU either).
-pub type ImuConfig = NoSettings;
+/// IMU settings: the error models of the accelerometer (m/s²) and the gyro (rad/s), off by
+/// default (the engine adds no noise to the IMU either).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ImuConfig {
+    /// Accelerometer errors (on `XYZAcceleration`).
+    pub accel: ErrorModel,
+    /// Gyro errors (on `AngularVel`).
+    pub gyro: ErrorModel,
+}
 
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 struct Imu {
     /// The previous reading: time, world velocity, attitude, angular rates.
     last: Option<(f64, V3, V3, V3)>,
+    accel: Errors<3>,
+    gyro: Errors<3>,
 }
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
-    let _: ImuConfig = settings(part)?;
-    Ok(Box::<Imu>::default())
+    let c: ImuConfig = settings(part)?;
+    c.accel.check(&format!("part `{}`: accel", part.name))?;
+    c.gyro.check(&format!("part `{}`: gyro", part.name))?;
+    Ok(Box::new(Imu {
+        last: None,
+        accel: Errors::new(c.accel),
+        gyro: Errors::new(c.gyro),
+    }))
 }
 
 /// `a - b` wrapped to [-π, π].
@@ -60,7 +78,34 @@ impl Imu {
 }
 
 impl Sensor for Imu {
-    fn read(&mut self, at: &Reading<'_>, _noise: &mut Noise) -> SenData {
+    fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
+        let mut data = self.read_exact(at);
+        if let SenData::Imu {
+            acceleration,
+            angular_vel,
+            ..
+        } = &mut data
+        {
+            let a = self.accel.apply(
+                [acceleration.x, acceleration.y, acceleration.z],
+                at.time,
+                noise,
+            );
+            let w = self.gyro.apply(
+                [angular_vel.x, angular_vel.y, angular_vel.z],
+                at.time,
+                noise,
+            );
+            *acceleration = a.into();
+            *angular_vel = w.into();
+        }
+        data
+    }
+}
+
+impl Imu {
+    /// The reading without errors.
+    fn read_exact(&mut self, at: &Reading<'_>) -> SenData {
         if let Some(truth) = at.imu {
             return self.read_truth(at, truth);
         }

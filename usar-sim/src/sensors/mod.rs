@@ -6,6 +6,7 @@
 //! to `REGISTRY`.
 
 mod altitude;
+mod battery;
 mod camera;
 mod compass;
 mod ground_truth;
@@ -14,6 +15,7 @@ mod ins;
 mod mission_time;
 mod position;
 mod range_scanner;
+mod rotors;
 mod sonar;
 mod touch;
 mod velocity;
@@ -38,6 +40,7 @@ use usar_proto::{ConfItem, SenData};
 use super::dynamics::{ImuTruth, M3, mul, mul_t};
 use super::noise::Noise;
 use super::part::PartConfig;
+use super::power::Gauge;
 use super::scene::{Scene, V3, add, scale, yaw_rotate};
 
 /// What a sensor sees when it takes a reading.
@@ -73,6 +76,10 @@ pub(crate) struct Reading<'a> {
     /// What the IMU measures, for models with physics (`None`: the engine's finite
     /// differences).
     pub(crate) imu: Option<ImuTruth>,
+    /// The battery of a model with an energy model (`None`: USARSim's timer or none).
+    pub(crate) gauge: Option<Gauge>,
+    /// Rotor speeds, rad/s, of a model with rotors.
+    pub(crate) rotors: Option<[f64; 4]>,
     /// Whether the body touched something in the last tick.
     pub(crate) contact: bool,
     /// Whether the robot has crashed.
@@ -222,6 +229,8 @@ pub(crate) const REGISTRY: &[SensorKind] = &[
     kind("GroundTruth", 0.1, ground_truth::build),
     kind("INS", 0.2, ins::build),
     kind("Touch", 0.1, touch::build),
+    kind("Battery", 0.1, battery::build),
+    kind("Rotors", 0.1, rotors::build),
 ];
 
 const fn kind(
@@ -332,6 +341,8 @@ pub(crate) mod testing {
             pitch: 0.0,
             tilt: None,
             imu: None,
+            gauge: None,
+            rotors: None,
             contact: false,
             crashed: false,
             ray_hit: None,
