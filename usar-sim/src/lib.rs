@@ -36,6 +36,7 @@ mod noise;
 mod obj;
 pub mod part;
 pub mod quadrotor;
+pub mod render;
 mod robot;
 pub mod robots;
 mod scene;
@@ -49,9 +50,10 @@ mod quadrotor_tests;
 mod tests;
 
 pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
+pub use render::Image;
 pub use robots::{RobotCatalog, RobotClass, UnknownClass};
 pub use wind::WindConfig;
-pub use world::{Printed, World};
+pub use world::{CameraFrame, Printed, World};
 
 /// A connection as the simulation knows it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -71,6 +73,47 @@ pub struct SimConfig {
     pub wind: Option<WindConfig>,
     /// Robots one connection may spawn (USARSim: one); further INITs are ignored (logged).
     pub robots_per_connection: usize,
+    /// The image server's grid of camera tiles, which camera CONF lines report.
+    pub tiles: Tiles,
+}
+
+/// How the image server lays out the cameras' pictures (USARSim's `Multiview`: tiles of
+/// `CameraWidth` × `CameraHeight` from the top-left, `CameraTileX` to a row). Camera `i`
+/// (in spawn order, then part order; a camera gets the lowest tile no other camera holds)
+/// has its top-left pixel at `((i mod columns)·width, (i div columns)·height)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tiles {
+    /// Tiles in a row (`CameraTileX`, 2).
+    pub columns: u32,
+    /// Rows of tiles in a frame (`CameraTileY`, 2); cameras past `columns × rows` have a
+    /// tile outside the frame and are not shown.
+    pub rows: u32,
+    /// Tile width, pixels (`CameraWidth`, 320).
+    pub width: u32,
+    /// Tile height, pixels (`CameraHeight`, 240).
+    pub height: u32,
+}
+
+impl Default for Tiles {
+    fn default() -> Self {
+        Self {
+            columns: 2,
+            rows: 2,
+            width: 320,
+            height: 240,
+        }
+    }
+}
+
+impl Tiles {
+    /// The top-left pixel of tile `index`.
+    pub fn offset(&self, index: usize) -> (i64, i64) {
+        let columns = self.columns.max(1) as usize;
+        (
+            (index % columns) as i64 * i64::from(self.width),
+            (index / columns) as i64 * i64::from(self.height),
+        )
+    }
 }
 
 impl Default for SimConfig {
@@ -81,6 +124,7 @@ impl Default for SimConfig {
             threads: default_threads(),
             wind: None,
             robots_per_connection: 1,
+            tiles: Tiles::default(),
         }
     }
 }
