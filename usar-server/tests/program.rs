@@ -8,7 +8,7 @@ fn server() -> Command {
 }
 
 #[test]
-fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
+fn prints_one_ready_line_per_service_and_exits_cleanly_on_sigterm() {
     let mut child = server()
         .args(["--port", "0", "--map", "arena"])
         .stdout(Stdio::piped())
@@ -23,6 +23,13 @@ fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
         .unwrap_or_else(|| panic!("ready line: {line:?}"));
     let (port, level) = rest.trim_end().split_once(" map ").unwrap();
     assert_eq!(level, "Arena");
+    // Then one line per side service, in the same form.
+    let mut image = String::new();
+    stdout.read_line(&mut image).unwrap();
+    assert!(
+        image.starts_with("usar-server image server listening on 127.0.0.1:"),
+        "{image:?}"
+    );
 
     // A client connected at shutdown sees EOF after its greeting.
     let mut client = std::net::TcpStream::connect(("127.0.0.1", port.parse().unwrap())).unwrap();
@@ -40,7 +47,7 @@ fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
     client.read_to_end(&mut rest).unwrap(); // EOF, not a reset
     let mut more = String::new();
     stdout.read_to_string(&mut more).unwrap();
-    assert_eq!(more, "", "exactly one line on stdout");
+    assert_eq!(more, "", "exactly one line per service on stdout");
 }
 
 #[test]
