@@ -261,7 +261,10 @@ pub fn decode_raw(payload: &[u8], bgr: bool) -> Result<(u16, u16, Vec<u8>), Fram
     }
     let w = usize::from(width);
     let mut rgb = Vec::with_capacity(3 * w * usize::from(height));
-    for row in payload[4..].chunks_exact(pitch.max(1)).take(usize::from(height)) {
+    for row in payload[4..]
+        .chunks_exact(pitch.max(1))
+        .take(usize::from(height))
+    {
         for px in row[..3 * w].chunks_exact(3) {
             if bgr {
                 rgb.extend_from_slice(&[px[2], px[1], px[0]]);
@@ -296,7 +299,11 @@ mod tests {
             let mut p = RequestParser::default();
             p.push(&bytes[..cut], &mut out);
             p.push(&bytes[cut..], &mut out);
-            assert_eq!(out, [ImageRequest::Full, ImageRequest::Full, rect], "cut {cut}");
+            assert_eq!(
+                out,
+                [ImageRequest::Full, ImageRequest::Full, rect],
+                "cut {cut}"
+            );
         }
         // A truncated U is held, not read as anything.
         parser.push(&rect.to_bytes()[..9], &mut out);
@@ -327,7 +334,10 @@ mod tests {
         assert_eq!(parser.next_frame(), Ok(None));
         let mut huge = FrameParser::new(100);
         huge.push(&frame_header(0, 1 << 30));
-        assert!(matches!(huge.next_frame(), Err(FrameError::TooLarge { .. })));
+        assert!(matches!(
+            huge.next_frame(),
+            Err(FrameError::TooLarge { .. })
+        ));
         assert!(decode_raw(&[0, 5, 0, 2, 1, 2], true).is_err());
     }
 }

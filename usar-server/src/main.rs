@@ -213,11 +213,17 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
                     })?,
             ),
         };
-        let mut stdout = std::io::stdout().lock();
-        writeln!(stdout, "usar-server listening on {address} map {level}")?;
+        // All ready lines in one write: a script that reads only the first line and closes
+        // the pipe must not make a later line fail.
+        let mut ready = format!("usar-server listening on {address} map {level}\n");
         if let Some(image) = &image {
-            writeln!(stdout, "usar-server image server listening on {}", image.local_addr()?)?;
+            ready.push_str(&format!(
+                "usar-server image server listening on {}\n",
+                image.local_addr()?
+            ));
         }
+        let mut stdout = std::io::stdout().lock();
+        stdout.write_all(ready.as_bytes())?;
         stdout.flush()?;
         drop(stdout);
         let side = usar_server::SideListeners { image };

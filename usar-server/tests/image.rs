@@ -11,7 +11,13 @@ use usar_proto::image::{FrameParser, ImageRequest, decode_raw};
 use usar_server::{ImageConfig, ServerConfig, SideListeners, TimeScale};
 
 /// A server with an image server; returns the Gamebots and image addresses.
-fn start(image: ImageConfig) -> (std::net::SocketAddr, std::net::SocketAddr, CancellationToken) {
+fn start(
+    image: ImageConfig,
+) -> (
+    std::net::SocketAddr,
+    std::net::SocketAddr,
+    CancellationToken,
+) {
     let (tx, rx) = std::sync::mpsc::channel();
     let shutdown = CancellationToken::new();
     let token = shutdown.clone();
@@ -28,7 +34,9 @@ fn start(image: ImageConfig) -> (std::net::SocketAddr, std::net::SocketAddr, Can
                 ..ServerConfig::default()
             };
             let side = SideListeners { image: Some(side) };
-            usar_server::run_all(main, side, config, token).await.unwrap();
+            usar_server::run_all(main, side, config, token)
+                .await
+                .unwrap();
         });
     });
     let (main, image) = rx.recv().unwrap();
@@ -117,8 +125,14 @@ fn a_usarcommander_style_client_gets_a_frame_on_connect_then_one_per_ok() {
     assert_ne!(pixel(&rgb, 640, 160, 120), pixel(&rgb, 640, 160, 235));
     assert_eq!(pixel(&rgb, 640, 480, 360), [0, 0, 0]);
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
-    image::save_buffer(dir.join("image-server-frame.png"), &rgb, 640, 480, image::ColorType::Rgb8)
-        .unwrap();
+    image::save_buffer(
+        dir.join("image-server-frame.png"),
+        &rgb,
+        640,
+        480,
+        image::ColorType::Rgb8,
+    )
+    .unwrap();
     for _ in 0..3 {
         client.send(b"OK");
         let frame = client.frame();
@@ -141,7 +155,10 @@ fn an_lcm_proxy_style_client_sends_ok_first_and_gets_jpeg_frames() {
     let (main, addr, shutdown) = start(config);
     let _robot = air_robot(main, "Start1");
     let mut client = Client::connect(addr);
-    assert!(client.nothing_for(Duration::from_millis(300)), "no frame on connect");
+    assert!(
+        client.nothing_for(Duration::from_millis(300)),
+        "no frame on connect"
+    );
     client.send(b"OK\r\n");
     for _ in 0..3 {
         let frame = client.frame();
@@ -179,7 +196,11 @@ fn bad_requests_get_no_frame_and_do_not_hurt_the_connection_or_others() {
     hog.set_write_timeout(Some(Duration::from_secs(2))).unwrap();
     let mut client = Client::connect(addr);
     // Outside the frame, zero-sized, absurd: no answer; garbage is skipped.
-    for rect in [(640, 0, 10, 10), (0, 0, 0, 10), (u32::MAX, u32::MAX, u32::MAX, u32::MAX)] {
+    for rect in [
+        (640, 0, 10, 10),
+        (0, 0, 0, 10),
+        (u32::MAX, u32::MAX, u32::MAX, u32::MAX),
+    ] {
         let request = ImageRequest::Rect {
             x: rect.0,
             y: rect.1,

@@ -18,8 +18,8 @@
 
 use std::collections::VecDeque;
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use bytes::Bytes;
@@ -212,7 +212,10 @@ fn encode(config: &ImageConfig, width: u16, height: u16, rgb: &[u8]) -> Bytes {
 /// in the frame).
 fn crop(frame: &Captured, x: u32, y: u32, width: u32, height: u32) -> Option<(u16, u16, Vec<u8>)> {
     let (fw, fh) = (u32::from(frame.width), u32::from(frame.height));
-    let (x1, y1) = (x.saturating_add(width).min(fw), y.saturating_add(height).min(fh));
+    let (x1, y1) = (
+        x.saturating_add(width).min(fw),
+        y.saturating_add(height).min(fh),
+    );
     if x >= x1 || y >= y1 {
         return None;
     }
@@ -394,8 +397,14 @@ mod tests {
             rgb: (0..24).collect(),
             full: Bytes::new(),
         };
-        assert_eq!(crop(&frame, 1, 1, 2, 1), Some((2, 1, vec![15, 16, 17, 18, 19, 20])));
-        assert_eq!(crop(&frame, 3, 0, 100, u32::MAX).map(|c| (c.0, c.1)), Some((1, 2)));
+        assert_eq!(
+            crop(&frame, 1, 1, 2, 1),
+            Some((2, 1, vec![15, 16, 17, 18, 19, 20]))
+        );
+        assert_eq!(
+            crop(&frame, 3, 0, 100, u32::MAX).map(|c| (c.0, c.1)),
+            Some((1, 2))
+        );
         assert_eq!(crop(&frame, 4, 0, 1, 1), None);
         assert_eq!(crop(&frame, 0, 0, 0, 5), None);
         assert_eq!(crop(&frame, u32::MAX, u32::MAX, u32::MAX, u32::MAX), None);
