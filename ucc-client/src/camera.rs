@@ -112,7 +112,11 @@ impl ImageClient {
             f.as_ref()
                 .is_some_and(|f| after.is_none_or(|a| f.index > a))
         };
-        self.latest.wait_for(newer).await.ok().and_then(|f| f.clone())
+        self.latest
+            .wait_for(newer)
+            .await
+            .ok()
+            .and_then(|f| f.clone())
     }
 
     /// Closes the connection; returns why it ended if it failed.

@@ -6,7 +6,14 @@ use tokio_util::sync::CancellationToken;
 use ucc_client::camera::ImageClient;
 use usar_server::{ImageConfig, ServerConfig, SideListeners};
 
-async fn server(image: ImageConfig, map: &str) -> (std::net::SocketAddr, std::net::SocketAddr, CancellationToken) {
+async fn server(
+    image: ImageConfig,
+    map: &str,
+) -> (
+    std::net::SocketAddr,
+    std::net::SocketAddr,
+    CancellationToken,
+) {
     let main = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let side = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addrs = (main.local_addr().unwrap(), side.local_addr().unwrap());
@@ -19,7 +26,9 @@ async fn server(image: ImageConfig, map: &str) -> (std::net::SocketAddr, std::ne
     let token = shutdown.clone();
     tokio::spawn(async move {
         let side = SideListeners { image: Some(side) };
-        usar_server::run_all(main, side, config, token).await.unwrap();
+        usar_server::run_all(main, side, config, token)
+            .await
+            .unwrap();
     });
     (addrs.0, addrs.1, shutdown)
 }
@@ -51,7 +60,10 @@ async fn the_client_keeps_the_latest_frame_raw_or_jpeg() {
             .unwrap();
         let mut client = ImageClient::connect(image, true).await.unwrap();
         let first = client.next(None).await.expect("a frame");
-        let later = client.next(Some(first.index + 1)).await.expect("more frames");
+        let later = client
+            .next(Some(first.index + 1))
+            .await
+            .expect("more frames");
         assert!(later.index > first.index + 1);
         assert_eq!((later.width, later.height), (640, 480));
         let sky = usar_server::sim::render::SKY;
