@@ -32,7 +32,7 @@ struct Args {
     /// The image server's TCP port (camera frames, docs/camera.md): a number (0 picks a free
     /// one) or `off`. Default 5003, or a free port with `--port 0`.
     #[arg(long, value_name = "PORT|off", value_parser = image_port)]
-    image_port: Option<Option<u16>>,
+    image_port: Option<SidePort>,
     /// Frames the image server sends: raw, or JPEG of quality super, good, normal, fair or
     /// bad (or USARSim's ImageType number, 0 to 5).
     #[arg(long, default_value = "raw", value_name = "TYPE", value_parser = image_type)]
@@ -202,7 +202,7 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
         // port unless told otherwise.
         let image_port = args
             .image_port
-            .unwrap_or(Some(if args.port == 0 { 0 } else { 5003 }));
+            .map_or(Some(if args.port == 0 { 0 } else { 5003 }), |p| p.0);
         let image = match image_port {
             None => None,
             Some(port) => Some(
@@ -232,13 +232,17 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
     })
 }
 
+/// A side service's port: a number, or `None` for `off`.
+#[derive(Debug, Clone, Copy)]
+struct SidePort(Option<u16>);
+
 /// A port number or `off`.
-fn image_port(s: &str) -> Result<Option<u16>, String> {
+fn image_port(s: &str) -> Result<SidePort, String> {
     if s.eq_ignore_ascii_case("off") {
-        return Ok(None);
+        return Ok(SidePort(None));
     }
     s.parse::<u16>()
-        .map(Some)
+        .map(|p| SidePort(Some(p)))
         .map_err(|_| format!("expected a port number (0 to 65535) or 'off', not '{s}'"))
 }
 

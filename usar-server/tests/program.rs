@@ -332,3 +332,32 @@ fn a_record_folder_that_cannot_be_made_is_refused_before_listening() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn the_image_port_option_takes_a_port_or_off() {
+    for (value, lines) in [("0", 2), ("off", 1)] {
+        let mut child = server()
+            .args(["--port", "0", "--image-port", value])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        let mut text = String::new();
+        stdout.read_line(&mut text).unwrap();
+        assert!(text.starts_with("usar-server listening on "), "{text:?}");
+        let _ = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status();
+        stdout.read_to_string(&mut text).unwrap();
+        assert!(child.wait().unwrap().success());
+        assert_eq!(
+            text.lines().count(),
+            lines,
+            "--image-port {value}: {text:?}"
+        );
+    }
+    let out = server().args(["--image-port", "nope"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("'off'"));
+}

@@ -154,15 +154,13 @@ pub(crate) fn render(
     let best = &mut image.depth;
     for (index, t) in targets.iter().enumerate() {
         let [x0, x1, y0, y1] = t.rect;
-        for y in y0..y1 {
+        for (y, &vy) in vs.iter().enumerate().take(y1).skip(y0) {
             let row = y * w;
-            let vy = vs[y];
-            for x in x0..x1 {
+            for (x, &ux) in us.iter().enumerate().take(x1).skip(x0) {
                 let p = row + x;
                 if best[p] <= t.near {
                     continue;
                 }
-                let ux = us[x];
                 let hit = match &t.solid.shape {
                     ViewShape::Cuboid { half, .. } => {
                         let [lo, lf, lr, ld] = t.local;
@@ -193,22 +191,22 @@ pub(crate) fn render(
         }
     }
     let light = v(LIGHT.map(f64::from)).normalize();
-    for y in 0..h {
-        for x in 0..w {
+    for (y, &vy) in vs.iter().enumerate() {
+        for (x, &ux) in us.iter().enumerate() {
             let p = y * w + x;
             let Some(t) = targets.get(which[p] as usize) else {
                 image.depth[p] = f32::INFINITY;
                 image.rgb[3 * p..3 * p + 3].copy_from_slice(&SKY);
                 continue;
             };
-            let dir = f + r * us[x] + d * vs[y];
+            let dir = f + r * ux + d * vy;
             let s = image.depth[p];
             let normal = normal_at(&t.solid, o, dir, s);
             let lit = AMBIENT + DIFFUSE * (-normal.dot(light)).max(0.0);
             image.segment[p] = t.solid.look.segment;
             let Look { color, .. } = t.solid.look;
-            for k in 0..3 {
-                image.rgb[3 * p + k] = (f32::from(color[k]) * lit).round().clamp(0.0, 255.0) as u8;
+            for (out, &c) in image.rgb[3 * p..3 * p + 3].iter_mut().zip(&color) {
+                *out = (f32::from(c) * lit).round().clamp(0.0, 255.0) as u8;
             }
         }
     }
