@@ -63,6 +63,7 @@
 pub mod agent;
 pub mod agents;
 pub mod backend;
+pub mod camera;
 pub mod connection;
 pub mod error;
 pub mod flight;

@@ -102,6 +102,13 @@ struct Args {
     /// `SLOWER` line, when both are of the same machine, build and size. Never an error.
     #[arg(long, requires = "suite")]
     compare: Option<PathBuf>,
+    /// Camera speed instead: the CPU renderer's frames per second on one core (64x64,
+    /// 160x120, 320x240 on empty_room and city) and rays per second, then the image
+    /// server's delivered frames per second to 1, 4 and 16 clients (a started server, one
+    /// AirRobot, `--time-scale max`). Each figure is measured for --seconds / 10 wall
+    /// seconds (at least 0.5).
+    #[arg(long)]
+    camera: bool,
 }
 
 impl Args {
@@ -224,6 +231,9 @@ fn bench(args: &Args) -> anyhow::Result<()> {
     let args = args.clone();
     if args.suite {
         return suite::suite(&args);
+    }
+    if args.camera {
+        return camera(&args);
     }
     if args.sim_only && !args.scaling.is_empty() {
         return scaling(&args);
@@ -743,6 +753,159 @@ fn start_server(args: &Args) -> anyhow::Result<(Server, SocketAddr)> {
         .and_then(|a| a.parse().ok())
         .with_context(|| format!("unexpected first line from the server: {line:?}"))?;
     Ok((Server { child }, addr))
+}
+
+/// A robot with one camera of `{w}` x `{h}` pixels (the AirRobot's, looking 0.3 rad down).
+fn camera_catalog(w: u32, h: u32) -> anyhow::Result<usar_sim::RobotCatalog> {
+    let text = format!(
+        "[[robot]]\nclass = \"USARBot.Cam\"\n[[robot.part]]\ntype = \"Camera\"\nname = \"cams\"\n\
+         direction = [0.0, -0.3, 0.0]\nwidth = {w}\nheight = {h}\n"
+    );
+    Ok(usar_sim::RobotCatalog::from_toml(
+        &text,
+        std::path::Path::new("camera.toml"),
+    )?)
+}
+
+/// `--camera`: the renderer on one core, then the image server.
+fn camera(args: &Args) -> anyhow::Result<()> {
+    use usar_sim::{SimConfig, World, map::Map};
+    let budget = Duration::from_secs_f64((args.seconds / 10.0).max(0.5));
+    say!("camera renderer, one core (frames per CPU-second, million rays per CPU-second):");
+    for map_name in ["empty_room", "city"] {
+        for (w, h) in [(64u32, 64u32), (160, 120), (320, 240)] {
+            let map = Map::embedded(map_name).context("embedded map")?;
+            let config = SimConfig {
+                threads: 1,
+                ..SimConfig::default()
+            };
+            let mut world = World::new(map, camera_catalog(w, h)?, config);
+            let client = world.connect();
+            world.command(
+                client,
+                usar_proto::Command::Init(usar_proto::Init {
+                    class_name: "USARBot.Cam".into(),
+                    start: Some("Start1".into()),
+                    ..usar_proto::Init::default()
+                }),
+            );
+            // Turning 30 degrees a second, a tick between frames: a new view each frame.
+            world.command(
+                client,
+                usar_proto::Command::Drive(usar_proto::Drive {
+                    rotational_velocity: Some(30.0),
+                    ..usar_proto::Drive::default()
+                }),
+            );
+            let (mut frames, mut out) = (Vec::new(), Vec::new());
+            world.render_cameras(&mut frames);
+            anyhow::ensure!(frames.len() == 1, "the camera robot did not spawn");
+            let (start, mut n, mut spent) = (Instant::now(), 0u64, Duration::ZERO);
+            while start.elapsed() < budget {
+                out.clear();
+                world.step(&mut out);
+                let cpu = thread_cpu();
+                world.render_cameras(&mut frames);
+                // CPU time of this thread (a shared machine's wall time would count other
+                // programs' turns).
+                spent += thread_cpu().saturating_sub(cpu);
+                n += 1;
+            }
+            let fps = n as f64 / spent.as_secs_f64();
+            say!(
+                "  {map_name:<10} {w:>3}x{h:<3} {fps:>8.0} fps  {:>6.1} Mrays/s",
+                fps * f64::from(w * h) / 1e6
+            );
+        }
+    }
+    say!("image server, delivered frames per second (640x480 raw frames, 1 AirRobot):");
+    for clients in [1usize, 4, 16] {
+        let fps = image_server_fps(args, clients, budget)?;
+        say!(
+            "  {clients:>2} clients {fps:>8.1} fps in all, {:>7.1} each",
+            fps / clients as f64
+        );
+    }
+    Ok(())
+}
+
+/// Frames per second that `clients` image clients (each `OK` after each frame) receive
+/// together from a started server.
+fn image_server_fps(
+    args: &Args,
+    clients: usize,
+    budget: std::time::Duration,
+) -> anyhow::Result<f64> {
+    use std::io::{BufRead, Read, Write};
+    let bin = match &args.server_bin {
+        Some(bin) => bin.clone(),
+        None => std::env::current_exe()?.with_file_name("usar-server"),
+    };
+    let mut child = Command::new(&bin)
+        .args(["--port", "0", "--image-port", "0", "--time-scale", "max"])
+        .args(["--map", args.map.as_deref().unwrap_or("city")])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::piped())
+        .spawn()
+        .with_context(|| format!("cannot start {}", bin.display()))?;
+    let stdout = child.stdout.take().context("no stdout")?;
+    let _server = Server { child };
+    let mut lines = std::io::BufReader::new(stdout).lines();
+    let mut addr = |prefix: &str| -> anyhow::Result<SocketAddr> {
+        let line = lines.next().context("the server said nothing")??;
+        line.strip_prefix(prefix)
+            .and_then(|a| a.split_whitespace().next())
+            .and_then(|a| a.parse().ok())
+            .with_context(|| format!("unexpected line from the server: {line:?}"))
+    };
+    let game = addr("usar-server listening on ")?;
+    let image = addr("usar-server image server listening on ")?;
+    let measure = || {
+        let mut robot = std::net::TcpStream::connect(game)?;
+        robot.write_all(b"INIT {ClassName USARBot.AirRobot} {Start Start1}\r\n")?;
+        let mut seen = Vec::new();
+        let mut buf = [0u8; 4096];
+        while !String::from_utf8_lossy(&seen).contains("STA {") {
+            let n = robot.read(&mut buf)?;
+            anyhow::ensure!(n > 0, "the server closed the robot's connection");
+            seen.extend_from_slice(&buf[..n]);
+        }
+        // The robot's output is not read from here on: at `max` the server leaves it
+        // behind after its reader timeout; the image clients are what is measured.
+        let start = std::time::Instant::now();
+        let counts: Vec<u64> = std::thread::scope(|scope| {
+            let workers: Vec<_> = (0..clients)
+                .map(|_| {
+                    scope.spawn(move || -> anyhow::Result<u64> {
+                        let mut s = std::net::TcpStream::connect(image)?;
+                        let mut parser = usar_proto::image::FrameParser::new(64 << 20);
+                        let (mut n, mut buf) = (0u64, vec![0u8; 1 << 16]);
+                        while start.elapsed() < budget {
+                            match parser.next_frame()? {
+                                Some(_) => {
+                                    n += 1;
+                                    s.write_all(b"OK")?;
+                                }
+                                None => {
+                                    let k = s.read(&mut buf)?;
+                                    anyhow::ensure!(k > 0, "the image server closed");
+                                    parser.push(&buf[..k]);
+                                }
+                            }
+                        }
+                        Ok(n)
+                    })
+                })
+                .collect();
+            workers
+                .into_iter()
+                .map(|w| w.join().expect("client thread").unwrap_or(0))
+                .collect()
+        });
+        drop(robot);
+        Ok(counts.iter().sum::<u64>() as f64 / start.elapsed().as_secs_f64())
+    };
+    measure()
 }
 
 /// The allocator, counting the bytes in use (the memory per robot of `--sim-only`: the

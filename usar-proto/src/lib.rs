@@ -10,6 +10,7 @@
 //! * [`format`]: the engine's number formatters (implicit float, implicit vector,
 //!   `FloatString`) writing into any [`format::WireBuf`];
 //! * [`codec`] (feature `codec`): the tokio-util line codecs shared by server and client;
+//! * [`image`]: the image server's binary requests and frames (port 5003), sans I/O;
 //! * [`shown`]: a peer's text as a log shows it (escaped, cut) and a counter that
 //!   summarises repeated warnings;
 //! * [`error`]: the crate-edge errors, [`ParseError`] (reading) and [`TextError`] (a value
@@ -31,6 +32,7 @@
 pub mod codec;
 pub mod error;
 pub mod format;
+pub mod image;
 pub mod message;
 pub mod messages;
 pub mod record;

@@ -14,7 +14,9 @@ use usar_server::{ServerArgs, ServerConfig, TimeScale};
 /// quadrotors (USARBot.stsAirRobot, USARBot.AirRobot, USARBot.stsQuadrotor) headless, with
 /// rapier3d.
 ///
-/// When ready it prints one line on stdout: `usar-server listening on ADDRESS:PORT map LEVEL`.
+/// When ready it prints one line per service on stdout: `usar-server listening on
+/// ADDRESS:PORT map LEVEL` (Gamebots), then `usar-server image server listening on
+/// ADDRESS:PORT` (unless `--image-port off`).
 /// Ctrl-C or SIGTERM shut it down cleanly. Log level: RUST_LOG (default `info`), on stderr.
 #[derive(Debug, Parser)]
 #[command(version, about, args_conflicts_with_subcommands = true)]
@@ -27,6 +29,20 @@ struct Args {
     /// TCP port (0 picks a free one).
     #[arg(long, default_value_t = 3000)]
     port: u16,
+    /// The image server's TCP port (camera frames, docs/camera.md): a number (0 picks a free
+    /// one) or `off`. Default 5003, or a free port with `--port 0`.
+    #[arg(long, value_name = "PORT|off", value_parser = image_port)]
+    image_port: Option<SidePort>,
+    /// Frames the image server sends: raw, or JPEG of quality super, good, normal, fair or
+    /// bad (or USARSim's ImageType number, 0 to 5).
+    #[arg(long, default_value = "raw", value_name = "TYPE", value_parser = image_type)]
+    image_type: u8,
+    /// Raw frames with pixels as R, G, B (default: B, G, R, as the original server).
+    #[arg(long)]
+    image_rgb: bool,
+    /// No frame on connect: only one per request (USARSim's LegacyMode=false).
+    #[arg(long)]
+    image_no_legacy: bool,
     #[command(flatten)]
     world: ServerArgs,
     /// Connections served at once; more are closed on accept.
@@ -162,6 +178,12 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         lockstep_share: args.lockstep_share,
         reader_timeout: std::time::Duration::from_secs_f64(args.reader_timeout),
         record: args.record.clone(),
+        image: usar_server::ImageConfig {
+            kind: args.image_type,
+            legacy: !args.image_no_legacy,
+            bgr: !args.image_rgb,
+            ..usar_server::ImageConfig::default()
+        },
         ..config
     })
 }
@@ -176,13 +198,66 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
         let level = config.map.level().to_owned();
         let shutdown = CancellationToken::new();
         tokio::spawn(cancel_on_signal(shutdown.clone()));
+        // With `--port 0` (tests, several servers on one machine) every service picks a free
+        // port unless told otherwise.
+        let image_port = args
+            .image_port
+            .map_or(Some(if args.port == 0 { 0 } else { 5003 }), |p| p.0);
+        let image = match image_port {
+            None => None,
+            Some(port) => Some(
+                tokio::net::TcpListener::bind((args.bind.as_str(), port))
+                    .await
+                    .with_context(|| {
+                        format!("--image-port: cannot listen on {}:{port}", args.bind)
+                    })?,
+            ),
+        };
+        // All ready lines in one write: a script that reads only the first line and closes
+        // the pipe must not make a later line fail.
+        let mut ready = format!("usar-server listening on {address} map {level}\n");
+        if let Some(image) = &image {
+            ready.push_str(&format!(
+                "usar-server image server listening on {}\n",
+                image.local_addr()?
+            ));
+        }
         let mut stdout = std::io::stdout().lock();
-        writeln!(stdout, "usar-server listening on {address} map {level}")?;
+        stdout.write_all(ready.as_bytes())?;
         stdout.flush()?;
         drop(stdout);
-        usar_server::run(listener, config, shutdown).await?;
+        let side = usar_server::SideListeners { image };
+        usar_server::run_all(listener, side, config, shutdown).await?;
         Ok(())
     })
+}
+
+/// A side service's port: a number, or `None` for `off`.
+#[derive(Debug, Clone, Copy)]
+struct SidePort(Option<u16>);
+
+/// A port number or `off`.
+fn image_port(s: &str) -> Result<SidePort, String> {
+    if s.eq_ignore_ascii_case("off") {
+        return Ok(SidePort(None));
+    }
+    s.parse::<u16>()
+        .map(|p| SidePort(Some(p)))
+        .map_err(|_| format!("expected a port number (0 to 65535) or 'off', not '{s}'"))
+}
+
+/// An image type: a name or USARSim's ImageType number.
+fn image_type(s: &str) -> Result<u8, String> {
+    const NAMES: [&str; 6] = ["raw", "super", "good", "normal", "fair", "bad"];
+    if let Some(i) = NAMES.iter().position(|n| n.eq_ignore_ascii_case(s)) {
+        return Ok(i as u8);
+    }
+    match s.parse::<u8>() {
+        Ok(n) if n <= 5 => Ok(n),
+        _ => Err(format!(
+            "expected raw, super, good, normal, fair, bad or 0 to 5, not '{s}'"
+        )),
+    }
 }
 
 /// A number of seconds from 0.001 to one day.

@@ -8,7 +8,7 @@ fn server() -> Command {
 }
 
 #[test]
-fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
+fn prints_one_ready_line_per_service_and_exits_cleanly_on_sigterm() {
     let mut child = server()
         .args(["--port", "0", "--map", "arena"])
         .stdout(Stdio::piped())
@@ -23,6 +23,13 @@ fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
         .unwrap_or_else(|| panic!("ready line: {line:?}"));
     let (port, level) = rest.trim_end().split_once(" map ").unwrap();
     assert_eq!(level, "Arena");
+    // Then one line per side service, in the same form.
+    let mut image = String::new();
+    stdout.read_line(&mut image).unwrap();
+    assert!(
+        image.starts_with("usar-server image server listening on 127.0.0.1:"),
+        "{image:?}"
+    );
 
     // A client connected at shutdown sees EOF after its greeting.
     let mut client = std::net::TcpStream::connect(("127.0.0.1", port.parse().unwrap())).unwrap();
@@ -40,7 +47,7 @@ fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
     client.read_to_end(&mut rest).unwrap(); // EOF, not a reset
     let mut more = String::new();
     stdout.read_to_string(&mut more).unwrap();
-    assert_eq!(more, "", "exactly one line on stdout");
+    assert_eq!(more, "", "exactly one line per service on stdout");
 }
 
 #[test]
@@ -324,4 +331,34 @@ fn a_record_folder_that_cannot_be_made_is_refused_before_listening() {
         assert_eq!(stderr.matches(cause).count(), 1, "the cause once: {stderr}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_image_port_option_takes_a_port_or_off() {
+    for (value, lines) in [("0", 2), ("off", 1)] {
+        let mut child = server()
+            .args(["--port", "0", "--image-port", value])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        let mut text = String::new();
+        stdout.read_line(&mut text).unwrap();
+        assert!(text.starts_with("usar-server listening on "), "{text:?}");
+        let _ = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status();
+        stdout.read_to_string(&mut text).unwrap();
+        // (The signal may come before the handler is installed: no exit status checked.)
+        let _ = child.wait();
+        assert_eq!(
+            text.lines().count(),
+            lines,
+            "--image-port {value}: {text:?}"
+        );
+    }
+    let out = server().args(["--image-port", "nope"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("'off'"));
 }

@@ -38,6 +38,7 @@ mod obj;
 pub mod part;
 pub mod power;
 pub mod quadrotor;
+pub mod render;
 mod robot;
 pub mod robots;
 mod scene;
@@ -52,9 +53,10 @@ mod tests;
 
 pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
 pub use noise::ErrorModel;
+pub use render::Image;
 pub use robots::{RobotCatalog, RobotClass, UnknownClass};
 pub use wind::WindConfig;
-pub use world::{Printed, World};
+pub use world::{CameraFrame, Printed, World};
 
 /// A connection as the simulation knows it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -76,6 +78,47 @@ pub struct SimConfig {
     pub robots_per_connection: usize,
     /// Faults scheduled in simulated time (`--faults FILE`, docs/quadrotor.md#faults).
     pub faults: faults::FaultPlan,
+    /// The image server's grid of camera tiles, which camera CONF lines report.
+    pub tiles: Tiles,
+}
+
+/// How the image server lays out the cameras' pictures (USARSim's `Multiview`: tiles of
+/// `CameraWidth` × `CameraHeight` from the top-left, `CameraTileX` to a row). Camera `i`
+/// (in spawn order, then part order; a camera gets the lowest tile no other camera holds)
+/// has its top-left pixel at `((i mod columns)·width, (i div columns)·height)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tiles {
+    /// Tiles in a row (`CameraTileX`, 2).
+    pub columns: u32,
+    /// Rows of tiles in a frame (`CameraTileY`, 2); cameras past `columns × rows` have a
+    /// tile outside the frame and are not shown.
+    pub rows: u32,
+    /// Tile width, pixels (`CameraWidth`, 320).
+    pub width: u32,
+    /// Tile height, pixels (`CameraHeight`, 240).
+    pub height: u32,
+}
+
+impl Default for Tiles {
+    fn default() -> Self {
+        Self {
+            columns: 2,
+            rows: 2,
+            width: 320,
+            height: 240,
+        }
+    }
+}
+
+impl Tiles {
+    /// The top-left pixel of tile `index`.
+    pub fn offset(&self, index: usize) -> (i64, i64) {
+        let columns = self.columns.max(1) as usize;
+        (
+            (index % columns) as i64 * i64::from(self.width),
+            (index / columns) as i64 * i64::from(self.height),
+        )
+    }
 }
 
 impl Default for SimConfig {
@@ -87,6 +130,7 @@ impl Default for SimConfig {
             wind: None,
             robots_per_connection: 1,
             faults: faults::FaultPlan::default(),
+            tiles: Tiles::default(),
         }
     }
 }

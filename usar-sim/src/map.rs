@@ -8,7 +8,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::obj;
-use super::scene::{Scene, V3, upright_pose, yaw_rotate};
+use super::scene::{Look, Scene, V3, upright_pose, yaw_rotate};
 use super::wind::WindConfig;
 
 /// The maps built into the binary: short name, file name, text.
@@ -151,7 +151,32 @@ pub struct Map {
     time_limit: i64,
     starts: Vec<PlayerStart>,
     solids: Vec<Solid>,
+    /// Each solid's colour (the same order as `solids`).
+    colors: Vec<[u8; 3]>,
     wind: Option<WindConfig>,
+}
+
+/// Default colours of map solids (`color` unset): the ground (a slab whose top is at
+/// height 0 or below), other slabs (ceilings), walls and other boxes, cylinders, meshes.
+pub const GROUND_COLOR: [u8; 3] = [120, 135, 95];
+/// See [`GROUND_COLOR`].
+pub const CEILING_COLOR: [u8; 3] = [225, 225, 215];
+/// See [`GROUND_COLOR`].
+pub const WALL_COLOR: [u8; 3] = [205, 190, 165];
+/// See [`GROUND_COLOR`].
+pub const CYLINDER_COLOR: [u8; 3] = [150, 160, 185];
+/// See [`GROUND_COLOR`].
+pub const MESH_COLOR: [u8; 3] = [175, 150, 135];
+
+/// The default colour of a box of `size` centred at `center`.
+fn box_color(center: V3, size: V3) -> [u8; 3] {
+    let slab = size[2] * 5.0 <= size[0].min(size[1]);
+    let top = center[2] - size[2] / 2.0;
+    match (slab, top >= -0.05) {
+        (true, true) => GROUND_COLOR,
+        (true, false) => CEILING_COLOR,
+        _ => WALL_COLOR,
+    }
 }
 
 #[derive(Deserialize)]
@@ -193,6 +218,8 @@ struct RawBox {
     size: V3,
     #[serde(default)]
     yaw: f64,
+    #[serde(default)]
+    color: Option<[u8; 3]>,
 }
 
 #[derive(Deserialize)]
@@ -201,6 +228,8 @@ struct RawCylinder {
     center: V3,
     radius: f64,
     height: f64,
+    #[serde(default)]
+    color: Option<[u8; 3]>,
 }
 
 #[derive(Deserialize)]
@@ -213,6 +242,8 @@ struct RawMesh {
     yaw: f64,
     #[serde(default = "one")]
     scale: f64,
+    #[serde(default)]
+    color: Option<[u8; 3]>,
 }
 
 fn one() -> f64 {
@@ -313,6 +344,7 @@ impl Map {
             time_limit: 20,
             starts: Vec::new(),
             solids: Vec::new(),
+            colors: Vec::new(),
             wind: None,
         })
     }
@@ -442,6 +474,7 @@ impl Map {
             });
         }
         let mut solids = Vec::new();
+        let mut colors = Vec::new();
         for entry in &raw.boxes {
             let b = entry.get_ref();
             let at = entry.span().start;
@@ -454,6 +487,7 @@ impl Map {
                     format!("box size must be positive, got {:?}", b.size),
                 ));
             }
+            colors.push(b.color.unwrap_or_else(|| box_color(b.center, b.size)));
             solids.push(Solid::Box {
                 center: b.center,
                 size: b.size,
@@ -471,6 +505,7 @@ impl Map {
                     "cylinder radius and height must be positive".into(),
                 ));
             }
+            colors.push(c.color.unwrap_or(CYLINDER_COLOR));
             solids.push(Solid::Cylinder {
                 center: c.center,
                 radius: c.radius,
@@ -509,6 +544,7 @@ impl Map {
                     ),
                 ));
             }
+            colors.push(m.color.unwrap_or(MESH_COLOR));
             solids.push(Solid::Mesh {
                 vertices,
                 triangles: mesh.triangles,
@@ -528,13 +564,15 @@ impl Map {
             time_limit: raw.time_limit,
             starts,
             solids,
+            colors,
             wind,
         })
     }
 
-    /// Adds the map's solids to the scene.
+    /// Adds the map's solids to the scene, each with its colour and its segmentation id
+    /// (1, 2, ... in the file's order of boxes, then cylinders, then meshes).
     pub(crate) fn build(&self, scene: &mut Scene) {
-        for solid in &self.solids {
+        for (index, (solid, &color)) in self.solids.iter().zip(&self.colors).enumerate() {
             let collider = match solid {
                 Solid::Box { center, size, yaw } => ColliderBuilder::cuboid(
                     (size[0] / 2.0) as f32,
@@ -562,7 +600,9 @@ impl Map {
                     }
                 }
             };
-            scene.insert(collider);
+            let handle = scene.insert(collider);
+            let segment = u32::try_from(index + 1).unwrap_or(u32::MAX);
+            scene.set_look(handle, Look { color, segment });
         }
     }
 }

@@ -13,8 +13,10 @@ use super::ClientId;
 use super::dynamics::{self, Crash, Dynamics, Fault, Flight, LowLevel, M3, SensorFault, SetPoints};
 use super::noise::Noise;
 use super::quadrotor::{self, Quadrotor};
+use super::render::{ROBOT_SEGMENT, View};
 use super::robots::{ActuatorConfig, DynamicsKind, RobotClass};
-use super::scene::{BodyShape, Scene, V3, add, direction, scale, yaw_rotate};
+use super::scene::{BodyShape, Look, Scene, V3, add, direction, scale, yaw_rotate};
+use super::sensors::camera::Camera;
 use super::sensors::{self, Reading, Sensor};
 use super::wind::WindConfig;
 
@@ -262,6 +264,13 @@ impl Robot {
             })
             .collect();
         let body = scene.insert_body(shape, spawn.position);
+        scene.set_look(
+            body,
+            Look {
+                color: class.color,
+                segment: ROBOT_SEGMENT + (spawn.serial % u64::from(ROBOT_SEGMENT)) as u32,
+            },
+        );
         let dynamics: Option<Box<dyn Dynamics>> = match class.dynamics {
             DynamicsKind::Kinematic => None,
             DynamicsKind::Quadrotor => Some(Box::new(Quadrotor::new(
@@ -767,9 +776,16 @@ impl Robot {
     }
 
     /// SET: passes the opcode to the matching parts.
-    pub(crate) fn set(&mut self, kind: &str, name: Option<&str>, opcode: &str) {
+    pub(crate) fn set(
+        &mut self,
+        kind: &str,
+        name: Option<&str>,
+        opcode: &str,
+        params: Option<&str>,
+    ) {
         for (part, model) in self.parts.iter_mut().zip(&self.model.parts) {
-            if matches(model.item_type, &model.name, kind, name) && part.sensor.set(opcode) {
+            if matches(model.item_type, &model.name, kind, name) && part.sensor.set(opcode, params)
+            {
                 part.forced = true;
             }
         }
@@ -815,6 +831,53 @@ impl Robot {
             .filter(move |a| matches("Actuator", &a.config.name, kind, name))
     }
 
+    /// Its cameras, in part order: part index and camera.
+    pub(crate) fn cameras_mut(&mut self) -> impl Iterator<Item = &mut Camera> {
+        self.parts.iter_mut().filter_map(|p| p.sensor.camera_mut())
+    }
+
+    /// Its cameras, in part order: the part name, the camera and where it looks now
+    /// (mount, pan/tilt actuator, field of view; a body with physics tilts it).
+    pub(crate) fn camera_views(&self) -> impl Iterator<Item = (&str, &Camera, View)> {
+        let tilt = self.tilt();
+        self.parts
+            .iter()
+            .zip(&self.model.parts)
+            .filter_map(move |(part, model)| {
+                let camera = part.sensor.camera()?;
+                let (origin, mut yaw, mut pitch) =
+                    mount(self.position, self.rotation[2], tilt.as_ref(), model);
+                if let Some(actuator) = camera.config.mount.as_deref().and_then(|name| {
+                    self.actuators
+                        .iter()
+                        .find(|a| a.config.name.eq_ignore_ascii_case(name))
+                }) {
+                    pitch += actuator.values.first().copied().unwrap_or(0.0);
+                    yaw += actuator.values.get(1).copied().unwrap_or(0.0);
+                }
+                let forward = direction(pitch, yaw);
+                let right = direction(0.0, yaw + std::f64::consts::FRAC_PI_2);
+                let down = cross(forward, right);
+                let turn = |v: V3| tilt.as_ref().map_or(v, |t| dynamics::mul(t, v));
+                let view = View {
+                    origin,
+                    forward: turn(forward),
+                    right: turn(right),
+                    down: turn(down),
+                    fov: camera.fov.to_radians(),
+                    width: camera.config.width as u32,
+                    height: camera.config.height as u32,
+                    range: camera.config.range,
+                };
+                Some((model.name.as_str(), camera, view))
+            })
+    }
+
+    /// The robot's own body (its cameras do not see it).
+    pub(crate) fn body(&self) -> ColliderHandle {
+        self.body
+    }
+
     #[cfg(test)]
     pub(crate) fn pose(&self) -> (V3, V3) {
         (self.position, self.rotation)
@@ -831,6 +894,14 @@ fn mount(position: V3, yaw: f64, tilt: Option<&M3>, model: &PartModel) -> (V3, f
     let level = yaw_rotate(yaw, model.position);
     let origin = add(position, tilt.map_or(level, |t| dynamics::mul(t, level)));
     (origin, yaw + model.direction[2], model.direction[1])
+}
+
+fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 /// GETCONF/GETGEO/SET matching: type and (optional) name, case-insensitive.

@@ -114,6 +114,9 @@ impl Default for CollisionConfig {
     }
 }
 
+/// The colour cameras see robots in when their class names none (orange).
+pub const ROBOT_COLOR: [u8; 3] = [235, 120, 30];
+
 /// One joint of an actuator.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -184,6 +187,8 @@ pub struct RobotClass {
     pub collision: CollisionConfig,
     /// Battery life in simulated seconds; `None` = no battery part (`Battery 99999`).
     pub battery: Option<f64>,
+    /// The colour cameras see it in (`color = [r, g, b]`; default [`ROBOT_COLOR`]).
+    pub color: [u8; 3],
     /// Sensor parts, in output order.
     pub parts: Vec<PartConfig>,
     /// Actuators.
@@ -219,6 +224,8 @@ struct RawRobot {
     collision: CollisionConfig,
     #[serde(default)]
     battery: Option<f64>,
+    #[serde(default)]
+    color: Option<[u8; 3]>,
     #[serde(default)]
     part: Vec<Spanned<PartConfig>>,
     #[serde(default)]
@@ -335,6 +342,7 @@ impl RobotCatalog {
                 crash: r.crash,
                 collision: r.collision,
                 battery: r.battery,
+                color: r.color.unwrap_or(ROBOT_COLOR),
                 parts,
                 actuators,
             });

@@ -120,6 +120,53 @@ pub(crate) struct Scene {
     /// near it). A robot whose motion stays inside its own leaf box then moves without a
     /// tree query or a shape cast.
     clear: Vec<bool>,
+    /// By leaf: how cameras draw the solid (colour, segmentation id); [`Look::default`]
+    /// for solids without one.
+    looks: Vec<Look>,
+}
+
+/// How a camera draws a solid: its colour (before shading) and its segmentation id.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Look {
+    /// sRGB colour of a surface lit head-on.
+    pub(crate) color: [u8; 3],
+    /// Segmentation id (0 is the sky: nothing hit).
+    pub(crate) segment: u32,
+}
+
+impl Default for Look {
+    fn default() -> Self {
+        Self {
+            color: [160, 160, 160],
+            segment: 0,
+        }
+    }
+}
+
+/// A solid as a camera sees it ([`Scene::view_solids`]).
+pub(crate) struct ViewSolid<'s> {
+    pub(crate) shape: ViewShape<'s>,
+    /// Its box (world frame).
+    pub(crate) aabb: Aabb,
+    pub(crate) look: Look,
+}
+
+/// The shapes a camera intersects in closed form, and the rest.
+pub(crate) enum ViewShape<'s> {
+    /// A box: centre, the rotation from world to box frame, half extents.
+    Cuboid {
+        centre: Vector,
+        to_local: Rotation,
+        half: Vector,
+    },
+    /// An upright cylinder (robots, pillars).
+    Cylinder {
+        centre: Vector,
+        radius: f32,
+        half_height: f32,
+    },
+    /// Anything else (meshes): parry's ray casts.
+    Other(&'s Collider),
 }
 
 impl std::fmt::Debug for Scene {
@@ -142,7 +189,59 @@ impl Scene {
             shortcuts: true,
             stale: false,
             clear: Vec::new(),
+            looks: Vec::new(),
         }
+    }
+
+    /// Sets how cameras draw the solid `handle` (kept until it is removed).
+    pub(crate) fn set_look(&mut self, handle: ColliderHandle, look: Look) {
+        let i = handle.into_raw_parts().0 as usize;
+        if i >= self.looks.len() {
+            self.looks.resize(i + 1, Look::default());
+        }
+        self.looks[i] = look;
+    }
+
+    /// Every solid but `exclude` whose tree box meets the box of half size `reach` around
+    /// `origin`, with its look: what a camera there may see (one tree query per frame).
+    pub(crate) fn view_solids(
+        &self,
+        origin: V3,
+        reach: f64,
+        exclude: Option<ColliderHandle>,
+    ) -> Vec<ViewSolid<'_>> {
+        let o = to_vector(origin);
+        let r = Vector::splat(reach as f32);
+        let skip = exclude.map(|h| h.into_raw_parts().0);
+        self.bvh
+            .intersect_aabb(&Aabb::new(o - r, o + r))
+            .filter(|&leaf| Some(leaf) != skip)
+            .filter_map(|leaf| {
+                let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
+                let look = self.looks.get(leaf as usize).copied().unwrap_or_default();
+                let pose = collider.position();
+                let shape = if let Some(c) = collider.shape().as_cylinder() {
+                    ViewShape::Cylinder {
+                        centre: collider.translation(),
+                        radius: c.radius,
+                        half_height: c.half_height,
+                    }
+                } else if let Some(c) = collider.shape().as_cuboid() {
+                    ViewShape::Cuboid {
+                        centre: pose.translation,
+                        to_local: pose.rotation.inverse(),
+                        half: c.half_extents,
+                    }
+                } else {
+                    ViewShape::Other(collider)
+                };
+                Some(ViewSolid {
+                    shape,
+                    aabb: collider.compute_aabb(),
+                    look,
+                })
+            })
+            .collect()
     }
 
     /// Adds a collider (static solid or robot body) and indexes it.
@@ -167,6 +266,9 @@ impl Scene {
         let leaf = handle.into_raw_parts().0;
         self.bvh.remove(leaf);
         self.set_clear(leaf, false);
+        if let Some(look) = self.looks.get_mut(leaf as usize) {
+            *look = Look::default();
+        }
         self.stale = true;
         self.colliders.remove(
             handle,
@@ -876,7 +978,7 @@ impl RayBatch<'_> {
 
 /// Time of impact of `ray` (unit direction) on a solid upright cylinder (axis along z)
 /// centred at `centre`, if within `max`; 0 when the ray starts inside.
-fn upright_cylinder_toi(
+pub(crate) fn upright_cylinder_toi(
     ray: &Ray,
     centre: Vector,
     radius: f32,

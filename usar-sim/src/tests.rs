@@ -993,3 +993,130 @@ fn robots_spawned_on_one_tick_read_their_lasers_on_different_ticks() {
 fn the_phases_are_the_same_for_the_same_spawn_order() {
     assert_eq!(scans_per_tick(50, 0.0, 0.4), scans_per_tick(50, 0.0, 0.4));
 }
+
+/// The conf item of the robot's camera.
+fn camera_conf(world: &mut World, client: ClientId) -> ConfItem {
+    let replies = world.command(client, Command::GetConf(query("Camera", None)));
+    let [ServerMessage::Conf(Conf::Items { items, .. })] = &replies[..] else {
+        panic!("{replies:?}")
+    };
+    items[0].clone()
+}
+
+fn offsets(item: &ConfItem) -> (i64, i64, f64) {
+    let ConfItem::Camera {
+        texture_offset_x,
+        texture_offset_y,
+        fov,
+        ..
+    } = item
+    else {
+        panic!("{item:?}")
+    };
+    (*texture_offset_x, *texture_offset_y, *fov)
+}
+
+#[test]
+fn the_airrobot_camera_sees_the_room_and_reports_its_tile() {
+    let mut w = world();
+    let a = spawn(&mut w, AIR, [0.0, 0.0, -1.0], 0.0);
+    let b = spawn(&mut w, AIR, [-5.0, -5.0, -1.0], 0.0);
+    let c = spawn(&mut w, AIR, [5.0, 5.0, -1.0], 0.0);
+    assert_eq!(offsets(&camera_conf(&mut w, a)), (0, 0, 80.0));
+    assert_eq!(offsets(&camera_conf(&mut w, b)), (320, 0, 80.0));
+    assert_eq!(offsets(&camera_conf(&mut w, c)), (0, 240, 80.0));
+    let mut frames = Vec::new();
+    w.render_cameras(&mut frames);
+    let tiles: Vec<(usize, &str)> = frames.iter().map(|f| (f.tile, f.name.as_str())).collect();
+    assert_eq!(tiles, [(0, "cams"), (1, "cams"), (2, "cams")]);
+    let image = &frames[0].image;
+    assert_eq!((image.width, image.height), (320, 240));
+    // Looking north from 0.1 m ahead of the centre: the wall's face at x = 10 is a plane
+    // at depth 9.9 across the middle row; the bottom row shows the floor, nearer.
+    let depth = |x: usize, y: usize| image.depth[y * 320 + x];
+    for x in [0, 100, 160, 319] {
+        assert!((depth(x, 120) - 9.9).abs() < 1e-4, "{}", depth(x, 120));
+    }
+    let column: Vec<f32> = (0..240).step_by(20).map(|y| depth(160, y)).collect();
+    assert!(depth(160, 239) < 2.0, "{column:?}");
+    let rgb = |x: usize, y: usize| &image.rgb[3 * (y * 320 + x)..3 * (y * 320 + x) + 3];
+    assert_ne!(rgb(160, 120), rgb(160, 239), "walls and floor look alike");
+    // Robot a sees robot c's body? c is at (5, 5), a looks north: c is 45° to the right,
+    // beyond the 40° half field of view. Robot b's camera looks north past a's side.
+    // Tilted down by the `cam` actuator (ACT link 0 = joint 1): the middle sees the floor.
+    w.command(
+        a,
+        Command::Act(Act {
+            name: "cam".into(),
+            links: vec![usar_proto::LinkValue {
+                link: 0,
+                value: -1.0,
+            }],
+            ..Act::default()
+        }),
+    );
+    w.render_cameras(&mut frames);
+    let tilted = frames[0].image.depth[120 * 320 + 160];
+    // Down by 1 rad from 0.9 m above the floor: depth 0.9 / (sin 1 + v cos 1) along the
+    // axis, v the pixel row's offset (half a pixel below the axis).
+    let v = (241.0 / 240.0 - 1.0) * 40f64.to_radians().tan() * 0.75;
+    let expect = 0.9 / (1.0f64.sin() + v * 1.0f64.cos());
+    assert!(
+        (f64::from(tilted) - expect).abs() < 1e-4,
+        "{tilted} vs {expect}"
+    );
+    // A narrower field of view (SET FOV, radians): CONF says so, and the image zooms in.
+    w.command(
+        b,
+        Command::Set(Set {
+            kind: "Camera".into(),
+            name: None,
+            opcode: "FOV".into(),
+            params: Some("0.5".into()),
+        }),
+    );
+    assert_eq!(offsets(&camera_conf(&mut w, b)).2, 0.5f64.to_degrees());
+    let before = frames[1].image.clone();
+    w.render_cameras(&mut frames);
+    assert_ne!(before.depth, frames[1].image.depth);
+}
+
+#[test]
+fn camera_tiles_go_to_the_lowest_free_slot_and_pictures_do_not_depend_on_threads() {
+    let picture = |threads: usize| {
+        let mut w = World::new(
+            Map::embedded("city").unwrap(),
+            RobotCatalog::embedded(),
+            SimConfig {
+                threads,
+                ..SimConfig::default()
+            },
+        );
+        let mut clients = Vec::new();
+        for i in 0..5 {
+            let at = [f64::from(i) * 3.0, -2.0, -2.0 - f64::from(i)];
+            clients.push(spawn(&mut w, AIR, at, 0.3 * f64::from(i)));
+        }
+        w.disconnect(clients[1]);
+        let late = spawn(&mut w, AIR, [0.0, 8.0, -3.0], 1.0);
+        assert_eq!(
+            offsets(&camera_conf(&mut w, late)).0,
+            320,
+            "tile 1 is free again"
+        );
+        run(&mut w, 0.5);
+        let mut frames = Vec::new();
+        w.render_cameras(&mut frames);
+        frames
+    };
+    let one = picture(1);
+    let four = picture(4);
+    assert_eq!(one.len(), 5);
+    assert_eq!(
+        one.iter().map(|f| f.tile).collect::<Vec<_>>(),
+        [0, 2, 3, 4, 1]
+    );
+    for (a, b) in one.iter().zip(&four) {
+        assert_eq!(a.image, b.image);
+    }
+}

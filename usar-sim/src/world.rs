@@ -7,11 +7,13 @@ use tracing::{debug, warn};
 use usar_proto::{Command, Conf, Geo, Init, ItemQuery, Nfo, ServerMessage, StartPose};
 
 use super::map::{self, Map};
+use super::render::{self, Image, View};
 use super::robot::{Model, Robot, Spawn, bounded_angle};
 use super::robots::RobotCatalog;
 use super::scene::{Scene, V3};
 use super::wind::WindConfig;
 use super::{ClientId, SimConfig};
+use rapier3d::prelude::ColliderHandle;
 use usar_proto::shown::{Repeats, Shown};
 
 /// Ticks between BVH refits (leaf updates only ever grow the tree's inner boxes).
@@ -48,6 +50,8 @@ pub struct World {
     /// Threads that read sensors ([`SimConfig::threads`]).
     threads: usize,
     robots_per_connection: usize,
+    /// The image server's tile grid (camera CONF offsets).
+    tiles: super::Tiles,
     /// Warnings about each connection's commands (summarised past the first few).
     complaints: BTreeMap<ClientId, Repeats>,
     /// Faults still to come, in time order.
@@ -116,6 +120,7 @@ impl World {
             next_serial: 0,
             threads: config.threads.max(1),
             robots_per_connection: config.robots_per_connection,
+            tiles: config.tiles,
             complaints: BTreeMap::new(),
             faults: config.faults.faults.iter().cloned().collect(),
         }
@@ -343,6 +348,8 @@ impl World {
             return;
         };
         self.next_serial += 1;
+        let mut robot = robot;
+        self.assign_tiles(&mut robot);
         let previous = self.clients.insert(client, Some(robot.serial)).flatten();
         if let Some(old) = previous.and_then(|s| self.robot_mut(s)) {
             old.owner = None;
@@ -354,6 +361,83 @@ impl World {
     /// The index in `robots` of the robot `serial`.
     fn index_of(&self, serial: u64) -> Option<usize> {
         self.robots.binary_search_by_key(&serial, |r| r.serial).ok()
+    }
+
+    /// Gives each camera of a new robot the lowest tile no other camera holds.
+    fn assign_tiles(&self, robot: &mut Robot) {
+        let mut taken: Vec<usize> = self
+            .robots
+            .iter()
+            .flat_map(|r| r.camera_views().map(|(_, c, _)| c.tile))
+            .collect();
+        taken.sort_unstable();
+        let tiles = self.tiles;
+        for camera in robot.cameras_mut() {
+            let mut tile = 0;
+            for &t in &taken {
+                if t == tile {
+                    tile += 1;
+                } else if t > tile {
+                    break;
+                }
+            }
+            camera.tile = tile;
+            camera.offset = tiles.offset(tile);
+            let at = taken.partition_point(|&t| t < tile);
+            taken.insert(at, tile);
+        }
+    }
+
+    /// Renders every camera of every robot as the world is now (robots in spawn order,
+    /// each robot's cameras in part order) into `frames` (its images are reused), on up to
+    /// [`SimConfig::threads`] threads: the same pixels at any count.
+    pub fn render_cameras(&self, frames: &mut Vec<CameraFrame>) {
+        let mut jobs = Vec::new();
+        let mut count = 0;
+        for robot in &self.robots {
+            for (name, camera, view) in robot.camera_views() {
+                if frames.len() <= count {
+                    frames.push(CameraFrame::default());
+                }
+                let frame = &mut frames[count];
+                frame.client = robot.owner;
+                frame.serial = robot.serial;
+                frame.name.clear();
+                frame.name.push_str(name);
+                frame.tile = camera.tile;
+                frame.time = self.time();
+                jobs.push((robot.body(), view));
+                count += 1;
+            }
+        }
+        frames.truncate(count);
+        let scene = &self.scene;
+        let draw = |frames: &mut [CameraFrame], jobs: &[(ColliderHandle, View)]| {
+            for (frame, (body, view)) in frames.iter_mut().zip(jobs) {
+                render::render(scene, view, Some(*body), &mut frame.image);
+            }
+        };
+        let threads = self.threads.min(jobs.len()).max(1);
+        if threads == 1 {
+            draw(frames, &jobs);
+            return;
+        }
+        let chunk = jobs.len().div_ceil(threads);
+        std::thread::scope(|scope| {
+            let mut parts = frames.chunks_mut(chunk).zip(jobs.chunks(chunk));
+            let mine = parts.next();
+            let others: Vec<_> = parts
+                .map(|(f, j)| scope.spawn(move || draw(f, j)))
+                .collect();
+            if let Some((f, j)) = mine {
+                draw(f, j);
+            }
+            for other in others {
+                if let Err(panic) = other.join() {
+                    std::panic::resume_unwind(panic);
+                }
+            }
+        });
     }
 
     fn robot_mut(&mut self, serial: u64) -> Option<&mut Robot> {
@@ -391,7 +475,12 @@ impl World {
             }
             Command::GetConf(query) => return conf(robot, &query).into_iter().collect(),
             Command::GetGeo(query) => return geo(robot, &query).into_iter().collect(),
-            Command::Set(set) => robot.set(&set.kind, set.name.as_deref(), &set.opcode),
+            Command::Set(set) => robot.set(
+                &set.kind,
+                set.name.as_deref(),
+                &set.opcode,
+                set.params.as_deref(),
+            ),
             Command::Act(act) => {
                 for link in &act.links {
                     robot.actuate(&act.name, link.link, link.value);
@@ -427,6 +516,23 @@ impl World {
         let serial = self.clients.get(&client).copied().flatten()?;
         self.robots.iter().find(|r| r.serial == serial)
     }
+}
+
+/// One camera's picture ([`World::render_cameras`]).
+#[derive(Debug, Clone, Default)]
+pub struct CameraFrame {
+    /// The connection that controls the robot (`None` after a rebinding INIT).
+    pub client: Option<ClientId>,
+    /// The robot's spawn number (0 for the first robot of the world).
+    pub serial: u64,
+    /// The camera part's name (`cams` on the AirRobot).
+    pub name: String,
+    /// Its tile in the image server's frame ([`super::Tiles`]).
+    pub tile: usize,
+    /// Simulated seconds when it was taken.
+    pub time: f64,
+    /// What it saw.
+    pub image: Image,
 }
 
 /// One tick's output as text ([`World::step_printed`]): for each robot that has output,

@@ -309,10 +309,17 @@ pub(super) struct Driver {
     parked: usize,
     /// Start of the current window of the barrier's share, and the time it held the world.
     window: (Instant, Duration),
+    /// The image server's captures (`None`: no image server).
+    capture: Option<super::image::Capture>,
 }
 
 impl Driver {
-    pub(super) fn new(world: World, settings: Settings, wants_room: Arc<AtomicBool>) -> Self {
+    pub(super) fn new(
+        world: World,
+        settings: Settings,
+        wants_room: Arc<AtomicBool>,
+        capture: Option<super::image::Capture>,
+    ) -> Self {
         Self {
             world,
             clients: BTreeMap::new(),
@@ -325,6 +332,7 @@ impl Driver {
             incomplete: Vec::new(),
             parked: 0,
             window: (Instant::now(), Duration::ZERO),
+            capture,
         }
     }
 
@@ -374,6 +382,11 @@ impl Driver {
                 if self.may_step() {
                     break served;
                 }
+                // The world stands still (a barrier, no robot): frames asked for now show it
+                // as it is.
+                if let Some(capture) = &mut self.capture {
+                    capture.poll(&self.world, false);
+                }
                 self.release_stuck_barriers();
                 if served > 0 || self.may_step() {
                     continue;
@@ -407,6 +420,9 @@ impl Driver {
             };
 
             self.world.step_printed(&mut out);
+            if let Some(capture) = &mut self.capture {
+                capture.poll(&self.world, true);
+            }
             let time = self.world.time();
             let printed = !out.is_empty();
             for (client, lines) in out.robots() {

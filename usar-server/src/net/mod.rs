@@ -9,6 +9,7 @@
 //! ```
 
 mod driver;
+pub mod image;
 mod recording;
 mod session;
 
@@ -128,6 +129,15 @@ pub struct ServerConfig {
     pub reader_timeout: Duration,
     /// Record every connection's lines, both directions, into this folder (docs/recording.md).
     pub record: Option<std::path::PathBuf>,
+    /// How the image server sends frames (when [`SideListeners::image`] is given).
+    pub image: image::ImageConfig,
+}
+
+/// Listeners of the services next to the Gamebots port, each optional.
+#[derive(Debug, Default)]
+pub struct SideListeners {
+    /// The image server (USARSim: TCP 5003; docs/camera.md).
+    pub image: Option<TcpListener>,
 }
 
 impl Default for ServerConfig {
@@ -151,6 +161,7 @@ impl Default for ServerConfig {
             lockstep_share: 1.0,
             reader_timeout: Duration::from_secs(10),
             record: None,
+            image: image::ImageConfig::default(),
         }
     }
 }
@@ -193,10 +204,22 @@ pub async fn run(
     config: ServerConfig,
     shutdown: CancellationToken,
 ) -> Result<(), ServerError> {
+    run_all(listener, SideListeners::default(), config, shutdown).await
+}
+
+/// [`run`] with the side services whose listeners are given (the image server).
+pub async fn run_all(
+    listener: TcpListener,
+    side: SideListeners,
+    config: ServerConfig,
+    shutdown: CancellationToken,
+) -> Result<(), ServerError> {
     if let Some(dir) = &config.record {
         std::fs::create_dir_all(dir)?;
     }
+    let tiles = config.sim.tiles;
     let world = World::new(config.map, config.robots, config.sim);
+    let feed = side.image.as_ref().map(|_| image::Feed::new());
     let game_info = driver::game_info(&world);
     let (requests, inbox) = std::sync::mpsc::channel();
     let wants_room = Arc::new(AtomicBool::new(false));
@@ -219,6 +242,8 @@ pub async fn run(
                 reader_timeout: config.reader_timeout,
             },
             wants_room.clone(),
+            feed.as_ref()
+                .map(|feed| image::Capture::new(feed.clone(), config.image, tiles)),
         );
         std::thread::Builder::new()
             .name("usar-sim".into())
@@ -229,6 +254,16 @@ pub async fn run(
     };
 
     let tracker = TaskTracker::new();
+    if let (Some(listener), Some(feed)) = (side.image, feed) {
+        tracker.spawn(image::accept(
+            listener,
+            feed,
+            requests.clone(),
+            config.image,
+            shutdown.child_token(),
+            tracker.clone(),
+        ));
+    }
     let slots = Arc::new(Semaphore::new(config.max_connections));
     let per_address: Arc<Mutex<HashMap<IpAddr, usize>>> = Arc::default();
     let registry: Arc<Mutex<Registry>> = Arc::default();

@@ -7,7 +7,7 @@
 
 mod altitude;
 mod battery;
-mod camera;
+pub(crate) mod camera;
 mod compass;
 mod ground_truth;
 mod imu;
@@ -21,7 +21,7 @@ mod touch;
 mod velocity;
 
 pub use altitude::AltitudeConfig;
-pub use camera::CameraConfig;
+pub use camera::{CameraConfig, MAX_CAMERA_SIDE};
 pub use compass::CompassConfig;
 pub use ground_truth::GroundTruthConfig;
 pub use imu::ImuConfig;
@@ -198,10 +198,18 @@ pub(crate) trait Sensor: SensorClone + std::fmt::Debug + Send + Sync {
     fn timestamped(&self) -> bool {
         true
     }
-    /// A SET opcode; `true` asks for an immediate extra reading.
-    fn set(&mut self, opcode: &str) -> bool {
-        let _ = opcode;
+    /// A SET opcode and its parameters; `true` asks for an immediate extra reading.
+    fn set(&mut self, opcode: &str, params: Option<&str>) -> bool {
+        let _ = (opcode, params);
         false
+    }
+    /// The camera, if this part is one (rendered by `World::render_cameras`).
+    fn camera(&self) -> Option<&camera::Camera> {
+        None
+    }
+    /// The camera, if this part is one.
+    fn camera_mut(&mut self) -> Option<&mut camera::Camera> {
+        None
     }
 }
 

@@ -137,7 +137,7 @@ impl Sensor for RangeScanner {
         }
     }
 
-    fn set(&mut self, opcode: &str) -> bool {
+    fn set(&mut self, opcode: &str, _params: Option<&str>) -> bool {
         opcode.eq_ignore_ascii_case("SCAN")
     }
 }
@@ -192,8 +192,8 @@ mod tests {
     #[test]
     fn scan_opcode_and_conf() {
         let mut sensor = make("RangeScanner", HOKUYO);
-        assert!(sensor.set("scan"));
-        assert!(!sensor.set("RESET"));
+        assert!(sensor.set("scan", None));
+        assert!(!sensor.set("RESET", None));
         let ConfItem::Scanner { fov, max_range, .. } = sensor.conf("Scanner", 0.3) else {
             panic!("not a scanner conf")
         };
