@@ -172,6 +172,8 @@ pub(crate) struct Spawn<'a> {
     pub(crate) model: &'a Arc<Model>,
     pub(crate) serial: u64,
     pub(crate) owner: ClientId,
+    /// Its name (INIT `{Name ..}`, else `<Class>_<serial>`).
+    pub(crate) name: String,
     pub(crate) position: V3,
     pub(crate) rotation: V3,
     pub(crate) tick: u64,
@@ -192,6 +194,8 @@ pub(crate) struct Robot {
     pub(crate) owner: Option<ClientId>,
     /// The connection that spawned it (removes it on disconnect).
     pub(crate) spawned_by: ClientId,
+    /// Its name (USARTruth, the robot monitor, the WSS).
+    pub(crate) name: String,
     model: Arc<Model>,
     body: ColliderHandle,
     position: V3,
@@ -266,6 +270,7 @@ impl Robot {
             serial: spawn.serial,
             owner: Some(spawn.owner),
             spawned_by: spawn.owner,
+            name: spawn.name,
             model: model.clone(),
             body,
             position: spawn.position,
@@ -291,6 +296,11 @@ impl Robot {
     /// The class name without package.
     pub(crate) fn class_name(&self) -> &str {
         self.model.class.short_name()
+    }
+
+    /// Its body in the scene.
+    pub(crate) fn body(&self) -> ColliderHandle {
+        self.body
     }
 
     /// Remaining battery seconds as STA reports them (rounded up, so 0 means empty).
@@ -736,7 +746,7 @@ impl Robot {
             .filter(move |a| matches("Actuator", &a.config.name, kind, name))
     }
 
-    #[cfg(test)]
+    /// Position and rotation (roll, pitch, yaw), protocol frame.
     pub(crate) fn pose(&self) -> (V3, V3) {
         (self.position, self.rotation)
     }
