@@ -41,4 +41,4 @@ pub use usar_sim as sim;
 
 pub use args::{ArgsError, ServerArgs};
 pub use local::LocalServer;
-pub use net::{ServerConfig, ServerError, TimeScale, run};
+pub use net::{ServerConfig, ServerError, SideListeners, TimeScale, run, run_with};

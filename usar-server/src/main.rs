@@ -14,7 +14,8 @@ use usar_server::{ServerArgs, ServerConfig, TimeScale};
 /// quadrotors (USARBot.stsAirRobot, USARBot.AirRobot, USARBot.stsQuadrotor) headless, with
 /// rapier3d.
 ///
-/// When ready it prints one line on stdout: `usar-server listening on ADDRESS:PORT map LEVEL`.
+/// When ready it prints on stdout `usar-server listening on ADDRESS:PORT map LEVEL`, then
+/// one line per side service, e.g. `usar-server USARTruth listening on ADDRESS:PORT`.
 /// Ctrl-C or SIGTERM shut it down cleanly. Log level: RUST_LOG (default `info`), on stderr.
 #[derive(Debug, Parser)]
 #[command(version, about, args_conflicts_with_subcommands = true)]
@@ -27,6 +28,18 @@ struct Args {
     /// TCP port (0 picks a free one).
     #[arg(long, default_value_t = 3000)]
     port: u16,
+    /// USARTruth's port (ground truth of robots and victims, docs/usartruth.md); 0 picks a
+    /// free one, `off` turns it off.
+    #[arg(long, default_value = "3989", value_name = "PORT|off", value_parser = side_port)]
+    truth_port: SidePort,
+    /// The robot monitor's port (positions and wall counts for a WSS, docs/wss.md); 0 picks
+    /// a free one, `off` turns it off.
+    #[arg(long, default_value = "7435", value_name = "PORT|off", value_parser = side_port)]
+    monitor_port: SidePort,
+    /// The Wireless Simulation Server's port (robot-to-robot radio, docs/wss.md; it asks the
+    /// robot monitor); 0 picks a free one, `off` turns it off.
+    #[arg(long, default_value = "50000", value_name = "PORT|off", value_parser = side_port)]
+    wss_port: SidePort,
     #[command(flatten)]
     world: ServerArgs,
     /// Connections served at once; more are closed on accept.
@@ -91,6 +104,29 @@ enum Sub {
         #[arg(long, default_value_t = 1.0, value_parser = speed)]
         speed: f64,
     },
+    /// Run only a Wireless Simulation Server (docs/wss.md) against any USARSim's robot
+    /// monitor (a real USARSim or another usar-server). Prints
+    /// `usar-server WSS listening on ADDRESS:PORT` when ready.
+    Wss {
+        /// The simulator's robot monitor, HOST:PORT (USARSim: port 7435).
+        #[arg(long, default_value = "127.0.0.1:7435", value_name = "HOST:PORT")]
+        monitor: String,
+        /// Address to listen on.
+        #[arg(long, default_value = "127.0.0.1")]
+        bind: String,
+        /// TCP port (0 picks a free one).
+        #[arg(long, default_value_t = 50000)]
+        port: u16,
+        /// Seconds between polls of the positions (links break and resume then).
+        #[arg(long, default_value_t = 1.0, value_parser = seconds)]
+        poll: f64,
+        /// Weakest usable signal, dBm.
+        #[arg(long, default_value_t = -93.0, allow_hyphen_values = true)]
+        cutoff: f64,
+        /// Attenuation per wall, dB.
+        #[arg(long, default_value_t = 6.325)]
+        attenuation: f64,
+    },
 }
 
 fn main() -> ExitCode {
@@ -116,6 +152,23 @@ fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(error) => {
                 eprintln!("usar-server replay: {error:#}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    if let Some(Sub::Wss {
+        monitor,
+        bind,
+        port,
+        poll,
+        cutoff,
+        attenuation,
+    }) = &args.command
+    {
+        return match wss(monitor, bind, *port, *poll, *cutoff, *attenuation) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(error) => {
+                eprintln!("usar-server wss: {error:#}");
                 ExitCode::from(2)
             }
         };
@@ -176,13 +229,94 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
         let level = config.map.level().to_owned();
         let shutdown = CancellationToken::new();
         tokio::spawn(cancel_on_signal(shutdown.clone()));
+        let bind = async |service: &str, port: SidePort| -> anyhow::Result<_> {
+            let SidePort(Some(port)) = port else {
+                return Ok(None);
+            };
+            let listener = tokio::net::TcpListener::bind((args.bind.as_str(), port))
+                .await
+                .with_context(|| format!("cannot listen on {}:{port} ({service})", args.bind))?;
+            Ok(Some(listener))
+        };
+        let side = usar_server::SideListeners {
+            truth: bind("USARTruth", args.truth_port).await?,
+            monitor: bind("robot monitor", args.monitor_port).await?,
+            wss: bind("WSS", args.wss_port).await?,
+        };
+        if side.wss.is_some() && side.monitor.is_none() {
+            anyhow::bail!("--wss-port needs the robot monitor (--monitor-port is off); use --wss-port off");
+        }
         let mut stdout = std::io::stdout().lock();
         writeln!(stdout, "usar-server listening on {address} map {level}")?;
+        for (service, listener) in [
+            ("USARTruth", &side.truth),
+            ("WSS", &side.wss),
+            ("robot monitor", &side.monitor),
+        ] {
+            if let Some(listener) = listener {
+                writeln!(stdout, "usar-server {service} listening on {}", listener.local_addr()?)?;
+            }
+        }
         stdout.flush()?;
         drop(stdout);
-        usar_server::run(listener, config, shutdown).await?;
+        usar_server::run_with(listener, side, config, shutdown).await?;
         Ok(())
     })
+}
+
+/// The standalone WSS against the robot monitor at `monitor`.
+fn wss(
+    monitor: &str,
+    bind: &str,
+    port: u16,
+    poll: f64,
+    cutoff: f64,
+    attenuation: f64,
+) -> anyhow::Result<()> {
+    use std::net::ToSocketAddrs;
+    let at = monitor
+        .to_socket_addrs()
+        .with_context(|| format!("--monitor {monitor}: not HOST:PORT"))?
+        .next()
+        .with_context(|| format!("--monitor {monitor}: no address"))?;
+    anyhow::ensure!(
+        cutoff.is_finite() && attenuation.is_finite() && attenuation >= 0.0,
+        "--cutoff and --attenuation must be finite numbers (attenuation >= 0)"
+    );
+    let config = usar_server::net::wss::WssConfig {
+        poll: std::time::Duration::from_secs_f64(poll),
+        cutoff,
+        attenuation,
+        ..usar_server::net::wss::WssConfig::new(at)
+    };
+    let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind((bind, port))
+            .await
+            .with_context(|| format!("cannot listen on {bind}:{port}"))?;
+        let shutdown = CancellationToken::new();
+        tokio::spawn(cancel_on_signal(shutdown.clone()));
+        let mut stdout = std::io::stdout().lock();
+        writeln!(stdout, "usar-server WSS listening on {}", listener.local_addr()?)?;
+        stdout.flush()?;
+        drop(stdout);
+        usar_server::net::wss::serve(listener, config, shutdown).await;
+        Ok(())
+    })
+}
+
+/// A side service's port; `None`: off.
+#[derive(Debug, Clone, Copy)]
+struct SidePort(Option<u16>);
+
+/// A side service's port: a number (0 for any free port) or `off`.
+fn side_port(s: &str) -> Result<SidePort, String> {
+    if s.eq_ignore_ascii_case("off") {
+        return Ok(SidePort(None));
+    }
+    s.parse::<u16>()
+        .map(|p| SidePort(Some(p)))
+        .map_err(|_| format!("expected a port from 0 to 65535 or 'off', not '{s}'"))
 }
 
 /// A number of seconds from 0.001 to one day.

@@ -10,7 +10,7 @@ fn server() -> Command {
 #[test]
 fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
     let mut child = server()
-        .args(["--port", "0", "--map", "arena"])
+        .args(["--port", "0", "--map", "arena", "--truth-port", "0", "--monitor-port", "0", "--wss-port", "0"])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -23,6 +23,17 @@ fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
         .unwrap_or_else(|| panic!("ready line: {line:?}"));
     let (port, level) = rest.trim_end().split_once(" map ").unwrap();
     assert_eq!(level, "Arena");
+    // Then one line per side service.
+    for service in ["USARTruth", "WSS", "robot monitor"] {
+        line.clear();
+        stdout.read_line(&mut line).unwrap();
+        let prefix = format!("usar-server {service} listening on 127.0.0.1:");
+        let side: u16 = line
+            .strip_prefix(&prefix)
+            .and_then(|p| p.trim_end().parse().ok())
+            .unwrap_or_else(|| panic!("{service} line: {line:?}"));
+        assert_ne!(side, 0);
+    }
 
     // A client connected at shutdown sees EOF after its greeting.
     let mut client = std::net::TcpStream::connect(("127.0.0.1", port.parse().unwrap())).unwrap();
@@ -40,7 +51,7 @@ fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
     client.read_to_end(&mut rest).unwrap(); // EOF, not a reset
     let mut more = String::new();
     stdout.read_to_string(&mut more).unwrap();
-    assert_eq!(more, "", "exactly one line on stdout");
+    assert_eq!(more, "", "exactly one line per service on stdout");
 }
 
 #[test]
@@ -261,7 +272,7 @@ fn replay_time_stamps_are_checked() {
 fn a_client_cannot_flood_the_log_or_write_control_bytes_into_it() {
     // The attack: 30 MB of garbage wrote 356 MB of log, with raw ESC and NUL bytes.
     let mut child = server()
-        .args(["--port", "0"])
+        .args(["--port", "0", "--truth-port", "off", "--monitor-port", "off", "--wss-port", "off"])
         .env("RUST_LOG", "info")
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

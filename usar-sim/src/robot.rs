@@ -298,11 +298,6 @@ impl Robot {
         self.model.class.short_name()
     }
 
-    /// Its body in the scene.
-    pub(crate) fn body(&self) -> ColliderHandle {
-        self.body
-    }
-
     /// Remaining battery seconds as STA reports them (rounded up, so 0 means empty).
     fn battery_left(&self, tick: u64, dt: f64) -> i64 {
         match self.model.class.battery {

@@ -206,8 +206,9 @@ impl Scene {
     }
 
     /// Walls between `a` and `b` as USARSim's robot monitor counts them (side-servers.md
-    /// §3.2): a ray from `a` to `b`, restarted 0.2 m past each hit; each hit on a solid
-    /// of the map (not a robot, not a victim) counts once.
+    /// §3.2): a ray from `a` to `b`, restarted 0.2 m past each hit; a hit on a solid of
+    /// the map (not a robot, not a victim) counts if it is another solid than the last one
+    /// counted or lies more than 0.2 m from the restart point (a thick wall counts once).
     pub(crate) fn obstacles_between(&self, a: V3, b: V3) -> u32 {
         const STEP: f64 = 0.2;
         let d = sub(b, a);
@@ -216,15 +217,17 @@ impl Scene {
             return 0;
         }
         let dir = scale(d, 1.0 / length);
-        let (mut from, mut count) = (0.0, 0u32);
+        let (mut from, mut count, mut last) = (0.0, 0u32, None);
         // At most one hit per 0.2 m (bounded work for any distance within the world).
         while from < length && count < 100_000 {
             let origin = add(a, scale(dir, from));
             let Some((toi, handle)) = self.cast_ray_hit(origin, dir, length - from, None) else {
                 break;
             };
-            if self.colliders.get(handle).is_some_and(|c| c.user_data == WALL) {
+            let wall = self.colliders.get(handle).is_some_and(|c| c.user_data == WALL);
+            if wall && (last != Some(handle) || toi > STEP) {
                 count += 1;
+                last = Some(handle);
             }
             from += toi + STEP;
         }
@@ -1195,6 +1198,28 @@ mod tests {
             }
         }
         assert!(hits > 500, "only {hits} hits");
+    }
+
+    #[test]
+    fn walls_are_counted_as_the_robot_monitor_counts_them() {
+        let mut scene = Scene::new();
+        let wall = |x: f32, thick: f32| {
+            ColliderBuilder::cuboid(thick / 2.0, 5.0, 5.0).position(Pose::translation(x, 0.0, 0.0))
+        };
+        scene.insert(wall(2.0, 0.1));
+        scene.insert(wall(4.0, 1.5)); // thick: once
+        scene.insert_body(
+            BodyShape {
+                radius: 0.3,
+                half_height: 0.2,
+            },
+            [6.0, 0.0, 0.0],
+        ); // a robot: never
+        scene.refit();
+        assert_eq!(scene.obstacles_between([0.0; 3], [8.0, 0.0, 0.0]), 2);
+        assert_eq!(scene.obstacles_between([8.0, 0.0, 0.0], [0.0; 3]), 2);
+        assert_eq!(scene.obstacles_between([0.0; 3], [1.0, 0.0, 0.0]), 0);
+        assert_eq!(scene.obstacles_between([0.0; 3], [0.0; 3]), 0);
     }
 
     #[test]

@@ -17,6 +17,7 @@ mod range_scanner;
 mod sonar;
 mod touch;
 mod velocity;
+mod victim;
 
 pub use altitude::AltitudeConfig;
 pub use camera::CameraConfig;
@@ -30,6 +31,7 @@ pub use range_scanner::RangeScannerConfig;
 pub use sonar::{SonarConfig, SonarModel};
 pub use touch::{TouchConfig, TouchEvent};
 pub use velocity::VelocityConfig;
+pub use victim::VictSensorConfig;
 
 use rapier3d::prelude::ColliderHandle;
 use serde::de::DeserializeOwned;
@@ -222,6 +224,7 @@ pub(crate) const REGISTRY: &[SensorKind] = &[
     kind("GroundTruth", 0.1, ground_truth::build),
     kind("INS", 0.2, ins::build),
     kind("Touch", 0.1, touch::build),
+    kind("VictSensor", 0.8, victim::build),
 ];
 
 const fn kind(
