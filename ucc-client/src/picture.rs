@@ -331,13 +331,13 @@ impl MapPicture {
                     });
                 chart
                     .draw_series(victims.iter().map(|(name, points)| {
+                        // Beside the body (east of it), not over it.
                         let n = points.len() as f64;
-                        let centre = points
-                            .iter()
-                            .fold((0.0, 0.0), |(a, b), p| (a + p.0 / n, b + p.1 / n));
+                        let east = points.iter().map(|p| p.0).fold(f64::MIN, f64::max);
+                        let north = points.iter().map(|p| p.1).sum::<f64>() / n;
                         Text::new(
                             name.clone(),
-                            centre,
+                            (east + 0.1, north),
                             ("sans-serif", 13).into_font().color(&VICTIM_COLOUR),
                         )
                     }))
@@ -759,7 +759,7 @@ mod tests {
         };
         let files = picture.write(&dir.join("rescue")).unwrap();
         let svg = std::fs::read_to_string(&files[0]).unwrap();
-        assert!(svg.contains("Victim3") && svg.contains(">victims<"), "names and legend");
+        assert!(svg.contains("Victim3") && svg.contains("\nvictims\n</text>"), "names and legend");
         let png = image::open(&files[1]).unwrap().to_rgb8();
         let [r, g, b] = [VICTIM_COLOUR.0, VICTIM_COLOUR.1, VICTIM_COLOUR.2];
         let victim_pixels = png.pixels().filter(|p| p.0 == [r, g, b]).count();

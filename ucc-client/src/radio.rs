@@ -200,7 +200,8 @@ impl Radio {
 
 /// Accepts relayed connections and reads one message from each.
 async fn receive(listener: TcpListener, inbox: mpsc::Sender<Message>) {
-    loop {
+    // Ends when the radio is dropped (the next connection finds the inbox closed).
+    while !inbox.is_closed() {
         let Ok((mut stream, _)) = listener.accept().await else {
             continue;
         };
@@ -210,9 +211,6 @@ async fn receive(listener: TcpListener, inbox: mpsc::Sender<Message>) {
                 let _ = inbox.send(message).await;
             }
         });
-        if inbox.is_closed() {
-            return;
-        }
     }
 }
 

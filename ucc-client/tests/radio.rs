@@ -24,7 +24,11 @@ fn walls_map() -> Map {
 async fn a_message_reaches_a_uav_in_range_and_fails_behind_walls() {
     let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
     let (main, monitor, wss) = (bind().await, bind().await, bind().await);
-    let (gamebots, wss_at) = (main.local_addr().unwrap(), wss.local_addr().unwrap());
+    let (gamebots, monitor_at, wss_at) = (
+        main.local_addr().unwrap(),
+        monitor.local_addr().unwrap(),
+        wss.local_addr().unwrap(),
+    );
     let shutdown = CancellationToken::new();
     let side = SideListeners {
         truth: None,
@@ -45,6 +49,20 @@ async fn a_message_reaches_a_uav_in_range_and_fails_behind_walls() {
         s.write_all(init.as_bytes()).await.unwrap();
         robots.push(s);
     }
+    // Join once the simulation has the robots (the WSS kicks names it does not have).
+    let mut monitor_stream = TcpStream::connect(monitor_at).await.unwrap();
+    let mut seen = String::new();
+    for _ in 0..600 {
+        monitor_stream.write_all(b"GETPOS\r\n").await.unwrap();
+        let mut buf = [0u8; 4096];
+        let n = monitor_stream.read(&mut buf).await.unwrap();
+        seen = String::from_utf8_lossy(&buf[..n]).into_owned();
+        if seen.contains("{Robots 3}") {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert!(seen.contains("{Robots 3}"), "{seen}");
     let mut one = Radio::join(wss_at, "Robot1").await.unwrap();
     let mut two = Radio::join(wss_at, "Robot2").await.unwrap();
     let _three = Radio::join(wss_at, "Robot3").await.unwrap();

@@ -301,6 +301,19 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
     robot1.write_all(init("Robot1", "0,0,-1").as_bytes()).await.unwrap();
     let mut base = TcpStream::connect(servers.gamebots).await.unwrap();
     base.write_all(init("BaseStation", "0,6,-5").as_bytes()).await.unwrap();
+    // Register only once the simulation has both robots (the WSS kicks names it does not
+    // have; UsarCommander waits 3 s after spawning for this reason).
+    let (read, mut write) = TcpStream::connect(monitor_at).await.unwrap().into_split();
+    let mut read = BufReader::new(read);
+    for _ in 0..600 {
+        write.write_all(b"GETPOS\r\n").await.unwrap();
+        let mut line = String::new();
+        read.read_line(&mut line).await.unwrap();
+        if line.starts_with("POSITIONS {Robots 2}") {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
     // Each robot's own listener (UsarCommander: 8000 + its number).
     let base_listener = bind().await;
     let base_port = base_listener.local_addr().unwrap().port();
