@@ -320,9 +320,9 @@ impl MapPicture {
             if !victims.is_empty() {
                 chart
                     .draw_series(
-                        victims
-                            .iter()
-                            .map(|(_, points)| Polygon::new(points.clone(), VICTIM_COLOUR.filled())),
+                        victims.iter().map(|(_, points)| {
+                            Polygon::new(points.clone(), VICTIM_COLOUR.filled())
+                        }),
                     )
                     .map_err(err)?
                     .label("victims")
@@ -759,7 +759,10 @@ mod tests {
         };
         let files = picture.write(&dir.join("rescue")).unwrap();
         let svg = std::fs::read_to_string(&files[0]).unwrap();
-        assert!(svg.contains("Victim3") && svg.contains("\nvictims\n</text>"), "names and legend");
+        assert!(
+            svg.contains("Victim3") && svg.contains("\nvictims\n</text>"),
+            "names and legend"
+        );
         let png = image::open(&files[1]).unwrap().to_rgb8();
         let [r, g, b] = [VICTIM_COLOUR.0, VICTIM_COLOUR.1, VICTIM_COLOUR.2];
         let victim_pixels = png.pixels().filter(|p| p.0 == [r, g, b]).count();

@@ -102,7 +102,9 @@ impl Radio {
             write,
             inbox,
         };
-        let reply = radio.ask(&format!("INIT {{Robot {name}}} {{Port {port}}}")).await?;
+        let reply = radio
+            .ask(&format!("INIT {{Robot {name}}} {{Port {port}}}"))
+            .await?;
         if reply != "INITREPLY {Status OK}" {
             return Err(RadioError::Refused(reply));
         }

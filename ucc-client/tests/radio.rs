@@ -12,10 +12,14 @@ use usar_server::{ServerConfig, SideListeners};
 
 /// Eight thin walls between y = 2 and y = 4.1.
 fn walls_map() -> Map {
-    let mut text = "level = \"Walls\"\n[[box]]\ncenter = [0.0, 0.0, 0.1]\nsize = [60.0, 60.0, 0.2]\n".to_owned();
+    let mut text =
+        "level = \"Walls\"\n[[box]]\ncenter = [0.0, 0.0, 0.1]\nsize = [60.0, 60.0, 0.2]\n"
+            .to_owned();
     for i in 0..8 {
         let y = 2.0 + 0.3 * f64::from(i);
-        text.push_str(&format!("[[box]]\ncenter = [0.0, {y}, -1.5]\nsize = [20.0, 0.1, 3.0]\n"));
+        text.push_str(&format!(
+            "[[box]]\ncenter = [0.0, {y}, -1.5]\nsize = [20.0, 0.1, 3.0]\n"
+        ));
     }
     Map::from_toml(&text, std::path::Path::new("walls.toml")).unwrap()
 }
@@ -41,11 +45,16 @@ async fn a_message_reaches_a_uav_in_range_and_fails_behind_walls() {
     };
     tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
     let mut robots = Vec::new();
-    for (name, at) in [("Robot1", "0,0,-1"), ("Robot2", "3,0,-1"), ("Robot3", "0,6,-1")] {
+    for (name, at) in [
+        ("Robot1", "0,0,-1"),
+        ("Robot2", "3,0,-1"),
+        ("Robot3", "0,6,-1"),
+    ] {
         let mut s = TcpStream::connect(gamebots).await.unwrap();
         let mut nfo = [0u8; 3];
         s.read_exact(&mut nfo).await.unwrap();
-        let init = format!("INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}\r\n");
+        let init =
+            format!("INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}\r\n");
         s.write_all(init.as_bytes()).await.unwrap();
         robots.push(s);
     }
@@ -81,7 +90,10 @@ async fn a_message_reaches_a_uav_in_range_and_fails_behind_walls() {
         .await
         .unwrap()
         .unwrap();
-    assert_eq!((got.from.as_str(), &got.data[..]), ("Robot1", &b"victim at 3,4"[..]));
+    assert_eq!(
+        (got.from.as_str(), &got.data[..]),
+        ("Robot1", &b"victim at 3,4"[..])
+    );
     // Robot3 is behind eight walls.
     let mut result = one.send("Robot3", b"hello").await;
     for _ in 0..200 {

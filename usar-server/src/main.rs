@@ -244,7 +244,9 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
             wss: bind("WSS", args.wss_port).await?,
         };
         if side.wss.is_some() && side.monitor.is_none() {
-            anyhow::bail!("--wss-port needs the robot monitor (--monitor-port is off); use --wss-port off");
+            anyhow::bail!(
+                "--wss-port needs the robot monitor (--monitor-port is off); use --wss-port off"
+            );
         }
         let mut stdout = std::io::stdout().lock();
         writeln!(stdout, "usar-server listening on {address} map {level}")?;
@@ -254,7 +256,11 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
             ("robot monitor", &side.monitor),
         ] {
             if let Some(listener) = listener {
-                writeln!(stdout, "usar-server {service} listening on {}", listener.local_addr()?)?;
+                writeln!(
+                    stdout,
+                    "usar-server {service} listening on {}",
+                    listener.local_addr()?
+                )?;
             }
         }
         stdout.flush()?;
@@ -297,7 +303,11 @@ fn wss(
         let shutdown = CancellationToken::new();
         tokio::spawn(cancel_on_signal(shutdown.clone()));
         let mut stdout = std::io::stdout().lock();
-        writeln!(stdout, "usar-server WSS listening on {}", listener.local_addr()?)?;
+        writeln!(
+            stdout,
+            "usar-server WSS listening on {}",
+            listener.local_addr()?
+        )?;
         stdout.flush()?;
         drop(stdout);
         usar_server::net::wss::serve(listener, config, shutdown).await;

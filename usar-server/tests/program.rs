@@ -10,7 +10,18 @@ fn server() -> Command {
 #[test]
 fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
     let mut child = server()
-        .args(["--port", "0", "--map", "arena", "--truth-port", "0", "--monitor-port", "0", "--wss-port", "0"])
+        .args([
+            "--port",
+            "0",
+            "--map",
+            "arena",
+            "--truth-port",
+            "0",
+            "--monitor-port",
+            "0",
+            "--wss-port",
+            "0",
+        ])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -272,7 +283,16 @@ fn replay_time_stamps_are_checked() {
 fn a_client_cannot_flood_the_log_or_write_control_bytes_into_it() {
     // The attack: 30 MB of garbage wrote 356 MB of log, with raw ESC and NUL bytes.
     let mut child = server()
-        .args(["--port", "0", "--truth-port", "off", "--monitor-port", "off", "--wss-port", "off"])
+        .args([
+            "--port",
+            "0",
+            "--truth-port",
+            "off",
+            "--monitor-port",
+            "off",
+            "--wss-port",
+            "off",
+        ])
         .env("RUST_LOG", "info")
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

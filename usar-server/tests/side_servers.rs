@@ -136,12 +136,27 @@ async fn a_scoring_tool_reads_robots_and_victims_with_its_regex() {
     assert_eq!(males.len(), 2, "{males:?}");
     assert!(males.iter().all(|l| l.contains("{Class MaleVictim}")));
     let car = ask(&mut read, &mut write, b"{Class Sedan}\r\n").await;
-    assert!(car.len() == 1 && car[0].starts_with("{Name Car1} {Class Sedan}"), "{car:?}");
+    assert!(
+        car.len() == 1 && car[0].starts_with("{Name Car1} {Class Sedan}"),
+        "{car:?}"
+    );
     let one = ask(&mut read, &mut write, b"{Name Victim4}\n").await;
-    assert!(one.len() == 1 && one[0].starts_with("{Name Victim4}"), "{one:?}");
-    assert!(ask(&mut read, &mut write, b"{class Nope.Nothing}\r\n").await.is_empty());
+    assert!(
+        one.len() == 1 && one[0].starts_with("{Name Victim4}"),
+        "{one:?}"
+    );
+    assert!(
+        ask(&mut read, &mut write, b"{class Nope.Nothing}\r\n")
+            .await
+            .is_empty()
+    );
     // Binary garbage is a line without blocks: the default query, as USARSim answers it.
-    assert_eq!(ask(&mut read, &mut write, b"\x00\xff\x1b[2J\r\n").await.len(), 5);
+    assert_eq!(
+        ask(&mut read, &mut write, b"\x00\xff\x1b[2J\r\n")
+            .await
+            .len(),
+        5
+    );
     servers.shutdown.cancel();
 }
 
@@ -201,7 +216,11 @@ async fn the_robot_monitor_reports_positions_and_wall_counts() {
         request("getobs {From Robot1} {To Nobody}\r").await,
         "NUMOBS {From Robot1} {To Nobody} {ObstCount -1.0000}\r\n"
     );
-    assert_eq!(request("GETOBS\r\n").await, "\r\n", "neither pair: an empty line");
+    assert_eq!(
+        request("GETOBS\r\n").await,
+        "\r\n",
+        "neither pair: an empty line"
+    );
     // Unknown commands and garbage get no reply: the next answer is GETPOS's.
     let answer = request("\x00\x01 HELLO {x}\r\nGETPOS\r\n").await;
     assert!(answer.starts_with("POSITIONS {Robots 1}"), "{answer:?}");
@@ -298,9 +317,14 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
         format!("INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}\r\n")
     };
     let mut robot1 = TcpStream::connect(servers.gamebots).await.unwrap();
-    robot1.write_all(init("Robot1", "0,0,-1").as_bytes()).await.unwrap();
+    robot1
+        .write_all(init("Robot1", "0,0,-1").as_bytes())
+        .await
+        .unwrap();
     let mut base = TcpStream::connect(servers.gamebots).await.unwrap();
-    base.write_all(init("BaseStation", "0,6,-5").as_bytes()).await.unwrap();
+    base.write_all(init("BaseStation", "0,6,-5").as_bytes())
+        .await
+        .unwrap();
     // Register only once the simulation has both robots (the WSS kicks names it does not
     // have; UsarCommander waits 3 s after spawning for this reason).
     let (read, mut write) = TcpStream::connect(monitor_at).await.unwrap().into_split();
@@ -320,21 +344,55 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
 
     let mut a = Control::connect(wss_at).await;
     let mut b = Control::connect(wss_at).await;
-    assert_eq!(a.ask("GETSS {Robot BaseStation}").await, "ERROR {Reason Must.Use.INIT.Method.First}");
-    assert_eq!(a.ask("INIT {Robot Robot1} {Port 8001}").await, "INITREPLY {Status OK}");
-    assert_eq!(a.ask("INIT {Robot Robot1} {Port 8001}").await, "ERROR {Reason Method.Unknown.Or.Can.INIT.only.once}");
-    assert_eq!(b.ask("INIT {Robot BaseStation} {Port x}").await, "ERROR {Reason Ports.List.Must.Be.Integer}");
-    assert_eq!(b.ask("INIT {Robot Robot1} {Port 1}").await, "ERROR {Reason Robot.Alread.Exists}");
     assert_eq!(
-        b.ask(&format!("INIT {{Robot BaseStation}} {{Port {base_port}}}")).await,
+        a.ask("GETSS {Robot BaseStation}").await,
+        "ERROR {Reason Must.Use.INIT.Method.First}"
+    );
+    assert_eq!(
+        a.ask("INIT {Robot Robot1} {Port 8001}").await,
         "INITREPLY {Status OK}"
     );
-    assert_eq!(a.ask("GETSS {Robot Robot1}").await, "SS {Robot Robot1} {Strength INF} {Error SS.To.Self}");
-    assert_eq!(a.ask("GETSS {Robot Nobody}").await, "SS {Robot Nobody} {Strength NaN} {Error Robot.Does.Not.Exist}");
-    assert_eq!(a.ask("DNS {Robot Nobody}").await, "DNSREPLY {Robot Nobody} {Port -1} {Error NoSuchRobot}");
-    assert_eq!(a.ask("DNS {Robot BaseStation} {Port 9}").await, "DNSREPLY {Robot BaseStation} {Port -1} {Error RobotDoesNotListenOnThisPort}");
-    assert_eq!(a.ask("DNS {Robot BaseStation} {Port x}").await, "ERROR {Reason Port.Must.Be.Integer}");
-    assert_eq!(a.ask("HELLO").await, "ERROR {Reason Method.Unknown.Or.Can.INIT.only.once}");
+    assert_eq!(
+        a.ask("INIT {Robot Robot1} {Port 8001}").await,
+        "ERROR {Reason Method.Unknown.Or.Can.INIT.only.once}"
+    );
+    assert_eq!(
+        b.ask("INIT {Robot BaseStation} {Port x}").await,
+        "ERROR {Reason Ports.List.Must.Be.Integer}"
+    );
+    assert_eq!(
+        b.ask("INIT {Robot Robot1} {Port 1}").await,
+        "ERROR {Reason Robot.Alread.Exists}"
+    );
+    assert_eq!(
+        b.ask(&format!("INIT {{Robot BaseStation}} {{Port {base_port}}}"))
+            .await,
+        "INITREPLY {Status OK}"
+    );
+    assert_eq!(
+        a.ask("GETSS {Robot Robot1}").await,
+        "SS {Robot Robot1} {Strength INF} {Error SS.To.Self}"
+    );
+    assert_eq!(
+        a.ask("GETSS {Robot Nobody}").await,
+        "SS {Robot Nobody} {Strength NaN} {Error Robot.Does.Not.Exist}"
+    );
+    assert_eq!(
+        a.ask("DNS {Robot Nobody}").await,
+        "DNSREPLY {Robot Nobody} {Port -1} {Error NoSuchRobot}"
+    );
+    assert_eq!(
+        a.ask("DNS {Robot BaseStation} {Port 9}").await,
+        "DNSREPLY {Robot BaseStation} {Port -1} {Error RobotDoesNotListenOnThisPort}"
+    );
+    assert_eq!(
+        a.ask("DNS {Robot BaseStation} {Port x}").await,
+        "ERROR {Reason Port.Must.Be.Integer}"
+    );
+    assert_eq!(
+        a.ask("HELLO").await,
+        "ERROR {Reason Method.Unknown.Or.Can.INIT.only.once}"
+    );
 
     // In range over the walls' tops: 4 walls at 7.2 m, about -80.5 dBm.
     let strength = async |a: &mut Control| -> f64 {
@@ -360,7 +418,11 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
         .and_then(|r| r.strip_suffix('}'))
         .and_then(|p| p.parse().ok())
         .unwrap_or_else(|| panic!("{reply}"));
-    assert_eq!(a.ask("DNS {Robot BaseStation}").await, reply, "the same port again");
+    assert_eq!(
+        a.ask("DNS {Robot BaseStation}").await,
+        reply,
+        "the same port again"
+    );
 
     // Robot1 talks to the BaseStation through the relay; the BaseStation asks who it is.
     let mut link = TcpStream::connect(("127.0.0.1", port)).await.unwrap();
@@ -384,7 +446,9 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
 
     // The BaseStation descends behind the walls: eight walls, out of range; the relayed
     // connection closes and new ones are refused.
-    base.write_all(b"DRIVE {AltitudeVelocity -2}\r\n").await.unwrap();
+    base.write_all(b"DRIVE {AltitudeVelocity -2}\r\n")
+        .await
+        .unwrap();
     let mut s = 0.0;
     for _ in 0..600 {
         s = strength(&mut a).await;
@@ -394,10 +458,15 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     assert!(s < -93.0, "out of range behind the walls: {s}");
-    base.write_all(b"DRIVE {AltitudeVelocity 0}\r\n").await.unwrap();
+    base.write_all(b"DRIVE {AltitudeVelocity 0}\r\n")
+        .await
+        .unwrap();
     let mut rest = Vec::new();
     let closed = tokio::time::timeout(Duration::from_secs(30), link.read_to_end(&mut rest)).await;
-    assert!(closed.is_ok(), "the relayed connection is closed when the link breaks");
+    assert!(
+        closed.is_ok(),
+        "the relayed connection is closed when the link breaks"
+    );
     let mut refused = false;
     for _ in 0..100 {
         if TcpStream::connect(("127.0.0.1", port)).await.is_err() {
@@ -409,7 +478,9 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
     assert!(refused, "the relay port does not listen while out of range");
 
     // Back up: the link resumes on the same port.
-    base.write_all(b"DRIVE {AltitudeVelocity 2}\r\n").await.unwrap();
+    base.write_all(b"DRIVE {AltitudeVelocity 2}\r\n")
+        .await
+        .unwrap();
     let mut again = None;
     for _ in 0..600 {
         if strength(&mut a).await >= -93.0
@@ -421,7 +492,9 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     let mut again = again.expect("the link resumes when the BaseStation climbs back");
-    base.write_all(b"DRIVE {AltitudeVelocity 0}\r\n").await.unwrap();
+    base.write_all(b"DRIVE {AltitudeVelocity 0}\r\n")
+        .await
+        .unwrap();
     let (mut accepted, _) = base_listener.accept().await.unwrap();
     again.write_all(b"back").await.unwrap();
     let mut got = [0u8; 4];
@@ -430,10 +503,16 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
 
     // A name no robot in the simulation has: kicked at the next poll.
     let mut ghost = Control::connect(wss_at).await;
-    assert_eq!(ghost.ask("INIT {Robot Ghost} {Port 1}").await, "INITREPLY {Status OK}");
+    assert_eq!(
+        ghost.ask("INIT {Robot Ghost} {Port 1}").await,
+        "INITREPLY {Status OK}"
+    );
     let mut rest = Vec::new();
     let kicked =
         tokio::time::timeout(Duration::from_secs(30), ghost.read.read_to_end(&mut rest)).await;
-    assert!(kicked.is_ok(), "a robot the simulation does not have is kicked");
+    assert!(
+        kicked.is_ok(),
+        "a robot the simulation does not have is kicked"
+    );
     shutdown.cancel();
 }

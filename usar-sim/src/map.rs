@@ -607,7 +607,10 @@ fn placed_entries(
     let mut walls: Option<Scene> = None;
     let mut placed: Vec<Placed> = Vec::new();
     let entries = raw.victim.iter().map(|e| (e, true));
-    for (index, (entry, victim)) in entries.chain(raw.object.iter().map(|e| (e, false))).enumerate() {
+    for (index, (entry, victim)) in entries
+        .chain(raw.object.iter().map(|e| (e, false)))
+        .enumerate()
+    {
         let at = entry.span().start;
         let p = entry.get_ref();
         let what = if victim { "victim" } else { "object" };
@@ -625,7 +628,12 @@ fn placed_entries(
                         ),
                     )
                 })?,
-            (None, true) => return Err(invalid(at, "victim needs a `class` (FemaleVictim or MaleVictim)".into())),
+            (None, true) => {
+                return Err(invalid(
+                    at,
+                    "victim needs a `class` (FemaleVictim or MaleVictim)".into(),
+                ));
+            }
             (Some(c), false) if c.trim().is_empty() || c.contains([' ', '{', '}']) => {
                 return Err(invalid(at, format!("object class {c:?} must be one word")));
             }
@@ -634,7 +642,10 @@ fn placed_entries(
         };
         let name = p.name.clone().unwrap_or_else(|| format!("{class}_{index}"));
         if name.trim().is_empty() || name.contains(['{', '}', ' ']) {
-            return Err(invalid(at, format!("{what} name {name:?} must be one word")));
+            return Err(invalid(
+                at,
+                format!("{what} name {name:?} must be one word"),
+            ));
         }
         if placed.iter().any(|o| o.name == name) {
             return Err(invalid(at, format!("duplicate {what} name `{name}`")));
@@ -647,7 +658,10 @@ fn placed_entries(
         within(&[&p.center, &size], LIMIT).map_err(|m| invalid(at, m))?;
         within(&[&[p.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
         if size.iter().any(|&s| s <= 0.0) {
-            return Err(invalid(at, format!("{what} size must be positive, got {size:?}")));
+            return Err(invalid(
+                at,
+                format!("{what} size must be positive, got {size:?}"),
+            ));
         }
         if victim {
             let walls = walls.get_or_insert_with(|| {
@@ -702,31 +716,31 @@ fn box_collider(center: V3, size: V3, yaw: f64) -> ColliderBuilder {
 
 fn build_solids(solids: &[Solid], scene: &mut Scene) {
     for solid in solids {
-            let collider = match solid {
-                Solid::Box { center, size, yaw } => box_collider(*center, *size, *yaw),
-                Solid::Cylinder {
-                    center,
-                    radius,
-                    height,
-                } => ColliderBuilder::cylinder((height / 2.0) as f32, *radius as f32)
-                    .position(upright_pose(*center)),
-                Solid::Mesh {
-                    vertices,
-                    triangles,
-                } => {
-                    let vertices = vertices.iter().map(|v| vec(*v)).collect();
-                    match ColliderBuilder::trimesh(vertices, triangles.clone()) {
-                        Ok(builder) => builder,
-                        Err(e) => {
-                            tracing::warn!(error = ?e, "mesh skipped");
-                            continue;
-                        }
+        let collider = match solid {
+            Solid::Box { center, size, yaw } => box_collider(*center, *size, *yaw),
+            Solid::Cylinder {
+                center,
+                radius,
+                height,
+            } => ColliderBuilder::cylinder((height / 2.0) as f32, *radius as f32)
+                .position(upright_pose(*center)),
+            Solid::Mesh {
+                vertices,
+                triangles,
+            } => {
+                let vertices = vertices.iter().map(|v| vec(*v)).collect();
+                match ColliderBuilder::trimesh(vertices, triangles.clone()) {
+                    Ok(builder) => builder,
+                    Err(e) => {
+                        tracing::warn!(error = ?e, "mesh skipped");
+                        continue;
                     }
                 }
-            };
-            scene.insert(collider);
-        }
+            }
+        };
+        scene.insert(collider);
     }
+}
 
 fn vec(v: V3) -> Vector {
     Vector::new(v[0] as f32, v[1] as f32, v[2] as f32)
@@ -892,12 +906,14 @@ mod tests {
             ("Victim1", "FemaleVictim")
         );
         assert!(map.placed().iter().any(|p| p.class == "Sedan" && !p.victim));
-        let map = parse(
-            "level = \"x\"\n[[victim]]\nclass = \"malevictim\"\ncenter = [1, 2, -0.15]\n",
-        )
-        .unwrap();
+        let map =
+            parse("level = \"x\"\n[[victim]]\nclass = \"malevictim\"\ncenter = [1, 2, -0.15]\n")
+                .unwrap();
         let v = &map.placed()[0];
-        assert_eq!((v.name.as_str(), v.class.as_str()), ("MaleVictim_0", "MaleVictim"));
+        assert_eq!(
+            (v.name.as_str(), v.class.as_str()),
+            ("MaleVictim_0", "MaleVictim")
+        );
         assert_eq!(v.size, VICTIM_SIZE);
     }
 
@@ -910,7 +926,9 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(
-            e.starts_with("test.toml:6:") && e.contains("victim `Anna`") && e.contains("inside a wall"),
+            e.starts_with("test.toml:6:")
+                && e.contains("victim `Anna`")
+                && e.contains("inside a wall"),
             "{e}"
         );
         // Lying on the floor (touching it) is fine.
@@ -922,7 +940,10 @@ mod tests {
         let e = parse("level = \"x\"\n[[victim]]\nclass = \"Dog\"\ncenter = [0, 0, 0]\n")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("FemaleVictim, MaleVictim") && e.contains("Dog"), "{e}");
+        assert!(
+            e.contains("FemaleVictim, MaleVictim") && e.contains("Dog"),
+            "{e}"
+        );
         let e = parse("level = \"x\"\n[[object]]\ncenter = [0, 0, 0]\n")
             .unwrap_err()
             .to_string();

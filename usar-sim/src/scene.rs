@@ -224,7 +224,10 @@ impl Scene {
             let Some((toi, handle)) = self.cast_ray_hit(origin, dir, length - from, None) else {
                 break;
             };
-            let wall = self.colliders.get(handle).is_some_and(|c| c.user_data == WALL);
+            let wall = self
+                .colliders
+                .get(handle)
+                .is_some_and(|c| c.user_data == WALL);
             if wall && (last != Some(handle) || toi > STEP) {
                 count += 1;
                 last = Some(handle);

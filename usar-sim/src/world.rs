@@ -397,7 +397,10 @@ impl World {
     /// Walls between two points as USARSim's robot monitor counts them (a ray restarted
     /// 0.2 m past each hit; robots and victims do not count).
     pub fn obstacles_between(&self, a: V3, b: V3) -> u32 {
-        if a.iter().chain(&b).any(|x| !x.is_finite() || x.abs() > map::LIMIT) {
+        if a.iter()
+            .chain(&b)
+            .any(|x| !x.is_finite() || x.abs() > map::LIMIT)
+        {
             return 0;
         }
         self.scene.obstacles_between(a, b)

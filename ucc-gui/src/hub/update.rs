@@ -74,9 +74,7 @@ impl Hub {
     /// The map's solids for the page: `[{outline: [[x, y], ...], z_min, z_max}]`, the
     /// victims after them with `victim` (the name) and `class`.
     pub fn geometry_json(&self) -> Value {
-        let solid = |f: &ucc_client::picture::Footprint| {
-            json!({"outline": f.outline.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(), "z_min": f.z_min, "z_max": f.z_max})
-        };
+        let solid = |f: &ucc_client::picture::Footprint| json!({"outline": f.outline.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(), "z_min": f.z_min, "z_max": f.z_max});
         self.geometry.as_ref().map_or(Value::Null, |g| {
             // Victims are among the footprints too: drawn once, as victims.
             let victim_outlines: Vec<_> = g.victims.iter().map(|v| &v.footprint).collect();

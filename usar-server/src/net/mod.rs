@@ -10,11 +10,11 @@
 
 mod driver;
 pub mod monitor;
-pub mod wss;
 mod recording;
 mod session;
 mod side;
 mod truth;
+pub mod wss;
 
 pub(crate) use driver::wait_of;
 

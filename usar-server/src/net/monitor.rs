@@ -90,14 +90,21 @@ pub(super) async fn serve(
     tracker: TaskTracker,
     shutdown: CancellationToken,
 ) {
-    side::accept("robot monitor", listener, tracker.clone(), shutdown, move |stream, stop| {
-        connection(stream, requests.clone(), stop)
-    })
+    side::accept(
+        "robot monitor",
+        listener,
+        tracker.clone(),
+        shutdown,
+        move |stream, stop| connection(stream, requests.clone(), stop),
+    )
     .await;
 }
 
 async fn connection(stream: TcpStream, requests: Sender<Request>, stop: CancellationToken) {
-    let peer = stream.peer_addr().map(|a| a.to_string()).unwrap_or_default();
+    let peer = stream
+        .peer_addr()
+        .map(|a| a.to_string())
+        .unwrap_or_default();
     let (read, mut write) = stream.into_split();
     let mut lines = Lines::new(read);
     loop {

@@ -71,12 +71,19 @@ enum Kind {
 fn answer(world: &World, query: &Query) -> String {
     let time = world.time();
     let mut out = String::new();
-    let robots = world.robots_truth().into_iter().map(|r| {
-        (Kind::Robot, r.name, r.class, r.location, r.rotation)
-    });
+    let robots = world
+        .robots_truth()
+        .into_iter()
+        .map(|r| (Kind::Robot, r.name, r.class, r.location, r.rotation));
     let placed = world.placed().iter().map(|p| {
         let kind = if p.victim { Kind::Victim } else { Kind::Object };
-        (kind, p.name.clone(), p.class.clone(), p.center, [0.0, 0.0, p.yaw])
+        (
+            kind,
+            p.name.clone(),
+            p.class.clone(),
+            p.center,
+            [0.0, 0.0, p.yaw],
+        )
     });
     for (kind, name, class, location, rotation) in robots.chain(placed) {
         let wanted = match &query.class {
@@ -109,14 +116,21 @@ pub(super) async fn serve(
     tracker: TaskTracker,
     shutdown: CancellationToken,
 ) {
-    side::accept("USARTruth", listener, tracker.clone(), shutdown, move |stream, stop| {
-        connection(stream, requests.clone(), stop)
-    })
+    side::accept(
+        "USARTruth",
+        listener,
+        tracker.clone(),
+        shutdown,
+        move |stream, stop| connection(stream, requests.clone(), stop),
+    )
     .await;
 }
 
 async fn connection(stream: TcpStream, requests: Sender<Request>, stop: CancellationToken) {
-    let peer = stream.peer_addr().map(|a| a.to_string()).unwrap_or_default();
+    let peer = stream
+        .peer_addr()
+        .map(|a| a.to_string())
+        .unwrap_or_default();
     let (read, mut write) = stream.into_split();
     let mut lines = Lines::new(read);
     loop {
@@ -158,7 +172,11 @@ mod tests {
         );
         assert_eq!(Query::parse("{Actors}"), Query::default());
         assert_eq!(Query::parse("\u{1}\u{2}garbage"), Query::default());
-        assert!(class_matches("USARVictim.FemaleVictim", "FemaleVictim", Kind::Victim));
+        assert!(class_matches(
+            "USARVictim.FemaleVictim",
+            "FemaleVictim",
+            Kind::Victim
+        ));
         assert!(class_matches("Pawn", "FemaleVictim", Kind::Victim));
         assert!(!class_matches("Pawn", "Sedan", Kind::Object));
         assert!(class_matches("USARPhysObj.Sedan", "Sedan", Kind::Object));

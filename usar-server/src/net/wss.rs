@@ -83,7 +83,11 @@ pub fn stringify(v: f64) -> String {
         let (mantissa, exp) = s.split_once('e').unwrap_or((&s, "0"));
         let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
         let exp: i32 = exp.parse().unwrap_or(0);
-        return format!("{mantissa}e{}{:02}", if exp < 0 { '-' } else { '+' }, exp.abs());
+        return format!(
+            "{mantissa}e{}{:02}",
+            if exp < 0 { '-' } else { '+' },
+            exp.abs()
+        );
     }
     let decimals = (5 - exponent).max(0) as usize;
     let s = format!("{v:.decimals$}");
@@ -342,7 +346,9 @@ async fn request(
             }
             let state = wss.lock();
             if !state.robots.contains_key(robot) {
-                return format!("SS {{Robot {robot}}} {{Strength NaN}} {{Error Robot.Does.Not.Exist}}");
+                return format!(
+                    "SS {{Robot {robot}}} {{Strength NaN}} {{Error Robot.Does.Not.Exist}}"
+                );
             }
             let s = wss.strength(&state, &name, robot);
             if s.is_nan() {
@@ -477,7 +483,10 @@ fn start_relay(
                 SocketAddr::new(robot.ip, port)
             };
             let Ok(permit) = wss.relayed.clone().try_acquire_owned() else {
-                warn!(max = MAX_RELAYED, "WSS: too many relayed connections; dropped");
+                warn!(
+                    max = MAX_RELAYED,
+                    "WSS: too many relayed connections; dropped"
+                );
                 continue;
             };
             let (wss, stop, from, to) = (wss.clone(), stop.clone(), from.clone(), to.clone());
@@ -569,11 +578,18 @@ async fn ask(m: &mut BufReader<TcpStream>, request: &str) -> Result<String, ()> 
 fn positions(line: &str) -> Vec<(String, [f64; 3], bool)> {
     let mut out = Vec::new();
     for block in line.split('{').skip(1) {
-        let tokens: Vec<&str> = block.trim_end_matches(['}', ' ']).split_whitespace().collect();
+        let tokens: Vec<&str> = block
+            .trim_end_matches(['}', ' '])
+            .split_whitespace()
+            .collect();
         if let ["Name", name, "Location", at, "BatteryEmpty", empty] = tokens[..] {
             let p: Vec<f64> = at.split(',').filter_map(|x| x.parse().ok()).collect();
             if let [x, y, z] = p[..] {
-                out.push((name.to_owned(), [x, y, z], empty.eq_ignore_ascii_case("True")));
+                out.push((
+                    name.to_owned(),
+                    [x, y, z],
+                    empty.eq_ignore_ascii_case("True"),
+                ));
             }
         }
     }
@@ -645,7 +661,11 @@ async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> 
         let verdicts: Vec<bool> = state
             .links
             .iter()
-            .map(|l| names.contains(&l.from) && names.contains(&l.to) && wss.in_range(&state, &l.from, &l.to))
+            .map(|l| {
+                names.contains(&l.from)
+                    && names.contains(&l.to)
+                    && wss.in_range(&state, &l.from, &l.to)
+            })
             .collect();
         for (link, ok) in state.links.iter_mut().zip(verdicts) {
             match (&link.up, ok) {
@@ -654,12 +674,9 @@ async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> 
                     up.cancel();
                     link.up = None;
                 }
-                (None, true) => resume.push((
-                    link.from.clone(),
-                    link.to.clone(),
-                    link.port,
-                    link.target,
-                )),
+                (None, true) => {
+                    resume.push((link.from.clone(), link.to.clone(), link.port, link.target))
+                }
                 _ => {}
             }
         }
@@ -670,7 +687,11 @@ async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> 
             Ok(listener) => {
                 let up = start_relay(wss, listener, &from, &to, target);
                 let mut state = wss.lock();
-                match state.links.iter_mut().find(|l| l.port == port && l.up.is_none()) {
+                match state
+                    .links
+                    .iter_mut()
+                    .find(|l| l.port == port && l.up.is_none())
+                {
                     Some(link) => {
                         info!(%from, %to, port, "WSS: link resumed");
                         link.up = Some(up);
@@ -678,7 +699,9 @@ async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> 
                     None => up.cancel(),
                 }
             }
-            Err(error) => warn!(%from, %to, port, %error, "WSS: cannot listen again on the relay port"),
+            Err(error) => {
+                warn!(%from, %to, port, %error, "WSS: cannot listen again on the relay port")
+            }
         }
     }
     Ok(())
@@ -704,7 +727,10 @@ mod tests {
         assert!((s(2.0, 0.0) - -49.67).abs() < 1e-9);
         // Five walls: in range up to about 29.6 m.
         assert!(s(29.0, 5.0) >= c.cutoff && s(30.5, 5.0) < c.cutoff);
-        assert!(s(2.0, 7.0) < c.cutoff, "seven walls cut any link of 2 m or more");
+        assert!(
+            s(2.0, 7.0) < c.cutoff,
+            "seven walls cut any link of 2 m or more"
+        );
         assert!(s(0.0, 0.0).is_infinite());
     }
 
@@ -714,10 +740,18 @@ mod tests {
             parse("INIT {Robot R1} {Port 8001,8002}"),
             ("INIT", vec![("Robot", "R1"), ("Port", "8001,8002")])
         );
-        assert_eq!(parse("GETSS {robot x} {A B C}"), ("GETSS", vec![("robot", "x")]));
         assert_eq!(
-            positions("POSITIONS {Robots 2} {Name A Location 1.0000,2.0000,-1.0000 BatteryEmpty False} {Name B Location 0,0,0 BatteryEmpty True}"),
-            vec![("A".to_owned(), [1.0, 2.0, -1.0], false), ("B".to_owned(), [0.0; 3], true)]
+            parse("GETSS {robot x} {A B C}"),
+            ("GETSS", vec![("robot", "x")])
+        );
+        assert_eq!(
+            positions(
+                "POSITIONS {Robots 2} {Name A Location 1.0000,2.0000,-1.0000 BatteryEmpty False} {Name B Location 0,0,0 BatteryEmpty True}"
+            ),
+            vec![
+                ("A".to_owned(), [1.0, 2.0, -1.0], false),
+                ("B".to_owned(), [0.0; 3], true)
+            ]
         );
     }
 }

@@ -144,7 +144,11 @@ impl Sensor for VictSensor {
             let part = body_part(along, side);
             let rel = yaw_rotate(
                 -at.yaw,
-                [hit[0] - at.origin[0], hit[1] - at.origin[1], hit[2] - at.origin[2]],
+                [
+                    hit[0] - at.origin[0],
+                    hit[1] - at.origin[1],
+                    hit[2] - at.origin[2],
+                ],
             );
             match seen.iter_mut().find(|s| s.0 == v && s.1 == part) {
                 Some(s) => {
@@ -202,11 +206,10 @@ mod tests {
             color: None,
         };
         let handle = scene.insert(
-            ColliderBuilder::cuboid(0.85, 0.25, 0.15)
-                .position(Pose::new(
-                    rapier3d::math::Vector::new(3.0, 0.0, 1.0),
-                    rapier3d::math::Vector::new(0.0, 0.0, std::f32::consts::FRAC_PI_2),
-                )),
+            ColliderBuilder::cuboid(0.85, 0.25, 0.15).position(Pose::new(
+                rapier3d::math::Vector::new(3.0, 0.0, 1.0),
+                rapier3d::math::Vector::new(0.0, 0.0, std::f32::consts::FRAC_PI_2),
+            )),
         );
         scene.add_victim(handle, &victim);
         scene.refit();
@@ -220,7 +223,10 @@ mod tests {
         };
         assert_eq!(name.as_deref(), Some("S"));
         let names: Vec<&str> = parts.iter().map(|p| p.part.as_str()).collect();
-        assert!(names.contains(&"Chest") && names.contains(&"Leg"), "{names:?}");
+        assert!(
+            names.contains(&"Chest") && names.contains(&"Leg"),
+            "{names:?}"
+        );
         for p in &parts {
             assert!((2.5..3.5).contains(&p.location.x), "{p:?}");
         }
