@@ -500,6 +500,12 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
     let mut got = [0u8; 4];
     accepted.read_exact(&mut got).await.unwrap();
     assert_eq!(&got, b"back");
+    // A robot that floods its link while the other side does not read: the relay holds no
+    // more than the sockets' buffers, so the flooder's writes stop (64 MiB never all go).
+    let flood = vec![0u8; 64 << 20];
+    let sent = tokio::time::timeout(Duration::from_secs(3), again.write_all(&flood)).await;
+    assert!(sent.is_err(), "the relay does not take an unbounded flood");
+    drop(accepted);
 
     // A name no robot in the simulation has: kicked at the next poll.
     let mut ghost = Control::connect(wss_at).await;
