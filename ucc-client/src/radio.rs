@@ -156,7 +156,7 @@ impl Radio {
             return Err(RadioError::TooLarge(data.len()));
         }
         let strength = self.strength(to).await?;
-        if !(strength >= CUTOFF) {
+        if strength.is_nan() || strength < CUTOFF {
             return Err(RadioError::OutOfRange {
                 to: to.to_owned(),
                 strength,

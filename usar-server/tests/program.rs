@@ -34,6 +34,7 @@ fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
         .unwrap_or_else(|| panic!("ready line: {line:?}"));
     let (port, level) = rest.trim_end().split_once(" map ").unwrap();
     assert_eq!(level, "Arena");
+    let port: u16 = port.parse().unwrap();
     // Then one line per side service.
     for service in ["USARTruth", "WSS", "robot monitor"] {
         line.clear();
@@ -47,7 +48,7 @@ fn prints_one_ready_line_and_exits_cleanly_on_sigterm() {
     }
 
     // A client connected at shutdown sees EOF after its greeting.
-    let mut client = std::net::TcpStream::connect(("127.0.0.1", port.parse().unwrap())).unwrap();
+    let mut client = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
     let mut greeting = [0u8; 3];
     client.read_exact(&mut greeting).unwrap();
     assert_eq!(&greeting, b"NFO");

@@ -213,7 +213,7 @@ impl Scene {
         const STEP: f64 = 0.2;
         let d = sub(b, a);
         let length = norm(d);
-        if !(length > 1e-9) {
+        if length.is_nan() || length <= 1e-9 {
             return 0;
         }
         let dir = scale(d, 1.0 / length);

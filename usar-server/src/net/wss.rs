@@ -117,6 +117,9 @@ struct Link {
     up: Option<CancellationToken>,
 }
 
+/// A pair's wall count and the two positions it was counted at.
+type Walls = (f64, [f64; 3], [f64; 3]);
+
 #[derive(Debug, Default)]
 struct State {
     robots: BTreeMap<String, Robot>,
@@ -124,7 +127,7 @@ struct State {
     /// Latest positions from the monitor.
     positions: HashMap<String, [f64; 3]>,
     /// Wall counts per unordered pair, with the positions they were counted at.
-    walls: HashMap<(String, String), (f64, [f64; 3], [f64; 3])>,
+    walls: HashMap<(String, String), Walls>,
     /// Relayed connections: the WSS's outgoing local port → (from, to).
     outgoing: HashMap<u16, (String, String)>,
 }
