@@ -248,21 +248,23 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
                 "--wss-port needs the robot monitor (--monitor-port is off); use --wss-port off"
             );
         }
-        let mut stdout = std::io::stdout().lock();
-        writeln!(stdout, "usar-server listening on {address} map {level}")?;
+        // All ready lines in one write: a reader that takes the first line and closes the
+        // pipe must not make the next line fail (stdout is line-buffered).
+        let mut ready = format!("usar-server listening on {address} map {level}\n");
         for (service, listener) in [
             ("USARTruth", &side.truth),
             ("WSS", &side.wss),
             ("robot monitor", &side.monitor),
         ] {
             if let Some(listener) = listener {
-                writeln!(
-                    stdout,
-                    "usar-server {service} listening on {}",
+                ready.push_str(&format!(
+                    "usar-server {service} listening on {}\n",
                     listener.local_addr()?
-                )?;
+                ));
             }
         }
+        let mut stdout = std::io::stdout().lock();
+        stdout.write_all(ready.as_bytes())?;
         stdout.flush()?;
         drop(stdout);
         usar_server::run_with(listener, side, config, shutdown).await?;
