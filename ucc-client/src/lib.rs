@@ -73,6 +73,7 @@ pub mod mission;
 pub mod output;
 pub mod picture;
 pub mod progress;
+pub mod radio;
 pub mod record;
 pub mod runner;
 pub mod settings;

@@ -56,9 +56,25 @@ pub struct Footprint {
 /// file; a real USARSim reports none, and then the pictures draw the laser's hits instead).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct MapGeometry {
-    /// Every solid.
+    /// Every solid (the map's victims and objects too).
     pub footprints: Vec<Footprint>,
+    /// The victims (also in `footprints`), drawn in their own colour with their names.
+    pub victims: Vec<Victim>,
 }
+
+/// A victim of the map, for the pictures and the browser's map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Victim {
+    /// Its name (`Victim1`), as USARTruth lists it.
+    pub name: String,
+    /// `FemaleVictim` or `MaleVictim`.
+    pub class: String,
+    /// Its body seen from above.
+    pub footprint: Footprint,
+}
+
+/// The colour of victims in the pictures (and, as `VICTIM_COLOR`, on the browser's map).
+pub const VICTIM_COLOUR: RGBColor = RGBColor(214, 40, 200);
 
 impl MapGeometry {
     /// What is wrong with flying at `p` (world frame, z down), if anything: it lies inside a
@@ -99,14 +115,31 @@ fn encloses(outline: &[(f64, f64)], p: &Coordinates) -> bool {
 #[cfg(feature = "local")]
 impl From<&usar_server::sim::map::Map> for MapGeometry {
     fn from(map: &usar_server::sim::map::Map) -> Self {
+        let placed = |p: &usar_server::sim::Placed| Footprint {
+            outline: p.outline().iter().map(|q| (q[0], q[1])).collect(),
+            z_min: p.center[2] - p.size[2] / 2.0,
+            z_max: p.center[2] + p.size[2] / 2.0,
+        };
+        let mut footprints: Vec<Footprint> = map
+            .footprints()
+            .into_iter()
+            .map(|f| Footprint {
+                outline: f.outline.iter().map(|p| (p[0], p[1])).collect(),
+                z_min: f.z_min,
+                z_max: f.z_max,
+            })
+            .collect();
+        footprints.extend(map.placed().iter().map(placed));
         Self {
-            footprints: map
-                .footprints()
-                .into_iter()
-                .map(|f| Footprint {
-                    outline: f.outline.iter().map(|p| (p[0], p[1])).collect(),
-                    z_min: f.z_min,
-                    z_max: f.z_max,
+            footprints,
+            victims: map
+                .placed()
+                .iter()
+                .filter(|p| p.victim)
+                .map(|p| Victim {
+                    name: p.name.clone(),
+                    class: p.class.clone(),
+                    footprint: placed(p),
                 })
                 .collect(),
         }
@@ -274,6 +307,43 @@ impl MapPicture {
                     .legend(move |(x, y)| {
                         Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], wall.mix(0.6).filled())
                     });
+            }
+            // Victims at any height (they lie on the floor), in their colour, named.
+            let victims: Vec<(String, Vec<(f64, f64)>)> = geometry
+                .victims
+                .iter()
+                .map(|v| {
+                    let outline: Vec<(f64, f64)> =
+                        v.footprint.outline.iter().map(|&(x, y)| (y, x)).collect();
+                    (v.name.clone(), clip_polygon(&outline, clip))
+                })
+                .filter(|(_, clipped)| clipped.len() >= 3)
+                .collect();
+            if !victims.is_empty() {
+                chart
+                    .draw_series(
+                        victims.iter().map(|(_, points)| {
+                            Polygon::new(points.clone(), VICTIM_COLOUR.filled())
+                        }),
+                    )
+                    .map_err(err)?
+                    .label("victims")
+                    .legend(move |(x, y)| {
+                        Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], VICTIM_COLOUR.filled())
+                    });
+                chart
+                    .draw_series(victims.iter().map(|(name, points)| {
+                        // Beside the body (east of it), not over it.
+                        let n = points.len() as f64;
+                        let east = points.iter().map(|p| p.0).fold(f64::MIN, f64::max);
+                        let north = points.iter().map(|p| p.1).sum::<f64>() / n;
+                        Text::new(
+                            name.clone(),
+                            (east + 0.1, north),
+                            ("sans-serif", 13).into_font().color(&VICTIM_COLOUR),
+                        )
+                    }))
+                    .map_err(err)?;
             }
         } else if !self.laser_hits.is_empty() {
             let hits = self.laser_hits.iter().map(top_view).filter(|p| inside(*p));
@@ -660,6 +730,7 @@ mod tests {
                     z_max: 0.0,
                 },
             ],
+            victims: Vec::new(),
         };
         let at = |x, y, z| room.problem_at(&Coordinates::new(x, y, z));
         assert_eq!(at(0.0, 0.0, -1.0), None);
@@ -671,6 +742,40 @@ mod tests {
             MapGeometry::default().problem_at(&Coordinates::zeros()),
             None
         );
+    }
+
+    /// Issue 20 item 4: the rescue map's victims are drawn in their colour, named.
+    #[cfg(feature = "local")]
+    #[test]
+    fn victims_are_drawn_in_their_colour_with_their_names() {
+        let map = usar_server::sim::Map::embedded("rescue").unwrap();
+        let geometry = MapGeometry::from(&map);
+        assert_eq!(geometry.victims.len(), 4);
+        let dir = std::env::temp_dir().join(format!("ucc-victims-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path: Vec<_> = (0..40)
+            .map(|i| Coordinates::new(-12.0 + f64::from(i) * 0.4, 0.0, -1.5))
+            .collect();
+        let picture = MapPicture {
+            title: "CollapsedBuilding".into(),
+            start: path.first().copied(),
+            paths: vec![path],
+            geometry: Some(geometry),
+            ..MapPicture::default()
+        };
+        let files = picture.write(&dir.join("rescue")).unwrap();
+        let svg = std::fs::read_to_string(&files[0]).unwrap();
+        assert!(
+            svg.contains("Victim3") && svg.contains("\nvictims\n</text>"),
+            "names and legend"
+        );
+        let png = image::open(&files[1]).unwrap().to_rgb8();
+        let [r, g, b] = [VICTIM_COLOUR.0, VICTIM_COLOUR.1, VICTIM_COLOUR.2];
+        let victim_pixels = png.pixels().filter(|p| p.0 == [r, g, b]).count();
+        assert!(victim_pixels > 400, "{victim_pixels} victim pixels");
+        if std::env::var_os("UCC_KEEP_PICTURES").is_none() {
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
     }
 
     #[test]
@@ -706,6 +811,7 @@ mod tests {
                     z_min: -3.0,
                     z_max: 0.0,
                 }],
+                victims: Vec::new(),
             }),
             laser_hits: Vec::new(),
         };

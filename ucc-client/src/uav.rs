@@ -81,6 +81,15 @@ impl LaserScan {
     }
 }
 
+/// A victim's body part a VictSensor saw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VictimSighting {
+    /// `Head`, `Arm`, `Hand`, `Chest`, `Pelvis`, `Leg` or `Foot`.
+    pub part: String,
+    /// Metres, relative to the sensor: x forward, y right, z down.
+    pub location: Coordinates,
+}
+
 /// Which sensor a position or orientation came from, best last.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Source {
@@ -136,6 +145,9 @@ pub struct UavState {
     pub altitude: Option<Reading<f64>>,
     /// The speed command in force and when it was sent (for dead reckoning).
     pub command: Option<Reading<crate::speed::SpeedCommand>>,
+    /// What the latest VictSensor reading saw: victims' body parts (empty: no victims in
+    /// view).
+    pub victims: Option<Reading<Vec<VictimSighting>>>,
     /// The z of the dead-reckoning origin (the spawn point).
     reckoning_origin_z: Option<f64>,
     /// The battery value taken as "full".
@@ -285,6 +297,18 @@ impl UavState {
                     });
                 }
                 return false;
+            }
+            SenData::VictSensor { parts, .. } => {
+                self.victims = Some(Reading {
+                    value: parts
+                        .iter()
+                        .map(|p| VictimSighting {
+                            part: p.part.clone(),
+                            location: Coordinates::new(p.location.x, p.location.y, p.location.z),
+                        })
+                        .collect(),
+                    time,
+                });
             }
             SenData::RangeScanner(Scan {
                 ranges,
@@ -685,5 +709,19 @@ mod tests {
         assert!(!uav.battery_empty());
         uav.apply(&sta(2.0, 0));
         assert!(uav.battery_empty());
+    }
+
+    #[test]
+    fn victim_sensor_lines_become_sightings() {
+        let mut state = UavState::new();
+        let line = "SEN {Time 2.0000} {Type VictSensor} {Name V} {PartName Chest} {Location 2.05,0.33,0.46}";
+        assert!(state.apply(&ServerMessage::parse(line).unwrap().message));
+        let seen = state.victims.as_ref().unwrap();
+        assert_eq!(seen.time, 2.0);
+        assert_eq!(seen.value[0].part, "Chest");
+        assert_eq!(seen.value[0].location, Coordinates::new(2.05, 0.33, 0.46));
+        let none = "SEN {Time 3.0000} {Type VictSensor} {Status NoVictims}";
+        state.apply(&ServerMessage::parse(none).unwrap().message);
+        assert!(state.victims.as_ref().unwrap().value.is_empty());
     }
 }

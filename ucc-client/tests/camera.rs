@@ -25,8 +25,11 @@ async fn server(
     };
     let token = shutdown.clone();
     tokio::spawn(async move {
-        let side = SideListeners { image: Some(side) };
-        usar_server::run_all(main, side, config, token)
+        let side = SideListeners {
+            image: Some(side),
+            ..SideListeners::default()
+        };
+        usar_server::run_with(main, side, config, token)
             .await
             .unwrap();
     });

@@ -204,3 +204,32 @@ fn a_long_loop_keeps_the_overlay_bounded() {
     assert!(points <= 100_000, "{points} overlay points kept");
     assert!(hub.uavs[0].past.len() >= 10, "recent iterations kept");
 }
+
+/// Issue 20: the page gets the victims after the solids, each once, with its name and class.
+#[test]
+fn the_page_gets_the_victims_with_their_names() {
+    let mut hub = hub();
+    let map = usar_server::sim::Map::embedded("rescue").unwrap();
+    hub.geometry = Some(ucc_client::picture::MapGeometry::from(&map));
+    let geometry = hub.geometry_json();
+    let entries = geometry.as_array().unwrap();
+    let victims: Vec<(&str, &str)> = entries
+        .iter()
+        .filter_map(|e| Some((e["victim"].as_str()?, e["class"].as_str()?)))
+        .collect();
+    assert_eq!(
+        victims,
+        [
+            ("Victim1", "FemaleVictim"),
+            ("Victim2", "MaleVictim"),
+            ("Victim3", "MaleVictim"),
+            ("Victim4", "FemaleVictim")
+        ]
+    );
+    let solids = entries.iter().filter(|e| e.get("victim").is_none()).count();
+    assert_eq!(
+        solids + 4,
+        hub.geometry.as_ref().unwrap().footprints.len(),
+        "victims are not drawn twice"
+    );
+}

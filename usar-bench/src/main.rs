@@ -723,6 +723,14 @@ fn start_server(args: &Args) -> anyhow::Result<(Server, SocketAddr)> {
     let mut command = Command::new(&bin);
     command
         .args(["--port", "0", "--time-scale", &args.time_scale])
+        .args([
+            "--truth-port",
+            "off",
+            "--monitor-port",
+            "off",
+            "--wss-port",
+            "off",
+        ])
         .args(["--max-connections", &(args.uavs * 2 + 16).to_string()])
         // Every simulated UAV connects from this machine's loopback address.
         .args([

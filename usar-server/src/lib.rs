@@ -42,4 +42,4 @@ pub use usar_sim as sim;
 pub use args::{ArgsError, ServerArgs};
 pub use local::LocalServer;
 pub use net::image::ImageConfig;
-pub use net::{ServerConfig, ServerError, SideListeners, TimeScale, run, run_all};
+pub use net::{ServerConfig, ServerError, SideListeners, TimeScale, run, run_with};

@@ -16,7 +16,7 @@ use usar_server::{ServerArgs, ServerConfig, TimeScale};
 ///
 /// When ready it prints one line per service on stdout: `usar-server listening on
 /// ADDRESS:PORT map LEVEL` (Gamebots), then `usar-server image server listening on
-/// ADDRESS:PORT` (unless `--image-port off`).
+/// ADDRESS:PORT` and likewise `USARTruth`, `WSS` and `robot monitor` (each unless `off`).
 /// Ctrl-C or SIGTERM shut it down cleanly. Log level: RUST_LOG (default `info`), on stderr.
 #[derive(Debug, Parser)]
 #[command(version, about, args_conflicts_with_subcommands = true)]
@@ -31,7 +31,7 @@ struct Args {
     port: u16,
     /// The image server's TCP port (camera frames, docs/camera.md): a number (0 picks a free
     /// one) or `off`. Default 5003, or a free port with `--port 0`.
-    #[arg(long, value_name = "PORT|off", value_parser = image_port)]
+    #[arg(long, value_name = "PORT|off", value_parser = side_port)]
     image_port: Option<SidePort>,
     /// Frames the image server sends: raw, or JPEG of quality super, good, normal, fair or
     /// bad (or USARSim's ImageType number, 0 to 5).
@@ -43,6 +43,19 @@ struct Args {
     /// No frame on connect: only one per request (USARSim's LegacyMode=false).
     #[arg(long)]
     image_no_legacy: bool,
+    /// USARTruth's port (ground truth of robots and victims, docs/usartruth.md): a number
+    /// (0 picks a free one) or `off`. Default 3989, or a free port with `--port 0`.
+    #[arg(long, value_name = "PORT|off", value_parser = side_port)]
+    truth_port: Option<SidePort>,
+    /// The robot monitor's port (positions and wall counts for a WSS, docs/wss.md): a number
+    /// (0 picks a free one) or `off`. Default 7435, or a free port with `--port 0`.
+    #[arg(long, value_name = "PORT|off", value_parser = side_port)]
+    monitor_port: Option<SidePort>,
+    /// The Wireless Simulation Server's port (robot-to-robot radio, docs/wss.md; it asks the
+    /// robot monitor): a number (0 picks a free one) or `off`. Default 50000, or a free port
+    /// with `--port 0`.
+    #[arg(long, value_name = "PORT|off", value_parser = side_port)]
+    wss_port: Option<SidePort>,
     #[command(flatten)]
     world: ServerArgs,
     /// Connections served at once; more are closed on accept.
@@ -107,6 +120,29 @@ enum Sub {
         #[arg(long, default_value_t = 1.0, value_parser = speed)]
         speed: f64,
     },
+    /// Run only a Wireless Simulation Server (docs/wss.md) against any USARSim's robot
+    /// monitor (a real USARSim or another usar-server). Prints
+    /// `usar-server WSS listening on ADDRESS:PORT` when ready.
+    Wss {
+        /// The simulator's robot monitor, HOST:PORT (USARSim: port 7435).
+        #[arg(long, default_value = "127.0.0.1:7435", value_name = "HOST:PORT")]
+        monitor: String,
+        /// Address to listen on.
+        #[arg(long, default_value = "127.0.0.1")]
+        bind: String,
+        /// TCP port (0 picks a free one).
+        #[arg(long, default_value_t = 50000)]
+        port: u16,
+        /// Seconds between polls of the positions (links break and resume then).
+        #[arg(long, default_value_t = 1.0, value_parser = seconds)]
+        poll: f64,
+        /// Weakest usable signal, dBm.
+        #[arg(long, default_value_t = -93.0, allow_hyphen_values = true)]
+        cutoff: f64,
+        /// Attenuation per wall, dB.
+        #[arg(long, default_value_t = 6.325)]
+        attenuation: f64,
+    },
 }
 
 fn main() -> ExitCode {
@@ -132,6 +168,23 @@ fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(error) => {
                 eprintln!("usar-server replay: {error:#}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    if let Some(Sub::Wss {
+        monitor,
+        bind,
+        port,
+        poll,
+        cutoff,
+        attenuation,
+    }) = &args.command
+    {
+        return match wss(monitor, bind, *port, *poll, *cutoff, *attenuation) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(error) => {
+                eprintln!("usar-server wss: {error:#}");
                 ExitCode::from(2)
             }
         };
@@ -198,52 +251,113 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
         let level = config.map.level().to_owned();
         let shutdown = CancellationToken::new();
         tokio::spawn(cancel_on_signal(shutdown.clone()));
-        // With `--port 0` (tests, several servers on one machine) every service picks a free
-        // port unless told otherwise.
-        let image_port = args
-            .image_port
-            .map_or(Some(if args.port == 0 { 0 } else { 5003 }), |p| p.0);
-        let image = match image_port {
-            None => None,
-            Some(port) => Some(
-                tokio::net::TcpListener::bind((args.bind.as_str(), port))
-                    .await
-                    .with_context(|| {
-                        format!("--image-port: cannot listen on {}:{port}", args.bind)
-                    })?,
-            ),
+        // With `--port 0` (tests, several servers on one machine) every side service picks
+        // a free port unless told otherwise.
+        let bind = async |service: &str, flag: &str, port: Option<SidePort>, default: u16| {
+            let default = SidePort(Some(if args.port == 0 { 0 } else { default }));
+            let SidePort(Some(port)) = port.unwrap_or(default) else {
+                return anyhow::Ok(None);
+            };
+            let listener = tokio::net::TcpListener::bind((args.bind.as_str(), port))
+                .await
+                .with_context(|| {
+                    format!("{flag}: cannot listen on {}:{port} ({service})", args.bind)
+                })?;
+            Ok(Some(listener))
         };
-        // All ready lines in one write: a script that reads only the first line and closes
-        // the pipe must not make a later line fail.
+        let side = usar_server::SideListeners {
+            image: bind("image server", "--image-port", args.image_port, 5003).await?,
+            truth: bind("USARTruth", "--truth-port", args.truth_port, 3989).await?,
+            monitor: bind("robot monitor", "--monitor-port", args.monitor_port, 7435).await?,
+            wss: bind("WSS", "--wss-port", args.wss_port, 50000).await?,
+        };
+        if side.wss.is_some() && side.monitor.is_none() {
+            anyhow::bail!(
+                "--wss-port needs the robot monitor (--monitor-port is off); use --wss-port off"
+            );
+        }
+        // All ready lines in one write: a reader that takes the first line and closes the
+        // pipe must not make the next line fail (stdout is line-buffered).
         let mut ready = format!("usar-server listening on {address} map {level}\n");
-        if let Some(image) = &image {
-            ready.push_str(&format!(
-                "usar-server image server listening on {}\n",
-                image.local_addr()?
-            ));
+        for (service, listener) in [
+            ("image server", &side.image),
+            ("USARTruth", &side.truth),
+            ("WSS", &side.wss),
+            ("robot monitor", &side.monitor),
+        ] {
+            if let Some(listener) = listener {
+                ready.push_str(&format!(
+                    "usar-server {service} listening on {}\n",
+                    listener.local_addr()?
+                ));
+            }
         }
         let mut stdout = std::io::stdout().lock();
         stdout.write_all(ready.as_bytes())?;
         stdout.flush()?;
         drop(stdout);
-        let side = usar_server::SideListeners { image };
-        usar_server::run_all(listener, side, config, shutdown).await?;
+        usar_server::run_with(listener, side, config, shutdown).await?;
         Ok(())
     })
 }
 
-/// A side service's port: a number, or `None` for `off`.
+/// The standalone WSS against the robot monitor at `monitor`.
+fn wss(
+    monitor: &str,
+    bind: &str,
+    port: u16,
+    poll: f64,
+    cutoff: f64,
+    attenuation: f64,
+) -> anyhow::Result<()> {
+    use std::net::ToSocketAddrs;
+    let at = monitor
+        .to_socket_addrs()
+        .with_context(|| format!("--monitor {monitor}: not HOST:PORT"))?
+        .next()
+        .with_context(|| format!("--monitor {monitor}: no address"))?;
+    anyhow::ensure!(
+        cutoff.is_finite() && attenuation.is_finite() && attenuation >= 0.0,
+        "--cutoff and --attenuation must be finite numbers (attenuation >= 0)"
+    );
+    let config = usar_server::net::wss::WssConfig {
+        poll: std::time::Duration::from_secs_f64(poll),
+        cutoff,
+        attenuation,
+        ..usar_server::net::wss::WssConfig::new(at)
+    };
+    let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind((bind, port))
+            .await
+            .with_context(|| format!("cannot listen on {bind}:{port}"))?;
+        let shutdown = CancellationToken::new();
+        tokio::spawn(cancel_on_signal(shutdown.clone()));
+        let mut stdout = std::io::stdout().lock();
+        writeln!(
+            stdout,
+            "usar-server WSS listening on {}",
+            listener.local_addr()?
+        )?;
+        stdout.flush()?;
+        drop(stdout);
+        usar_server::net::wss::serve(listener, config, shutdown).await;
+        Ok(())
+    })
+}
+
+/// A side service's port; `None`: off.
 #[derive(Debug, Clone, Copy)]
 struct SidePort(Option<u16>);
 
-/// A port number or `off`.
-fn image_port(s: &str) -> Result<SidePort, String> {
+/// A side service's port: a number (0 for any free port) or `off`.
+fn side_port(s: &str) -> Result<SidePort, String> {
     if s.eq_ignore_ascii_case("off") {
         return Ok(SidePort(None));
     }
     s.parse::<u16>()
         .map(|p| SidePort(Some(p)))
-        .map_err(|_| format!("expected a port number (0 to 65535) or 'off', not '{s}'"))
+        .map_err(|_| format!("expected a port from 0 to 65535 or 'off', not '{s}'"))
 }
 
 /// An image type: a name or USARSim's ImageType number.

@@ -39,7 +39,16 @@ impl Server {
         let bin = std::env::var_os("USAR_SERVER_BIN")
             .unwrap_or_else(|| env!("CARGO_BIN_EXE_usar-server").into());
         let mut child = Command::new(bin)
-            .args(["--port", "0"])
+            .args([
+                "--port",
+                "0",
+                "--truth-port",
+                "0",
+                "--monitor-port",
+                "0",
+                "--wss-port",
+                "0",
+            ])
             .args(args)
             .env("RUST_LOG", "error")
             .stdout(Stdio::piped())

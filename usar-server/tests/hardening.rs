@@ -103,6 +103,12 @@ fn a_full_disk_while_recording_is_reported_once_and_the_exit_status_says_so() {
         &[
             "--port".as_ref(),
             "0".as_ref(),
+            "--truth-port".as_ref(),
+            "0".as_ref(),
+            "--monitor-port".as_ref(),
+            "0".as_ref(),
+            "--wss-port".as_ref(),
+            "0".as_ref(),
             "--time-scale".as_ref(),
             "20".as_ref(),
             "--record".as_ref(),

@@ -33,8 +33,11 @@ fn start(
                 time_scale: TimeScale::Factor(1.0),
                 ..ServerConfig::default()
             };
-            let side = SideListeners { image: Some(side) };
-            usar_server::run_all(main, side, config, token)
+            let side = SideListeners {
+                image: Some(side),
+                ..SideListeners::default()
+            };
+            usar_server::run_with(main, side, config, token)
                 .await
                 .unwrap();
         });

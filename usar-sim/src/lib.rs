@@ -51,12 +51,12 @@ mod quadrotor_tests;
 #[cfg(test)]
 mod tests;
 
-pub use map::{ConfigError, ConfigFile, Map, PlayerStart};
+pub use map::{ConfigError, ConfigFile, Map, Placed, PlayerStart};
 pub use noise::ErrorModel;
 pub use render::Image;
 pub use robots::{RobotCatalog, RobotClass, UnknownClass};
 pub use wind::WindConfig;
-pub use world::{CameraFrame, Printed, World};
+pub use world::{CameraFrame, Printed, RobotTruth, World};
 
 /// A connection as the simulation knows it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use rapier3d::math::{Pose, Vector};
-use rapier3d::prelude::ColliderBuilder;
+use rapier3d::prelude::{ColliderBuilder, ColliderHandle};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -20,6 +20,7 @@ const EMBEDDED: &[(&str, &str, &str)] = &[
     ),
     ("arena", "arena.toml", include_str!("../maps/arena.toml")),
     ("city", "city.toml", include_str!("../maps/city.toml")),
+    ("rescue", "rescue.toml", include_str!("../maps/rescue.toml")),
 ];
 
 /// OBJ files referenced by the embedded maps.
@@ -144,6 +145,39 @@ pub struct Footprint {
     pub z_max: f64,
 }
 
+/// The classes a `[[victim]]` may have (USARSim's victim pawns).
+pub const VICTIM_CLASSES: &[&str] = &["FemaleVictim", "MaleVictim"];
+
+/// The size of a victim without a `size`: a body lying along its yaw, metres.
+pub const VICTIM_SIZE: [f64; 3] = [1.7, 0.5, 0.3];
+
+/// A victim or another static object placed in the map: a solid box (robots and rays hit
+/// it) with a name, a class and an optional colour; USARTruth lists them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Placed {
+    /// Unique in the map (`<class>_<index>` unless given).
+    pub name: String,
+    /// `FemaleVictim` / `MaleVictim` for victims; anything for objects (default `Object`).
+    pub class: String,
+    /// Whether it is a `[[victim]]` (VictSensor sees it; scoring tools count it).
+    pub victim: bool,
+    /// Centre of the box, metres, protocol frame (z down).
+    pub center: [f64; 3],
+    /// Full extents before the yaw, metres.
+    pub size: [f64; 3],
+    /// About the vertical axis, rad.
+    pub yaw: f64,
+    /// RGB for pictures and cameras; `None`: the default of its kind.
+    pub color: Option<[u8; 3]>,
+}
+
+impl Placed {
+    /// The four corners seen from above, world frame `[x, y]`.
+    pub fn outline(&self) -> Vec<[f64; 2]> {
+        box_outline(self.center, self.size, self.yaw)
+    }
+}
+
 /// A loaded map: level name, time limit, player starts and static geometry.
 #[derive(Debug, Clone)]
 pub struct Map {
@@ -153,6 +187,7 @@ pub struct Map {
     solids: Vec<Solid>,
     /// Each solid's colour (the same order as `solids`).
     colors: Vec<[u8; 3]>,
+    placed: Vec<Placed>,
     wind: Option<WindConfig>,
 }
 
@@ -167,6 +202,10 @@ pub const WALL_COLOR: [u8; 3] = [205, 190, 165];
 pub const CYLINDER_COLOR: [u8; 3] = [150, 160, 185];
 /// See [`GROUND_COLOR`].
 pub const MESH_COLOR: [u8; 3] = [175, 150, 135];
+/// Default colour of victims (`[[victim]]` without `color`; the pictures' magenta).
+pub const VICTIM_COLOR: [u8; 3] = [214, 40, 200];
+/// Default colour of objects (`[[object]]` without `color`).
+pub const OBJECT_COLOR: [u8; 3] = [110, 110, 120];
 
 /// The default colour of a box of `size` centred at `center`.
 fn box_color(center: V3, size: V3) -> [u8; 3] {
@@ -194,7 +233,23 @@ struct RawMap {
     #[serde(default)]
     mesh: Vec<Spanned<RawMesh>>,
     #[serde(default)]
+    victim: Vec<Spanned<RawPlaced>>,
+    #[serde(default)]
+    object: Vec<Spanned<RawPlaced>>,
+    #[serde(default)]
     wind: Option<Spanned<WindConfig>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlaced {
+    class: Option<String>,
+    name: Option<String>,
+    center: V3,
+    size: Option<V3>,
+    #[serde(default)]
+    yaw: f64,
+    color: Option<[u8; 3]>,
 }
 
 fn default_time_limit() -> i64 {
@@ -334,7 +389,7 @@ impl Map {
 
     /// Short names of the embedded maps.
     pub fn embedded_names() -> &'static [&'static str] {
-        &["empty_room", "arena", "city"]
+        &["empty_room", "arena", "city", "rescue"]
     }
 
     /// The default map (`empty_room`, level `EmptyRoom`).
@@ -345,8 +400,14 @@ impl Map {
             starts: Vec::new(),
             solids: Vec::new(),
             colors: Vec::new(),
+            placed: Vec::new(),
             wind: None,
         })
+    }
+
+    /// The victims and objects, victims first, each in file order.
+    pub fn placed(&self) -> &[Placed] {
+        &self.placed
     }
 
     /// The map's wind (`[wind]`), if it sets one.
@@ -370,20 +431,14 @@ impl Map {
     }
 
     /// Every solid seen from above: boxes as their four corners, cylinders as 24-gons, each
-    /// mesh triangle as itself.
+    /// mesh triangle as itself. Victims and objects are not among them ([`Map::placed`]).
     pub fn footprints(&self) -> Vec<Footprint> {
         let mut out = Vec::new();
         for solid in &self.solids {
             match solid {
                 Solid::Box { center, size, yaw } => {
-                    let outline = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
-                        .map(|(a, b)| {
-                            let r = yaw_rotate(*yaw, [a * size[0] / 2.0, b * size[1] / 2.0, 0.0]);
-                            [center[0] + r[0], center[1] + r[1]]
-                        })
-                        .to_vec();
                     out.push(Footprint {
-                        outline,
+                        outline: box_outline(*center, *size, *yaw),
                         z_min: center[2] - size[2] / 2.0,
                         z_max: center[2] + size[2] / 2.0,
                     });
@@ -550,6 +605,7 @@ impl Map {
                 triangles: mesh.triangles,
             });
         }
+        let placed = placed_entries(&raw, &solids, &invalid)?;
         let wind = match raw.wind {
             Some(entry) => {
                 let at = entry.span().start;
@@ -565,46 +621,180 @@ impl Map {
             starts,
             solids,
             colors,
+            placed,
             wind,
         })
     }
 
     /// Adds the map's solids to the scene, each with its colour and its segmentation id
-    /// (1, 2, ... in the file's order of boxes, then cylinders, then meshes).
+    /// (1, 2, ... in the file's order of boxes, then cylinders, then meshes), then its
+    /// victims and objects (ids after the solids', in the file's order).
     pub(crate) fn build(&self, scene: &mut Scene) {
-        for (index, (solid, &color)) in self.solids.iter().zip(&self.colors).enumerate() {
-            let collider = match solid {
-                Solid::Box { center, size, yaw } => ColliderBuilder::cuboid(
-                    (size[0] / 2.0) as f32,
-                    (size[1] / 2.0) as f32,
-                    (size[2] / 2.0) as f32,
-                )
-                .position(Pose::new(vec(*center), Vector::new(0.0, 0.0, *yaw as f32))),
-                Solid::Cylinder {
-                    center,
-                    radius,
-                    height,
-                } => ColliderBuilder::cylinder((height / 2.0) as f32, *radius as f32)
-                    .position(upright_pose(*center)),
-                Solid::Mesh {
-                    vertices,
-                    triangles,
-                } => {
-                    let vertices = vertices.iter().map(|v| vec(*v)).collect();
-                    match ColliderBuilder::trimesh(vertices, triangles.clone()) {
-                        Ok(builder) => builder,
-                        Err(e) => {
-                            tracing::warn!(error = ?e, "mesh skipped");
-                            continue;
-                        }
-                    }
-                }
-            };
-            let handle = scene.insert(collider);
+        for (index, handle) in build_solids(&self.solids, scene) {
             let segment = u32::try_from(index + 1).unwrap_or(u32::MAX);
+            let color = self.colors.get(index).copied().unwrap_or(WALL_COLOR);
             scene.set_look(handle, Look { color, segment });
         }
+        for (i, p) in self.placed.iter().enumerate() {
+            let handle = scene.insert(box_collider(p.center, p.size, p.yaw));
+            let segment = u32::try_from(self.solids.len() + i + 1).unwrap_or(u32::MAX);
+            let default = if p.victim { VICTIM_COLOR } else { OBJECT_COLOR };
+            let color = p.color.unwrap_or(default);
+            scene.set_look(handle, Look { color, segment });
+            if p.victim {
+                scene.add_victim(handle, p);
+            }
+        }
     }
+}
+
+/// Checks the `[[victim]]` and `[[object]]` entries: classes, names, numbers, and that no
+/// victim is inside a wall (its box, 2 cm smaller on every side, meets a solid of the map).
+fn placed_entries(
+    raw: &RawMap,
+    solids: &[Solid],
+    invalid: &dyn Fn(usize, String) -> ConfigError,
+) -> Result<Vec<Placed>, ConfigError> {
+    let mut walls: Option<Scene> = None;
+    let mut placed: Vec<Placed> = Vec::new();
+    let entries = raw.victim.iter().map(|e| (e, true));
+    for (index, (entry, victim)) in entries
+        .chain(raw.object.iter().map(|e| (e, false)))
+        .enumerate()
+    {
+        let at = entry.span().start;
+        let p = entry.get_ref();
+        let what = if victim { "victim" } else { "object" };
+        let class = match (&p.class, victim) {
+            (Some(c), true) => VICTIM_CLASSES
+                .iter()
+                .find(|k| k.eq_ignore_ascii_case(c))
+                .map(|k| (*k).to_owned())
+                .ok_or_else(|| {
+                    invalid(
+                        at,
+                        format!(
+                            "victim class must be one of {}, got {c:?}",
+                            VICTIM_CLASSES.join(", ")
+                        ),
+                    )
+                })?,
+            (None, true) => {
+                return Err(invalid(
+                    at,
+                    "victim needs a `class` (FemaleVictim or MaleVictim)".into(),
+                ));
+            }
+            (Some(c), false) if c.trim().is_empty() || c.contains([' ', '{', '}']) => {
+                return Err(invalid(at, format!("object class {c:?} must be one word")));
+            }
+            (Some(c), false) => c.clone(),
+            (None, false) => "Object".to_owned(),
+        };
+        let name = p.name.clone().unwrap_or_else(|| format!("{class}_{index}"));
+        if name.trim().is_empty() || name.contains(['{', '}', ' ']) {
+            return Err(invalid(
+                at,
+                format!("{what} name {name:?} must be one word"),
+            ));
+        }
+        if placed.iter().any(|o| o.name == name) {
+            return Err(invalid(at, format!("duplicate {what} name `{name}`")));
+        }
+        let size = p.size.unwrap_or(VICTIM_SIZE);
+        if p.size.is_none() && !victim {
+            return Err(invalid(at, "object needs a `size`".into()));
+        }
+        finite(&[&p.center, &size, &[p.yaw; 3]]).map_err(|m| invalid(at, m))?;
+        within(&[&p.center, &size], LIMIT).map_err(|m| invalid(at, m))?;
+        within(&[&[p.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
+        if size.iter().any(|&s| s <= 0.0) {
+            return Err(invalid(
+                at,
+                format!("{what} size must be positive, got {size:?}"),
+            ));
+        }
+        if victim {
+            let walls = walls.get_or_insert_with(|| {
+                let mut scene = Scene::new();
+                build_solids(solids, &mut scene);
+                scene.refit();
+                scene
+            });
+            const SLACK: f64 = 0.02;
+            let inner = size.map(|s| (s - 2.0 * SLACK).max(s / 2.0));
+            if walls.box_overlaps(&box_collider(p.center, inner, p.yaw).build()) {
+                return Err(invalid(
+                    at,
+                    format!(
+                        "victim `{name}` at {:?} is inside a wall: its body overlaps a solid of the map",
+                        p.center
+                    ),
+                ));
+            }
+        }
+        placed.push(Placed {
+            name,
+            class,
+            victim,
+            center: p.center,
+            size,
+            yaw: p.yaw,
+            color: p.color,
+        });
+    }
+    Ok(placed)
+}
+
+/// A box's four corners seen from above.
+fn box_outline(center: V3, size: V3, yaw: f64) -> Vec<[f64; 2]> {
+    [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+        .map(|(a, b)| {
+            let r = yaw_rotate(yaw, [a * size[0] / 2.0, b * size[1] / 2.0, 0.0]);
+            [center[0] + r[0], center[1] + r[1]]
+        })
+        .to_vec()
+}
+
+fn box_collider(center: V3, size: V3, yaw: f64) -> ColliderBuilder {
+    ColliderBuilder::cuboid(
+        (size[0] / 2.0) as f32,
+        (size[1] / 2.0) as f32,
+        (size[2] / 2.0) as f32,
+    )
+    .position(Pose::new(vec(center), Vector::new(0.0, 0.0, yaw as f32)))
+}
+
+/// Adds `solids` to the scene; returns each one's index in `solids` and its handle (a mesh
+/// that does not build is skipped, with a warning).
+fn build_solids(solids: &[Solid], scene: &mut Scene) -> Vec<(usize, ColliderHandle)> {
+    let mut inserted = Vec::with_capacity(solids.len());
+    for (index, solid) in solids.iter().enumerate() {
+        let collider = match solid {
+            Solid::Box { center, size, yaw } => box_collider(*center, *size, *yaw),
+            Solid::Cylinder {
+                center,
+                radius,
+                height,
+            } => ColliderBuilder::cylinder((height / 2.0) as f32, *radius as f32)
+                .position(upright_pose(*center)),
+            Solid::Mesh {
+                vertices,
+                triangles,
+            } => {
+                let vertices = vertices.iter().map(|v| vec(*v)).collect();
+                match ColliderBuilder::trimesh(vertices, triangles.clone()) {
+                    Ok(builder) => builder,
+                    Err(e) => {
+                        tracing::warn!(error = ?e, "mesh skipped");
+                        continue;
+                    }
+                }
+            }
+        };
+        inserted.push((index, scene.insert(collider)));
+    }
+    inserted
 }
 
 fn vec(v: V3) -> Vector {
@@ -730,10 +920,11 @@ mod tests {
 
     #[test]
     fn embedded_maps_load() {
-        for name in Map::embedded_names() {
-            let map = Map::embedded(name).unwrap_or_else(|| panic!("{name} does not load"));
+        for (name, file, text) in EMBEDDED {
+            let map = Map::from_toml(text, Path::new(file)).unwrap_or_else(|e| panic!("{e}"));
             assert!(!map.starts().is_empty(), "{name} has no start");
         }
+        assert_eq!(Map::embedded_names().len(), EMBEDDED.len());
         assert_eq!(Map::default_map().level(), "EmptyRoom");
         assert!(Map::embedded("nope").is_none());
     }
@@ -758,6 +949,60 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("missing.obj"), "{e}");
+    }
+
+    #[test]
+    fn victims_and_objects_are_placed_solids() {
+        let map = Map::embedded("rescue").expect("rescue loads");
+        let victims: Vec<_> = map.placed().iter().filter(|p| p.victim).collect();
+        assert_eq!(victims.len(), 4);
+        assert_eq!(
+            (victims[0].name.as_str(), victims[0].class.as_str()),
+            ("Victim1", "FemaleVictim")
+        );
+        assert!(map.placed().iter().any(|p| p.class == "Sedan" && !p.victim));
+        let map =
+            parse("level = \"x\"\n[[victim]]\nclass = \"malevictim\"\ncenter = [1, 2, -0.15]\n")
+                .unwrap();
+        let v = &map.placed()[0];
+        assert_eq!(
+            (v.name.as_str(), v.class.as_str()),
+            ("MaleVictim_0", "MaleVictim")
+        );
+        assert_eq!(v.size, VICTIM_SIZE);
+    }
+
+    #[test]
+    fn a_victim_inside_a_wall_is_an_error_naming_it() {
+        let wall = "level = \"x\"\n[[box]]\ncenter = [0, 0, -1]\nsize = [0.3, 4, 2]\n";
+        let e = parse(&format!(
+            "{wall}\n[[victim]]\nclass = \"FemaleVictim\"\nname = \"Anna\"\ncenter = [0, 0, -0.15]\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("test.toml:6:")
+                && e.contains("victim `Anna`")
+                && e.contains("inside a wall"),
+            "{e}"
+        );
+        // Lying on the floor (touching it) is fine.
+        let floor = "level = \"x\"\n[[box]]\ncenter = [0, 0, 0.1]\nsize = [10, 10, 0.2]\n";
+        parse(&format!(
+            "{floor}[[victim]]\nclass = \"FemaleVictim\"\ncenter = [0, 0, -0.15]\n"
+        ))
+        .unwrap();
+        let e = parse("level = \"x\"\n[[victim]]\nclass = \"Dog\"\ncenter = [0, 0, 0]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("FemaleVictim, MaleVictim") && e.contains("Dog"),
+            "{e}"
+        );
+        let e = parse("level = \"x\"\n[[object]]\ncenter = [0, 0, 0]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("object needs a `size`"), "{e}");
     }
 
     #[test]

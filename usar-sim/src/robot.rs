@@ -188,6 +188,8 @@ pub(crate) struct Spawn<'a> {
     /// Robots in the world when it spawns (its timers' phase).
     pub(crate) others: u64,
     pub(crate) owner: ClientId,
+    /// Its name (INIT `{Name ..}`, else `<Class>_<serial>`).
+    pub(crate) name: String,
     pub(crate) position: V3,
     pub(crate) rotation: V3,
     pub(crate) tick: u64,
@@ -208,6 +210,8 @@ pub(crate) struct Robot {
     pub(crate) owner: Option<ClientId>,
     /// The connection that spawned it (removes it on disconnect).
     pub(crate) spawned_by: ClientId,
+    /// Its name (USARTruth, the robot monitor, the WSS).
+    pub(crate) name: String,
     model: Arc<Model>,
     body: ColliderHandle,
     position: V3,
@@ -293,6 +297,7 @@ impl Robot {
             serial: spawn.serial,
             owner: Some(spawn.owner),
             spawned_by: spawn.owner,
+            name: spawn.name,
             model: model.clone(),
             body,
             position: spawn.position,
@@ -878,7 +883,7 @@ impl Robot {
         self.body
     }
 
-    #[cfg(test)]
+    /// Position and rotation (roll, pitch, yaw), protocol frame.
     pub(crate) fn pose(&self) -> (V3, V3) {
         (self.position, self.rotation)
     }

@@ -123,6 +123,24 @@ pub(crate) struct Scene {
     /// By leaf: how cameras draw the solid (colour, segmentation id); [`Look::default`]
     /// for solids without one.
     looks: Vec<Look>,
+    /// The map's victims: their colliders and boxes (the VictSensor's targets).
+    pub(crate) victims: Vec<VictimBody>,
+}
+
+/// `Collider::user_data` of the map's solids (walls for the robot monitor's count).
+const WALL: u128 = 0;
+/// `Collider::user_data` of a robot body.
+const BODY: u128 = 1;
+/// `Collider::user_data` of a victim.
+const VICTIM: u128 = 2;
+
+/// A victim's body in the scene: a box (`Placed` of the map).
+#[derive(Debug, Clone)]
+pub(crate) struct VictimBody {
+    pub(crate) handle: ColliderHandle,
+    pub(crate) center: V3,
+    pub(crate) size: V3,
+    pub(crate) yaw: f64,
 }
 
 /// How a camera draws a solid: its colour (before shading) and its segmentation id.
@@ -190,7 +208,85 @@ impl Scene {
             stale: false,
             clear: Vec::new(),
             looks: Vec::new(),
+            victims: Vec::new(),
         }
+    }
+
+    /// Marks the collider `handle` (already inserted) as the victim `p`.
+    pub(crate) fn add_victim(&mut self, handle: ColliderHandle, p: &crate::map::Placed) {
+        if let Some(c) = self.colliders.get_mut(handle) {
+            c.user_data = VICTIM;
+        }
+        self.victims.push(VictimBody {
+            handle,
+            center: p.center,
+            size: p.size,
+            yaw: p.yaw,
+        });
+    }
+
+    /// Whether `collider` (not in the scene) meets any solid of the scene.
+    pub(crate) fn box_overlaps(&self, collider: &Collider) -> bool {
+        self.query(None)
+            .intersect_shape(*collider.position(), collider.shape())
+            .next()
+            .is_some()
+    }
+
+    /// [`Scene::cast_ray`] that also names what the ray hit.
+    pub(crate) fn cast_ray_hit(
+        &self,
+        origin: V3,
+        dir: V3,
+        max: f64,
+        exclude: Option<ColliderHandle>,
+    ) -> Option<(f64, ColliderHandle)> {
+        let ray = Ray::new(to_vector(origin), to_vector(dir));
+        let skip = exclude.map(|h| h.into_raw_parts().0);
+        self.bvh
+            .cast_ray(&ray, max as f32, |leaf, best| {
+                if Some(leaf) == skip {
+                    return None;
+                }
+                let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
+                leaf_toi(collider, &ray, best)
+            })
+            .and_then(|(leaf, toi)| {
+                let (_, handle) = self.colliders.get_unknown_gen(leaf)?;
+                Some((f64::from(toi), handle))
+            })
+    }
+
+    /// Walls between `a` and `b` as USARSim's robot monitor counts them (side-servers.md
+    /// §3.2): a ray from `a` to `b`, restarted 0.2 m past each hit; a hit on a solid of
+    /// the map (not a robot, not a victim) counts if it is another solid than the last one
+    /// counted or lies more than 0.2 m from the restart point (a thick wall counts once).
+    pub(crate) fn obstacles_between(&self, a: V3, b: V3) -> u32 {
+        const STEP: f64 = 0.2;
+        let d = sub(b, a);
+        let length = norm(d);
+        if length.is_nan() || length <= 1e-9 {
+            return 0;
+        }
+        let dir = scale(d, 1.0 / length);
+        let (mut from, mut count, mut last) = (0.0, 0u32, None);
+        // At most one hit per 0.2 m (bounded work for any distance within the world).
+        while from < length && count < 100_000 {
+            let origin = add(a, scale(dir, from));
+            let Some((toi, handle)) = self.cast_ray_hit(origin, dir, length - from, None) else {
+                break;
+            };
+            let wall = self
+                .colliders
+                .get(handle)
+                .is_some_and(|c| c.user_data == WALL);
+            if wall && (last != Some(handle) || toi > STEP) {
+                count += 1;
+                last = Some(handle);
+            }
+            from += toi + STEP;
+        }
+        count
     }
 
     /// Sets how cameras draw the solid `handle` (kept until it is removed).
@@ -257,6 +353,7 @@ impl Scene {
             rapier3d::prelude::SharedShape::new(shape.cylinder()),
         )
         .position(upright_pose(centre))
+        .user_data(BODY)
         .build();
         self.insert(collider)
     }
@@ -1328,6 +1425,28 @@ mod tests {
             }
         }
         assert!(hits > 500, "only {hits} hits");
+    }
+
+    #[test]
+    fn walls_are_counted_as_the_robot_monitor_counts_them() {
+        let mut scene = Scene::new();
+        let wall = |x: f32, thick: f32| {
+            ColliderBuilder::cuboid(thick / 2.0, 5.0, 5.0).position(Pose::translation(x, 0.0, 0.0))
+        };
+        scene.insert(wall(2.0, 0.1));
+        scene.insert(wall(4.0, 1.5)); // thick: once
+        scene.insert_body(
+            BodyShape {
+                radius: 0.3,
+                half_height: 0.2,
+            },
+            [6.0, 0.0, 0.0],
+        ); // a robot: never
+        scene.refit();
+        assert_eq!(scene.obstacles_between([0.0; 3], [8.0, 0.0, 0.0]), 2);
+        assert_eq!(scene.obstacles_between([8.0, 0.0, 0.0], [0.0; 3]), 2);
+        assert_eq!(scene.obstacles_between([0.0; 3], [1.0, 0.0, 0.0]), 0);
+        assert_eq!(scene.obstacles_between([0.0; 3], [0.0; 3]), 0);
     }
 
     #[test]

@@ -324,11 +324,16 @@ impl World {
             .models
             .entry(class.class.clone())
             .or_insert_with(|| Arc::new(Model::new(class)));
+        let name = match init.name.as_deref().map(str::trim) {
+            Some(n) if !n.is_empty() && !n.contains([' ', '{', '}']) => n.to_owned(),
+            _ => format!("{}_{}", class.short_name(), self.next_serial),
+        };
         let spawn = Spawn {
             model,
             serial: self.next_serial,
             others: self.robots.len() as u64,
             owner: client,
+            name,
             position,
             rotation,
             tick: self.tick,
@@ -498,6 +503,40 @@ impl World {
         Vec::new()
     }
 
+    /// Every robot as ground truth sees it, in spawn order.
+    pub fn robots_truth(&self) -> Vec<RobotTruth> {
+        self.robots
+            .iter()
+            .map(|r| {
+                let (location, rotation) = r.pose();
+                RobotTruth {
+                    name: r.name.clone(),
+                    class: r.class_name().to_owned(),
+                    location,
+                    rotation,
+                    battery_empty: r.is_dead(self.tick, self.dt),
+                }
+            })
+            .collect()
+    }
+
+    /// The map's victims and objects.
+    pub fn placed(&self) -> &[map::Placed] {
+        self.map.placed()
+    }
+
+    /// Walls between two points as USARSim's robot monitor counts them (a ray restarted
+    /// 0.2 m past each hit; robots and victims do not count).
+    pub fn obstacles_between(&self, a: V3, b: V3) -> u32 {
+        if a.iter()
+            .chain(&b)
+            .any(|x| !x.is_finite() || x.abs() > map::LIMIT)
+        {
+            return 0;
+        }
+        self.scene.obstacles_between(a, b)
+    }
+
     #[cfg(test)]
     pub(crate) fn scene_ray(&self, origin: V3, dir: V3, max: f64) -> Option<f64> {
         self.scene.cast_ray(origin, dir, max, None)
@@ -533,6 +572,21 @@ pub struct CameraFrame {
     pub time: f64,
     /// What it saw.
     pub image: Image,
+}
+
+/// A robot as ground truth sees it ([`World::robots_truth`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotTruth {
+    /// Its name (INIT `{Name ..}`, else `<Class>_<serial>`).
+    pub name: String,
+    /// The class without package (`stsAirRobot`).
+    pub class: String,
+    /// Centre, metres, protocol frame (z down).
+    pub location: [f64; 3],
+    /// Roll, pitch, yaw, rad.
+    pub rotation: [f64; 3],
+    /// Whether its battery is empty.
+    pub battery_empty: bool,
 }
 
 /// One tick's output as text ([`World::step_printed`]): for each robot that has output,

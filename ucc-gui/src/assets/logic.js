@@ -17,6 +17,8 @@ export const MAX_LOG = 20000;
 
 /** Colours, chosen for ≥ 4.5:1 contrast on white (WCAG AA). */
 export const WALL_COLOR = "#5c677d";
+/** Victims on the map (the pictures' colour, ucc_client::picture::VICTIM_COLOUR). */
+export const VICTIM_COLOR = "#d628c8";
 export const WARN_COLOR = "#8a5300";
 export const ERROR_COLOR = "#b00d1a";
 export const COLORS = ["#d62839", "#2f6690", "#1b7a6e", "#b5651d", "#6a4c93", "#1769aa", "#4d7c0f", "#c2185b"];
@@ -28,6 +30,21 @@ export const clamp = (v, lo, hi) => Math.min(hi, Math.max(lo, v));
  * RangeError beyond ~100k values): `{x0, x1, y0, y1}` or null when there is none.
  * `each(visit)` calls `visit(x, y)` for every point.
  */
+/** The map's geometry as the page gets it, split: solids (drawn at the flown heights) and
+ * victims (entries with a `victim` name; drawn at any height, named). */
+export function splitGeometry(geometry) {
+  const solids = [], victims = [];
+  for (const f of geometry || []) (typeof f.victim === "string" ? victims : solids).push(f);
+  return { solids, victims };
+}
+
+/** The centre of a polygon's corners, [x, y]: where a victim's name goes. */
+export function centroid(outline) {
+  let x = 0, y = 0;
+  for (const p of outline) { x += p[0]; y += p[1]; }
+  return outline.length ? [x / outline.length, y / outline.length] : [0, 0];
+}
+
 export function bounds(each) {
   let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity;
   each((x, y) => {

@@ -1,6 +1,6 @@
 // The map: top view, x north up, y east right, in CSS pixels on a canvas sized for the
 // screen's device pixel ratio (sharp on HiDPI screens).
-import { bounds, fitView, niceStep, wheelFactor, zoomAt, COLORS, WALL_COLOR } from "./logic.js";
+import { bounds, centroid, fitView, niceStep, splitGeometry, wheelFactor, zoomAt, COLORS, VICTIM_COLOR, WALL_COLOR } from "./logic.js";
 
 /** Sizes a canvas's backing store to its CSS size × devicePixelRatio; returns [w, h] in CSS px. */
 export function sizeCanvas(canvas) {
@@ -136,12 +136,20 @@ export class Map2d {
         if (c.live && c.live.position) seen(c.live.position[2]);
       }
       if (low > high) { low = -3; high = -0.5; }
-      ctx.fillStyle = WALL_COLOR;
-      for (const f of this.geometry) {
-        if (!(f.z_min <= high && f.z_max >= low)) continue;
+      const { solids, victims } = splitGeometry(this.geometry);
+      const polygon = (f) => {
         ctx.beginPath();
         f.outline.forEach((p, i) => { const [sx, sy] = this.toScreen(p[0], p[1]); i ? ctx.lineTo(sx, sy) : ctx.moveTo(sx, sy); });
         ctx.closePath(); ctx.fill();
+      };
+      ctx.fillStyle = WALL_COLOR;
+      for (const f of solids) if (f.z_min <= high && f.z_max >= low) polygon(f);
+      // Victims lie on the floor: drawn at any height, with their names.
+      ctx.fillStyle = VICTIM_COLOR; ctx.font = "11px sans-serif";
+      for (const v of victims) {
+        polygon(v);
+        const [cx, cy] = centroid(v.outline), [sx, sy] = this.toScreen(cx, cy);
+        ctx.fillText(v.victim, sx + 8, sy - 6);
       }
     } else {
       ctx.fillStyle = "#444";

@@ -71,13 +71,25 @@ fn mission_json(m: &ucc_client::Mission) -> Value {
 }
 
 impl Hub {
-    /// The map's solids for the page: `[{outline: [[x, y], ...], z_min, z_max}]`.
+    /// The map's solids for the page: `[{outline: [[x, y], ...], z_min, z_max}]`, the
+    /// victims after them with `victim` (the name) and `class`.
     pub fn geometry_json(&self) -> Value {
+        let solid = |f: &ucc_client::picture::Footprint| json!({"outline": f.outline.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(), "z_min": f.z_min, "z_max": f.z_max});
         self.geometry.as_ref().map_or(Value::Null, |g| {
-            g.footprints
+            // Victims are among the footprints too: drawn once, as victims.
+            let victim_outlines: Vec<_> = g.victims.iter().map(|v| &v.footprint).collect();
+            let solids = g
+                .footprints
                 .iter()
-                .map(|f| json!({"outline": f.outline.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(), "z_min": f.z_min, "z_max": f.z_max}))
-                .collect()
+                .filter(|f| !victim_outlines.contains(f))
+                .map(solid);
+            let victims = g.victims.iter().map(|v| {
+                let mut j = solid(&v.footprint);
+                j["victim"] = v.name.clone().into();
+                j["class"] = v.class.clone().into();
+                j
+            });
+            solids.chain(victims).collect()
         })
     }
 

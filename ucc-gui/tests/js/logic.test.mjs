@@ -3,7 +3,7 @@ import { test } from "node:test";
 import assert from "node:assert/strict";
 import {
   bounds, range, fitView, wheelFactor, zoomAt, niceStep, ticks, appendDecimated, appendCapped,
-  contrast, Store, SCALE_MAX, SCALE_MIN, WALL_COLOR, WARN_COLOR, ERROR_COLOR, MAX_TRAIL, MAX_PAST,
+  contrast, splitGeometry, centroid, VICTIM_COLOR, Store, SCALE_MAX, SCALE_MIN, WALL_COLOR, WARN_COLOR, ERROR_COLOR, MAX_TRAIL, MAX_PAST,
 } from "../../src/assets/logic.js";
 
 test("bounds of 300,000 points do not overflow the stack (issue #23, defect 2)", () => {
@@ -74,4 +74,15 @@ test("the store merges only what changed and stays bounded over a long loop", ()
   assert.ok(s.log.length <= 20000);
   s.merge({ removed: [1], uavs: [] });
   assert.equal(s.uavs.size, 0);
+});
+
+test("victims are split from the solids and named at their centre (issue 20)", () => {
+  const wall = { outline: [[0, 0], [1, 0], [1, 1], [0, 1]], z_min: -3, z_max: 0 };
+  const victim = { outline: [[2, 2], [4, 2], [4, 3], [2, 3]], z_min: -0.3, z_max: 0, victim: "Victim1", class: "FemaleVictim" };
+  const { solids, victims } = splitGeometry([wall, victim]);
+  assert.deepEqual(solids, [wall]);
+  assert.deepEqual(victims.map((v) => v.victim), ["Victim1"]);
+  assert.deepEqual(centroid(victim.outline), [3, 2.5]);
+  assert.deepEqual(splitGeometry(null), { solids: [], victims: [] });
+  assert.notEqual(VICTIM_COLOR, WALL_COLOR);
 });

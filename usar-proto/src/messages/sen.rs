@@ -6,7 +6,7 @@
 //! so does a reading of a known type that came without its fields ([`SenData::Empty`]).
 
 use super::line::Line;
-use super::server::{GpsFix, NamedRange, NamedTick, Scan, Sen, SenData};
+use super::server::{GpsFix, NamedRange, NamedTick, Scan, Sen, SenData, VictimPart};
 use super::sta::read_time;
 use crate::error::ParseError;
 use crate::format::WireBuf;
@@ -40,6 +40,7 @@ impl SenData {
             Self::Empty { kind } => kind,
             Self::Position { .. } => "Position",
             Self::Velocity { .. } => "Velocity",
+            Self::VictSensor { .. } => "VictSensor",
             Self::Other { kind, .. } => kind,
         }
     }
@@ -183,6 +184,26 @@ impl SenData {
                 absolute: d.vec3("AbsoluteVelocity")?,
                 relative: d.vec3("RelativeVelocity")?,
             }
+        } else if is("VictSensor") {
+            let mut name = None;
+            let mut parts: Vec<VictimPart> = Vec::new();
+            for pair in d.pairs {
+                if pair.key.eq_ignore_ascii_case("Name") {
+                    name = Some(pair.value.to_owned());
+                } else if pair.key.eq_ignore_ascii_case("PartName") {
+                    parts.push(VictimPart {
+                        part: pair.value.to_owned(),
+                        location: crate::Vec3::default(),
+                    });
+                } else if pair.key.eq_ignore_ascii_case("Location") {
+                    // UvA's rule: a Location belongs to the PartName before it.
+                    let Some(last) = parts.last_mut() else {
+                        return Err(d.error("VictSensor Location before any PartName"));
+                    };
+                    last.location = d.vec3_in("Location", pair.value)?;
+                }
+            }
+            Self::VictSensor { name, parts }
         } else {
             Self::Other {
                 kind: kind.to_owned(),
@@ -337,6 +358,18 @@ impl SenData {
                 w.text("Name", name)
                     .fs_vec("AbsoluteVelocity", *absolute, P)
                     .fs_vec("RelativeVelocity", *relative, P);
+            }
+            Self::VictSensor { name: None, .. } => {
+                w.text("Status", "NoVictims");
+            }
+            Self::VictSensor {
+                name: Some(name),
+                parts,
+            } => {
+                w.text("Name", name);
+                for p in parts {
+                    w.text("PartName", &p.part).ivec("Location", p.location);
+                }
             }
             Self::Other { groups, .. } => {
                 let mut s = String::new();
@@ -565,6 +598,26 @@ mod tests {
         data("SEN {Type GPS} {Name GPS1} {Fix 0} {Satellites 3}");
         data("SEN {Time 1.0000} {Type Odometry} {Name Odo} {Pose 1.0000,2.0000,0.5000}");
         data("SEN {Time 1.0000} {Type Touch} {Name T} {Touch True}");
+        // UT2004 VictSensor lines (side-servers.md §4.1), captured and from the manual.
+        let (_, d) = data("SEN {Time 5609.4467} {Type VictSensor} {Status NoVictims}");
+        assert_eq!(
+            d,
+            SenData::VictSensor {
+                name: None,
+                parts: vec![]
+            }
+        );
+        let (time, d) = data(
+            "SEN {Type VictSensor} {Name VictimSensor} {PartName Leg} {Location 2.05,0.33,0.46} {PartName Leg} {Location 2.51,0.44,0.39}",
+        );
+        assert!(time.is_none());
+        let SenData::VictSensor { name, parts } = d else {
+            panic!("{d:?}")
+        };
+        assert_eq!(name.as_deref(), Some("VictimSensor"));
+        assert_eq!(parts.len(), 2);
+        assert_eq!(parts[1].part, "Leg");
+        assert_eq!(parts[1].location, Vec3::new(2.51, 0.44, 0.39));
         data("SEN {Time 1.0000} {Type IR} {Name ir} {Range 0.5000}");
         data("SEN {Time 1.0000} {Type Accel} {Name a} {Acceleration 0.0000,0.0000,9.8100}");
         data(

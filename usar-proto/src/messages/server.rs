@@ -271,6 +271,15 @@ pub enum SenData {
         /// m/s, body frame (x forward, y right, z down).
         relative: Vec3,
     },
+    /// UT2004 `{Type VictSensor}`: `{Name n} {PartName p} {Location x,y,z} ...` (the parts
+    /// of victims in view, locations relative to the sensor, implicit vectors), or
+    /// `{Status NoVictims}` when nothing is in view (then `name` is `None`, `parts` empty).
+    VictSensor {
+        /// Part name; `None` prints `{Status NoVictims}`.
+        name: Option<String>,
+        /// Each body part seen.
+        parts: Vec<VictimPart>,
+    },
     /// An unknown sensor type, kept as read.
     Other {
         /// The `{Type ..}` value.
@@ -278,6 +287,16 @@ pub enum SenData {
         /// The groups after `{Type ..}`.
         groups: Vec<Group>,
     },
+}
+
+/// One body part a VictSensor sees.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct VictimPart {
+    /// `Head`, `Arm`, `Hand`, `Chest`, `Pelvis`, `Leg` or `Foot`.
+    pub part: String,
+    /// Metres, relative to the sensor (x forward, y right, z down), 2 decimals.
+    pub location: Vec3,
 }
 
 /// A named range reading (sonar, IR).

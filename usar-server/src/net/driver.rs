@@ -101,6 +101,18 @@ pub(super) enum Request {
     Disconnect { client: ClientId },
     /// Wakes the driver so that it notices the shutdown.
     Wake,
+    /// A question of a side server (USARTruth, the robot monitor): run at once, between
+    /// ticks, with the world as it is.
+    Ask(Ask),
+}
+
+/// A side server's question: a function of the world that sends its own answer.
+pub(super) struct Ask(pub(super) Box<dyn FnOnce(&World) + Send>);
+
+impl std::fmt::Debug for Ask {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Ask")
+    }
 }
 
 /// A client line, read.
@@ -870,6 +882,7 @@ impl Driver {
                 self.retry_parked();
             }
             Request::Wake => {}
+            Request::Ask(ask) => (ask.0)(&self.world),
         }
     }
 }

@@ -10,8 +10,12 @@
 
 mod driver;
 pub mod image;
+pub mod monitor;
 mod recording;
 mod session;
+mod side;
+mod truth;
+pub mod wss;
 
 pub(crate) use driver::wait_of;
 
@@ -133,13 +137,6 @@ pub struct ServerConfig {
     pub image: image::ImageConfig,
 }
 
-/// Listeners of the services next to the Gamebots port, each optional.
-#[derive(Debug, Default)]
-pub struct SideListeners {
-    /// The image server (USARSim: TCP 5003; docs/camera.md).
-    pub image: Option<TcpListener>,
-}
-
 impl Default for ServerConfig {
     fn default() -> Self {
         Self {
@@ -196,6 +193,21 @@ fn shown_files(files: &[std::path::PathBuf]) -> String {
     text
 }
 
+/// The side services' listeners, bound by the caller; `None` leaves a service off.
+#[derive(Debug, Default)]
+pub struct SideListeners {
+    /// The image server (USARSim: TCP 5003; docs/camera.md).
+    pub image: Option<TcpListener>,
+    /// USARTruth (USARSim: TCP 3989; docs/usartruth.md).
+    pub truth: Option<TcpListener>,
+    /// The robot monitor a WSS asks for positions and wall counts (USARSim: TCP 7435;
+    /// docs/wss.md).
+    pub monitor: Option<TcpListener>,
+    /// A Wireless Simulation Server (USARSim: TCP 50000; docs/wss.md) that asks this
+    /// server's robot monitor (which must be on) with the default propagation model.
+    pub wss: Option<TcpListener>,
+}
+
 /// Serves the protocol on an already-bound listener until `shutdown` is cancelled; then
 /// closes every connection (clients see EOF) and returns. If the simulation thread dies,
 /// every connection is closed and the error is returned at once.
@@ -204,16 +216,39 @@ pub async fn run(
     config: ServerConfig,
     shutdown: CancellationToken,
 ) -> Result<(), ServerError> {
-    run_all(listener, SideListeners::default(), config, shutdown).await
+    run_with(listener, SideListeners::default(), config, shutdown).await
 }
 
-/// [`run`] with the side services whose listeners are given (the image server).
-pub async fn run_all(
+/// [`run`] with the side services whose listeners are given (the image server, USARTruth,
+/// the WSS and its robot monitor).
+pub async fn run_with(
     listener: TcpListener,
     side: SideListeners,
     config: ServerConfig,
     shutdown: CancellationToken,
 ) -> Result<(), ServerError> {
+    // The WSS asks this server's robot monitor, on the loopback when it listens on any address.
+    let wss_monitor = match (&side.wss, &side.monitor) {
+        (None, _) => None,
+        (Some(_), None) => {
+            return Err(ServerError::Io(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "the WSS needs the robot monitor (it asks it for positions and walls)",
+            )));
+        }
+        (Some(_), Some(m)) => {
+            let at = m.local_addr()?;
+            Some(match at.ip() {
+                ip if ip.is_unspecified() && ip.is_ipv4() => {
+                    std::net::SocketAddr::from(([127, 0, 0, 1], at.port()))
+                }
+                ip if ip.is_unspecified() => {
+                    std::net::SocketAddr::from((std::net::Ipv6Addr::LOCALHOST, at.port()))
+                }
+                _ => at,
+            })
+        }
+    };
     if let Some(dir) = &config.record {
         std::fs::create_dir_all(dir)?;
     }
@@ -262,6 +297,29 @@ pub async fn run_all(
             config.image,
             shutdown.child_token(),
             tracker.clone(),
+        ));
+    }
+    if let Some(listener) = side.truth {
+        tracker.spawn(truth::serve(
+            listener,
+            requests.clone(),
+            tracker.clone(),
+            shutdown.child_token(),
+        ));
+    }
+    if let (Some(listener), Some(monitor)) = (side.wss, wss_monitor) {
+        tracker.spawn(wss::serve(
+            listener,
+            wss::WssConfig::new(monitor),
+            shutdown.child_token(),
+        ));
+    }
+    if let Some(listener) = side.monitor {
+        tracker.spawn(monitor::serve(
+            listener,
+            requests.clone(),
+            tracker.clone(),
+            shutdown.child_token(),
         ));
     }
     let slots = Arc::new(Semaphore::new(config.max_connections));

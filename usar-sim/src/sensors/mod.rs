@@ -19,6 +19,7 @@ mod rotors;
 mod sonar;
 mod touch;
 mod velocity;
+mod victim;
 
 pub use altitude::AltitudeConfig;
 pub use camera::{CameraConfig, MAX_CAMERA_SIDE};
@@ -32,6 +33,7 @@ pub use range_scanner::RangeScannerConfig;
 pub use sonar::{SonarConfig, SonarModel};
 pub use touch::{TouchConfig, TouchEvent};
 pub use velocity::VelocityConfig;
+pub use victim::VictSensorConfig;
 
 use rapier3d::prelude::ColliderHandle;
 use serde::de::DeserializeOwned;
@@ -239,6 +241,7 @@ pub(crate) const REGISTRY: &[SensorKind] = &[
     kind("Touch", 0.1, touch::build),
     kind("Battery", 0.1, battery::build),
     kind("Rotors", 0.1, rotors::build),
+    kind("VictSensor", 0.8, victim::build),
 ];
 
 const fn kind(

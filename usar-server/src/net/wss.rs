@@ -1,0 +1,760 @@
+//! The Wireless Simulation Server (WSS, TCP 50000; docs/wss.md; the wire reference is
+//! side-servers.md §3.1): robots register with `INIT`, ask the signal strength to another
+//! robot (`GETSS`), a port that relays to it (`DNS`) and who is behind a relayed connection
+//! (`REVERSEDNS`). Positions and wall counts come from a USARSim robot monitor (TCP 7435,
+//! ours or a real one): the obstacle propagation model
+//! `S = Pd0 − 10·N·log10(d/d0) − n·A`, connectable while `S ≥ cutoff`. Every `poll` the WSS
+//! asks for the positions, kicks registered robots the simulator does not have (or whose
+//! battery is empty), and breaks (stops the relay ports, closes relayed connections) or
+//! resumes each pair's links.
+
+use std::collections::{BTreeMap, HashMap};
+use std::net::{IpAddr, SocketAddr};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::Semaphore;
+use tokio_util::sync::CancellationToken;
+use tracing::{debug, info, warn};
+
+/// The obstacle propagation model and the WSS's settings (defaults as the original's).
+#[derive(Debug, Clone)]
+pub struct WssConfig {
+    /// The robot monitor to ask (USARSim: port 7435).
+    pub monitor: SocketAddr,
+    /// Signal at the reference distance, dBm.
+    pub pd0: f64,
+    /// Reference distance, m.
+    pub d0: f64,
+    /// Path-loss exponent.
+    pub n: f64,
+    /// Attenuation per wall, dB.
+    pub attenuation: f64,
+    /// Weakest usable signal, dBm.
+    pub cutoff: f64,
+    /// How often positions are polled and links broken or resumed (wall clock).
+    pub poll: Duration,
+}
+
+impl WssConfig {
+    /// The defaults of the WSS's obstacle model against the monitor at `monitor`.
+    pub fn new(monitor: SocketAddr) -> Self {
+        Self {
+            monitor,
+            pd0: -49.67,
+            d0: 2.0,
+            n: 1.0,
+            attenuation: 6.325,
+            cutoff: -93.0,
+            poll: Duration::from_secs(1),
+        }
+    }
+
+    /// The signal in dBm between two points with `walls` between them (+∞ at distance 0).
+    pub fn strength(&self, a: [f64; 3], b: [f64; 3], walls: f64) -> f64 {
+        let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+        self.pd0 - 10.0 * self.n * (d / self.d0).log10() - walls * self.attenuation
+    }
+}
+
+/// Control connections served at once.
+const MAX_CONTROL: usize = 64;
+/// The longest control line (bytes); a longer one closes the connection.
+const MAX_LINE: usize = 4096;
+/// Relayed connections open at once, in all.
+const MAX_RELAYED: usize = 256;
+
+/// A number as C++'s default stream prints it (6 significant digits, no trailing zeros).
+pub fn stringify(v: f64) -> String {
+    if v.is_nan() {
+        return "NaN".into();
+    }
+    if v.is_infinite() {
+        return if v > 0.0 { "INF".into() } else { "-INF".into() };
+    }
+    if v == 0.0 {
+        return "0".into();
+    }
+    let exponent = v.abs().log10().floor() as i32;
+    if !(-5..6).contains(&exponent) {
+        let s = format!("{v:.5e}");
+        let (mantissa, exp) = s.split_once('e').unwrap_or((&s, "0"));
+        let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+        let exp: i32 = exp.parse().unwrap_or(0);
+        return format!(
+            "{mantissa}e{}{:02}",
+            if exp < 0 { '-' } else { '+' },
+            exp.abs()
+        );
+    }
+    let decimals = (5 - exponent).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        s
+    }
+}
+
+#[derive(Debug)]
+struct Robot {
+    ip: IpAddr,
+    ports: Vec<u16>,
+    /// Cancelled to kick the robot (closes its control connection).
+    kick: CancellationToken,
+}
+
+/// A relay port: `from` reaches `to`'s `target` port through `port`.
+#[derive(Debug)]
+struct Link {
+    from: String,
+    to: String,
+    target: u16,
+    port: u16,
+    /// Cancelled when the link breaks (stops listening, closes the relayed connections).
+    up: Option<CancellationToken>,
+}
+
+/// A pair's wall count and the two positions it was counted at.
+type Walls = (f64, [f64; 3], [f64; 3]);
+
+#[derive(Debug, Default)]
+struct State {
+    robots: BTreeMap<String, Robot>,
+    links: Vec<Link>,
+    /// Latest positions from the monitor.
+    positions: HashMap<String, [f64; 3]>,
+    /// Wall counts per unordered pair, with the positions they were counted at.
+    walls: HashMap<(String, String), Walls>,
+    /// Relayed connections: the WSS's outgoing local port → (from, to).
+    outgoing: HashMap<u16, (String, String)>,
+}
+
+fn pair(a: &str, b: &str) -> (String, String) {
+    if a <= b {
+        (a.to_owned(), b.to_owned())
+    } else {
+        (b.to_owned(), a.to_owned())
+    }
+}
+
+/// The WSS: its state and settings.
+struct Wss {
+    config: WssConfig,
+    state: Mutex<State>,
+    relayed: Arc<Semaphore>,
+    shutdown: CancellationToken,
+}
+
+/// Serves the WSS on `listener` until `shutdown`.
+pub async fn serve(listener: TcpListener, config: WssConfig, shutdown: CancellationToken) {
+    let wss = Arc::new(Wss {
+        config,
+        state: Mutex::new(State::default()),
+        relayed: Arc::new(Semaphore::new(MAX_RELAYED)),
+        shutdown: shutdown.clone(),
+    });
+    tokio::spawn(poll(wss.clone()));
+    let slots = Arc::new(Semaphore::new(MAX_CONTROL));
+    loop {
+        let (stream, peer) = tokio::select! {
+            _ = shutdown.cancelled() => return,
+            accepted = listener.accept() => match accepted {
+                Ok(x) => x,
+                Err(error) => {
+                    warn!(%error, "WSS: accept failed");
+                    tokio::time::sleep(Duration::from_millis(10)).await;
+                    continue;
+                }
+            },
+        };
+        let Ok(permit) = slots.clone().try_acquire_owned() else {
+            warn!(%peer, max = MAX_CONTROL, "WSS: too many control connections; closing");
+            continue;
+        };
+        let wss = wss.clone();
+        tokio::spawn(async move {
+            control(wss, stream, peer).await;
+            drop(permit);
+        });
+    }
+}
+
+impl Wss {
+    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The signal between two registered robots from the latest poll (NaN: unknown).
+    fn strength(&self, state: &State, a: &str, b: &str) -> f64 {
+        let (Some(pa), Some(pb)) = (state.positions.get(a), state.positions.get(b)) else {
+            return f64::NAN;
+        };
+        let Some((walls, ..)) = state.walls.get(&pair(a, b)) else {
+            return f64::NAN;
+        };
+        self.config.strength(*pa, *pb, *walls)
+    }
+
+    fn in_range(&self, state: &State, a: &str, b: &str) -> bool {
+        self.strength(state, a, b) >= self.config.cutoff
+    }
+}
+
+/// Control requests: lines ended by CR LF only (a bare LF does not end one).
+struct Requests<R> {
+    read: R,
+    buffer: Vec<u8>,
+}
+
+impl<R: tokio::io::AsyncRead + Unpin> Requests<R> {
+    /// The next request; `Ok(None)` at the end of the stream, `Err` past [`MAX_LINE`].
+    async fn next(&mut self) -> Result<Option<Vec<u8>>, ()> {
+        loop {
+            if let Some(at) = self.buffer.windows(2).position(|w| w == b"\r\n") {
+                let line = self.buffer[..at].to_vec();
+                self.buffer.drain(..at + 2);
+                return Ok(Some(line));
+            }
+            if self.buffer.len() > MAX_LINE {
+                return Err(());
+            }
+            let mut chunk = [0u8; 2048];
+            match self.read.read(&mut chunk).await {
+                Ok(0) | Err(_) => return Ok(None),
+                Ok(n) => self.buffer.extend_from_slice(&chunk[..n]),
+            }
+        }
+    }
+}
+
+/// One control connection: one reply per request.
+async fn control(wss: Arc<Wss>, stream: TcpStream, peer: SocketAddr) {
+    let (read, mut write) = stream.into_split();
+    let mut requests = Requests {
+        read,
+        buffer: Vec::new(),
+    };
+    let mut me: Option<(String, CancellationToken)> = None;
+    let never = CancellationToken::new();
+    loop {
+        let kick = me.as_ref().map_or(never.clone(), |m| m.1.clone());
+        let got = tokio::select! {
+            _ = wss.shutdown.cancelled() => break,
+            _ = kick.cancelled() => {
+                info!(%peer, "WSS: robot kicked (not in the simulation, or its battery is empty)");
+                break;
+            }
+            got = requests.next() => got,
+        };
+        let line = match got {
+            Ok(Some(line)) => line,
+            Ok(None) => break,
+            Err(()) => {
+                warn!(%peer, max = MAX_LINE, "WSS: request line too long; closing");
+                break;
+            }
+        };
+        let text = String::from_utf8_lossy(&line).into_owned();
+        let reply = request(&wss, &mut me, peer.ip(), &text).await;
+        if write
+            .write_all(format!("{reply}\r\n").as_bytes())
+            .await
+            .is_err()
+        {
+            break;
+        }
+    }
+    if let Some((name, _)) = me {
+        unregister(&wss, &name);
+    }
+}
+
+/// A request's type and its `{key value}` blocks (keys case-sensitive; a block of one token
+/// is a key with an empty value; blocks of more tokens are ignored).
+fn parse(line: &str) -> (&str, Vec<(&str, &str)>) {
+    let kind = line.split(' ').next().unwrap_or("");
+    let mut blocks = Vec::new();
+    let mut rest = &line[kind.len()..];
+    while let Some(open) = rest.find('{') {
+        let Some(close) = rest[open..].find('}') else {
+            break;
+        };
+        let tokens: Vec<&str> = rest[open + 1..open + close].split_whitespace().collect();
+        match tokens[..] {
+            [key] => blocks.push((key, "")),
+            [key, value] => blocks.push((key, value)),
+            _ => {}
+        }
+        rest = &rest[open + close + 1..];
+    }
+    (kind, blocks)
+}
+
+fn value<'a>(blocks: &[(&str, &'a str)], key: &str) -> Option<&'a str> {
+    blocks.iter().find(|(k, _)| *k == key).map(|(_, v)| *v)
+}
+
+/// The reply to one request of the robot `me` (once registered).
+async fn request(
+    wss: &Arc<Wss>,
+    me: &mut Option<(String, CancellationToken)>,
+    ip: IpAddr,
+    line: &str,
+) -> String {
+    let (kind, blocks) = parse(line);
+    let robot = value(&blocks, "Robot").unwrap_or("");
+    let Some((name, _)) = me.as_ref() else {
+        if kind != "INIT" {
+            return "ERROR {Reason Must.Use.INIT.Method.First}".into();
+        }
+        let ports: Option<Vec<u16>> = value(&blocks, "Port")
+            .unwrap_or("")
+            .split(',')
+            .map(|p| p.trim().parse().ok())
+            .collect();
+        let Some(ports) = ports else {
+            return "ERROR {Reason Ports.List.Must.Be.Integer}".into();
+        };
+        if robot.is_empty() {
+            return "ERROR {Reason Robot.Name.Must.Not.Be.Empty}".into();
+        }
+        let mut state = wss.lock();
+        if state.robots.contains_key(robot) {
+            return "ERROR {Reason Robot.Alread.Exists}".into();
+        }
+        let kick = CancellationToken::new();
+        state.robots.insert(
+            robot.to_owned(),
+            Robot {
+                ip,
+                ports,
+                kick: kick.clone(),
+            },
+        );
+        info!(robot, %ip, "WSS: robot registered");
+        *me = Some((robot.to_owned(), kick));
+        return "INITREPLY {Status OK}".into();
+    };
+    let name = name.clone();
+    match kind {
+        "GETSS" => {
+            if robot.is_empty() {
+                return "ERROR {Reason Robot.Name.Must.Not.Be.Empty}".into();
+            }
+            if robot == name {
+                return format!("SS {{Robot {robot}}} {{Strength INF}} {{Error SS.To.Self}}");
+            }
+            let state = wss.lock();
+            if !state.robots.contains_key(robot) {
+                return format!(
+                    "SS {{Robot {robot}}} {{Strength NaN}} {{Error Robot.Does.Not.Exist}}"
+                );
+            }
+            let s = wss.strength(&state, &name, robot);
+            if s.is_nan() {
+                format!("SS {{Robot {robot}}} {{Strength NaN}} {{Error Model.Returned.NaN}}")
+            } else if s.is_infinite() || s > 0.0 {
+                format!("SS {{Robot {robot}}} {{Strength INF}} {{Error Model.Returned.INF}}")
+            } else {
+                format!("SS {{Robot {robot}}} {{Strength {}}}", stringify(s))
+            }
+        }
+        "DNS" => {
+            if robot.is_empty() {
+                return "ERROR {Reason Robot.Name.Must.Not.Be.Empty}".into();
+            }
+            let port = match value(&blocks, "Port").map(str::parse::<u16>) {
+                Some(Err(_)) => return "ERROR {Reason Port.Must.Be.Integer}".into(),
+                Some(Ok(p)) => Some(p),
+                None => None,
+            };
+            dns(wss, &name, robot, port).await
+        }
+        "REVERSEDNS" => {
+            let Some(Ok(port)) = value(&blocks, "Port").map(str::parse::<u16>) else {
+                return "ERROR {Reason Port.Must.Be.Integer}".into();
+            };
+            let state = wss.lock();
+            match state.outgoing.get(&port) {
+                Some((from, to)) if *to == name => {
+                    format!("REVERSEDNSREPLY {{Port {port}}} {{Robot {from}}}")
+                }
+                _ => format!("REVERSEDNSREPLY {{Port {port}}} {{Error UnknownOrIllegalPort}}"),
+            }
+        }
+        _ => "ERROR {Reason Method.Unknown.Or.Can.INIT.only.once}".into(),
+    }
+}
+
+/// `DNS`: the relay port from `me` to `other`'s `port` (its first port without one).
+async fn dns(wss: &Arc<Wss>, me: &str, other: &str, port: Option<u16>) -> String {
+    let (target, existing, reachable) = {
+        let state = wss.lock();
+        let Some(robot) = state.robots.get(other).filter(|_| other != me) else {
+            return format!("DNSREPLY {{Robot {other}}} {{Port -1}} {{Error NoSuchRobot}}");
+        };
+        let target = match port {
+            None => robot.ports.first().copied(),
+            Some(p) => robot.ports.contains(&p).then_some(p),
+        };
+        let Some(target) = target else {
+            return format!(
+                "DNSREPLY {{Robot {other}}} {{Port -1}} {{Error RobotDoesNotListenOnThisPort}}"
+            );
+        };
+        let existing = state
+            .links
+            .iter()
+            .find(|l| l.from == me && l.to == other && l.target == target)
+            .map(|l| l.port);
+        (target, existing, wss.in_range(&state, me, other))
+    };
+    if let Some(port) = existing {
+        return format!("DNSREPLY {{Robot {other}}} {{Port {port}}}");
+    }
+    // A port of our own for this pair: bound now (and kept for the pair), listening only
+    // while the pair is in range.
+    let listener = match TcpListener::bind((wss.bind_ip(), 0)).await {
+        Ok(l) => l,
+        Err(error) => {
+            warn!(%error, "WSS: cannot open a relay port");
+            return "ERROR {Reason Could.Not.Allocate.Port}".into();
+        }
+    };
+    let Ok(local) = listener.local_addr() else {
+        return "ERROR {Reason Could.Not.Allocate.Port}".into();
+    };
+    let mut link = Link {
+        from: me.to_owned(),
+        to: other.to_owned(),
+        target,
+        port: local.port(),
+        up: None,
+    };
+    if reachable {
+        link.up = Some(start_relay(wss, listener, me, other, target));
+    } else {
+        drop(listener);
+    }
+    wss.lock().links.push(link);
+    format!("DNSREPLY {{Robot {other}}} {{Port {}}}", local.port())
+}
+
+impl Wss {
+    /// Where relay ports listen: the WSS's own control address family, any interface.
+    fn bind_ip(&self) -> IpAddr {
+        if self.config.monitor.is_ipv6() {
+            IpAddr::from([0u16; 8])
+        } else {
+            IpAddr::from([0u8; 4])
+        }
+    }
+}
+
+/// Accepts on a relay port until the returned token is cancelled (the link broke): each
+/// connection is bridged to the target robot while the pair stays in range.
+fn start_relay(
+    wss: &Arc<Wss>,
+    listener: TcpListener,
+    from: &str,
+    to: &str,
+    port: u16,
+) -> CancellationToken {
+    let up = wss.shutdown.child_token();
+    let (wss, stop, from, to) = (wss.clone(), up.clone(), from.to_owned(), to.to_owned());
+    tokio::spawn(async move {
+        loop {
+            let (client, peer) = tokio::select! {
+                _ = stop.cancelled() => return,
+                accepted = listener.accept() => match accepted {
+                    Ok(x) => x,
+                    Err(_) => continue,
+                },
+            };
+            let target = {
+                let state = wss.lock();
+                let Some(robot) = state.robots.get(&to) else {
+                    continue;
+                };
+                if !wss.in_range(&state, &from, &to) {
+                    debug!(%peer, "WSS: out of range, connection dropped");
+                    continue;
+                }
+                SocketAddr::new(robot.ip, port)
+            };
+            let Ok(permit) = wss.relayed.clone().try_acquire_owned() else {
+                warn!(
+                    max = MAX_RELAYED,
+                    "WSS: too many relayed connections; dropped"
+                );
+                continue;
+            };
+            let (wss, stop, from, to) = (wss.clone(), stop.clone(), from.clone(), to.clone());
+            tokio::spawn(async move {
+                let Ok(out) = TcpStream::connect(target).await else {
+                    return;
+                };
+                let local = out.local_addr().map(|a| a.port()).unwrap_or(0);
+                wss.lock().outgoing.insert(local, (from, to));
+                let mut client = client;
+                let mut out = out;
+                // Bounded: bytes are read only as fast as the other side takes them.
+                tokio::select! {
+                    _ = stop.cancelled() => {}
+                    _ = tokio::io::copy_bidirectional(&mut client, &mut out) => {}
+                }
+                wss.lock().outgoing.remove(&local);
+                drop(permit);
+            });
+        }
+    });
+    up
+}
+
+/// Removes a robot and every link from or to it.
+fn unregister(wss: &Wss, name: &str) {
+    let mut state = wss.lock();
+    state.robots.remove(name);
+    state.links.retain(|l| {
+        let keep = l.from != name && l.to != name;
+        if !keep && let Some(up) = &l.up {
+            up.cancel();
+        }
+        keep
+    });
+    state.walls.retain(|(a, b), _| a != name && b != name);
+    info!(robot = name, "WSS: robot unregistered");
+}
+
+/// Every `poll`: positions and wall counts from the monitor; kicks; breaks and resumes.
+async fn poll(wss: Arc<Wss>) {
+    let mut monitor: Option<BufReader<TcpStream>> = None;
+    let mut ticker = tokio::time::interval(wss.config.poll);
+    ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        tokio::select! {
+            _ = wss.shutdown.cancelled() => return,
+            _ = ticker.tick() => {}
+        }
+        if monitor.is_none() {
+            match TcpStream::connect(wss.config.monitor).await {
+                Ok(s) => monitor = Some(BufReader::new(s)),
+                Err(error) => {
+                    warn!(monitor = %wss.config.monitor, %error, "WSS: cannot reach the robot monitor");
+                    continue;
+                }
+            }
+        }
+        let Some(m) = monitor.as_mut() else {
+            continue;
+        };
+        if update(&wss, m).await.is_err() {
+            warn!(monitor = %wss.config.monitor, "WSS: the robot monitor stopped answering");
+            monitor = None;
+        }
+    }
+}
+
+/// One request to the monitor and its reply line (without CR LF).
+async fn ask(m: &mut BufReader<TcpStream>, request: &str) -> Result<String, ()> {
+    m.get_mut()
+        .write_all(format!("{request}\r\n").as_bytes())
+        .await
+        .map_err(|_| ())?;
+    let mut line = String::new();
+    let read = tokio::time::timeout(Duration::from_secs(10), async {
+        let mut limited = (&mut *m).take(1 << 20);
+        limited.read_line(&mut line).await
+    })
+    .await;
+    match read {
+        Ok(Ok(n)) if n > 0 => Ok(line.trim_end().to_owned()),
+        _ => Err(()),
+    }
+}
+
+/// `POSITIONS {Robots n} {Name R Location x,y,z BatteryEmpty False} ...` → name, place,
+/// battery empty.
+fn positions(line: &str) -> Vec<(String, [f64; 3], bool)> {
+    let mut out = Vec::new();
+    for block in line.split('{').skip(1) {
+        let tokens: Vec<&str> = block
+            .trim_end_matches(['}', ' '])
+            .split_whitespace()
+            .collect();
+        if let ["Name", name, "Location", at, "BatteryEmpty", empty] = tokens[..] {
+            let p: Vec<f64> = at.split(',').filter_map(|x| x.parse().ok()).collect();
+            if let [x, y, z] = p[..] {
+                out.push((
+                    name.to_owned(),
+                    [x, y, z],
+                    empty.eq_ignore_ascii_case("True"),
+                ));
+            }
+        }
+    }
+    out
+}
+
+async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> {
+    let reply = ask(m, "GETPOS").await?;
+    let found = positions(&reply);
+    // Kick registered robots the simulator does not have, or whose battery is empty.
+    let (names, stale) = {
+        let mut state = wss.lock();
+        state.positions = found
+            .iter()
+            .filter(|f| !f.2)
+            .map(|f| (f.0.clone(), f.1))
+            .collect();
+        let names: Vec<String> = state.robots.keys().cloned().collect();
+        for name in &names {
+            if !state.positions.contains_key(name)
+                && let Some(r) = state.robots.get(name)
+            {
+                warn!(robot = %name, "WSS: no such robot in the simulation (or its battery is empty); kicked");
+                r.kick.cancel();
+            }
+        }
+        let names: Vec<String> = names
+            .into_iter()
+            .filter(|n| state.positions.contains_key(n))
+            .collect();
+        // Pairs whose wall count is missing or was counted more than 1 m (squared) away.
+        let mut stale = Vec::new();
+        for (i, a) in names.iter().enumerate() {
+            for b in &names[i + 1..] {
+                let key = pair(a, b);
+                let (pa, pb) = (state.positions[&key.0], state.positions[&key.1]);
+                let moved = |p: [f64; 3], q: [f64; 3]| {
+                    (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2) > 1.0
+                };
+                match state.walls.get(&key) {
+                    Some((_, ca, cb)) if !moved(*ca, pa) && !moved(*cb, pb) => {}
+                    _ => stale.push((key, pa, pb)),
+                }
+            }
+        }
+        (names, stale)
+    };
+    for ((a, b), pa, pb) in stale {
+        let reply = ask(m, &format!("GETOBS {{From {a}}} {{To {b}}}")).await?;
+        let count = reply
+            .rsplit("{ObstCount ")
+            .next()
+            .and_then(|v| v.trim_end_matches('}').trim().parse::<f64>().ok())
+            .map(f64::trunc);
+        let mut state = wss.lock();
+        match count {
+            Some(n) if n >= 0.0 => {
+                state.walls.insert((a, b), (n, pa, pb));
+            }
+            _ => {
+                state.walls.remove(&(a, b));
+            }
+        }
+    }
+    // Break or resume every link.
+    let mut resume = Vec::new();
+    {
+        let mut state = wss.lock();
+        let verdicts: Vec<bool> = state
+            .links
+            .iter()
+            .map(|l| {
+                names.contains(&l.from)
+                    && names.contains(&l.to)
+                    && wss.in_range(&state, &l.from, &l.to)
+            })
+            .collect();
+        for (link, ok) in state.links.iter_mut().zip(verdicts) {
+            match (&link.up, ok) {
+                (Some(up), false) => {
+                    info!(from = %link.from, to = %link.to, "WSS: link broken");
+                    up.cancel();
+                    link.up = None;
+                }
+                (None, true) => {
+                    resume.push((link.from.clone(), link.to.clone(), link.port, link.target))
+                }
+                _ => {}
+            }
+        }
+    }
+    for (from, to, port, target) in resume {
+        // Listening again on the same port.
+        match TcpListener::bind((wss.bind_ip(), port)).await {
+            Ok(listener) => {
+                let up = start_relay(wss, listener, &from, &to, target);
+                let mut state = wss.lock();
+                match state
+                    .links
+                    .iter_mut()
+                    .find(|l| l.port == port && l.up.is_none())
+                {
+                    Some(link) => {
+                        info!(%from, %to, port, "WSS: link resumed");
+                        link.up = Some(up);
+                    }
+                    None => up.cancel(),
+                }
+            }
+            Err(error) => {
+                warn!(%from, %to, port, %error, "WSS: cannot listen again on the relay port")
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_print_as_cpp_streams_do() {
+        assert_eq!(stringify(-63.24123456), "-63.2412");
+        assert_eq!(stringify(-49.67), "-49.67");
+        assert_eq!(stringify(0.0), "0");
+        assert_eq!(stringify(-100.0), "-100");
+        assert_eq!(stringify(-123456.7), "-123457");
+    }
+
+    #[test]
+    fn the_obstacle_model_has_the_wss_defaults() {
+        let c = WssConfig::new("127.0.0.1:7435".parse().unwrap());
+        let s = |d: f64, walls: f64| c.strength([0.0; 3], [d, 0.0, 0.0], walls);
+        assert!((s(2.0, 0.0) - -49.67).abs() < 1e-9);
+        // Five walls: in range up to about 29.6 m.
+        assert!(s(29.0, 5.0) >= c.cutoff && s(30.5, 5.0) < c.cutoff);
+        assert!(
+            s(2.0, 7.0) < c.cutoff,
+            "seven walls cut any link of 2 m or more"
+        );
+        assert!(s(0.0, 0.0).is_infinite());
+    }
+
+    #[test]
+    fn requests_parse_as_the_wss_grammar() {
+        assert_eq!(
+            parse("INIT {Robot R1} {Port 8001,8002}"),
+            ("INIT", vec![("Robot", "R1"), ("Port", "8001,8002")])
+        );
+        assert_eq!(
+            parse("GETSS {robot x} {A B C}"),
+            ("GETSS", vec![("robot", "x")])
+        );
+        assert_eq!(
+            positions(
+                "POSITIONS {Robots 2} {Name A Location 1.0000,2.0000,-1.0000 BatteryEmpty False} {Name B Location 0,0,0 BatteryEmpty True}"
+            ),
+            vec![
+                ("A".to_owned(), [1.0, 2.0, -1.0], false),
+                ("B".to_owned(), [0.0; 3], true)
+            ]
+        );
+    }
+}
