@@ -200,6 +200,19 @@ impl RobotClass {
     pub fn short_name(&self) -> &str {
         self.class.rsplit('.').next().unwrap_or(&self.class)
     }
+
+    /// Seconds after its spawn by which every sensor of the class has read once: each
+    /// sensor's timer starts at the spawn (docs/protocol.md), so this is the longest
+    /// interval of its parts (0 without parts).
+    pub fn first_readings(&self) -> f64 {
+        self.parts
+            .iter()
+            .map(|p| {
+                p.interval
+                    .unwrap_or_else(|| sensors::find(&p.kind).map_or(0.0, |k| k.default_interval))
+            })
+            .fold(0.0, f64::max)
+    }
 }
 
 #[derive(Deserialize)]

@@ -10,7 +10,7 @@ use ucc_client::uav::UavState;
 use usar_proto::SenData;
 use usar_proto::{Command, Init, ServerMessage, Vec3};
 use usar_sim::robots::{DynamicsKind, PartConfig};
-use usar_sim::{ClientId, Map, RobotCatalog, SimConfig, World};
+use usar_sim::{ClientId, Map, RobotCatalog, RobotClass, SimConfig, World};
 
 /// Horizontal sonars + SonarTop + SonarBottom.
 pub(crate) const SONARS: usize = 10;
@@ -265,8 +265,9 @@ pub(crate) struct WorldSim {
 }
 
 impl WorldSim {
-    /// A fresh world with one UAV per pose, seeded with `seed`, after one hovering period
-    /// (so every sensor has read once).
+    /// A fresh world with one UAV per pose, seeded with `seed`, after hovering whole control
+    /// periods until every sensor has read once (at least one period; sensors speak one
+    /// interval after the spawn).
     pub(crate) fn new(settings: &Settings, seed: u64, poses: &[Pose]) -> Result<Self, SimError> {
         let config = SimConfig {
             seed,
@@ -305,7 +306,12 @@ impl WorldSim {
             first,
             out: Vec::new(),
         };
-        sim.advance(settings.ticks());
+        let first = settings
+            .catalog
+            .get(&settings.robot)
+            .map_or(0.0, RobotClass::first_readings);
+        let periods = ((first / settings.period - 1e-9).ceil() as usize).max(1);
+        sim.advance(periods * settings.ticks());
         Ok(sim)
     }
 

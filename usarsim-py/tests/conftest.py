@@ -32,7 +32,8 @@ def server():
     """A usar-server on a free port (`host:port`), at maximum speed."""
     port = _free_port()
     proc = subprocess.Popen([str(_server_binary()), "--port", str(port), "--time-scale", "max", "--lockstep",
-                             "--truth-port", "off", "--monitor-port", "off", "--wss-port", "off"],
+                             "--truth-port", "off", "--monitor-port", "off", "--wss-port", "off",
+                             "--image-port", "off"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 30
     while time.time() < deadline:

@@ -96,7 +96,8 @@ def test_closed_server_is_a_value_error(tmp_path):
 
     port = _free_port()
     proc = subprocess.Popen([str(_server_binary()), "--port", str(port), "--time-scale", "max", "--lockstep",
-                             "--truth-port", "off", "--monitor-port", "off", "--wss-port", "off"],
+                             "--truth-port", "off", "--monitor-port", "off", "--wss-port", "off",
+                             "--image-port", "off"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     for _ in range(100):
         try:
@@ -124,7 +125,8 @@ def test_remote_env_without_lockstep_runs_on_sensor_time():
 
     port = _free_port()
     proc = subprocess.Popen([str(_server_binary()), "--port", str(port),
-                             "--truth-port", "off", "--monitor-port", "off", "--wss-port", "off"],
+                             "--truth-port", "off", "--monitor-port", "off", "--wss-port", "off",
+                             "--image-port", "off"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         for _ in range(100):
