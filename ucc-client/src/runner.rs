@@ -139,7 +139,7 @@ pub async fn run(
             IterationStatus::Interrupted => Progress::Interrupted { iteration },
         });
         let deviation = summary.add(
-            iteration_summary.clone(),
+            &iteration_summary,
             settings.kept_iterations,
             settings.pictures != Pictures::None && settings.log_dir.is_some(),
         );

@@ -153,7 +153,7 @@ impl Summary {
     /// iteration's (symmetric Hausdorff distance, metres), or `None` before one completed.
     pub fn add(
         &mut self,
-        mut iteration: IterationSummary,
+        iteration: &IterationSummary,
         keep: usize,
         overlay: bool,
     ) -> Option<f64> {
@@ -187,9 +187,7 @@ impl Summary {
             self.add_path(simplify(&path, OVERLAY_TOLERANCE));
         }
         if self.iterations.len() < keep {
-            self.iterations.push(iteration);
-        } else {
-            iteration.trajectory = Vec::new();
+            self.iterations.push(iteration.clone());
         }
         deviation
     }

@@ -55,11 +55,11 @@ fn twenty_thousand_iterations_keep_the_summary_flat() {
     // 20,000 iterations about 40 MiB.
     let (warm_up, total, points) = (2_000, 20_000, 20);
     for n in 0..warm_up {
-        summary.add(iteration(n, points), keep, true);
+        summary.add(&iteration(n, points), keep, true);
     }
     let before = peak_rss_kib().unwrap();
     for n in warm_up..total {
-        summary.add(iteration(n, points), keep, true);
+        summary.add(&iteration(n, points), keep, true);
     }
     let after = peak_rss_kib().unwrap();
     let grown = after.saturating_sub(before);

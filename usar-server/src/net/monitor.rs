@@ -11,15 +11,13 @@
 
 use std::sync::mpsc::Sender;
 
-use tokio::io::AsyncWriteExt;
-use tokio::net::{TcpListener, TcpStream};
+use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
-use tracing::warn;
 use usar_proto::format::{push_fixed, push_fixed_list};
 
 use super::driver::Request;
-use super::side::{self, LineError, Lines};
+use super::side;
 use crate::sim::World;
 
 /// The reply to one request line, without its CR LF; `None`: no reply.
@@ -90,46 +88,21 @@ pub(super) async fn serve(
     tracker: TaskTracker,
     shutdown: CancellationToken,
 ) {
-    side::accept(
+    side::serve_lines(
         "robot monitor",
         listener,
-        tracker.clone(),
+        requests,
+        tracker,
         shutdown,
-        move |stream, stop| connection(stream, requests.clone(), stop),
+        |world, line| {
+            // A blank line gets no answer; an answer ends with CR LF.
+            if line.is_empty() {
+                return None;
+            }
+            let mut text = reply(world, line)?;
+            text.push_str("\r\n");
+            Some(text)
+        },
     )
     .await;
-}
-
-async fn connection(stream: TcpStream, requests: Sender<Request>, stop: CancellationToken) {
-    let peer = stream
-        .peer_addr()
-        .map(|a| a.to_string())
-        .unwrap_or_default();
-    let (read, mut write) = stream.into_split();
-    let mut lines = Lines::new(read);
-    loop {
-        let line = tokio::select! {
-            _ = stop.cancelled() => return,
-            line = lines.next() => line,
-        };
-        let line = match line {
-            Ok(line) if line.is_empty() => continue,
-            Ok(line) => String::from_utf8_lossy(&line).into_owned(),
-            Err(LineError::Closed) => return,
-            Err(LineError::TooLong) => {
-                warn!(%peer, max = side::MAX_LINE, "robot monitor: request line too long; closing");
-                return;
-            }
-        };
-        let Some(answer) = side::ask(&requests, move |world| reply(world, &line)).await else {
-            return;
-        };
-        let Some(mut text) = answer else {
-            continue;
-        };
-        text.push_str("\r\n");
-        if write.write_all(text.as_bytes()).await.is_err() {
-            return;
-        }
-    }
 }

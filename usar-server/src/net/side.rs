@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::sync::mpsc::Sender;
 
-use tokio::io::{AsyncRead, AsyncReadExt};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{Semaphore, oneshot};
 use tokio_util::sync::CancellationToken;
@@ -70,6 +70,65 @@ pub(super) async fn accept<F, Fut>(
             drop(permit);
             info!(service, %peer, "disconnected");
         });
+    }
+}
+
+/// Serves a service of one answer per request line on `listener` until `shutdown` (see
+/// [`accept`]): `answer` turns each line into the text to send back (with its line ends),
+/// on the simulation thread; `None` sends nothing. A line longer than [`MAX_LINE`] closes its
+/// connection; a client that does not read holds only its own connection.
+pub(super) async fn serve_lines(
+    service: &'static str,
+    listener: TcpListener,
+    requests: Sender<Request>,
+    tracker: TaskTracker,
+    shutdown: CancellationToken,
+    answer: fn(&World, &str) -> Option<String>,
+) {
+    accept(
+        service,
+        listener,
+        tracker.clone(),
+        shutdown,
+        move |stream, stop| answer_lines(service, stream, requests.clone(), stop, answer),
+    )
+    .await;
+}
+
+async fn answer_lines(
+    service: &'static str,
+    stream: TcpStream,
+    requests: Sender<Request>,
+    stop: CancellationToken,
+    answer: fn(&World, &str) -> Option<String>,
+) {
+    let peer = stream
+        .peer_addr()
+        .map(|a| a.to_string())
+        .unwrap_or_default();
+    let (read, mut write) = stream.into_split();
+    let mut lines = Lines::new(read);
+    loop {
+        let line = tokio::select! {
+            _ = stop.cancelled() => return,
+            line = lines.next() => line,
+        };
+        let line = match line {
+            Ok(line) => String::from_utf8_lossy(&line).into_owned(),
+            Err(LineError::Closed) => return,
+            Err(LineError::TooLong) => {
+                warn!(service, %peer, max = MAX_LINE, "request line too long; closing");
+                return;
+            }
+        };
+        let Some(text) = ask(&requests, move |world| answer(world, &line)).await else {
+            return;
+        };
+        if let Some(text) = text
+            && write.write_all(text.as_bytes()).await.is_err()
+        {
+            return;
+        }
     }
 }
 

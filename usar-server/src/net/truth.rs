@@ -13,15 +13,13 @@
 
 use std::sync::mpsc::Sender;
 
-use tokio::io::AsyncWriteExt;
-use tokio::net::{TcpListener, TcpStream};
+use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
-use tracing::warn;
 use usar_proto::format::{push_fixed, push_fixed_list};
 
 use super::driver::Request;
-use super::side::{self, LineError, Lines};
+use super::side;
 use crate::sim::World;
 
 /// What a query asks for.
@@ -109,52 +107,23 @@ fn answer(world: &World, query: &Query) -> String {
     out
 }
 
-/// Serves USARTruth on `listener` until `shutdown`.
+/// Serves USARTruth on `listener` until `shutdown` (a blank or unreadable line is the
+/// default query, as USARSim answers it).
 pub(super) async fn serve(
     listener: TcpListener,
     requests: Sender<Request>,
     tracker: TaskTracker,
     shutdown: CancellationToken,
 ) {
-    side::accept(
+    side::serve_lines(
         "USARTruth",
         listener,
-        tracker.clone(),
+        requests,
+        tracker,
         shutdown,
-        move |stream, stop| connection(stream, requests.clone(), stop),
+        |world, line| Some(answer(world, &Query::parse(line))),
     )
     .await;
-}
-
-async fn connection(stream: TcpStream, requests: Sender<Request>, stop: CancellationToken) {
-    let peer = stream
-        .peer_addr()
-        .map(|a| a.to_string())
-        .unwrap_or_default();
-    let (read, mut write) = stream.into_split();
-    let mut lines = Lines::new(read);
-    loop {
-        let line = tokio::select! {
-            _ = stop.cancelled() => return,
-            line = lines.next() => line,
-        };
-        let line = match line {
-            Ok(line) => line,
-            Err(LineError::Closed) => return,
-            Err(LineError::TooLong) => {
-                warn!(%peer, max = side::MAX_LINE, "USARTruth: request line too long; closing");
-                return;
-            }
-        };
-        let query = Query::parse(&String::from_utf8_lossy(&line));
-        let Some(text) = side::ask(&requests, move |world| answer(world, &query)).await else {
-            return;
-        };
-        // A client that does not read holds only its own connection (and is not read from).
-        if write.write_all(text.as_bytes()).await.is_err() {
-            return;
-        }
-    }
 }
 
 #[cfg(test)]
