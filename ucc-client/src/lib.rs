@@ -76,6 +76,8 @@ pub mod progress;
 pub mod radio;
 pub mod record;
 pub mod runner;
+#[cfg(feature = "local")]
+pub mod scenario;
 pub mod settings;
 pub mod speed;
 pub mod stats;

@@ -176,7 +176,7 @@ pub struct PictureError {
 }
 
 /// Draws `draw` into `<base>.svg` and `<base>.png` of `size` pixels; returns their paths.
-fn write_both(
+pub(crate) fn write_both(
     base: &Path,
     size: (u32, u32),
     svg_draw: impl Fn(DrawingArea<SVGBackend<'_>, Shift>) -> Result<(), String>,

@@ -1,6 +1,7 @@
 //! `ucc`, the UAV Control Center: fly missions with an agent against a USARSim server, run a
 //! self-contained demo, or decode/encode protocol lines.
 
+mod scenario;
 mod tap;
 mod wire;
 
@@ -64,6 +65,17 @@ enum Cmd {
                             ucc gui --host usarsim-host --port 3000"
     )]
     Gui(GuiArgs),
+    /// Run a scenario of the thesis (search, relay, tracking, delivery) in-process, in
+    /// lockstep: its UAVs, agents, moving targets and metrics (docs/scenarios.md).
+    #[command(
+        after_help = "Examples:\n  ucc scenario --list\n  ucc scenario search --iterations 5\n  \
+                      ucc scenario my-scenario.toml --seed 7 --log-dir runs/mine\n\n\
+                      Writes, in --log-dir:\n  \
+                      results.csv              one row per iteration: seed, ending, the metrics\n  \
+                      iteration-NNN.log        the events, with simulated times\n  \
+                      iteration-NNN.svg/.png   coverage, victims, paths, links, perimeter"
+    )]
+    Scenario(scenario::ScenarioArgs),
     /// Read protocol lines on stdin and print them as JSON (or re-printed); exit 1 if any failed.
     Decode {
         /// Print JSON, one object per line (the default).
@@ -320,6 +332,7 @@ fn main() -> ExitCode {
             rt.block_on(tap(&bind, listen, upstream, record, max_connections.into()))
         }),
         Cmd::Demo(args) => runtime().and_then(|rt| rt.block_on(demo(args))),
+        Cmd::Scenario(args) => scenario::scenario(args),
         Cmd::Gui(args) => runtime().and_then(|rt| rt.block_on(gui(args))),
     };
     match result {

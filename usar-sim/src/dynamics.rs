@@ -239,6 +239,13 @@ pub(crate) trait Dynamics: std::fmt::Debug + Send {
         let _ = fault;
         false
     }
+    /// Fills the battery of the energy model (landed on a charging pad).
+    fn recharge(&mut self) {}
+    /// Sets the mass carried besides the body, kg; `false` when the model has no mass.
+    fn set_payload(&mut self, kg: f64) -> bool {
+        let _ = kg;
+        false
+    }
 }
 
 // ---- small vector/matrix helpers (f64, row-major) ----

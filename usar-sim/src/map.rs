@@ -405,6 +405,45 @@ impl Map {
         })
     }
 
+    /// Adds a victim or an object after loading (a scenario's victims drawn at random):
+    /// the checks of a `[[victim]]` / `[[object]]` entry (a one-word unique name, finite
+    /// numbers within the map's limits, a positive size), and its body, 2 cm smaller on every
+    /// side, must not meet a solid or another placed thing. The error says what is wrong.
+    pub fn add_placed(&mut self, p: Placed) -> Result<(), String> {
+        if p.name.trim().is_empty() || p.name.contains(['{', '}', ' ']) {
+            return Err(format!("name {:?} must be one word", p.name));
+        }
+        if self.placed.iter().any(|o| o.name == p.name) {
+            return Err(format!("duplicate name `{}`", p.name));
+        }
+        finite(&[&p.center, &p.size, &[p.yaw; 3]])?;
+        within(&[&p.center, &p.size], LIMIT)?;
+        if p.size.iter().any(|&s| s <= 0.0) {
+            return Err(format!("size must be positive, got {:?}", p.size));
+        }
+        if self.box_is_taken(p.center, p.size, p.yaw) {
+            return Err(format!(
+                "`{}` at {:?} would overlap a solid of the map or a placed thing",
+                p.name, p.center
+            ));
+        }
+        self.placed.push(p);
+        Ok(())
+    }
+
+    /// Whether a box (2 cm smaller on every side) meets a solid or a placed thing.
+    pub fn box_is_taken(&self, center: V3, size: V3, yaw: f64) -> bool {
+        const SLACK: f64 = 0.02;
+        let mut scene = Scene::new();
+        build_solids(&self.solids, &mut scene);
+        for p in &self.placed {
+            scene.insert(box_collider(p.center, p.size, p.yaw));
+        }
+        scene.refit();
+        let inner = size.map(|s| (s - 2.0 * SLACK).max(s / 2.0));
+        scene.box_overlaps(&box_collider(center, inner, yaw).build())
+    }
+
     /// The victims and objects, victims first, each in file order.
     pub fn placed(&self) -> &[Placed] {
         &self.placed

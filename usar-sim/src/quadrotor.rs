@@ -363,6 +363,9 @@ pub(crate) struct Quadrotor {
     battery: Option<Battery>,
     /// rad/s, the rotors' top speed at the battery's voltage.
     top_speed: f64,
+    /// kg carried besides the body ([`Dynamics::set_payload`]); the controller does not
+    /// know it (its integral takes it up), the physics does.
+    payload: f64,
     /// Rotor disk area, m².
     disk: f64,
     /// Fraction of each rotor's thrust and torque left (motor faults).
@@ -492,6 +495,7 @@ impl Quadrotor {
             diverged: false,
             battery: limits.battery.then(|| Battery::new(config.battery.clone())),
             top_speed: config.rotor_speed_max,
+            payload: 0.0,
             disk: std::f64::consts::PI * config.rotor_radius.powi(2),
             health: [1.0; 4],
             config,
@@ -712,7 +716,7 @@ impl Quadrotor {
             v[i] -= vn * n[i];
         }
         // Friction: the tangential force that would stop the body within this substep.
-        let stop: V3 = std::array::from_fn(|i| force[i] + c.mass * v[i] / h);
+        let stop: V3 = std::array::from_fn(|i| force[i] + (c.mass + self.payload) * v[i] / h);
         let limit = c.friction * pressing;
         let need = norm(stop);
         let f = if need <= limit { 1.0 } else { limit / need };
@@ -901,14 +905,15 @@ impl Dynamics for Quadrotor {
             let air = sub(v, wind);
             let spin = self.speeds.iter().sum::<f64>() / (4.0 * c.hover_speed());
             let drag = c.drag_linear * spin + c.drag_quadratic * norm(air);
+            let mass = c.mass + self.payload;
             let mut force: V3 = std::array::from_fn(|i| {
-                -r[i][2] * thrust - drag * air[i] + if i == 2 { c.mass * GRAVITY } else { 0.0 }
+                -r[i][2] * thrust - drag * air[i] + if i == 2 { mass * GRAVITY } else { 0.0 }
             });
             if let Some(n) = self.surface {
                 self.hold(n, &r, h, &mut v, &mut force, &mut torque);
             }
             for i in 0..3 {
-                v[i] += force[i] / c.mass * h;
+                v[i] += force[i] / mass * h;
                 p[i] += v[i] * h;
             }
             let w = self.rates;
@@ -1034,6 +1039,22 @@ impl Dynamics for Quadrotor {
 
     fn rotor_speeds(&self) -> Option<[f64; 4]> {
         Some(self.speeds)
+    }
+
+    fn recharge(&mut self) {
+        if let Some(battery) = &mut self.battery {
+            let emptied = battery.empty() && matches!(self.mode, Mode::Off);
+            *battery = Battery::new(self.config.battery.clone());
+            self.top_speed = self.config.rotor_speed_max * battery.voltage_ratio();
+            if emptied || matches!(self.mode, Mode::Land) {
+                self.mode = Mode::Level;
+            }
+        }
+    }
+
+    fn set_payload(&mut self, kg: f64) -> bool {
+        self.payload = if kg.is_finite() { kg.clamp(0.0, 1000.0) } else { 0.0 };
+        true
     }
 
     fn fault(&mut self, fault: &super::dynamics::Fault) -> bool {

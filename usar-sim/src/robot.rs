@@ -226,6 +226,8 @@ pub(crate) struct Robot {
     /// Whether the body touched something in the last tick.
     contact: bool,
     spawn_tick: u64,
+    /// The tick the battery timer was last full (spawn, or [`Robot::recharge`]).
+    charged_tick: u64,
     spawn_z: f64,
     status: Timer,
     parts: Vec<Part>,
@@ -308,6 +310,7 @@ impl Robot {
             crashed: None,
             contact: false,
             spawn_tick: spawn.tick,
+            charged_tick: spawn.tick,
             spawn_z: spawn.position[2],
             status: Timer::new(STATUS_INTERVAL, spawn.tick, spawn.dt, phase),
             parts,
@@ -334,10 +337,25 @@ impl Robot {
         match self.model.class.battery {
             None => NO_BATTERY,
             Some(capacity) => {
-                let used = (tick - self.spawn_tick) as f64 * dt;
+                let used = tick.saturating_sub(self.charged_tick) as f64 * dt;
                 (capacity - used).ceil().max(0.0) as i64
             }
         }
+    }
+
+    /// Fills the battery (a charging pad): USARSim's timer restarts at `tick`, the energy
+    /// model's battery is full again.
+    pub(crate) fn recharge(&mut self, tick: u64) {
+        self.charged_tick = tick;
+        if let Some(dynamics) = &mut self.dynamics {
+            dynamics.recharge();
+        }
+    }
+
+    /// Sets the mass carried besides the body (kg); `false` for a robot without physics
+    /// (the kinematic flight has no mass).
+    pub(crate) fn set_payload(&mut self, kg: f64) -> bool {
+        self.dynamics.as_mut().is_some_and(|d| d.set_payload(kg))
     }
 
     /// Whether the battery is empty (commands ignored, sensors silent, robot stopped).
@@ -639,7 +657,7 @@ impl Robot {
                 out.push((owner, ServerMessage::Sen(Sen { time, data })));
             }
         } else {
-            // Silent for ever (the battery does not recharge): the timers move on, so that
+            // Silent until recharged ([`Robot::recharge`]): the timers move on, so that
             // only STA's keeps the robot due.
             for part in &mut self.parts {
                 part.timer.fire(tick);

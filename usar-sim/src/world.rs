@@ -542,6 +542,25 @@ impl World {
         self.scene.cast_ray(origin, dir, max, None)
     }
 
+    /// Fills the battery of the robot `client` controls (a charging pad; not a USARSim
+    /// command: scenarios call it). `false` when the client controls no robot.
+    pub fn recharge(&mut self, client: ClientId) -> bool {
+        let tick = self.tick;
+        self.client_robot(client).map(|r| r.recharge(tick)).is_some()
+    }
+
+    /// Sets the mass (kg, 0 ..= 1000) the robot `client` controls carries besides its body:
+    /// a payload picked up (scenarios call it). `false` when the client controls no robot or
+    /// the robot has no physics (the kinematic stsAirRobot flies the same with any load).
+    pub fn set_payload(&mut self, client: ClientId, kg: f64) -> bool {
+        self.client_robot(client).is_some_and(|r| r.set_payload(kg))
+    }
+
+    fn client_robot(&mut self, client: ClientId) -> Option<&mut Robot> {
+        let serial = self.clients.get(&client).copied().flatten()?;
+        self.robot_mut(serial)
+    }
+
     /// Whether the robot `client` controls has crashed.
     pub fn crashed(&self, client: ClientId) -> bool {
         let serial = self.clients.get(&client).copied().flatten();

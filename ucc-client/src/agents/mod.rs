@@ -7,6 +7,8 @@
 
 pub mod avoid;
 pub mod base;
+#[cfg(feature = "local")]
+pub mod team;
 
 use crate::agent::Agent;
 

@@ -1,0 +1,468 @@
+//! One iteration of a scenario, flown in-process on the simulator's [`World`]: lockstep by
+//! construction (the agents step every period of simulated time, whatever the wall clock
+//! does), deterministic under the seed, and as fast as the world steps.
+
+use usar_proto::{Command, Init, Vec3};
+use usar_server::sim::map::Placed;
+use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
+
+use super::metrics::{Metrics, Tracker};
+use super::spec::{Kind, Scenario, ScenarioError};
+use crate::agents::team::{self, Board, Brief, TeamAgent};
+use crate::agents::team::random::SplitMix;
+use crate::speed::SpeedCommand;
+use crate::uav::UavState;
+
+/// m/s²: a dropped payload falls at this.
+const GRAVITY: f64 = 9.81;
+/// Seconds between two trajectory samples kept for the picture.
+const TRACK_EVERY: f64 = 0.5;
+
+/// What the world needs, loaded once for every iteration of a run.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// Its map, without the drawn victims.
+    pub map: Map,
+    /// The robot classes, with the scenario's battery overrides.
+    pub catalog: RobotCatalog,
+}
+
+impl Prepared {
+    /// Loads the map and the classes; every class must exist.
+    pub fn new(scenario: Scenario, catalog: RobotCatalog) -> Result<Self, ScenarioError> {
+        let what = scenario.path.clone().unwrap_or_else(|| format!("embedded:{}", scenario.name).into());
+        let invalid = |message: String| ScenarioError::Invalid {
+            path: what.clone(),
+            line: 0,
+            message,
+        };
+        let map = Map::lookup(&scenario.map).map_err(|e| invalid(format!("`map`: {e}")))?;
+        let mut catalog = catalog;
+        for group in &scenario.uavs {
+            let class = catalog
+                .get_mut(&group.class)
+                .ok_or_else(|| invalid(format!("[[uav]] `class` {:?}: no such robot class", group.class)))?;
+            if let Some(b) = group.battery {
+                class.battery = Some(b);
+            }
+        }
+        if !scenario.targets.is_empty() && catalog.get(TARGET_CLASS).is_none() {
+            return Err(invalid(format!("targets need the robot class {TARGET_CLASS}")));
+        }
+        Ok(Self {
+            scenario,
+            map,
+            catalog,
+        })
+    }
+}
+
+/// The class the world spawns for a moving target.
+pub const TARGET_CLASS: &str = "USARBot.Target";
+
+/// How an iteration ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Ending {
+    /// Every agent said it was done.
+    Done,
+    /// The time limit.
+    TimeUp,
+}
+
+/// One iteration's result: its metrics and what the picture draws.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The seed it flew.
+    pub seed: u64,
+    /// How it ended.
+    pub ending: Ending,
+    /// The figures.
+    pub metrics: Metrics,
+    /// Each UAV's path, sampled every half second.
+    pub tracks: Vec<Vec<[f64; 3]>>,
+    /// Each target's path.
+    pub target_tracks: Vec<Vec<[f64; 3]>>,
+    /// The victims of the iteration (the map's and the drawn ones) and when each was found.
+    pub victims: Vec<(Placed, Option<f64>)>,
+    /// Times seen per coverage cell (row-major, x rows), with the grid's shape.
+    pub coverage: Option<super::metrics::Grid>,
+    /// The relay's link state over time: (time, connected), one entry per change.
+    pub link: Vec<(f64, bool)>,
+    /// The fire's radius at the end.
+    pub fire_radius: Option<f64>,
+    /// The log lines, with simulated times.
+    pub log: Vec<String>,
+}
+
+struct Flyer {
+    client: ClientId,
+    name: String,
+    agent: Box<dyn TeamAgent>,
+    state: UavState,
+    done: bool,
+    crashed: bool,
+    charge: f64,
+    last_truth: Option<[f64; 3]>,
+    velocity: [f64; 3],
+    level: Option<f64>,
+}
+
+struct Mover {
+    client: ClientId,
+    waypoint: usize,
+    rng: SplitMix,
+    goal: Option<[f64; 2]>,
+}
+
+fn init(class: &str, name: &str, at: [f64; 3]) -> Command {
+    Command::Init(Init {
+        class_name: class.to_owned(),
+        name: Some(name.to_owned()),
+        location: Some(Vec3::new(at[0], at[1], at[2])),
+        rotation: Some(Vec3::new(0.0, 0.0, 0.0)),
+        start: None,
+    })
+}
+
+/// Draws `n` victims in the search area, seeded, none inside a solid or another victim.
+fn draw_victims(map: &mut Map, scenario: &Scenario, seed: u64) -> Result<(), String> {
+    let Some(search) = &scenario.search else {
+        return Ok(());
+    };
+    let mut rng = SplitMix(seed ^ 0x5EED_1C71_u64);
+    let [[x0, y0], [x1, y1]] = search.area;
+    for i in 0..search.victims {
+        let mut placed = false;
+        for _ in 0..1000 {
+            let center = [
+                x0 + 1.0 + rng.next_f64() * (x1 - x0 - 2.0).max(0.0),
+                y0 + 1.0 + rng.next_f64() * (y1 - y0 - 2.0).max(0.0),
+                -usar_server::sim::map::VICTIM_SIZE[2] / 2.0,
+            ];
+            let p = Placed {
+                name: format!("Drawn{}", i + 1),
+                class: search.victim_class.clone(),
+                victim: true,
+                center,
+                size: usar_server::sim::map::VICTIM_SIZE,
+                yaw: rng.next_f64() * std::f64::consts::PI,
+                color: None,
+            };
+            if map.add_placed(p).is_ok() {
+                placed = true;
+                break;
+            }
+        }
+        if !placed {
+            return Err(format!(
+                "[search]: no free place for victim {} of {} in the area after 1000 draws",
+                i + 1,
+                search.victims
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Flies one iteration with `seed`.
+pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, String> {
+    let scenario = &prepared.scenario;
+    let mut map = prepared.map.clone();
+    draw_victims(&mut map, scenario, seed)?;
+    let victims: Vec<Placed> = map.placed().iter().filter(|p| p.victim).cloned().collect();
+    let config = SimConfig {
+        seed,
+        threads: threads.max(1),
+        ..SimConfig::default()
+    };
+    let mut world = World::new(map, prepared.catalog.clone(), config);
+    let dt = world.dt();
+    let ticks = ((scenario.period / dt).round() as usize).max(1);
+    let period = ticks as f64 * dt;
+
+    // UAVs, in group order.
+    let mut flyers: Vec<Flyer> = Vec::new();
+    let mut briefs = Vec::new();
+    let total = scenario.uav_count();
+    let mut first_index = 0;
+    for group in &scenario.uavs {
+        let members: Vec<usize> = (first_index..first_index + group.count).collect();
+        first_index += group.count;
+        let class = prepared.catalog.get(&group.class).ok_or("class vanished")?;
+        for (k, &index) in members.iter().enumerate() {
+            let at = std::array::from_fn(|i| group.start[i] + k as f64 * group.spacing[i]);
+            let client = world.connect();
+            let name = format!("UAV{}", index + 1);
+            world.command(client, init(&group.class, &name, at));
+            if world.robot_count() != index + 1 {
+                return Err(format!(
+                    "{name} ({}) cannot spawn at {at:?}: the place is inside a solid or another robot",
+                    group.class
+                ));
+            }
+            let info = team::info(&group.agent).ok_or("agent vanished")?;
+            let h = group.altitude;
+            let half = (scenario.sensor.fov.to_radians() / 2.0).tan();
+            let footprint = (h * half).min((scenario.sensor.range.powi(2) - h * h).max(0.0).sqrt());
+            briefs.push(Brief {
+                index,
+                group: members.clone(),
+                team: total,
+                seed,
+                altitude: h,
+                footprint,
+                speed: class.flight.max_linear_speed.min(class.flight.max_lateral_speed),
+                base: scenario.base,
+                start: at,
+                search: scenario.search.clone(),
+                relay: scenario.relay,
+                radio: scenario.radio,
+                fire: scenario.fire,
+                targets: scenario.targets.iter().map(|t| t.start).collect(),
+                delivery: scenario.delivery.clone(),
+                time_limit: scenario.time_limit,
+            });
+            flyers.push(Flyer {
+                client,
+                name,
+                agent: (info.create)(),
+                state: UavState::new(),
+                done: false,
+                crashed: false,
+                charge: 0.0,
+                last_truth: None,
+                velocity: [0.0; 3],
+                level: None,
+            });
+        }
+    }
+    let mut movers = Vec::new();
+    for (j, t) in scenario.targets.iter().enumerate() {
+        let client = world.connect();
+        world.command(client, init(TARGET_CLASS, &t.name, t.start));
+        if world.robot_count() != total + j + 1 {
+            return Err(format!("target {} cannot spawn at {:?}: the place is taken", t.name, t.start));
+        }
+        movers.push(Mover {
+            client,
+            waypoint: 0,
+            rng: SplitMix(seed ^ (j as u64 + 1).wrapping_mul(0x9E37_79B9)),
+            goal: None,
+        });
+    }
+    for (f, b) in flyers.iter_mut().zip(&briefs) {
+        f.agent.start(b);
+    }
+    let mut tracker = Tracker::new(scenario, &victims, total);
+    let mut board = Board {
+        positions: vec![None; total],
+        batteries: vec![None; total],
+        charging: vec![false; total],
+        carrying: vec![false; total],
+        targets: vec![None; scenario.targets.len()],
+        ..Board::default()
+    };
+    let mut log = Vec::new();
+    let mut tracks = vec![Vec::new(); total];
+    let mut target_tracks = vec![Vec::new(); scenario.targets.len()];
+    let mut out = Vec::new();
+    let mut next_sample = 0.0;
+    let first = flyers.first().map_or(0, |f| f.client.0);
+    let ending = loop {
+        for _ in 0..ticks {
+            world.step(&mut out);
+        }
+        for (client, message) in out.drain(..) {
+            let i = client.0.wrapping_sub(first) as usize;
+            if let Some(f) = flyers.get_mut(i)
+                && f.client == client
+            {
+                f.state.apply(&message);
+            }
+        }
+        let time = world.time();
+        let truth = world.robots_truth();
+        let uav_truth: Vec<[f64; 3]> = truth.iter().take(total).map(|r| r.location).collect();
+        let target_truth: Vec<[f64; 3]> = truth.iter().skip(total).map(|r| r.location).collect();
+        if time >= next_sample {
+            next_sample += TRACK_EVERY;
+            for (t, p) in tracks.iter_mut().zip(&uav_truth) {
+                t.push(*p);
+            }
+            for (t, p) in target_tracks.iter_mut().zip(&target_truth) {
+                t.push(*p);
+            }
+        }
+        // Crashes, charging, energy.
+        for (i, f) in flyers.iter_mut().enumerate() {
+            if !f.crashed && (world.crashed(f.client) || f.state.crashed()) {
+                f.crashed = true;
+                tracker.crashes += 1;
+                log.push(format!("t={time:.1}s {}: crashed", f.name));
+            }
+            let p = uav_truth.get(i).copied().unwrap_or_default();
+            f.velocity = f.last_truth.map_or([0.0; 3], |q| std::array::from_fn(|k| (p[k] - q[k]) / period));
+            let speed = f.velocity.iter().map(|v| v * v).sum::<f64>().sqrt();
+            f.last_truth = Some(p);
+            let level = team::battery_level(&f.state);
+            if let Some(prev) = f.level
+                && level < prev
+            {
+                tracker.battery_used += prev - level;
+            }
+            f.level = Some(level);
+            board.charging[i] = false;
+            if let Some(base) = &scenario.base
+                && on_pad(base, p, speed)
+                && !f.crashed
+            {
+                board.charging[i] = true;
+                f.charge += period;
+                if f.charge >= base.charge_time && level < 0.999 {
+                    world.recharge(f.client);
+                    tracker.recharges += 1;
+                    f.charge = 0.0;
+                    log.push(format!("t={time:.1}s {}: recharged on the base pad", f.name));
+                }
+            } else {
+                f.charge = 0.0;
+            }
+        }
+        tracker.observe(time, period, &uav_truth, &target_truth, &world, &briefs, &mut board, &mut log);
+        // The board.
+        board.time = time;
+        for (i, f) in flyers.iter().enumerate() {
+            board.positions[i] = team::position(&f.state);
+            board.batteries[i] = Some(team::battery_level(&f.state));
+        }
+        // Targets move.
+        for (j, (m, t)) in movers.iter_mut().zip(&scenario.targets).enumerate() {
+            let Some(&p) = target_truth.get(j) else { continue };
+            let goal = if t.path.is_empty() {
+                let [[x0, y0], [x1, y1]] = t.bounds.unwrap_or([[p[0], p[1]], [p[0], p[1]]]);
+                let reached = m.goal.is_none_or(|g| (g[0] - p[0]).hypot(g[1] - p[1]) < 1.0);
+                if reached {
+                    m.goal = Some([
+                        x0 + m.rng.next_f64() * (x1 - x0),
+                        y0 + m.rng.next_f64() * (y1 - y0),
+                    ]);
+                }
+                m.goal
+            } else {
+                let w = t.path[m.waypoint.min(t.path.len() - 1)];
+                if (w[0] - p[0]).hypot(w[1] - p[1]) < 0.5 {
+                    if m.waypoint + 1 < t.path.len() {
+                        m.waypoint += 1;
+                    } else if t.looped {
+                        m.waypoint = 0;
+                    }
+                }
+                let w = t.path[m.waypoint.min(t.path.len() - 1)];
+                Some(w)
+            };
+            let command = match goal {
+                Some(g) => {
+                    let top = prepared.catalog.get(TARGET_CLASS).map_or(5.0, |c| c.flight.max_linear_speed);
+                    let mut c = team::fly_to(p, 0.0, [g[0], g[1], t.start[2]], (t.speed / top).min(1.0), 0.5);
+                    c.yaw = 0.0;
+                    c
+                }
+                None => SpeedCommand::STOP,
+            };
+            world.command(m.client, Command::Drive(command.to_drive()));
+        }
+        // The agents.
+        let mut notes = Vec::new();
+        for (i, f) in flyers.iter_mut().enumerate() {
+            if f.crashed {
+                continue;
+            }
+            let view = if scenario.blackboard { board.clone() } else { private(&board, i) };
+            let step = f.agent.step(&f.state, &view, time);
+            for line in step.log {
+                log.push(format!("t={time:.1}s {} {}: {line}", f.name, f.agent.name()));
+            }
+            if scenario.blackboard {
+                notes.extend(step.notes.into_iter().map(|n| (i, n)));
+            }
+            if let Some(act) = step.act {
+                tracker.act(act, i, time, uav_truth[i], f.velocity, &mut board, &mut log, &f.name, |kg| {
+                    world.set_payload(f.client, kg);
+                });
+            }
+            f.done = step.done;
+            if let Some(c) = step.command {
+                world.command(f.client, Command::Drive(c.to_drive()));
+            }
+        }
+        for (i, (key, value)) in notes {
+            match value {
+                Some(v) => {
+                    board.notes.insert(key, (i, v));
+                }
+                None => {
+                    board.notes.remove(&key);
+                }
+            }
+        }
+        let all_done = flyers.iter().all(|f| f.done || f.crashed);
+        let done = match scenario.kind {
+            Kind::Search | Kind::Delivery => all_done,
+            Kind::Relay | Kind::Tracking => false,
+        };
+        if done {
+            break Ending::Done;
+        }
+        if time >= scenario.time_limit - 1e-9 {
+            break Ending::TimeUp;
+        }
+    };
+    let time = world.time();
+    let metrics = tracker.finish(time, scenario);
+    Ok(Outcome {
+        seed,
+        ending,
+        metrics,
+        tracks,
+        target_tracks,
+        victims: tracker.victims.clone(),
+        coverage: tracker.grid.clone(),
+        link: tracker.link_changes.clone(),
+        fire_radius: scenario.fire.map(|f| f.radius + f.rate * time),
+        log,
+    })
+}
+
+/// The board as one UAV without a blackboard sees it: the scenario's facts, its own entries.
+fn private(board: &Board, i: usize) -> Board {
+    let mine = |v: &Vec<Option<[f64; 3]>>| v.iter().enumerate().map(|(k, p)| if k == i { *p } else { None }).collect();
+    Board {
+        time: board.time,
+        positions: mine(&board.positions),
+        batteries: board.batteries.iter().enumerate().map(|(k, b)| if k == i { *b } else { None }).collect(),
+        charging: board.charging.clone(),
+        carrying: board.carrying.clone(),
+        found: board.found.clone(),
+        targets: board.targets.clone(),
+        fire_radius: board.fire_radius,
+        notes: Default::default(),
+    }
+}
+
+/// Landed on the pad: within its radius, less than half a metre above it, nearly still.
+pub fn on_pad(pad: &super::spec::Pad, p: [f64; 3], speed: f64) -> bool {
+    (p[0] - pad.location[0]).hypot(p[1] - pad.location[1]) <= pad.radius
+        && pad.location[2] - p[2] < 0.5
+        && speed < 0.3
+}
+
+/// Where a payload released at `p` with velocity `v` (world frame, z down) lands on ground
+/// at `ground_z`, and after how many seconds.
+pub fn fall(p: [f64; 3], v: [f64; 3], ground_z: f64) -> ([f64; 3], f64) {
+    let h = (ground_z - p[2]).max(0.0);
+    // z down: h = v_z t + g t² / 2.
+    let t = (-v[2] + (v[2] * v[2] + 2.0 * GRAVITY * h).sqrt()) / GRAVITY;
+    ([p[0] + v[0] * t, p[1] + v[1] * t, ground_z], t)
+}
