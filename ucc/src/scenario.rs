@@ -73,10 +73,9 @@ pub(crate) fn scenario(args: ScenarioArgs) -> anyhow::Result<ExitCode> {
         None => RobotCatalog::embedded(),
     };
     let prepared = Prepared::new(scenario, catalog)?;
-    let dir = args
-        .log_dir
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("ucc-logs").join(format!("scenario-{}", prepared.scenario.name)));
+    let dir = args.log_dir.clone().unwrap_or_else(|| {
+        PathBuf::from("ucc-logs").join(format!("scenario-{}", prepared.scenario.name))
+    });
     let settings = ScenarioRun {
         iterations: args.iterations as usize,
         seed: args.seed,
@@ -109,7 +108,11 @@ pub(crate) fn scenario(args: ScenarioArgs) -> anyhow::Result<ExitCode> {
                     .iter()
                     .filter_map(|(n, v)| v.map(|v| format!("{n}={}", round(v))))
                     .collect();
-                println!("iteration {iteration}/{total} (seed {}): {}", outcome.seed, figures.join(" "));
+                println!(
+                    "iteration {iteration}/{total} (seed {}): {}",
+                    outcome.seed,
+                    figures.join(" ")
+                );
             }
         }
     })
@@ -123,7 +126,15 @@ pub(crate) fn scenario(args: ScenarioArgs) -> anyhow::Result<ExitCode> {
         summary.simulated / summary.wall.max(1e-9)
     );
     for (name, mean, n) in &summary.means {
-        println!("  {name:<22} {:>10}{}", round(*mean), if *n < summary.iterations { format!("  ({n} of {})", summary.iterations) } else { String::new() });
+        println!(
+            "  {name:<22} {:>10}{}",
+            round(*mean),
+            if *n < summary.iterations {
+                format!("  ({n} of {})", summary.iterations)
+            } else {
+                String::new()
+            }
+        );
     }
     println!("files in {}", dir.display());
     Ok(ExitCode::SUCCESS)

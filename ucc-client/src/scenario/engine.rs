@@ -8,8 +8,8 @@ use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 
 use super::metrics::{Metrics, Tracker};
 use super::spec::{Kind, Scenario, ScenarioError};
-use crate::agents::team::{self, Board, Brief, TeamAgent};
 use crate::agents::team::random::SplitMix;
+use crate::agents::team::{self, Board, Brief, TeamAgent};
 use crate::speed::SpeedCommand;
 use crate::uav::UavState;
 
@@ -32,7 +32,10 @@ pub struct Prepared {
 impl Prepared {
     /// Loads the map and the classes; every class must exist.
     pub fn new(scenario: Scenario, catalog: RobotCatalog) -> Result<Self, ScenarioError> {
-        let what = scenario.path.clone().unwrap_or_else(|| format!("embedded:{}", scenario.name).into());
+        let what = scenario
+            .path
+            .clone()
+            .unwrap_or_else(|| format!("embedded:{}", scenario.name).into());
         let invalid = |message: String| ScenarioError::Invalid {
             path: what.clone(),
             line: 0,
@@ -41,15 +44,20 @@ impl Prepared {
         let map = Map::lookup(&scenario.map).map_err(|e| invalid(format!("`map`: {e}")))?;
         let mut catalog = catalog;
         for group in &scenario.uavs {
-            let class = catalog
-                .get_mut(&group.class)
-                .ok_or_else(|| invalid(format!("[[uav]] `class` {:?}: no such robot class", group.class)))?;
+            let class = catalog.get_mut(&group.class).ok_or_else(|| {
+                invalid(format!(
+                    "[[uav]] `class` {:?}: no such robot class",
+                    group.class
+                ))
+            })?;
             if let Some(b) = group.battery {
                 class.battery = Some(b);
             }
         }
         if !scenario.targets.is_empty() && catalog.get(TARGET_CLASS).is_none() {
-            return Err(invalid(format!("targets need the robot class {TARGET_CLASS}")));
+            return Err(invalid(format!(
+                "targets need the robot class {TARGET_CLASS}"
+            )));
         }
         Ok(Self {
             scenario,
@@ -213,9 +221,15 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
                 seed,
                 altitude: h,
                 footprint,
-                speed: class.flight.max_linear_speed.min(class.flight.max_lateral_speed),
+                speed: class
+                    .flight
+                    .max_linear_speed
+                    .min(class.flight.max_lateral_speed),
                 base: scenario.base,
                 start: at,
+                spot: scenario
+                    .base
+                    .map_or(at, |b| team::landing_spot(&b, at, index)),
                 search: scenario.search.clone(),
                 relay: scenario.relay,
                 radio: scenario.radio,
@@ -243,7 +257,10 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
         let client = world.connect();
         world.command(client, init(TARGET_CLASS, &t.name, t.start));
         if world.robot_count() != total + j + 1 {
-            return Err(format!("target {} cannot spawn at {:?}: the place is taken", t.name, t.start));
+            return Err(format!(
+                "target {} cannot spawn at {:?}: the place is taken",
+                t.name, t.start
+            ));
         }
         movers.push(Mover {
             client,
@@ -303,7 +320,9 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
                 log.push(format!("t={time:.1}s {}: crashed", f.name));
             }
             let p = uav_truth.get(i).copied().unwrap_or_default();
-            f.velocity = f.last_truth.map_or([0.0; 3], |q| std::array::from_fn(|k| (p[k] - q[k]) / period));
+            f.velocity = f.last_truth.map_or([0.0; 3], |q| {
+                std::array::from_fn(|k| (p[k] - q[k]) / period)
+            });
             let speed = f.velocity.iter().map(|v| v * v).sum::<f64>().sqrt();
             f.last_truth = Some(p);
             let level = team::battery_level(&f.state);
@@ -324,13 +343,25 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
                     world.recharge(f.client);
                     tracker.recharges += 1;
                     f.charge = 0.0;
-                    log.push(format!("t={time:.1}s {}: recharged on the base pad", f.name));
+                    log.push(format!(
+                        "t={time:.1}s {}: recharged on the base pad",
+                        f.name
+                    ));
                 }
             } else {
                 f.charge = 0.0;
             }
         }
-        tracker.observe(time, period, &uav_truth, &target_truth, &world, &briefs, &mut board, &mut log);
+        tracker.observe(
+            time,
+            period,
+            &uav_truth,
+            &target_truth,
+            &world,
+            &briefs,
+            &mut board,
+            &mut log,
+        );
         // The board.
         board.time = time;
         for (i, f) in flyers.iter().enumerate() {
@@ -339,10 +370,14 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
         }
         // Targets move.
         for (j, (m, t)) in movers.iter_mut().zip(&scenario.targets).enumerate() {
-            let Some(&p) = target_truth.get(j) else { continue };
+            let Some(&p) = target_truth.get(j) else {
+                continue;
+            };
             let goal = if t.path.is_empty() {
                 let [[x0, y0], [x1, y1]] = t.bounds.unwrap_or([[p[0], p[1]], [p[0], p[1]]]);
-                let reached = m.goal.is_none_or(|g| (g[0] - p[0]).hypot(g[1] - p[1]) < 1.0);
+                let reached = m
+                    .goal
+                    .is_none_or(|g| (g[0] - p[0]).hypot(g[1] - p[1]) < 1.0);
                 if reached {
                     m.goal = Some([
                         x0 + m.rng.next_f64() * (x1 - x0),
@@ -364,8 +399,17 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
             };
             let command = match goal {
                 Some(g) => {
-                    let top = prepared.catalog.get(TARGET_CLASS).map_or(5.0, |c| c.flight.max_linear_speed);
-                    let mut c = team::fly_to(p, 0.0, [g[0], g[1], t.start[2]], (t.speed / top).min(1.0), 0.5);
+                    let top = prepared
+                        .catalog
+                        .get(TARGET_CLASS)
+                        .map_or(5.0, |c| c.flight.max_linear_speed);
+                    let mut c = team::fly_to(
+                        p,
+                        0.0,
+                        [g[0], g[1], t.start[2]],
+                        (t.speed / top).min(1.0),
+                        0.5,
+                    );
                     c.yaw = 0.0;
                     c
                 }
@@ -379,18 +423,36 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
             if f.crashed {
                 continue;
             }
-            let view = if scenario.blackboard { board.clone() } else { private(&board, i) };
+            let view = if scenario.blackboard {
+                board.clone()
+            } else {
+                private(&board, i)
+            };
             let step = f.agent.step(&f.state, &view, time);
             for line in step.log {
-                log.push(format!("t={time:.1}s {} {}: {line}", f.name, f.agent.name()));
+                log.push(format!(
+                    "t={time:.1}s {} {}: {line}",
+                    f.name,
+                    f.agent.name()
+                ));
             }
             if scenario.blackboard {
                 notes.extend(step.notes.into_iter().map(|n| (i, n)));
             }
             if let Some(act) = step.act {
-                tracker.act(act, i, time, uav_truth[i], f.velocity, &mut board, &mut log, &f.name, |kg| {
-                    world.set_payload(f.client, kg);
-                });
+                tracker.act(
+                    act,
+                    i,
+                    time,
+                    uav_truth[i],
+                    f.velocity,
+                    &mut board,
+                    &mut log,
+                    &f.name,
+                    |kg| {
+                        world.set_payload(f.client, kg);
+                    },
+                );
             }
             f.done = step.done;
             if let Some(c) = step.command {
@@ -437,11 +499,21 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
 
 /// The board as one UAV without a blackboard sees it: the scenario's facts, its own entries.
 fn private(board: &Board, i: usize) -> Board {
-    let mine = |v: &Vec<Option<[f64; 3]>>| v.iter().enumerate().map(|(k, p)| if k == i { *p } else { None }).collect();
+    let mine = |v: &Vec<Option<[f64; 3]>>| {
+        v.iter()
+            .enumerate()
+            .map(|(k, p)| if k == i { *p } else { None })
+            .collect()
+    };
     Board {
         time: board.time,
         positions: mine(&board.positions),
-        batteries: board.batteries.iter().enumerate().map(|(k, b)| if k == i { *b } else { None }).collect(),
+        batteries: board
+            .batteries
+            .iter()
+            .enumerate()
+            .map(|(k, b)| if k == i { *b } else { None })
+            .collect(),
         charging: board.charging.clone(),
         carrying: board.carrying.clone(),
         found: board.found.clone(),

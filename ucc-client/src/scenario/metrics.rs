@@ -19,7 +19,10 @@ pub struct Metrics {
 impl Metrics {
     /// The value of `name` (`None` when absent or not measured).
     pub fn get(&self, name: &str) -> Option<f64> {
-        self.values.iter().find(|(n, _)| *n == name).and_then(|(_, v)| *v)
+        self.values
+            .iter()
+            .find(|(n, _)| *n == name)
+            .and_then(|(_, v)| *v)
     }
 }
 
@@ -98,7 +101,9 @@ pub struct Tracker {
     error_max: f64,
     error_count: f64,
     seen_time: f64,
-    samples: Vec<Option<f64>>,
+    /// Per perimeter sample: when its current or last visit began, and whether a footprint
+    /// is on it now.
+    samples: Vec<(Option<f64>, bool)>,
     intervals: Vec<f64>,
     deliveries: usize,
     delivery_time: Option<f64>,
@@ -139,7 +144,7 @@ impl Tracker {
             error_max: 0.0,
             error_count: 0.0,
             seen_time: 0.0,
-            samples: vec![None; scenario.fire.map_or(0, |f| f.samples)],
+            samples: vec![(None, false); scenario.fire.map_or(0, |f| f.samples)],
             intervals: Vec::new(),
             deliveries: 0,
             delivery_time: None,
@@ -161,7 +166,10 @@ impl Tracker {
         board: &mut Board,
         log: &mut Vec<String>,
     ) {
-        let feet: Vec<f64> = uavs.iter().map(|p| footprint(&self.sensor, -p[2])).collect();
+        let feet: Vec<f64> = uavs
+            .iter()
+            .map(|p| footprint(&self.sensor, -p[2]))
+            .collect();
         self.observed_time += period;
         if let Some(grid) = &mut self.grid {
             for (p, &r) in uavs.iter().zip(&feet) {
@@ -183,14 +191,22 @@ impl Tracker {
             if let Some(k) = by {
                 *found = Some(time);
                 board.found.push(c);
-                log.push(format!("t={time:.1}s UAV{}: found victim {} at ({:.1}, {:.1})", k + 1, victim.name, c[0], c[1]));
+                log.push(format!(
+                    "t={time:.1}s UAV{}: found victim {} at ({:.1}, {:.1})",
+                    k + 1,
+                    victim.name,
+                    c[0],
+                    c[1]
+                ));
             }
         }
         // Targets: seen when inside a footprint with a clear line; the tracking error is the
         // horizontal distance to the nearest UAV.
         for (j, t) in targets.iter().enumerate() {
             let seen = uavs.iter().zip(&feet).any(|(p, &r)| {
-                r > 0.0 && (p[0] - t[0]).hypot(p[1] - t[1]) <= r && world.obstacles_between(*p, *t) == 0
+                r > 0.0
+                    && (p[0] - t[0]).hypot(p[1] - t[1]) <= r
+                    && world.obstacles_between(*p, *t) == 0
             });
             if seen {
                 if board.targets[j].is_none() {
@@ -200,7 +216,10 @@ impl Tracker {
                 self.seen_time += period / targets.len() as f64;
             }
             if board.targets[j].is_some() {
-                let e = uavs.iter().map(|p| (p[0] - t[0]).hypot(p[1] - t[1])).fold(f64::INFINITY, f64::min);
+                let e = uavs
+                    .iter()
+                    .map(|p| (p[0] - t[0]).hypot(p[1] - t[1]))
+                    .fold(f64::INFINITY, f64::min);
                 if e.is_finite() {
                     self.error_sum += e;
                     self.error_count += 1.0;
@@ -231,7 +250,10 @@ impl Tracker {
             let up = reached[1];
             if self.link_changes.last().is_none_or(|&(_, was)| was != up) {
                 if self.link_changes.is_empty() || up {
-                    log.push(format!("t={time:.1}s link between the endpoints {}", if up { "up" } else { "down" }));
+                    log.push(format!(
+                        "t={time:.1}s link between the endpoints {}",
+                        if up { "up" } else { "down" }
+                    ));
                 } else {
                     log.push(format!("t={time:.1}s link between the endpoints lost"));
                 }
@@ -260,18 +282,24 @@ impl Tracker {
                     board.fire_radius = Some(radius);
                 }
             }
-            for (k, last) in self.samples.iter_mut().enumerate() {
+            // The update interval: between the starts of two visits of a sample point.
+            for (k, (began, inside)) in self.samples.iter_mut().enumerate() {
                 let a = std::f64::consts::TAU * k as f64 / n as f64;
-                let s = [fire.center[0] + radius * a.cos(), fire.center[1] + radius * a.sin()];
-                let visited = uavs.iter().zip(&feet).any(|(p, &r)| r > 0.0 && (p[0] - s[0]).hypot(p[1] - s[1]) <= r);
-                if visited {
-                    if let Some(t) = *last
-                        && time - t > period * 1.5
-                    {
+                let s = [
+                    fire.center[0] + radius * a.cos(),
+                    fire.center[1] + radius * a.sin(),
+                ];
+                let visited = uavs
+                    .iter()
+                    .zip(&feet)
+                    .any(|(p, &r)| r > 0.0 && (p[0] - s[0]).hypot(p[1] - s[1]) <= r);
+                if visited && !*inside {
+                    if let Some(t) = *began {
                         self.intervals.push(time - t);
                     }
-                    *last = Some(time);
+                    *began = Some(time);
                 }
+                *inside = visited;
             }
         }
     }
@@ -299,7 +327,10 @@ impl Tracker {
                 if !carrying && self.deliveries == 0 && on_pad(&job.pickup, p, speed) {
                     board.carrying[i] = true;
                     set_payload(job.payload);
-                    log.push(format!("t={time:.1}s {name}: picked up the payload ({} kg)", job.payload));
+                    log.push(format!(
+                        "t={time:.1}s {name}: picked up the payload ({} kg)",
+                        job.payload
+                    ));
                 }
             }
             Act::Drop => {
@@ -309,9 +340,14 @@ impl Tracker {
                 board.carrying[i] = false;
                 set_payload(0.0);
                 let (at, fell) = fall(p, v, job.dropoff.location[2]);
-                let error = (at[0] - job.dropoff.location[0]).hypot(at[1] - job.dropoff.location[1]);
+                let error =
+                    (at[0] - job.dropoff.location[0]).hypot(at[1] - job.dropoff.location[1]);
                 self.drop_error = Some(error);
-                let how = if fell > 0.05 { format!("dropped; it fell {fell:.2} s and") } else { "set down; it".to_owned() };
+                let how = if fell > 0.05 {
+                    format!("dropped; it fell {fell:.2} s and")
+                } else {
+                    "set down; it".to_owned()
+                };
                 if error <= job.dropoff.radius {
                     self.deliveries += 1;
                     self.delivery_time.get_or_insert(time);
@@ -336,30 +372,53 @@ impl Tracker {
                 let found: Vec<f64> = self.victims.iter().filter_map(|(_, t)| *t).collect();
                 let all = found.len() == self.victims.len() && !self.victims.is_empty();
                 values.extend([
-                    ("coverage_pct", self.grid.as_ref().map(|g| 100.0 * g.covered())),
+                    (
+                        "coverage_pct",
+                        self.grid.as_ref().map(|g| 100.0 * g.covered()),
+                    ),
                     ("victims_found", Some(found.len() as f64)),
                     ("victims_total", Some(self.victims.len() as f64)),
                     ("first_find_s", found.iter().copied().reduce(f64::min)),
-                    ("all_found_s", if all { found.iter().copied().reduce(f64::max) } else { None }),
+                    (
+                        "all_found_s",
+                        if all {
+                            found.iter().copied().reduce(f64::max)
+                        } else {
+                            None
+                        },
+                    ),
                 ]);
             }
             Kind::Relay => {
                 let open = self.outage_start.map_or(0.0, |s| time - s);
                 values.extend([
-                    ("link_pct", Some(100.0 * self.connected_time / self.observed_time.max(1e-9))),
+                    (
+                        "link_pct",
+                        Some(100.0 * self.connected_time / self.observed_time.max(1e-9)),
+                    ),
                     ("longest_outage_s", Some(self.longest_outage.max(open))),
                 ]);
             }
             Kind::Tracking => {
                 if !scenario.targets.is_empty() {
                     values.extend([
-                        ("target_seen_pct", Some(100.0 * self.seen_time / self.observed_time.max(1e-9))),
-                        ("tracking_error_m", (self.error_count > 0.0).then(|| self.error_sum / self.error_count)),
-                        ("tracking_error_max_m", (self.error_count > 0.0).then_some(self.error_max)),
+                        (
+                            "target_seen_pct",
+                            Some(100.0 * self.seen_time / self.observed_time.max(1e-9)),
+                        ),
+                        (
+                            "tracking_error_m",
+                            (self.error_count > 0.0).then(|| self.error_sum / self.error_count),
+                        ),
+                        (
+                            "tracking_error_max_m",
+                            (self.error_count > 0.0).then_some(self.error_max),
+                        ),
                     ]);
                 }
                 if scenario.fire.is_some() {
-                    let mean = (!self.intervals.is_empty()).then(|| self.intervals.iter().sum::<f64>() / self.intervals.len() as f64);
+                    let mean = (!self.intervals.is_empty())
+                        .then(|| self.intervals.iter().sum::<f64>() / self.intervals.len() as f64);
                     let max = self.intervals.iter().copied().reduce(f64::max);
                     values.extend([("update_interval_s", mean), ("update_interval_max_s", max)]);
                 }

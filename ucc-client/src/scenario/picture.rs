@@ -14,6 +14,8 @@ use crate::picture::{MapGeometry, PictureError, VICTIM_COLOUR, write_both};
 
 const SIDE: u32 = 760;
 const STRIP: u32 = 60;
+/// The band under the map with the iteration's figures.
+const FOOTER: u32 = 44;
 
 /// Colours of the UAVs' paths, by index.
 const UAV_COLOURS: [RGBColor; 6] = [
@@ -26,11 +28,17 @@ const UAV_COLOURS: [RGBColor; 6] = [
 ];
 
 /// Draws `outcome` of `scenario` on `map` into `<base>.svg` and `<base>.png`.
-pub fn write(scenario: &Scenario, map: &MapGeometry, outcome: &Outcome, iteration: usize, base: &Path) -> Result<[PathBuf; 2], PictureError> {
+pub fn write(
+    scenario: &Scenario,
+    map: &MapGeometry,
+    outcome: &Outcome,
+    iteration: usize,
+    base: &Path,
+) -> Result<[PathBuf; 2], PictureError> {
     let strip = if outcome.link.is_empty() { 0 } else { STRIP };
     write_both(
         base,
-        (SIDE, SIDE + strip),
+        (SIDE, SIDE + FOOTER + strip),
         |a| draw(scenario, map, outcome, iteration, a),
         |a| draw(scenario, map, outcome, iteration, a),
     )
@@ -70,22 +78,28 @@ fn extent(scenario: &Scenario, outcome: &Outcome) -> (std::ops::Range<f64>, std:
     (c[1] - half..c[1] + half, c[0] - half..c[0] + half)
 }
 
-fn draw<DB: DrawingBackend>(scenario: &Scenario, map: &MapGeometry, outcome: &Outcome, iteration: usize, root: DrawingArea<DB, Shift>) -> Result<(), String> {
+fn draw<DB: DrawingBackend>(
+    scenario: &Scenario,
+    map: &MapGeometry,
+    outcome: &Outcome,
+    iteration: usize,
+    root: DrawingArea<DB, Shift>,
+) -> Result<(), String> {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(err)?;
-    let (top, bottom) = if outcome.link.is_empty() {
-        (root.clone(), None)
-    } else {
-        let (t, b) = root.split_vertically(SIDE);
-        (t, Some(b))
-    };
+    let (top, rest) = root.split_vertically(SIDE);
+    let (footer, bottom) = rest.split_vertically(FOOTER);
+    let bottom = (!outcome.link.is_empty()).then_some(bottom);
     let figures: Vec<String> = outcome
         .metrics
         .values
         .iter()
         .filter_map(|(n, v)| v.map(|v| format!("{n} {}", short(v))))
         .collect();
-    let title = format!("{} · iteration {} · seed {}", scenario.name, iteration, outcome.seed);
+    let title = format!(
+        "{} · iteration {} · seed {}",
+        scenario.name, iteration, outcome.seed
+    );
     let (east, north) = extent(scenario, outcome);
     let mut chart = ChartBuilder::on(&top)
         .caption(&title, ("sans-serif", 20))
@@ -105,18 +119,27 @@ fn draw<DB: DrawingBackend>(scenario: &Scenario, map: &MapGeometry, outcome: &Ou
     if let Some(grid) = &outcome.coverage {
         let max = grid.seen.iter().copied().max().unwrap_or(1).max(1) as f64;
         let [nx, ny] = grid.shape;
-        let cells = (0..nx).flat_map(|i| (0..ny).map(move |j| (i, j))).filter_map(|(i, j)| {
-            let n = grid.seen[i * ny + j];
-            let x = grid.origin[0] + i as f64 * grid.cell;
-            let y = grid.origin[1] + j as f64 * grid.cell;
-            let colour = if n == 0 {
-                RGBColor(255, 225, 225)
-            } else {
-                let f = (n as f64 / max).sqrt();
-                RGBColor((210.0 - 150.0 * f) as u8, (240.0 - 80.0 * f) as u8, (210.0 - 150.0 * f) as u8)
-            };
-            Some(Rectangle::new([(y, x), (y + grid.cell, x + grid.cell)], colour.filled()))
-        });
+        let cells = (0..nx)
+            .flat_map(|i| (0..ny).map(move |j| (i, j)))
+            .filter_map(|(i, j)| {
+                let n = grid.seen[i * ny + j];
+                let x = grid.origin[0] + i as f64 * grid.cell;
+                let y = grid.origin[1] + j as f64 * grid.cell;
+                let colour = if n == 0 {
+                    RGBColor(255, 225, 225)
+                } else {
+                    let f = (n as f64 / max).sqrt();
+                    RGBColor(
+                        (210.0 - 150.0 * f) as u8,
+                        (240.0 - 80.0 * f) as u8,
+                        (210.0 - 150.0 * f) as u8,
+                    )
+                };
+                Some(Rectangle::new(
+                    [(y, x), (y + grid.cell, x + grid.cell)],
+                    colour.filled(),
+                ))
+            });
         chart.draw_series(cells).map_err(err)?;
         if let Some(s) = &scenario.search {
             let [[x0, y0], [x1, y1]] = s.area;
@@ -124,14 +147,22 @@ fn draw<DB: DrawingBackend>(scenario: &Scenario, map: &MapGeometry, outcome: &Ou
                 .draw_series([Rectangle::new([(y0, x0), (y1, x1)], BLACK.stroke_width(1))])
                 .map_err(err)?
                 .label("search area (green: seen, red: never)")
-                .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], RGBColor(120, 200, 120).filled()));
+                .legend(|(x, y)| {
+                    Rectangle::new(
+                        [(x, y - 5), (x + 14, y + 5)],
+                        RGBColor(120, 200, 120).filled(),
+                    )
+                });
         }
     }
-    // Solids.
+    // Solids (not the ground: a slab whose top is at the ground or below).
     let solid = RGBColor(120, 120, 120);
     chart
-        .draw_series(map.footprints.iter().map(|f| {
-            Polygon::new(f.outline.iter().map(|&(x, y)| (y, x)).collect::<Vec<_>>(), solid.mix(0.55).filled())
+        .draw_series(map.footprints.iter().filter(|f| f.z_min < -0.05).map(|f| {
+            Polygon::new(
+                f.outline.iter().map(|&(x, y)| (y, x)).collect::<Vec<_>>(),
+                solid.mix(0.55).filled(),
+            )
         }))
         .map_err(err)?;
     // Fire.
@@ -143,15 +174,28 @@ fn draw<DB: DrawingBackend>(scenario: &Scenario, map: &MapGeometry, outcome: &Ou
             })
         };
         chart
-            .draw_series(LineSeries::new(circle(f.radius), RGBColor(255, 170, 60).stroke_width(2)))
+            .draw_series(LineSeries::new(
+                circle(f.radius),
+                RGBColor(255, 170, 60).stroke_width(2),
+            ))
             .map_err(err)?
             .label("fire perimeter at the start")
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 14, y)], RGBColor(255, 170, 60).stroke_width(2)));
+            .legend(|(x, y)| {
+                PathElement::new(
+                    [(x, y), (x + 14, y)],
+                    RGBColor(255, 170, 60).stroke_width(2),
+                )
+            });
         chart
-            .draw_series(LineSeries::new(circle(r_end), RGBColor(220, 60, 20).stroke_width(2)))
+            .draw_series(LineSeries::new(
+                circle(r_end),
+                RGBColor(220, 60, 20).stroke_width(2),
+            ))
             .map_err(err)?
             .label("fire perimeter at the end")
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 14, y)], RGBColor(220, 60, 20).stroke_width(2)));
+            .legend(|(x, y)| {
+                PathElement::new([(x, y), (x + 14, y)], RGBColor(220, 60, 20).stroke_width(2))
+            });
     }
     // Pads and endpoints.
     let pads = scenario.base.iter().map(|p| (p, "base pad")).chain(
@@ -162,15 +206,28 @@ fn draw<DB: DrawingBackend>(scenario: &Scenario, map: &MapGeometry, outcome: &Ou
     );
     for (pad, label) in pads {
         chart
-            .draw_series([Circle::new((pad.location[1], pad.location[0]), 6, BLACK.stroke_width(2))])
+            .draw_series([Circle::new(
+                (pad.location[1], pad.location[0]),
+                6,
+                BLACK.stroke_width(2),
+            )])
             .map_err(err)?;
         chart
-            .draw_series([Text::new(label.to_owned(), (pad.location[1], pad.location[0]), ("sans-serif", 13))])
+            .draw_series([Text::new(
+                label.to_owned(),
+                (pad.location[1], pad.location[0]),
+                ("sans-serif", 13),
+            )])
             .map_err(err)?;
     }
     if let Some(r) = &scenario.relay {
         chart
-            .draw_series(r.endpoints.iter().map(|p| Rectangle::new([(p[1] - 1.0, p[0] - 1.0), (p[1] + 1.0, p[0] + 1.0)], BLUE.filled())))
+            .draw_series(r.endpoints.iter().map(|p| {
+                Rectangle::new(
+                    [(p[1] - 1.0, p[0] - 1.0), (p[1] + 1.0, p[0] + 1.0)],
+                    BLUE.filled(),
+                )
+            }))
             .map_err(err)?
             .label("relay endpoints")
             .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], BLUE.filled()));
@@ -179,7 +236,10 @@ fn draw<DB: DrawingBackend>(scenario: &Scenario, map: &MapGeometry, outcome: &Ou
     for (i, t) in outcome.tracks.iter().enumerate() {
         let c = UAV_COLOURS[i % UAV_COLOURS.len()];
         let s = chart
-            .draw_series(LineSeries::new(t.iter().map(|p| (p[1], p[0])), c.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                t.iter().map(|p| (p[1], p[0])),
+                c.stroke_width(2),
+            ))
             .map_err(err)?;
         if i < 8 {
             s.label(format!("UAV{}", i + 1))
@@ -188,25 +248,45 @@ fn draw<DB: DrawingBackend>(scenario: &Scenario, map: &MapGeometry, outcome: &Ou
     }
     for (j, t) in outcome.target_tracks.iter().enumerate() {
         let s = chart
-            .draw_series(LineSeries::new(t.iter().map(|p| (p[1], p[0])), RED.stroke_width(3)))
+            .draw_series(LineSeries::new(
+                t.iter().map(|p| (p[1], p[0])),
+                RED.stroke_width(3),
+            ))
             .map_err(err)?;
         if j == 0 {
-            s.label("target").legend(|(x, y)| PathElement::new([(x, y), (x + 14, y)], RED.stroke_width(3)));
+            s.label("target")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 14, y)], RED.stroke_width(3)));
         }
     }
     // Victims.
-    let found: Vec<_> = outcome.victims.iter().filter(|(_, t)| t.is_some()).collect();
-    let missed: Vec<_> = outcome.victims.iter().filter(|(_, t)| t.is_none()).collect();
+    let found: Vec<_> = outcome
+        .victims
+        .iter()
+        .filter(|(_, t)| t.is_some())
+        .collect();
+    let missed: Vec<_> = outcome
+        .victims
+        .iter()
+        .filter(|(_, t)| t.is_none())
+        .collect();
     if !found.is_empty() {
         chart
-            .draw_series(found.iter().map(|(v, _)| Cross::new((v.center[1], v.center[0]), 7, RGBColor(0, 140, 0).stroke_width(3))))
+            .draw_series(found.iter().map(|(v, _)| {
+                Cross::new(
+                    (v.center[1], v.center[0]),
+                    7,
+                    RGBColor(0, 140, 0).stroke_width(3),
+                )
+            }))
             .map_err(err)?
             .label("victim found")
             .legend(|(x, y)| Cross::new((x + 7, y), 5, RGBColor(0, 140, 0).stroke_width(3)));
     }
     if !missed.is_empty() {
         chart
-            .draw_series(missed.iter().map(|(v, _)| Cross::new((v.center[1], v.center[0]), 7, VICTIM_COLOUR.stroke_width(3))))
+            .draw_series(missed.iter().map(|(v, _)| {
+                Cross::new((v.center[1], v.center[0]), 7, VICTIM_COLOUR.stroke_width(3))
+            }))
             .map_err(err)?
             .label("victim missed")
             .legend(|(x, y)| Cross::new((x + 7, y), 5, VICTIM_COLOUR.stroke_width(3)));
@@ -219,10 +299,15 @@ fn draw<DB: DrawingBackend>(scenario: &Scenario, map: &MapGeometry, outcome: &Ou
         .label_font(("sans-serif", 13))
         .draw()
         .map_err(err)?;
-    // The figures, two lines at the bottom left.
+    // The figures, two lines under the map.
     let (half_a, half_b) = figures.split_at(figures.len().div_ceil(2));
-    for (k, line) in [half_a.join("  "), half_b.join("  ")].iter().enumerate() {
-        top.draw(&Text::new(line.clone(), (70, SIDE as i32 - 72 + 16 * k as i32), ("sans-serif", 13)))
+    for (k, line) in [half_a.join("   "), half_b.join("   ")].iter().enumerate() {
+        footer
+            .draw(&Text::new(
+                line.clone(),
+                (20, 4 + 18 * k as i32),
+                ("sans-serif", 14),
+            ))
             .map_err(err)?;
     }
     // The link's history.
@@ -243,7 +328,14 @@ fn draw<DB: DrawingBackend>(scenario: &Scenario, map: &MapGeometry, outcome: &Ou
             .map_err(err)?;
         let spans = outcome.link.iter().enumerate().map(|(k, &(t, up))| {
             let t1 = outcome.link.get(k + 1).map_or(end, |n| n.0);
-            Rectangle::new([(t, 0.0), (t1, 1.0)], if up { RGBColor(60, 170, 60).filled() } else { RGBColor(220, 50, 40).filled() })
+            Rectangle::new(
+                [(t, 0.0), (t1, 1.0)],
+                if up {
+                    RGBColor(60, 170, 60).filled()
+                } else {
+                    RGBColor(220, 50, 40).filled()
+                },
+            )
         });
         chart.draw_series(spans).map_err(err)?;
     }

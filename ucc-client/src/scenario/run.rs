@@ -86,7 +86,8 @@ pub fn run_scenario(
     let mut simulated = 0.0;
     for i in 0..settings.iterations {
         let seed = seed.wrapping_add(i as u64);
-        let outcome = fly(prepared, seed, settings.threads).map_err(|e| ScenarioRunError(format!("iteration {}: {e}", i + 1)))?;
+        let outcome = fly(prepared, seed, settings.threads)
+            .map_err(|e| ScenarioRunError(format!("iteration {}: {e}", i + 1)))?;
         simulated += outcome.metrics.get("time_s").unwrap_or(0.0);
         for (name, value) in &outcome.metrics.values {
             let Some(v) = value else { continue };
@@ -99,7 +100,9 @@ pub fn run_scenario(
             }
         }
         if let (Some(dir), Some((path, out))) = (&settings.log_dir, &mut table) {
-            let wrote = |e: std::io::Error, p: &Path| ScenarioRunError(format!("cannot write {}: {e}", p.display()));
+            let wrote = |e: std::io::Error, p: &Path| {
+                ScenarioRunError(format!("cannot write {}: {e}", p.display()))
+            };
             let ending = match outcome.ending {
                 Ending::Done => "done",
                 Ending::TimeUp => "time_up",
@@ -110,12 +113,20 @@ pub fn run_scenario(
                 .iter()
                 .map(|(_, v)| v.map_or(String::new(), |v| format!("{v:.3}")))
                 .collect();
-            writeln!(out, "{},{},{},{}", i + 1, seed, ending, cells.join(",")).and_then(|()| out.flush()).map_err(|e| wrote(e, path))?;
+            writeln!(out, "{},{},{},{}", i + 1, seed, ending, cells.join(","))
+                .and_then(|()| out.flush())
+                .map_err(|e| wrote(e, path))?;
             let log = dir.join(format!("iteration-{:03}.log", i + 1));
             std::fs::write(&log, outcome.log.join("\n") + "\n").map_err(|e| wrote(e, &log))?;
             if settings.pictures {
-                super::picture::write(scenario, &geometry, &outcome, i + 1, &dir.join(format!("iteration-{:03}", i + 1)))
-                    .map_err(|e| ScenarioRunError(e.to_string()))?;
+                super::picture::write(
+                    scenario,
+                    &geometry,
+                    &outcome,
+                    i + 1,
+                    &dir.join(format!("iteration-{:03}", i + 1)),
+                )
+                .map_err(|e| ScenarioRunError(e.to_string()))?;
             }
         }
         observer(ScenarioProgress::Finished {
@@ -125,7 +136,10 @@ pub fn run_scenario(
     }
     Ok(ScenarioSummary {
         iterations: settings.iterations,
-        means: sums.into_iter().map(|(n, s, k)| (n, s / k as f64, k)).collect(),
+        means: sums
+            .into_iter()
+            .map(|(n, s, k)| (n, s / k as f64, k))
+            .collect(),
         wall: start.elapsed().as_secs_f64(),
         simulated,
     })
@@ -133,7 +147,11 @@ pub fn run_scenario(
 
 /// Creates the folder and `results.csv` with its header (refusing an earlier run's unless
 /// `force`).
-fn open_results(dir: &Path, force: bool, prepared: &Prepared) -> Result<(PathBuf, std::io::BufWriter<std::fs::File>), ScenarioRunError> {
+fn open_results(
+    dir: &Path,
+    force: bool,
+    prepared: &Prepared,
+) -> Result<(PathBuf, std::io::BufWriter<std::fs::File>), ScenarioRunError> {
     let path = dir.join("results.csv");
     if path.exists() && !force {
         return Err(ScenarioRunError(format!(
@@ -141,8 +159,10 @@ fn open_results(dir: &Path, force: bool, prepared: &Prepared) -> Result<(PathBuf
             dir.display()
         )));
     }
-    std::fs::create_dir_all(dir).map_err(|e| ScenarioRunError(format!("cannot create {}: {e}", dir.display())))?;
-    let file = std::fs::File::create(&path).map_err(|e| ScenarioRunError(format!("cannot write {}: {e}", path.display())))?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| ScenarioRunError(format!("cannot create {}: {e}", dir.display())))?;
+    let file = std::fs::File::create(&path)
+        .map_err(|e| ScenarioRunError(format!("cannot write {}: {e}", path.display())))?;
     let mut out = std::io::BufWriter::new(file);
     let columns = super::metrics::Tracker::new(&prepared.scenario, &[], 0)
         .finish(0.0, &prepared.scenario)
@@ -151,6 +171,7 @@ fn open_results(dir: &Path, force: bool, prepared: &Prepared) -> Result<(PathBuf
         .map(|(n, _)| *n)
         .collect::<Vec<_>>()
         .join(",");
-    writeln!(out, "iteration,seed,ending,{columns}").map_err(|e| ScenarioRunError(format!("cannot write {}: {e}", path.display())))?;
+    writeln!(out, "iteration,seed,ending,{columns}")
+        .map_err(|e| ScenarioRunError(format!("cannot write {}: {e}", path.display())))?;
     Ok((path, out))
 }

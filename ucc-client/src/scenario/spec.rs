@@ -431,8 +431,14 @@ fn yes() -> bool {
 /// The embedded scenarios: (name, file text).
 pub const EMBEDDED: &[(&str, &str)] = &[
     ("search", include_str!("../../scenarios/search.toml")),
-    ("search-team", include_str!("../../scenarios/search-team.toml")),
-    ("search-swarm", include_str!("../../scenarios/search-swarm.toml")),
+    (
+        "search-team",
+        include_str!("../../scenarios/search-team.toml"),
+    ),
+    (
+        "search-swarm",
+        include_str!("../../scenarios/search-swarm.toml"),
+    ),
     ("relay", include_str!("../../scenarios/relay.toml")),
     ("tracking", include_str!("../../scenarios/tracking.toml")),
     ("perimeter", include_str!("../../scenarios/perimeter.toml")),
@@ -451,7 +457,11 @@ impl Scenario {
         }
         Err(ScenarioError::Unknown {
             name: name.to_owned(),
-            known: EMBEDDED.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
+            known: EMBEDDED
+                .iter()
+                .map(|(n, _)| *n)
+                .collect::<Vec<_>>()
+                .join(", "),
         })
     }
 
@@ -524,12 +534,17 @@ impl Scenario {
             check_point(&r.start).map_err(|m| bad(format!("`start` {m}")))?;
             check_point(&r.spacing).map_err(|m| bad(format!("`spacing` {m}")))?;
             if !(r.altitude > 0.0 && r.altitude < 1000.0) {
-                return Err(bad(format!("`altitude` must be in (0, 1000) m, got {}", r.altitude)));
+                return Err(bad(format!(
+                    "`altitude` must be in (0, 1000) m, got {}",
+                    r.altitude
+                )));
             }
             if let Some(b) = r.battery
                 && !(b > 0.0 && b <= MAX_TIME)
             {
-                return Err(bad(format!("`battery` must be in (0, {MAX_TIME}] s, got {b}")));
+                return Err(bad(format!(
+                    "`battery` must be in (0, {MAX_TIME}] s, got {b}"
+                )));
             }
             if crate::agents::team::info(&r.agent).is_none() {
                 return Err(bad(format!(
@@ -558,7 +573,10 @@ impl Scenario {
         let pad = |p: &RawPad, what: &str, at: usize| -> Result<Pad, ScenarioError> {
             check_point(&p.location).map_err(|m| invalid(at, format!("{what} `location` {m}")))?;
             if !(p.radius > 0.0 && p.radius < 1000.0) {
-                return Err(invalid(at, format!("{what} `radius` must be in (0, 1000) m")));
+                return Err(invalid(
+                    at,
+                    format!("{what} `radius` must be in (0, 1000) m"),
+                ));
             }
             if !(p.charge_time >= 0.0 && p.charge_time <= MAX_TIME) {
                 return Err(invalid(at, format!("{what} `charge_time` must be ≥ 0 s")));
@@ -599,10 +617,13 @@ impl Scenario {
                 let r = s.get_ref();
                 check_area(&r.area).map_err(|m| invalid(at, format!("[search] `area` {m}")))?;
                 if !(r.cell >= 0.05 && r.cell <= 100.0) {
-                    return Err(invalid(at, "[search] `cell` must be in [0.05, 100] m".into()));
+                    return Err(invalid(
+                        at,
+                        "[search] `cell` must be in [0.05, 100] m".into(),
+                    ));
                 }
-                let cells = (r.area[1][0] - r.area[0][0]) / r.cell * (r.area[1][1] - r.area[0][1])
-                    / r.cell;
+                let cells =
+                    (r.area[1][0] - r.area[0][0]) / r.cell * (r.area[1][1] - r.area[0][1]) / r.cell;
                 if cells > 4e6 {
                     return Err(invalid(
                         at,
@@ -615,7 +636,10 @@ impl Scenario {
                 if !usar_sim_victim_class(&r.victim_class) {
                     return Err(invalid(
                         at,
-                        format!("[search] `victim_class` {:?}: FemaleVictim or MaleVictim", r.victim_class),
+                        format!(
+                            "[search] `victim_class` {:?}: FemaleVictim or MaleVictim",
+                            r.victim_class
+                        ),
                     ));
                 }
                 if !(0.0..1.0).contains(&r.reserve) {
@@ -638,7 +662,10 @@ impl Scenario {
             let bad = |m: String| invalid(at, format!("[[target]]: {m}"));
             check_point(&r.start).map_err(|m| bad(format!("`start` {m}")))?;
             if !(r.speed > 0.0 && r.speed <= 50.0) {
-                return Err(bad(format!("`speed` must be in (0, 50] m/s, got {}", r.speed)));
+                return Err(bad(format!(
+                    "`speed` must be in (0, 50] m/s, got {}",
+                    r.speed
+                )));
             }
             for p in &r.path {
                 check_point(&[p[0], p[1], 0.0]).map_err(|m| bad(format!("`path` {m}")))?;
@@ -718,7 +745,9 @@ impl Scenario {
                     attenuation: r.attenuation.unwrap_or(d.attenuation),
                     cutoff: r.cutoff.unwrap_or(d.cutoff),
                 };
-                let ok = [radio.pd0, radio.cutoff].iter().all(|v| v.is_finite() && v.abs() < 1000.0)
+                let ok = [radio.pd0, radio.cutoff]
+                    .iter()
+                    .all(|v| v.is_finite() && v.abs() < 1000.0)
                     && radio.d0 > 0.0
                     && radio.d0 < 1000.0
                     && (0.0..=10.0).contains(&radio.n)
@@ -738,10 +767,14 @@ impl Scenario {
                 let at = s.span().start;
                 let r = s.get_ref();
                 if !(0.0..=100.0).contains(&r.payload) {
-                    return Err(invalid(at, "[delivery] `payload` must be in [0, 100] kg".into()));
+                    return Err(invalid(
+                        at,
+                        "[delivery] `payload` must be in [0, 100] kg".into(),
+                    ));
                 }
                 for w in &r.waypoints {
-                    check_point(w).map_err(|m| invalid(at, format!("[delivery] `waypoints` {m}")))?;
+                    check_point(w)
+                        .map_err(|m| invalid(at, format!("[delivery] `waypoints` {m}")))?;
                 }
                 Some(Delivery {
                     pickup: pad(&r.pickup, "[delivery.pickup]", at)?,
@@ -757,13 +790,19 @@ impl Scenario {
             if ok {
                 Ok(())
             } else {
-                Err(invalid(0, format!("a {} scenario needs {what}", raw.kind.name())))
+                Err(invalid(
+                    0,
+                    format!("a {} scenario needs {what}", raw.kind.name()),
+                ))
             }
         };
         match raw.kind {
             Kind::Search => needs(search.is_some(), "a [search] section")?,
             Kind::Relay => needs(relay.is_some(), "a [relay] section")?,
-            Kind::Tracking => needs(!targets.is_empty() || fire.is_some(), "a [[target]] or a [fire]")?,
+            Kind::Tracking => needs(
+                !targets.is_empty() || fire.is_some(),
+                "a [[target]] or a [fire]",
+            )?,
             Kind::Delivery => needs(delivery.is_some(), "a [delivery] section")?,
         }
         let map = match file.and_then(Path::parent) {
@@ -816,7 +855,9 @@ fn check_point(p: &[f64; 3]) -> Result<(), String> {
     if p.iter().all(|v| v.is_finite() && v.abs() <= LIMIT) {
         Ok(())
     } else {
-        Err(format!("{p:?}: every coordinate must be a number within ±{LIMIT} m"))
+        Err(format!(
+            "{p:?}: every coordinate must be a number within ±{LIMIT} m"
+        ))
     }
 }
 
@@ -826,7 +867,9 @@ fn check_area(a: &[[f64; 2]; 2]) -> Result<(), String> {
     if a[1][0] > a[0][0] && a[1][1] > a[0][1] {
         Ok(())
     } else {
-        Err(format!("{a:?}: must be [[x_min, y_min], [x_max, y_max]] with max > min"))
+        Err(format!(
+            "{a:?}: must be [[x_min, y_min], [x_max, y_max]] with max > min"
+        ))
     }
 }
 

@@ -4,7 +4,9 @@
 //! and releases the payload (or drops it from above the pad when the scenario says not to
 //! land), then goes back to the base and lands.
 
-use super::{Act, Board, Brief, Route, TeamAgent, TeamAgentInfo, TeamStep, distance2, fly_to, position};
+use super::{
+    Act, Board, Brief, Route, TeamAgent, TeamAgentInfo, TeamStep, distance2, fly_to, position,
+};
 use crate::speed::SpeedCommand;
 use crate::uav::{HORIZONTAL_SONARS, UavState};
 
@@ -58,7 +60,10 @@ pub fn repulsion(uav: &UavState) -> (f64, f64) {
 }
 
 fn landed(uav: &UavState, pad_z: f64, pos: [f64; 3]) -> bool {
-    let low = uav.free_below.as_ref().map_or(pad_z - pos[2] < 0.45, |r| r.value < 0.35);
+    let low = uav
+        .free_below
+        .as_ref()
+        .map_or(pad_z - pos[2] < 0.45, |r| r.value < 0.35);
     let still = uav.velocity.as_ref().is_none_or(|v| v.value.norm() < 0.3);
     low && still
 }
@@ -89,7 +94,11 @@ impl TeamAgent for Courier {
         let over = |pad: [f64; 3]| [pad[0], pad[1], pad[2] + z];
         let descend = |target: [f64; 3]| {
             let mut c = fly_to(pos, yaw, [target[0], target[1], pos[2]], 0.4, 1.0);
-            c.up = if target[2] - pos[2] > 1.0 { -80.0 } else { -35.0 };
+            c.up = if target[2] - pos[2] > 1.0 {
+                -80.0
+            } else {
+                -35.0
+            };
             c
         };
         let next = |phase: Phase, out: &mut TeamStep, line: &str| {
@@ -100,10 +109,14 @@ impl TeamAgent for Courier {
             Phase::ToPickup => {
                 let goal = over(job.pickup.location);
                 if pos[2] > goal[2] + 0.5 && distance2(pos, goal) > 1.0 {
-                    SpeedCommand { up: 100.0, ..SpeedCommand::STOP }
+                    SpeedCommand {
+                        up: 100.0,
+                        ..SpeedCommand::STOP
+                    }
                 } else {
                     if distance2(pos, goal) < 0.3 {
-                        self.phase = next(Phase::LandPickup, &mut out, "over the pickup pad: landing");
+                        self.phase =
+                            next(Phase::LandPickup, &mut out, "over the pickup pad: landing");
                     }
                     fly_to(pos, yaw, goal, 1.0, 2.0)
                 }
@@ -123,7 +136,10 @@ impl TeamAgent for Courier {
                 if pos[2] <= z + 0.3 {
                     self.phase = Phase::Carry;
                 }
-                SpeedCommand { up: 100.0, ..SpeedCommand::STOP }
+                SpeedCommand {
+                    up: 100.0,
+                    ..SpeedCommand::STOP
+                }
             }
             Phase::Carry => match self.route.steer(pos, yaw) {
                 Some(mut c) => {
@@ -136,7 +152,11 @@ impl TeamAgent for Courier {
                     self.phase = next(
                         Phase::LandDrop,
                         &mut out,
-                        if job.land { "over the drop-off pad: landing" } else { "over the drop-off pad: dropping" },
+                        if job.land {
+                            "over the drop-off pad: landing"
+                        } else {
+                            "over the drop-off pad: dropping"
+                        },
                     );
                     SpeedCommand::STOP
                 }
@@ -163,7 +183,10 @@ impl TeamAgent for Courier {
                     }
                     self.route = Route::new(back, 0.5);
                 }
-                SpeedCommand { up: 100.0, ..SpeedCommand::STOP }
+                SpeedCommand {
+                    up: 100.0,
+                    ..SpeedCommand::STOP
+                }
             }
             Phase::Home => match self.route.steer(pos, yaw) {
                 Some(mut c) => {
@@ -190,7 +213,10 @@ impl TeamAgent for Courier {
             }
             Phase::Done => {
                 out.done = true;
-                SpeedCommand { up: -30.0, ..SpeedCommand::STOP }
+                SpeedCommand {
+                    up: -30.0,
+                    ..SpeedCommand::STOP
+                }
             }
         };
         out.command = Some(command);
@@ -206,11 +232,17 @@ mod tests {
     #[test]
     fn an_obstacle_ahead_pushes_back_and_one_on_the_right_pushes_left() {
         let mut uav = UavState::new();
-        uav.sonars[0] = Some(Reading { value: 0.5, time: 0.0 });
+        uav.sonars[0] = Some(Reading {
+            value: 0.5,
+            time: 0.0,
+        });
         let (f, r) = repulsion(&uav);
         assert!(f < -50.0 && r.abs() < 1e-9, "{f} {r}");
         uav.sonars[0] = None;
-        uav.sonars[2] = Some(Reading { value: 0.75, time: 0.0 });
+        uav.sonars[2] = Some(Reading {
+            value: 0.75,
+            time: 0.0,
+        });
         let (f, r) = repulsion(&uav);
         assert!(r < -40.0 && f.abs() < 1e-6, "{f} {r}");
     }

@@ -1,7 +1,7 @@
-//! `target-follow`: flies over a moving target at cruise height, to where it was last seen
-//! (the board's sighting, by any UAV's footprint sensor); before the first sighting it goes
-//! to the target's known start. With several targets, UAV k of the group follows target
-//! k mod n.
+//! `target-follow`: flies over a moving target at cruise height, to where it is predicted
+//! to be: its last sighting (the board's, by any UAV's footprint sensor) moved on at the
+//! velocity of its last two sightings; before the first sighting it goes to the target's
+//! known start. With several targets, UAV k of the group follows target k mod n.
 
 use super::{Board, Brief, TeamAgent, TeamAgentInfo, TeamStep, fly_to, position};
 use crate::speed::SpeedCommand;
@@ -19,6 +19,8 @@ pub const INFO: TeamAgentInfo = TeamAgentInfo {
 pub struct Follow {
     brief: Option<Brief>,
     seen: bool,
+    /// The last two different sightings (position, time).
+    sightings: [Option<([f64; 3], f64)>; 2],
 }
 
 impl TeamAgent for Follow {
@@ -46,8 +48,27 @@ impl TeamAgent for Follow {
             self.seen = true;
             out.log.push(format!("target {} in sight", k + 1));
         }
-        let at = sighting.map_or(brief.targets[k], |(p, _)| p);
-        out.command = Some(fly_to(pos, uav.yaw(), [at[0], at[1], -brief.altitude], 1.0, 1.5));
+        if let Some(s) = sighting
+            && self.sightings[1].is_none_or(|(_, t)| t < s.1)
+        {
+            self.sightings = [self.sightings[1], Some(s)];
+        }
+        let at = match self.sightings {
+            [Some((p0, t0)), Some((p1, t1))] if t1 > t0 => {
+                // Predict for at most 5 s (a target may turn).
+                let ahead = (board.time - t1).clamp(0.0, 5.0);
+                std::array::from_fn(|i| p1[i] + (p1[i] - p0[i]) / (t1 - t0) * ahead)
+            }
+            [_, Some((p, _))] => p,
+            _ => brief.targets[k],
+        };
+        out.command = Some(fly_to(
+            pos,
+            uav.yaw(),
+            [at[0], at[1], -brief.altitude],
+            1.0,
+            1.5,
+        ));
         out
     }
 }

@@ -45,10 +45,18 @@ pub fn lanes(area: [[f64; 2]; 2], spacing: f64, z: f64) -> Vec<[f64; 3]> {
     let [[x0, y0], [x1, y1]] = area;
     let width = y1 - y0;
     let count = (width / spacing).ceil().max(1.0) as usize;
-    let step = if count > 1 { (width - spacing).max(0.0) / (count - 1) as f64 } else { 0.0 };
+    let step = if count > 1 {
+        (width - spacing).max(0.0) / (count - 1) as f64
+    } else {
+        0.0
+    };
     let mut points = Vec::with_capacity(2 * count);
     for k in 0..count {
-        let y = if count == 1 { (y0 + y1) / 2.0 } else { y0 + spacing / 2.0 + k as f64 * step };
+        let y = if count == 1 {
+            (y0 + y1) / 2.0
+        } else {
+            y0 + spacing / 2.0 + k as f64 * step
+        };
         let (a, b) = if k % 2 == 0 { (x0, x1) } else { (x1, x0) };
         points.push([a, y, z]);
         points.push([b, y, z]);
@@ -107,7 +115,11 @@ impl Sweep {
 
 impl TeamAgent for Sweep {
     fn name(&self) -> &str {
-        if self.weighted { PARTITION_INFO.name } else { INFO.name }
+        if self.weighted {
+            PARTITION_INFO.name
+        } else {
+            INFO.name
+        }
     }
 
     fn start(&mut self, brief: &Brief) {
@@ -122,7 +134,15 @@ impl TeamAgent for Sweep {
     }
 
     fn step(&mut self, uav: &UavState, board: &super::Board, _time: f64) -> TeamStep {
-        sweep_step(&mut self.route, &mut self.homing, &mut self.done, self.reserve, self.brief.as_ref(), uav, board)
+        sweep_step(
+            &mut self.route,
+            &mut self.homing,
+            &mut self.done,
+            self.reserve,
+            self.brief.as_ref(),
+            uav,
+            board,
+        )
     }
 }
 
@@ -147,8 +167,8 @@ pub(crate) fn sweep_step(
     let charging = board.charging.get(brief.index).copied().unwrap_or(false);
     if let Some(base) = &brief.base {
         if *homing == Homing::Away && !*done {
-            let low = level < reserve
-                || battery_seconds(uav) < Homing::time_home(base, pos, brief.speed);
+            let low =
+                level < reserve || battery_seconds(uav) < Homing::time_home(base, pos, brief.speed);
             if low {
                 *homing = Homing::Going;
                 out.log.push(format!(
@@ -159,7 +179,7 @@ pub(crate) fn sweep_step(
             }
         }
         if *homing != Homing::Away {
-            out.command = Some(homing.steer(base, brief.altitude, pos, yaw, charging, level));
+            out.command = Some(homing.steer(brief.spot, brief.altitude, pos, yaw, charging, level));
             if *homing == Homing::Away {
                 out.log.push("recharged: back to the search".into());
             }

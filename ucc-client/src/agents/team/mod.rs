@@ -41,6 +41,9 @@ pub struct Brief {
     pub base: Option<Pad>,
     /// Where this UAV started.
     pub start: [f64; 3],
+    /// Its own landing spot on the base pad (its start when that is on the pad, else a
+    /// place on a ring around the pad's centre), so that UAVs do not land on each other.
+    pub spot: [f64; 3],
     /// The area to search.
     pub search: Option<Search>,
     /// The endpoints to connect.
@@ -60,7 +63,10 @@ pub struct Brief {
 impl Brief {
     /// This UAV's rank in its group (0 for the first).
     pub fn rank(&self) -> usize {
-        self.group.iter().position(|&i| i == self.index).unwrap_or(0)
+        self.group
+            .iter()
+            .position(|&i| i == self.index)
+            .unwrap_or(0)
     }
 }
 
@@ -153,13 +159,23 @@ pub fn info(name: &str) -> Option<&'static TeamAgentInfo> {
 
 /// The names, comma separated.
 pub fn names() -> String {
-    TEAM_AGENTS.iter().map(|a| a.name).collect::<Vec<_>>().join(", ")
+    TEAM_AGENTS
+        .iter()
+        .map(|a| a.name)
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// The command that flies a UAV at `position` with heading `yaw` to `target` (world frame,
 /// z down) sideways as needed, at most `fraction` of its top speed, slowing within `slow`
 /// metres so that it stops there instead of overshooting. Heading is held.
-pub fn fly_to(position: [f64; 3], yaw: f64, target: [f64; 3], fraction: f64, slow: f64) -> SpeedCommand {
+pub fn fly_to(
+    position: [f64; 3],
+    yaw: f64,
+    target: [f64; 3],
+    fraction: f64,
+    slow: f64,
+) -> SpeedCommand {
     let d = world_to_heading(
         &Coordinates::new(
             target[0] - position[0],
@@ -186,7 +202,9 @@ pub fn fly_to(position: [f64; 3], yaw: f64, target: [f64; 3], fraction: f64, slo
 
 /// The UAV's position as an array (`None` before the first reading).
 pub fn position(uav: &UavState) -> Option<[f64; 3]> {
-    uav.position.as_ref().map(|p| [p.value.x, p.value.y, p.value.z])
+    uav.position
+        .as_ref()
+        .map(|p| [p.value.x, p.value.y, p.value.z])
 }
 
 /// Horizontal distance.
@@ -223,7 +241,10 @@ impl Route {
     /// Moves past reached points; the command to the next (`None` when finished).
     pub fn steer(&mut self, position: [f64; 3], yaw: f64) -> Option<SpeedCommand> {
         while let Some(&p) = self.points.get(self.next) {
-            let d = (0..3).map(|i| (p[i] - position[i]).powi(2)).sum::<f64>().sqrt();
+            let d = (0..3)
+                .map(|i| (p[i] - position[i]).powi(2))
+                .sum::<f64>()
+                .sqrt();
             if d > self.tolerance {
                 return Some(fly_to(position, yaw, p, 1.0, 1.5));
             }
@@ -253,12 +274,20 @@ pub enum Homing {
 impl Homing {
     /// The command for this phase, moving to the next phase when it is over. `charged`: the
     /// board says the battery is full again (or there is no charging to wait for).
-    pub fn steer(&mut self, base: &Pad, altitude: f64, pos: [f64; 3], yaw: f64, charging: bool, level: f64) -> SpeedCommand {
-        let cruise = [base.location[0], base.location[1], base.location[2] - altitude];
+    pub fn steer(
+        &mut self,
+        spot: [f64; 3],
+        altitude: f64,
+        pos: [f64; 3],
+        yaw: f64,
+        charging: bool,
+        level: f64,
+    ) -> SpeedCommand {
+        let cruise = [spot[0], spot[1], spot[2] - altitude];
         match self {
             Self::Away => SpeedCommand::STOP,
             Self::Going => {
-                if distance2(pos, cruise) < base.radius * 0.5 {
+                if distance2(pos, cruise) < 0.3 {
                     *self = Self::Landing;
                 }
                 fly_to(pos, yaw, cruise, 1.0, 2.0)
@@ -267,21 +296,27 @@ impl Homing {
                 if charging {
                     *self = Self::Charging;
                 }
-                let mut c = fly_to(pos, yaw, [cruise[0], cruise[1], pos[2]], 0.5, 1.0);
+                let mut c = fly_to(pos, yaw, [cruise[0], cruise[1], pos[2]], 0.3, 0.5);
                 c.up = -60.0;
                 c
             }
             Self::Charging => {
-                if level >= 0.999 {
+                if level >= CHARGED {
                     *self = Self::Climbing;
                 }
-                SpeedCommand { up: -30.0, ..SpeedCommand::STOP }
+                SpeedCommand {
+                    up: -30.0,
+                    ..SpeedCommand::STOP
+                }
             }
             Self::Climbing => {
                 if pos[2] <= cruise[2] + 0.3 {
                     *self = Self::Away;
                 }
-                SpeedCommand { up: 100.0, ..SpeedCommand::STOP }
+                SpeedCommand {
+                    up: 100.0,
+                    ..SpeedCommand::STOP
+                }
             }
         }
     }
@@ -290,6 +325,23 @@ impl Homing {
     pub fn time_home(base: &Pad, pos: [f64; 3], speed: f64) -> f64 {
         distance2(pos, base.location) / speed.max(0.1) * 1.3 + 10.0
     }
+}
+
+/// A battery at this level or above counts as charged.
+pub const CHARGED: f64 = 0.95;
+
+/// The landing spot of UAV `index` starting at `start` on a base pad (see [`Brief::spot`]).
+pub fn landing_spot(base: &Pad, start: [f64; 3], index: usize) -> [f64; 3] {
+    if distance2(start, base.location) <= base.radius * 0.8 {
+        return [start[0], start[1], base.location[2]];
+    }
+    let a = index as f64 * 2.399_963; // the golden angle
+    let r = base.radius * 0.6 * ((index % 7) as f64 / 7.0).sqrt();
+    [
+        base.location[0] + r * a.cos(),
+        base.location[1] + r * a.sin(),
+        base.location[2],
+    ]
 }
 
 /// The battery level a UAV reports (1 when it reports none).
@@ -322,7 +374,13 @@ mod tests {
         let c = fly_to([0.0, 0.0, -3.0], 0.0, [10.0, 0.0, -3.0], 1.0, 2.0);
         assert!((c.forward - 100.0).abs() < 1e-9 && c.right.abs() < 1e-9);
         // Facing east (yaw +90°), a target to the north is on the left.
-        let c = fly_to([0.0, 0.0, -3.0], std::f64::consts::FRAC_PI_2, [10.0, 0.0, -3.0], 1.0, 2.0);
+        let c = fly_to(
+            [0.0, 0.0, -3.0],
+            std::f64::consts::FRAC_PI_2,
+            [10.0, 0.0, -3.0],
+            1.0,
+            2.0,
+        );
         assert!(c.right < -99.0, "{c:?}");
         let c = fly_to([0.0, 0.0, -3.0], 0.0, [0.0, 0.0, -3.0], 1.0, 2.0);
         assert_eq!((c.forward, c.right, c.up), (0.0, 0.0, 0.0));

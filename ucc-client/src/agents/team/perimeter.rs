@@ -60,7 +60,9 @@ impl TeamAgent for Perimeter {
         ];
         if !self.on_station && distance2(pos, goal) < 2.0 {
             self.on_station = true;
-            out.log.push(format!("on station on the perimeter (radius {radius:.1} m)"));
+            out.log.push(format!(
+                "on station on the perimeter (radius {radius:.1} m)"
+            ));
         }
         out.command = Some(fly_to(pos, uav.yaw(), goal, 1.0, 3.0));
         out

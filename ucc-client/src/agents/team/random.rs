@@ -50,7 +50,8 @@ impl TeamAgent for RandomSearch {
     fn start(&mut self, brief: &Brief) {
         if let Some(search) = &brief.search {
             let [[x0, y0], [x1, y1]] = strips(search.area, brief.group.len(), None)[brief.rank()];
-            let mut rng = SplitMix(brief.seed ^ (brief.index as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
+            let mut rng =
+                SplitMix(brief.seed ^ (brief.index as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
             let points = (0..POINTS)
                 .map(|_| {
                     [
@@ -67,6 +68,14 @@ impl TeamAgent for RandomSearch {
     }
 
     fn step(&mut self, uav: &UavState, board: &Board, _time: f64) -> TeamStep {
-        sweep_step(&mut self.route, &mut self.homing, &mut self.done, self.reserve, self.brief.as_ref(), uav, board)
+        sweep_step(
+            &mut self.route,
+            &mut self.homing,
+            &mut self.done,
+            self.reserve,
+            self.brief.as_ref(),
+            uav,
+            board,
+        )
     }
 }

@@ -23,6 +23,8 @@ pub const INFO: TeamAgentInfo = TeamAgentInfo {
 
 /// Seconds of margin a holder asks for its relief before it must leave.
 const RELIEF_MARGIN: f64 = 40.0;
+/// Metres a relieved holder climbs above the chain before it flies home.
+const LEAVE_CLIMB: f64 = 2.5;
 
 /// What the UAV is doing.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -42,6 +44,10 @@ pub struct RelayChain {
     homing: Homing,
     asked: bool,
     announced: bool,
+    /// This UAV has posted `held:K` for its slot (it is in place).
+    placed: bool,
+    /// Relieved: climbing clear of the UAV that took the slot before flying home.
+    leaving: bool,
 }
 
 /// Slot `k`'s point of a chain of `n` between `a` and `b`, at height `z`.
@@ -57,15 +63,21 @@ impl TeamAgent for RelayChain {
 
     fn start(&mut self, brief: &Brief) {
         let chain = brief.relay.map_or(1, |r| r.chain);
-        self.role = if brief.rank() < chain { Role::Hold(brief.rank()) } else { Role::Spare };
+        self.role = if brief.rank() < chain {
+            Role::Hold(brief.rank())
+        } else {
+            Role::Spare
+        };
         self.brief = Some(brief.clone());
     }
 
     fn step(&mut self, uav: &UavState, board: &Board, _time: f64) -> TeamStep {
         let mut out = TeamStep::default();
-        let (Some(pos), Some(brief), Some(relay)) =
-            (position(uav), self.brief.as_ref(), self.brief.as_ref().and_then(|b| b.relay))
-        else {
+        let (Some(pos), Some(brief), Some(relay)) = (
+            position(uav),
+            self.brief.as_ref(),
+            self.brief.as_ref().and_then(|b| b.relay),
+        ) else {
             out.command = Some(SpeedCommand::STOP);
             return out;
         };
@@ -74,9 +86,24 @@ impl TeamAgent for RelayChain {
         let level = battery_level(uav);
         let charging = board.charging.get(me).copied().unwrap_or(false);
         let [a, b] = relay.endpoints;
+        if self.leaving {
+            if pos[2] > -(brief.altitude + LEAVE_CLIMB) {
+                out.command = Some(SpeedCommand {
+                    up: 100.0,
+                    ..SpeedCommand::STOP
+                });
+                return out;
+            }
+            self.leaving = false;
+            self.homing = Homing::Going;
+        }
         if self.homing != Homing::Away {
-            if let Some(base) = &brief.base {
-                out.command = Some(self.homing.steer(base, brief.altitude, pos, yaw, charging, level));
+            if brief.base.is_some() {
+                out.command =
+                    Some(
+                        self.homing
+                            .steer(brief.spot, brief.altitude, pos, yaw, charging, level),
+                    );
                 if matches!(self.homing, Homing::Charging | Homing::Climbing) {
                     // Stay on the pad as a spare rather than climbing back.
                     self.homing = Homing::Away;
@@ -89,13 +116,20 @@ impl TeamAgent for RelayChain {
         match self.role {
             Role::Hold(k) => {
                 let key = format!("held:{k}");
-                let relieved = board.notes.get(&key).is_some_and(|&(by, _)| by != me);
-                let home_time = brief.base.map_or(0.0, |base| super::Homing::time_home(&base, pos, brief.speed));
+                let relieved =
+                    self.placed && board.notes.get(&key).is_some_and(|&(by, _)| by != me);
+                let home_time = brief.base.map_or(0.0, |base| {
+                    super::Homing::time_home(&base, pos, brief.speed)
+                });
                 let left = battery_seconds(uav);
                 if relieved || (brief.base.is_some() && left < home_time + 5.0) {
                     out.log.push(format!(
                         "slot {k}: {} — going home with {:.0} s of battery",
-                        if relieved { "relieved" } else { "no relief came" },
+                        if relieved {
+                            "relieved"
+                        } else {
+                            "no relief came"
+                        },
                         left
                     ));
                     out.notes.push((format!("relieve:{k}"), None));
@@ -103,27 +137,32 @@ impl TeamAgent for RelayChain {
                         out.notes.push((key, None));
                     }
                     self.asked = false;
-                    if brief.base.is_some() {
-                        self.homing = Homing::Going;
-                    }
+                    self.placed = false;
+                    // Up and clear of the UAV that took the slot (it stands where this one
+                    // is), then home.
+                    self.leaving = brief.base.is_some();
                     self.role = Role::Spare;
                     out.command = Some(SpeedCommand::STOP);
                     return out;
                 }
                 let goal = slot_point(a, b, relay.chain, k, -brief.altitude);
-                if distance2(pos, goal) < 1.5 && board.notes.get(&key).is_none_or(|&(by, _)| by != me) {
+                if !self.placed && distance2(pos, goal) < 1.5 {
+                    self.placed = true;
                     out.notes.push((key, Some(me as f64)));
                     out.notes.push((format!("take:{k}"), None));
+                    out.notes.push((format!("relieve:{k}"), None));
                 }
                 if !self.asked && brief.base.is_some() && left < home_time + RELIEF_MARGIN + 30.0 {
                     self.asked = true;
-                    out.log.push(format!("slot {k}: battery low ({left:.0} s), asking for relief"));
+                    out.log.push(format!(
+                        "slot {k}: battery low ({left:.0} s), asking for relief"
+                    ));
                     out.notes.push((format!("relieve:{k}"), Some(me as f64)));
                 }
                 out.command = Some(fly_to(pos, yaw, goal, 1.0, 2.0));
             }
             Role::Spare => {
-                let ready = level >= 0.99 || brief.base.is_none();
+                let ready = level >= super::CHARGED || brief.base.is_none();
                 let ready_key = format!("ready:{me}");
                 if ready && !self.announced {
                     self.announced = true;
@@ -155,12 +194,18 @@ impl TeamAgent for RelayChain {
                         out.notes.push((ready_key, None));
                         self.announced = false;
                         self.role = Role::Hold(k);
-                        out.command = Some(SpeedCommand { up: 100.0, ..SpeedCommand::STOP });
+                        out.command = Some(SpeedCommand {
+                            up: 100.0,
+                            ..SpeedCommand::STOP
+                        });
                         return out;
                     }
                 }
                 // Wait on the ground (keep pressing down onto the pad).
-                out.command = Some(SpeedCommand { up: -30.0, ..SpeedCommand::STOP });
+                out.command = Some(SpeedCommand {
+                    up: -30.0,
+                    ..SpeedCommand::STOP
+                });
             }
         }
         out
@@ -173,7 +218,9 @@ mod tests {
     fn slots_split_the_line_evenly() {
         let a = [0.0, 0.0, -1.0];
         let b = [100.0, 0.0, -1.0];
-        let p: Vec<f64> = (0..3).map(|k| super::slot_point(a, b, 3, k, -5.0)[0]).collect();
+        let p: Vec<f64> = (0..3)
+            .map(|k| super::slot_point(a, b, 3, k, -5.0)[0])
+            .collect();
         assert_eq!(p, vec![25.0, 50.0, 75.0]);
     }
 }

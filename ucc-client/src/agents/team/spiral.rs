@@ -31,8 +31,14 @@ pub fn spiral(area: [[f64; 2]; 2], spacing: f64, z: f64) -> Vec<[f64; 3]> {
     let reach = ((x1 - x0).max(y1 - y0)) / 2.0 + spacing;
     let clip = |p: [f64; 2]| {
         [
-            p[0].clamp(x0 + spacing / 2.0, (x1 - spacing / 2.0).max(x0 + spacing / 2.0)),
-            p[1].clamp(y0 + spacing / 2.0, (y1 - spacing / 2.0).max(y0 + spacing / 2.0)),
+            p[0].clamp(
+                x0 + spacing / 2.0,
+                (x1 - spacing / 2.0).max(x0 + spacing / 2.0),
+            ),
+            p[1].clamp(
+                y0 + spacing / 2.0,
+                (y1 - spacing / 2.0).max(y0 + spacing / 2.0),
+            ),
             z,
         ]
     };
@@ -72,7 +78,15 @@ impl TeamAgent for Spiral {
     }
 
     fn step(&mut self, uav: &UavState, board: &Board, _time: f64) -> TeamStep {
-        sweep_step(&mut self.route, &mut self.homing, &mut self.done, self.reserve, self.brief.as_ref(), uav, board)
+        sweep_step(
+            &mut self.route,
+            &mut self.homing,
+            &mut self.done,
+            self.reserve,
+            self.brief.as_ref(),
+            uav,
+            board,
+        )
     }
 }
 
