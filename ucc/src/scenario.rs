@@ -1,5 +1,6 @@
 //! `ucc scenario`: runs an embedded scenario or a scenario file (docs/scenarios.md).
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -47,22 +48,37 @@ pub(crate) struct ScenarioArgs {
 }
 
 pub(crate) fn scenario(args: ScenarioArgs) -> anyhow::Result<ExitCode> {
+    let mut out = std::io::stdout().lock();
+    match run(args, &mut out) {
+        // The reader went away (`ucc scenario ... | head`): the run goes on quietly.
+        Err(e)
+            if e.downcast_ref::<std::io::Error>()
+                .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(ExitCode::SUCCESS)
+        }
+        other => other,
+    }
+}
+
+fn run(args: ScenarioArgs, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
     if args.list {
-        println!("Embedded scenarios (ucc scenario NAME):");
+        writeln!(out, "Embedded scenarios (ucc scenario NAME):")?;
         for (name, _) in EMBEDDED {
             let s = Scenario::lookup(name)?;
-            println!(
+            writeln!(
+                out,
                 "  {name:<14} {:<9} {:>3} UAV{} {:>5} s  {}",
                 s.kind.name(),
                 s.uav_count(),
                 if s.uav_count() == 1 { " " } else { "s" },
                 s.time_limit,
                 s.description
-            );
+            )?;
         }
-        println!("\nTeam agents (a scenario's [[uav]] agent = NAME):");
+        writeln!(out, "\nTeam agents (a scenario's [[uav]] agent = NAME):")?;
         for a in TEAM_AGENTS {
-            println!("  {:<17} {}", a.name, a.description);
+            writeln!(out, "  {:<17} {}", a.name, a.description)?;
         }
         return Ok(ExitCode::SUCCESS);
     }
@@ -86,7 +102,8 @@ pub(crate) fn scenario(args: ScenarioArgs) -> anyhow::Result<ExitCode> {
     };
     let s = &prepared.scenario;
     if !args.quiet {
-        println!(
+        writeln!(
+            out,
             "scenario {} ({}, {} UAVs, map {}, up to {} s): {} iteration{}",
             s.name,
             s.kind.name(),
@@ -95,38 +112,47 @@ pub(crate) fn scenario(args: ScenarioArgs) -> anyhow::Result<ExitCode> {
             s.time_limit,
             settings.iterations,
             if settings.iterations == 1 { "" } else { "s" }
-        );
+        )?;
     }
     let quiet = args.quiet;
     let total = settings.iterations;
+    let mut failed: Option<std::io::Error> = None;
     let summary = run_scenario(&prepared, &settings, &mut |p| match p {
         ScenarioProgress::Finished { iteration, outcome } => {
-            if !quiet {
+            if !quiet && failed.is_none() {
                 let figures: Vec<String> = outcome
                     .metrics
                     .values
                     .iter()
                     .filter_map(|(n, v)| v.map(|v| format!("{n}={}", round(v))))
                     .collect();
-                println!(
+                if let Err(e) = writeln!(
+                    out,
                     "iteration {iteration}/{total} (seed {}): {}",
                     outcome.seed,
                     figures.join(" ")
-                );
+                ) {
+                    failed = Some(e);
+                }
             }
         }
     })
     .context("the scenario")?;
-    println!(
+    if let Some(e) = failed {
+        return Err(e.into());
+    }
+    writeln!(
+        out,
         "{} iteration{}: {:.0} simulated s in {:.2} wall s ({:.0}x real time)",
         summary.iterations,
         if summary.iterations == 1 { "" } else { "s" },
         summary.simulated,
         summary.wall,
         summary.simulated / summary.wall.max(1e-9)
-    );
+    )?;
     for (name, mean, n) in &summary.means {
-        println!(
+        writeln!(
+            out,
             "  {name:<22} {:>10}{}",
             round(*mean),
             if *n < summary.iterations {
@@ -134,9 +160,9 @@ pub(crate) fn scenario(args: ScenarioArgs) -> anyhow::Result<ExitCode> {
             } else {
                 String::new()
             }
-        );
+        )?;
     }
-    println!("files in {}", dir.display());
+    writeln!(out, "files in {}", dir.display())?;
     Ok(ExitCode::SUCCESS)
 }
 

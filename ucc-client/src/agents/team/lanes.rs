@@ -157,12 +157,23 @@ pub(crate) fn sweep_step(
     uav: &UavState,
     board: &super::Board,
 ) -> TeamStep {
-    let mut out = TeamStep::default();
+    let mut out = TeamStep {
+        done: *done,
+        ..TeamStep::default()
+    };
     let (Some(pos), Some(brief)) = (position(uav), brief) else {
         out.command = Some(SpeedCommand::STOP);
         return out;
     };
     let yaw = uav.yaw();
+    if *done && matches!(*homing, Homing::Charging) {
+        // Home for good: stay on the pad.
+        out.command = Some(SpeedCommand {
+            up: -30.0,
+            ..SpeedCommand::STOP
+        });
+        return out;
+    }
     let level = battery_level(uav);
     let charging = board.charging.get(brief.index).copied().unwrap_or(false);
     if let Some(base) = &brief.base {
@@ -171,6 +182,10 @@ pub(crate) fn sweep_step(
                 level < reserve || battery_seconds(uav) < Homing::time_home(base, pos, brief.speed);
             if low {
                 *homing = Homing::Going;
+                // Come back to this very point and go on from there.
+                if !route.finished() {
+                    route.points.insert(route.next, pos);
+                }
                 out.log.push(format!(
                     "battery at {:.0} %: going home to recharge ({:.0} m away)",
                     level * 100.0,
