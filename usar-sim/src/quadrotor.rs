@@ -1053,7 +1053,11 @@ impl Dynamics for Quadrotor {
     }
 
     fn set_payload(&mut self, kg: f64) -> bool {
-        self.payload = if kg.is_finite() { kg.clamp(0.0, 1000.0) } else { 0.0 };
+        self.payload = if kg.is_finite() {
+            kg.clamp(0.0, 1000.0)
+        } else {
+            0.0
+        };
         true
     }
 

@@ -546,7 +546,9 @@ impl World {
     /// command: scenarios call it). `false` when the client controls no robot.
     pub fn recharge(&mut self, client: ClientId) -> bool {
         let tick = self.tick;
-        self.client_robot(client).map(|r| r.recharge(tick)).is_some()
+        self.client_robot(client)
+            .map(|r| r.recharge(tick))
+            .is_some()
     }
 
     /// Sets the mass (kg, 0 ..= 1000) the robot `client` controls carries besides its body:

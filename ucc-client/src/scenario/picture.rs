@@ -121,7 +121,7 @@ fn draw<DB: DrawingBackend>(
         let [nx, ny] = grid.shape;
         let cells = (0..nx)
             .flat_map(|i| (0..ny).map(move |j| (i, j)))
-            .filter_map(|(i, j)| {
+            .map(|(i, j)| {
                 let n = grid.seen[i * ny + j];
                 let x = grid.origin[0] + i as f64 * grid.cell;
                 let y = grid.origin[1] + j as f64 * grid.cell;
@@ -135,10 +135,7 @@ fn draw<DB: DrawingBackend>(
                         (210.0 - 150.0 * f) as u8,
                     )
                 };
-                Some(Rectangle::new(
-                    [(y, x), (y + grid.cell, x + grid.cell)],
-                    colour.filled(),
-                ))
+                Rectangle::new([(y, x), (y + grid.cell, x + grid.cell)], colour.filled())
             });
         chart.draw_series(cells).map_err(err)?;
         if let Some(s) = &scenario.search {

@@ -594,7 +594,7 @@ impl Scenario {
         let sensor = match &raw.sensor {
             Some(s) => {
                 let r = s.get_ref();
-                if !(r.fov > 0.0 && r.fov < 180.0) || !(r.range > 0.0 && r.range < 1000.0) {
+                if !(r.fov > 0.0 && r.fov < 180.0 && r.range > 0.0 && r.range < 1000.0) {
                     return Err(invalid(
                         s.span().start,
                         "[sensor]: `fov` must be in (0, 180) degrees and `range` in (0, 1000) m"
@@ -695,7 +695,7 @@ impl Scenario {
                 let r = f.get_ref();
                 check_point(&[r.center[0], r.center[1], 0.0])
                     .map_err(|m| invalid(at, format!("[fire] `center` {m}")))?;
-                if !(r.radius > 0.0 && r.radius < LIMIT) || !(0.0..=10.0).contains(&r.rate) {
+                if !(r.radius > 0.0 && r.radius < LIMIT && (0.0..=10.0).contains(&r.rate)) {
                     return Err(invalid(
                         at,
                         "[fire] `radius` must be in (0, 10000) m and `rate` in [0, 10] m/s".into(),

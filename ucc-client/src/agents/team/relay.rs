@@ -97,21 +97,18 @@ impl TeamAgent for RelayChain {
             self.leaving = false;
             self.homing = Homing::Going;
         }
-        if self.homing != Homing::Away {
-            if brief.base.is_some() {
-                out.command =
-                    Some(
-                        self.homing
-                            .steer(brief.spot, brief.altitude, pos, yaw, charging, level),
-                    );
-                if matches!(self.homing, Homing::Charging | Homing::Climbing) {
-                    // Stay on the pad as a spare rather than climbing back.
-                    self.homing = Homing::Away;
-                    self.role = Role::Spare;
-                    self.announced = false;
-                }
-                return out;
+        if self.homing != Homing::Away && brief.base.is_some() {
+            let command = self
+                .homing
+                .steer(brief.spot, brief.altitude, pos, yaw, charging, level);
+            out.command = Some(command);
+            if matches!(self.homing, Homing::Charging | Homing::Climbing) {
+                // Stay on the pad as a spare rather than climbing back.
+                self.homing = Homing::Away;
+                self.role = Role::Spare;
+                self.announced = false;
             }
+            return out;
         }
         match self.role {
             Role::Hold(k) => {
