@@ -174,154 +174,218 @@ fn draw_victims(map: &mut Map, scenario: &Scenario, seed: u64) -> Result<(), Str
     Ok(())
 }
 
-/// Flies one iteration with `seed`.
+/// Flies one iteration with `seed`, every UAV by its agent.
 pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, String> {
-    let scenario = &prepared.scenario;
-    let mut map = prepared.map.clone();
-    draw_victims(&mut map, scenario, seed)?;
-    let victims: Vec<Placed> = map.placed().iter().filter(|p| p.victim).cloned().collect();
-    let config = SimConfig {
-        seed,
-        threads: threads.max(1),
-        ..SimConfig::default()
-    };
-    let mut world = World::new(map, prepared.catalog.clone(), config);
-    let dt = world.dt();
-    let ticks = ((scenario.period / dt).round() as usize).max(1);
-    let period = ticks as f64 * dt;
+    let mut episode = Episode::new(prepared, seed, threads)?;
+    while episode.step(&[]).is_none() {}
+    Ok(episode.finish())
+}
 
-    // UAVs, in group order.
-    let mut flyers: Vec<Flyer> = Vec::new();
-    let mut briefs = Vec::new();
-    let total = scenario.uav_count();
-    let mut first_index = 0;
-    for group in &scenario.uavs {
-        let members: Vec<usize> = (first_index..first_index + group.count).collect();
-        first_index += group.count;
-        let class = prepared.catalog.get(&group.class).ok_or("class vanished")?;
-        for (k, &index) in members.iter().enumerate() {
-            let at = std::array::from_fn(|i| group.start[i] + k as f64 * group.spacing[i]);
+/// One iteration, stepped a period at a time: [`fly`] for the agents alone, or with some
+/// UAVs' commands given from outside (a learning agent, the Python package).
+pub struct Episode<'a> {
+    prepared: &'a Prepared,
+    seed: u64,
+    world: World,
+    flyers: Vec<Flyer>,
+    movers: Vec<Mover>,
+    briefs: Vec<Brief>,
+    tracker: Tracker,
+    board: Board,
+    log: Vec<String>,
+    tracks: Vec<Vec<[f64; 3]>>,
+    target_tracks: Vec<Vec<[f64; 3]>>,
+    out: Vec<(ClientId, usar_proto::ServerMessage)>,
+    next_sample: f64,
+    first: u64,
+    ticks: usize,
+    period: f64,
+    total: usize,
+    ending: Option<Ending>,
+}
+
+impl<'a> Episode<'a> {
+    /// Spawns the UAVs and the targets of `prepared` with `seed` (victims drawn from it).
+    pub fn new(prepared: &'a Prepared, seed: u64, threads: usize) -> Result<Self, String> {
+        let scenario = &prepared.scenario;
+        let mut map = prepared.map.clone();
+        draw_victims(&mut map, scenario, seed)?;
+        let victims: Vec<Placed> = map.placed().iter().filter(|p| p.victim).cloned().collect();
+        let config = SimConfig {
+            seed,
+            threads: threads.max(1),
+            ..SimConfig::default()
+        };
+        let mut world = World::new(map, prepared.catalog.clone(), config);
+        let dt = world.dt();
+        let ticks = ((scenario.period / dt).round() as usize).max(1);
+        let period = ticks as f64 * dt;
+
+        // UAVs, in group order.
+        let mut flyers: Vec<Flyer> = Vec::new();
+        let mut briefs = Vec::new();
+        let total = scenario.uav_count();
+        let mut first_index = 0;
+        for group in &scenario.uavs {
+            let members: Vec<usize> = (first_index..first_index + group.count).collect();
+            first_index += group.count;
+            let class = prepared.catalog.get(&group.class).ok_or("class vanished")?;
+            for (k, &index) in members.iter().enumerate() {
+                let at = std::array::from_fn(|i| group.start[i] + k as f64 * group.spacing[i]);
+                let client = world.connect();
+                let name = format!("UAV{}", index + 1);
+                world.command(client, init(&group.class, &name, at));
+                if world.robot_count() != index + 1 {
+                    return Err(format!(
+                        "{name} ({}) cannot spawn at {at:?}: the place is inside a solid or another robot",
+                        group.class
+                    ));
+                }
+                let info = team::info(&group.agent).ok_or("agent vanished")?;
+                let h = group.altitude;
+                let half = (scenario.sensor.fov.to_radians() / 2.0).tan();
+                let footprint =
+                    (h * half).min((scenario.sensor.range.powi(2) - h * h).max(0.0).sqrt());
+                briefs.push(Brief {
+                    index,
+                    group: members.clone(),
+                    team: total,
+                    seed,
+                    altitude: h,
+                    footprint,
+                    speed: class
+                        .flight
+                        .max_linear_speed
+                        .min(class.flight.max_lateral_speed),
+                    base: scenario.base,
+                    start: at,
+                    spot: scenario
+                        .base
+                        .map_or(at, |b| team::landing_spot(&b, at, index)),
+                    search: scenario.search.clone(),
+                    relay: scenario.relay,
+                    radio: scenario.radio,
+                    fire: scenario.fire,
+                    targets: scenario.targets.iter().map(|t| t.start).collect(),
+                    delivery: scenario.delivery.clone(),
+                    time_limit: scenario.time_limit,
+                });
+                flyers.push(Flyer {
+                    client,
+                    name,
+                    agent: (info.create)(),
+                    state: UavState::new(),
+                    done: false,
+                    crashed: false,
+                    charge: 0.0,
+                    last_truth: None,
+                    velocity: [0.0; 3],
+                    level: None,
+                });
+            }
+        }
+        let mut movers = Vec::new();
+        for (j, t) in scenario.targets.iter().enumerate() {
             let client = world.connect();
-            let name = format!("UAV{}", index + 1);
-            world.command(client, init(&group.class, &name, at));
-            if world.robot_count() != index + 1 {
+            world.command(client, init(TARGET_CLASS, &t.name, t.start));
+            if world.robot_count() != total + j + 1 {
                 return Err(format!(
-                    "{name} ({}) cannot spawn at {at:?}: the place is inside a solid or another robot",
-                    group.class
+                    "target {} cannot spawn at {:?}: the place is taken",
+                    t.name, t.start
                 ));
             }
-            let info = team::info(&group.agent).ok_or("agent vanished")?;
-            let h = group.altitude;
-            let half = (scenario.sensor.fov.to_radians() / 2.0).tan();
-            let footprint = (h * half).min((scenario.sensor.range.powi(2) - h * h).max(0.0).sqrt());
-            briefs.push(Brief {
-                index,
-                group: members.clone(),
-                team: total,
-                seed,
-                altitude: h,
-                footprint,
-                speed: class
-                    .flight
-                    .max_linear_speed
-                    .min(class.flight.max_lateral_speed),
-                base: scenario.base,
-                start: at,
-                spot: scenario
-                    .base
-                    .map_or(at, |b| team::landing_spot(&b, at, index)),
-                search: scenario.search.clone(),
-                relay: scenario.relay,
-                radio: scenario.radio,
-                fire: scenario.fire,
-                targets: scenario.targets.iter().map(|t| t.start).collect(),
-                delivery: scenario.delivery.clone(),
-                time_limit: scenario.time_limit,
-            });
-            flyers.push(Flyer {
+            movers.push(Mover {
                 client,
-                name,
-                agent: (info.create)(),
-                state: UavState::new(),
-                done: false,
-                crashed: false,
-                charge: 0.0,
-                last_truth: None,
-                velocity: [0.0; 3],
-                level: None,
+                waypoint: 0,
+                rng: SplitMix(seed ^ (j as u64 + 1).wrapping_mul(0x9E37_79B9)),
+                goal: None,
             });
         }
-    }
-    let mut movers = Vec::new();
-    for (j, t) in scenario.targets.iter().enumerate() {
-        let client = world.connect();
-        world.command(client, init(TARGET_CLASS, &t.name, t.start));
-        if world.robot_count() != total + j + 1 {
-            return Err(format!(
-                "target {} cannot spawn at {:?}: the place is taken",
-                t.name, t.start
-            ));
+        for (f, b) in flyers.iter_mut().zip(&briefs) {
+            f.agent.start(b);
         }
-        movers.push(Mover {
-            client,
-            waypoint: 0,
-            rng: SplitMix(seed ^ (j as u64 + 1).wrapping_mul(0x9E37_79B9)),
-            goal: None,
-        });
+        let tracker = Tracker::new(scenario, &victims, total);
+        let board = Board {
+            positions: vec![None; total],
+            batteries: vec![None; total],
+            charging: vec![false; total],
+            carrying: vec![false; total],
+            targets: vec![None; scenario.targets.len()],
+            ..Board::default()
+        };
+        let log = Vec::new();
+        let tracks = vec![Vec::new(); total];
+        let target_tracks = vec![Vec::new(); scenario.targets.len()];
+        let out = Vec::new();
+        let next_sample = 0.0;
+        let first = flyers.first().map_or(0, |f| f.client.0);
+        Ok(Self {
+            prepared,
+            seed,
+            world,
+            flyers,
+            movers,
+            briefs,
+            tracker,
+            board,
+            log,
+            tracks,
+            target_tracks,
+            out,
+            next_sample,
+            first,
+            ticks,
+            period,
+            total,
+            ending: None,
+        })
     }
-    for (f, b) in flyers.iter_mut().zip(&briefs) {
-        f.agent.start(b);
-    }
-    let mut tracker = Tracker::new(scenario, &victims, total);
-    let mut board = Board {
-        positions: vec![None; total],
-        batteries: vec![None; total],
-        charging: vec![false; total],
-        carrying: vec![false; total],
-        targets: vec![None; scenario.targets.len()],
-        ..Board::default()
-    };
-    let mut log = Vec::new();
-    let mut tracks = vec![Vec::new(); total];
-    let mut target_tracks = vec![Vec::new(); scenario.targets.len()];
-    let mut out = Vec::new();
-    let mut next_sample = 0.0;
-    let first = flyers.first().map_or(0, |f| f.client.0);
-    let ending = loop {
-        for _ in 0..ticks {
-            world.step(&mut out);
+
+    /// Steps one period: the world, the metrics, the targets and every agent; the UAVs
+    /// with a command in `overrides` (by index; `None` or a short slice: the agent's) fly
+    /// that instead of their agent's (the agent still steps, for its requests and notes).
+    /// `Some` once the iteration has ended (then nothing more happens).
+    pub fn step(&mut self, overrides: &[Option<SpeedCommand>]) -> Option<Ending> {
+        if self.ending.is_some() {
+            return self.ending.clone();
         }
-        for (client, message) in out.drain(..) {
-            let i = client.0.wrapping_sub(first) as usize;
-            if let Some(f) = flyers.get_mut(i)
+        let prepared = self.prepared;
+        let scenario = &prepared.scenario;
+        for _ in 0..self.ticks {
+            self.world.step(&mut self.out);
+        }
+        for (client, message) in self.out.drain(..) {
+            let i = client.0.wrapping_sub(self.first) as usize;
+            if let Some(f) = self.flyers.get_mut(i)
                 && f.client == client
             {
                 f.state.apply(&message);
             }
         }
-        let time = world.time();
-        let truth = world.robots_truth();
-        let uav_truth: Vec<[f64; 3]> = truth.iter().take(total).map(|r| r.location).collect();
-        let target_truth: Vec<[f64; 3]> = truth.iter().skip(total).map(|r| r.location).collect();
-        if time >= next_sample {
-            next_sample += TRACK_EVERY;
-            for (t, p) in tracks.iter_mut().zip(&uav_truth) {
+        let time = self.world.time();
+        let truth = self.world.robots_truth();
+        let uav_truth: Vec<[f64; 3]> = truth.iter().take(self.total).map(|r| r.location).collect();
+        let target_truth: Vec<[f64; 3]> =
+            truth.iter().skip(self.total).map(|r| r.location).collect();
+        if time >= self.next_sample {
+            self.next_sample += TRACK_EVERY;
+            for (t, p) in self.tracks.iter_mut().zip(&uav_truth) {
                 t.push(*p);
             }
-            for (t, p) in target_tracks.iter_mut().zip(&target_truth) {
+            for (t, p) in self.target_tracks.iter_mut().zip(&target_truth) {
                 t.push(*p);
             }
         }
         // Crashes, charging, energy.
-        for (i, f) in flyers.iter_mut().enumerate() {
-            if !f.crashed && (world.crashed(f.client) || f.state.crashed()) {
+        for (i, f) in self.flyers.iter_mut().enumerate() {
+            if !f.crashed && (self.world.crashed(f.client) || f.state.crashed()) {
                 f.crashed = true;
-                tracker.crashes += 1;
-                log.push(format!("t={time:.1}s {}: crashed", f.name));
+                self.tracker.crashes += 1;
+                self.log.push(format!("t={time:.1}s {}: crashed", f.name));
             }
             let p = uav_truth.get(i).copied().unwrap_or_default();
             f.velocity = f.last_truth.map_or([0.0; 3], |q| {
-                std::array::from_fn(|k| (p[k] - q[k]) / period)
+                std::array::from_fn(|k| (p[k] - q[k]) / self.period)
             });
             let speed = f.velocity.iter().map(|v| v * v).sum::<f64>().sqrt();
             f.last_truth = Some(p);
@@ -329,21 +393,21 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
             if let Some(prev) = f.level
                 && level < prev
             {
-                tracker.battery_used += prev - level;
+                self.tracker.battery_used += prev - level;
             }
             f.level = Some(level);
-            board.charging[i] = false;
+            self.board.charging[i] = false;
             if let Some(base) = &scenario.base
                 && on_pad(base, p, speed)
                 && !f.crashed
             {
-                board.charging[i] = true;
-                f.charge += period;
+                self.board.charging[i] = true;
+                f.charge += self.period;
                 if f.charge >= base.charge_time && level < 0.999 {
-                    world.recharge(f.client);
-                    tracker.recharges += 1;
+                    self.world.recharge(f.client);
+                    self.tracker.recharges += 1;
                     f.charge = 0.0;
-                    log.push(format!(
+                    self.log.push(format!(
                         "t={time:.1}s {}: recharged on the base pad",
                         f.name
                     ));
@@ -352,24 +416,24 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
                 f.charge = 0.0;
             }
         }
-        tracker.observe(
+        self.tracker.observe(
             time,
-            period,
+            self.period,
             &uav_truth,
             &target_truth,
-            &world,
-            &briefs,
-            &mut board,
-            &mut log,
+            &self.world,
+            &self.briefs,
+            &mut self.board,
+            &mut self.log,
         );
-        // The board.
-        board.time = time;
-        for (i, f) in flyers.iter().enumerate() {
-            board.positions[i] = team::position(&f.state);
-            board.batteries[i] = Some(team::battery_level(&f.state));
+        // The self.board.
+        self.board.time = time;
+        for (i, f) in self.flyers.iter().enumerate() {
+            self.board.positions[i] = team::position(&f.state);
+            self.board.batteries[i] = Some(team::battery_level(&f.state));
         }
         // Targets move.
-        for (j, (m, t)) in movers.iter_mut().zip(&scenario.targets).enumerate() {
+        for (j, (m, t)) in self.movers.iter_mut().zip(&scenario.targets).enumerate() {
             let Some(&p) = target_truth.get(j) else {
                 continue;
             };
@@ -415,22 +479,23 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
                 }
                 None => SpeedCommand::STOP,
             };
-            world.command(m.client, Command::Drive(command.to_drive()));
+            self.world
+                .command(m.client, Command::Drive(command.to_drive()));
         }
         // The agents.
         let mut notes = Vec::new();
-        for (i, f) in flyers.iter_mut().enumerate() {
+        for (i, f) in self.flyers.iter_mut().enumerate() {
             if f.crashed {
                 continue;
             }
             let view = if scenario.blackboard {
-                board.clone()
+                self.board.clone()
             } else {
-                private(&board, i)
+                private(&self.board, i)
             };
             let step = f.agent.step(&f.state, &view, time);
             for line in step.log {
-                log.push(format!(
+                self.log.push(format!(
                     "t={time:.1}s {} {}: {line}",
                     f.name,
                     f.agent.name()
@@ -440,61 +505,119 @@ pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, St
                 notes.extend(step.notes.into_iter().map(|n| (i, n)));
             }
             if let Some(act) = step.act {
-                tracker.act(
+                self.tracker.act(
                     act,
                     i,
                     time,
                     uav_truth[i],
                     f.velocity,
-                    &mut board,
-                    &mut log,
+                    &mut self.board,
+                    &mut self.log,
                     &f.name,
                     |kg| {
-                        world.set_payload(f.client, kg);
+                        self.world.set_payload(f.client, kg);
                     },
                 );
             }
             f.done = step.done;
-            if let Some(c) = step.command {
-                world.command(f.client, Command::Drive(c.to_drive()));
+            let command = match overrides.get(i) {
+                Some(Some(c)) => Some(*c),
+                _ => step.command,
+            };
+            if let Some(c) = command {
+                self.world.command(f.client, Command::Drive(c.to_drive()));
             }
         }
         for (i, (key, value)) in notes {
             match value {
                 Some(v) => {
-                    board.notes.insert(key, (i, v));
+                    self.board.notes.insert(key, (i, v));
                 }
                 None => {
-                    board.notes.remove(&key);
+                    self.board.notes.remove(&key);
                 }
             }
         }
-        let all_done = flyers.iter().all(|f| f.done || f.crashed);
+        let all_done = self.flyers.iter().all(|f| f.done || f.crashed);
         let done = match scenario.kind {
             Kind::Search | Kind::Delivery => all_done,
             Kind::Relay | Kind::Tracking => false,
         };
         if done {
-            break Ending::Done;
+            self.ending = Some(Ending::Done);
+            return self.ending.clone();
         }
         if time >= scenario.time_limit - 1e-9 {
-            break Ending::TimeUp;
+            self.ending = Some(Ending::TimeUp);
+            return self.ending.clone();
         }
-    };
-    let time = world.time();
-    let metrics = tracker.finish(time, scenario);
-    Ok(Outcome {
-        seed,
-        ending,
-        metrics,
-        tracks,
-        target_tracks,
-        victims: tracker.victims.clone(),
-        coverage: tracker.grid.clone(),
-        link: tracker.link_changes.clone(),
-        fire_radius: scenario.fire.map(|f| f.radius + f.rate * time),
-        log,
-    })
+        None
+    }
+
+    /// Simulated seconds.
+    pub fn time(&self) -> f64 {
+        self.world.time()
+    }
+
+    /// How it ended (`None` while it goes on).
+    pub fn ending(&self) -> Option<Ending> {
+        self.ending.clone()
+    }
+
+    /// UAVs in all.
+    pub fn uav_count(&self) -> usize {
+        self.total
+    }
+
+    /// UAV `i`'s own readings.
+    pub fn state(&self, i: usize) -> Option<&UavState> {
+        self.flyers.get(i).map(|f| &f.state)
+    }
+
+    /// UAV `i`'s brief.
+    pub fn brief(&self, i: usize) -> Option<&Brief> {
+        self.briefs.get(i)
+    }
+
+    /// The shared board (what the agents know).
+    pub fn board(&self) -> &Board {
+        &self.board
+    }
+
+    /// Whether UAV `i` has crashed.
+    pub fn crashed(&self, i: usize) -> bool {
+        self.flyers.get(i).is_some_and(|f| f.crashed)
+    }
+
+    /// The figures so far.
+    pub fn metrics(&self) -> super::metrics::Metrics {
+        self.tracker
+            .finish(self.world.time(), &self.prepared.scenario)
+    }
+
+    /// The log so far.
+    pub fn log(&self) -> &[String] {
+        &self.log
+    }
+
+    /// Ends the iteration (at the time limit if it has not ended yet) and gives its result.
+    pub fn finish(self) -> Outcome {
+        let scenario = &self.prepared.scenario;
+        let time = self.world.time();
+        let metrics = self.tracker.finish(time, scenario);
+        Outcome {
+            seed: self.seed,
+            ending: self.ending.unwrap_or(Ending::TimeUp),
+            metrics,
+            tracks: self.tracks,
+            target_tracks: self.target_tracks,
+            victims: self.tracker.victims.clone(),
+            coverage: self.tracker.grid.clone(),
+            link: self.tracker.link_changes.clone(),
+            fire_radius: scenario.fire.map(|f| f.radius + f.rate * time),
+            log: self.log,
+        }
+    }
 }
 
 /// The board as one UAV without a blackboard sees it: the scenario's facts, its own entries.
