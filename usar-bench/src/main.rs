@@ -109,6 +109,12 @@ struct Args {
     /// seconds (at least 0.5).
     #[arg(long)]
     camera: bool,
+    /// Scenario speed instead (docs/scenarios.md): each embedded scenario (or the ones
+    /// named, comma separated) flown three times in-process with every UAV's agent, pictures
+    /// off; prints simulated seconds per wall second and wall seconds per iteration,
+    /// min / median / max.
+    #[arg(long, value_name = "NAMES", num_args = 0..=1, default_missing_value = "all")]
+    scenarios: Option<String>,
 }
 
 impl Args {
@@ -234,6 +240,9 @@ fn bench(args: &Args) -> anyhow::Result<()> {
     }
     if args.camera {
         return camera(&args);
+    }
+    if let Some(names) = &args.scenarios {
+        return scenarios(names, args.threads.unwrap_or(1));
     }
     if args.sim_only && !args.scaling.is_empty() {
         return scaling(&args);
@@ -1151,4 +1160,59 @@ async fn fly(
         }
     }
     Ok(stats)
+}
+
+/// `--scenarios`: each scenario's iteration three times (seeds 1, 2, 3).
+fn scenarios(names: &str, threads: usize) -> anyhow::Result<()> {
+    use ucc_client::scenario::spec::EMBEDDED;
+    use ucc_client::scenario::{Prepared, Scenario, fly};
+    let names: Vec<&str> = if names == "all" {
+        EMBEDDED.iter().map(|(n, _)| *n).collect()
+    } else {
+        names.split(',').map(str::trim).collect()
+    };
+    say!(
+        "scenarios, in-process lockstep, every UAV's agent, pictures off ({threads} sensor thread(s)), 3 iterations each:"
+    );
+    say!(
+        "{:<14} {:>5} {:>9}  {:>26}  {:>26}",
+        "scenario",
+        "UAVs",
+        "sim s",
+        "sim s per wall s (min/med/max)",
+        "wall s per iteration"
+    );
+    for name in names {
+        let prepared = Prepared::new(Scenario::lookup(name)?, usar_sim::RobotCatalog::embedded())?;
+        let mut rates = Vec::new();
+        let mut walls = Vec::new();
+        let mut simulated = 0.0;
+        for seed in 1..=3 {
+            let start = std::time::Instant::now();
+            let outcome =
+                fly(&prepared, seed, threads).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+            let wall = start.elapsed().as_secs_f64();
+            simulated = outcome.metrics.get("time_s").unwrap_or(0.0);
+            rates.push(simulated / wall.max(1e-9));
+            walls.push(wall);
+        }
+        let sorted = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v
+        };
+        let (r, w) = (sorted(rates), sorted(walls));
+        say!(
+            "{:<14} {:>5} {:>9.0}  {:>8.0} {:>8.0} {:>8.0}  {:>8.3} {:>8.3} {:>8.3}",
+            name,
+            prepared.scenario.uav_count(),
+            simulated,
+            r[0],
+            r[1],
+            r[2],
+            w[0],
+            w[1],
+            w[2]
+        );
+    }
+    Ok(())
 }
