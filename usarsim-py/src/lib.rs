@@ -14,6 +14,7 @@
 mod agents;
 mod core;
 mod remote;
+mod scenario;
 
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyReadonlyArray2};
@@ -376,6 +377,8 @@ fn qualified_class(robot: &str) -> String {
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyBatch>()?;
     m.add_class::<PyRemote>()?;
+    m.add_class::<scenario::PyScenario>()?;
+    m.add_function(wrap_pyfunction!(scenario::scenarios, m)?)?;
     m.add_class::<agents::PyCommand>()?;
     m.add_class::<agents::PyState>()?;
     m.add_function(wrap_pyfunction!(agents::fly, m)?)?;

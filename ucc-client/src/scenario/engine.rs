@@ -2,6 +2,8 @@
 //! construction (the agents step every period of simulated time, whatever the wall clock
 //! does), deterministic under the seed, and as fast as the world steps.
 
+use std::sync::Arc;
+
 use usar_proto::{Command, Init, Vec3};
 use usar_server::sim::map::Placed;
 use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
@@ -9,7 +11,7 @@ use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 use super::metrics::{Metrics, Tracker};
 use super::spec::{Kind, Scenario, ScenarioError};
 use crate::agents::team::random::SplitMix;
-use crate::agents::team::{self, Board, Brief, TeamAgent};
+use crate::agents::team::{self, Act, Board, Brief, TeamAgent, TeamStep};
 use crate::speed::SpeedCommand;
 use crate::uav::UavState;
 
@@ -176,15 +178,15 @@ fn draw_victims(map: &mut Map, scenario: &Scenario, seed: u64) -> Result<(), Str
 
 /// Flies one iteration with `seed`, every UAV by its agent.
 pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, String> {
-    let mut episode = Episode::new(prepared, seed, threads)?;
+    let mut episode = Episode::new(Arc::new(prepared.clone()), seed, threads)?;
     while episode.step(&[]).is_none() {}
     Ok(episode.finish())
 }
 
 /// One iteration, stepped a period at a time: [`fly`] for the agents alone, or with some
 /// UAVs' commands given from outside (a learning agent, the Python package).
-pub struct Episode<'a> {
-    prepared: &'a Prepared,
+pub struct Episode {
+    prepared: Arc<Prepared>,
     seed: u64,
     world: World,
     flyers: Vec<Flyer>,
@@ -204,9 +206,9 @@ pub struct Episode<'a> {
     ending: Option<Ending>,
 }
 
-impl<'a> Episode<'a> {
+impl Episode {
     /// Spawns the UAVs and the targets of `prepared` with `seed` (victims drawn from it).
-    pub fn new(prepared: &'a Prepared, seed: u64, threads: usize) -> Result<Self, String> {
+    pub fn new(prepared: Arc<Prepared>, seed: u64, threads: usize) -> Result<Self, String> {
         let scenario = &prepared.scenario;
         let mut map = prepared.map.clone();
         draw_victims(&mut map, scenario, seed)?;
@@ -343,13 +345,14 @@ impl<'a> Episode<'a> {
 
     /// Steps one period: the world, the metrics, the targets and every agent; the UAVs
     /// with a command in `overrides` (by index; `None` or a short slice: the agent's) fly
-    /// that instead of their agent's (the agent still steps, for its requests and notes).
+    /// that instead, and their agents do not step (a payload is then taken and set down
+    /// by standing on the pads).
     /// `Some` once the iteration has ended (then nothing more happens).
     pub fn step(&mut self, overrides: &[Option<SpeedCommand>]) -> Option<Ending> {
         if self.ending.is_some() {
             return self.ending.clone();
         }
-        let prepared = self.prepared;
+        let prepared = Arc::clone(&self.prepared);
         let scenario = &prepared.scenario;
         for _ in 0..self.ticks {
             self.world.step(&mut self.out);
@@ -488,12 +491,35 @@ impl<'a> Episode<'a> {
             if f.crashed {
                 continue;
             }
-            let view = if scenario.blackboard {
-                self.board.clone()
-            } else {
-                private(&self.board, i)
+            let step = match overrides.get(i) {
+                // Flown from outside: its agent does not step (it would post notes and
+                // requests for a UAV it does not fly); a payload is taken when it stands on
+                // the pickup pad and set down when it stands on the drop-off pad.
+                Some(Some(command)) => {
+                    let carrying = self.board.carrying.get(i).copied().unwrap_or(false);
+                    let speed = f.velocity.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    let act = match &scenario.delivery {
+                        Some(job) if carrying && on_pad(&job.dropoff, uav_truth[i], speed) => {
+                            Some(Act::Drop)
+                        }
+                        Some(_) if !carrying => Some(Act::PickUp),
+                        _ => None,
+                    };
+                    TeamStep {
+                        command: Some(*command),
+                        act,
+                        ..TeamStep::default()
+                    }
+                }
+                _ => {
+                    let view = if scenario.blackboard {
+                        self.board.clone()
+                    } else {
+                        private(&self.board, i)
+                    };
+                    f.agent.step(&f.state, &view, time)
+                }
             };
-            let step = f.agent.step(&f.state, &view, time);
             for line in step.log {
                 self.log.push(format!(
                     "t={time:.1}s {} {}: {line}",
@@ -520,11 +546,7 @@ impl<'a> Episode<'a> {
                 );
             }
             f.done = step.done;
-            let command = match overrides.get(i) {
-                Some(Some(c)) => Some(*c),
-                _ => step.command,
-            };
-            if let Some(c) = command {
+            if let Some(c) = step.command {
                 self.world.command(f.client, Command::Drive(c.to_drive()));
             }
         }
@@ -593,6 +615,11 @@ impl<'a> Episode<'a> {
     pub fn metrics(&self) -> super::metrics::Metrics {
         self.tracker
             .finish(self.world.time(), &self.prepared.scenario)
+    }
+
+    /// Whether the relay's endpoints are connected now (`None`: not a relay scenario).
+    pub fn link_up(&self) -> Option<bool> {
+        self.tracker.link_changes.last().map(|&(_, up)| up)
     }
 
     /// The log so far.

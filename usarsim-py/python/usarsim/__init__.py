@@ -16,6 +16,7 @@ from ._agent import Agent, fly
 from ._core import Command, State
 from ._env import UsarsimEnv, UsarsimVectorEnv, _register
 from ._task import observation_space, action_space
+from ._scenario import SCORES, ScenarioEnv, ScenarioParallelEnv, scenario_names
 
 
 def multi_uav(n: int = 2, task: str = "waypoints", **options):
@@ -50,11 +51,15 @@ __all__ = [
     "LASER_BEAMS",
     "MultiUavRLlibEnv",
     "Remote",
+    "SCORES",
     "SONARS",
+    "ScenarioEnv",
+    "ScenarioParallelEnv",
     "UsarsimEnv",
     "UsarsimVectorEnv",
     "action_space",
     "multi_uav",
     "observation_space",
+    "scenario_names",
     "vector_env",
 ]
