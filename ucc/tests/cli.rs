@@ -738,3 +738,68 @@ fn gui_prints_the_url_and_serves_the_page() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--local"));
 }
+
+#[test]
+fn scenario_lists_runs_writes_its_files_and_names_a_bad_line() {
+    let list = ucc().args(["scenario", "--list"]).output().unwrap();
+    assert!(list.status.success());
+    let text = String::from_utf8_lossy(&list.stdout);
+    for name in [
+        "search",
+        "relay",
+        "tracking",
+        "perimeter",
+        "delivery",
+        "partition-search",
+    ] {
+        assert!(text.contains(name), "{name} missing from\n{text}");
+    }
+    let dir = std::env::temp_dir().join(format!("ucc-cli-scenario-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let run = ucc()
+        .args([
+            "scenario",
+            "tracking",
+            "--iterations",
+            "2",
+            "--seed",
+            "4",
+            "--log-dir",
+        ])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{out}\n{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(out.contains("iteration 2/2 (seed 5)"), "{out}");
+    assert!(out.contains("target_seen_pct"), "{out}");
+    for f in ["results.csv", "iteration-001.log", "iteration-002.png"] {
+        assert!(dir.join(f).is_file(), "{f}");
+    }
+    // A second run into the same folder is refused before flying.
+    let again = ucc()
+        .args(["scenario", "tracking", "--log-dir"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(again.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&again.stderr).contains("--force"));
+    let bad = dir.join("bad.toml");
+    std::fs::write(
+        &bad,
+        "kind = \"search\"\nmap = \"rescue\"\ntime_limit = 10\n[[uav]]\nagent = \"lane-serch\"\nstart = [0.0, 0.0, -1.0]\n",
+    )
+    .unwrap();
+    let wrong = ucc().arg("scenario").arg(&bad).output().unwrap();
+    let err = String::from_utf8_lossy(&wrong.stderr);
+    assert_eq!(wrong.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("bad.toml:4: [[uav]]: unknown agent \"lane-serch\""),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

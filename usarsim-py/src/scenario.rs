@@ -5,8 +5,8 @@
 
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
-use numpy::ndarray::Array2;
 use numpy::IntoPyArray;
+use numpy::ndarray::Array2;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -54,7 +54,9 @@ impl PyScenario {
         sorted.sort_unstable();
         sorted.dedup();
         if sorted.len() != controlled.len() {
-            return Err(invalid(format!("controlled: an index is given twice: {controlled:?}")));
+            return Err(invalid(format!(
+                "controlled: an index is given twice: {controlled:?}"
+            )));
         }
         if !(1..=64).contains(&threads) {
             return Err(invalid(format!("threads: must be 1..=64, got {threads}")));
@@ -113,7 +115,9 @@ impl PyScenario {
     fn reset(&mut self, py: Python<'_>, seed: u64) -> PyResult<()> {
         let prepared = Arc::clone(&self.prepared);
         let threads = self.threads;
-        let episode = py.detach(|| Episode::new(prepared, seed, threads)).map_err(invalid)?;
+        let episode = py
+            .detach(|| Episode::new(prepared, seed, threads))
+            .map_err(invalid)?;
         *self.episode() = Some(episode);
         Ok(())
     }
@@ -135,7 +139,10 @@ impl PyScenario {
         let mut overrides = vec![None; episode.uav_count()];
         for (row, (&i, a)) in self.controlled.iter().zip(&actions).enumerate() {
             if let Some(j) = a.iter().position(|v| !v.is_finite()) {
-                return Err(invalid(format!("actions: row {row}, component {j} is not finite ({})", a[j])));
+                return Err(invalid(format!(
+                    "actions: row {row}, component {j} is not finite ({})",
+                    a[j]
+                )));
             }
             overrides[i] = Some(SpeedCommand {
                 forward: 100.0 * a[0].clamp(-1.0, 1.0),
@@ -236,14 +243,18 @@ impl PyScenario {
     /// What the scenario tells UAV `i` (its brief): `altitude`, `footprint`, `speed`,
     /// `start`, `spot` (its landing spot), and, when the scenario has them, `base`,
     /// `area` ((2, 2): min, max), `endpoints` ((2, 3)), `chain`, `slot` (its chain point or
-    /// None for a spare), `fire_center`, `fire_radius` (at the start), `pickup`, `dropoff`.
+    /// None for a spare), `fire_center`, `fire_radius` (at the start), `targets` (their
+    /// starts), `pickup`, `dropoff`.
     fn brief<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyDict>> {
         let guard = self.episode();
         let Some(e) = guard.as_ref() else {
             return Err(invalid("brief before reset: call reset(seed) first"));
         };
         let Some(b) = e.brief(i) else {
-            return Err(invalid(format!("brief: UAV index {i} out of range 0..{}", e.uav_count())));
+            return Err(invalid(format!(
+                "brief: UAV index {i} out of range 0..{}",
+                e.uav_count()
+            )));
         };
         let d = PyDict::new(py);
         d.set_item("altitude", b.altitude)?;
@@ -258,16 +269,32 @@ impl PyScenario {
             d.set_item("area", vec![s.area[0].to_vec(), s.area[1].to_vec()])?;
         }
         if let Some(r) = &b.relay {
-            d.set_item("endpoints", vec![r.endpoints[0].to_vec(), r.endpoints[1].to_vec()])?;
+            d.set_item(
+                "endpoints",
+                vec![r.endpoints[0].to_vec(), r.endpoints[1].to_vec()],
+            )?;
             d.set_item("chain", r.chain)?;
             let slot = (b.rank() < r.chain).then(|| {
-                team::relay::slot_point(r.endpoints[0], r.endpoints[1], r.chain, b.rank(), -b.altitude).to_vec()
+                team::relay::slot_point(
+                    r.endpoints[0],
+                    r.endpoints[1],
+                    r.chain,
+                    b.rank(),
+                    -b.altitude,
+                )
+                .to_vec()
             });
             d.set_item("slot", slot)?;
         }
         if let Some(f) = &b.fire {
             d.set_item("fire_center", f.center.to_vec())?;
             d.set_item("fire_radius", f.radius)?;
+        }
+        if !b.targets.is_empty() {
+            d.set_item(
+                "targets",
+                b.targets.iter().map(|t| t.to_vec()).collect::<Vec<_>>(),
+            )?;
         }
         if let Some(job) = &b.delivery {
             d.set_item("pickup", job.pickup.location.to_vec())?;
@@ -278,12 +305,17 @@ impl PyScenario {
 
     /// The episode's log lines so far.
     fn log(&self) -> Vec<String> {
-        self.episode().as_ref().map_or_else(Vec::new, |e| e.log().to_vec())
+        self.episode()
+            .as_ref()
+            .map_or_else(Vec::new, |e| e.log().to_vec())
     }
 }
 
 /// The embedded scenarios' names.
 #[pyfunction]
 pub(crate) fn scenarios() -> Vec<&'static str> {
-    ucc_client::scenario::spec::EMBEDDED.iter().map(|(n, _)| *n).collect()
+    ucc_client::scenario::spec::EMBEDDED
+        .iter()
+        .map(|(n, _)| *n)
+        .collect()
 }

@@ -46,7 +46,9 @@ def test_the_return_is_the_final_score_and_the_other_uavs_fly_their_agents():
         steps += 1
     m = info["metrics"]
     assert steps == 6000  # 600 s at 0.1 s
-    assert m["link_pct"] > 50, m
+    # With one spare fewer the chain still forms and rotates part of the time.
+    assert m["link_pct"] > 20, m
+    assert any("taking over" in line for line in env.unwrapped._sim.log())
     assert math.isclose(total, score("relay", m, 600.0), abs_tol=1e-9)
     assert math.isclose(total, m["link_pct"] / 100, abs_tol=1e-6)
 
@@ -77,7 +79,16 @@ def test_the_same_seed_gives_the_same_episode():
         return np.array(out)
 
     assert np.array_equal(run(5), run(5))
-    assert not np.array_equal(run(5)[-1], run(6)[-1])
+    # Another seed draws the victims elsewhere: the baseline finds them elsewhere.
+    def finds(seed):
+        sim = usarsim._core.Scenario("search", [])
+        sim.reset(seed)
+        while not sim.step([]):
+            pass
+        return [line for line in sim.log() if "found victim Drawn" in line]
+
+    assert finds(5) == finds(5)
+    assert finds(5) != finds(6)
 
 
 def test_a_crash_ends_the_episode_with_minus_one():

@@ -37,7 +37,7 @@ SCORES = {
 #: The observation of one UAV (float32, 16 values): position x, y, z (m, z down), velocity
 #: (3, m/s), sin and cos of the yaw, battery fraction, fraction of the time limit elapsed,
 #: the score so far, then the goal relative to the UAV (x, y, z, m): the target's last
-#: sighting (tracking), the nearest point of the fire's perimeter, the pickup or the drop-off
+#: sighting (before the first, its start; tracking), the nearest point of the fire's perimeter, the pickup or the drop-off
 #: pad (delivery), the area's centre (search) or the midpoint of the endpoints (relay); then
 #: a flag (target seen recently / carrying / link up) and the number of UAVs charging.
 OBS_SIZE = 16
@@ -82,6 +82,9 @@ class _Core:
             t = obs["targets"]
             if len(t) and not math.isnan(t[0, 0]):
                 return np.array([t[0, 0], t[0, 1], z]) - p, float(t[0, 3] < 1.0)
+            if b.get("targets"):
+                # Not seen yet: where it started.
+                return np.array([b["targets"][0][0], b["targets"][0][1], z]) - p, 0.0
             if "fire_center" in b:
                 c = np.array(b["fire_center"])
                 r = obs["fire_radius"] if not math.isnan(obs["fire_radius"]) else b["fire_radius"]
