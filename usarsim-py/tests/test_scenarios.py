@@ -117,3 +117,16 @@ def test_bad_arguments_say_what_is_wrong():
     sim = usarsim._core.Scenario("search", [0])
     with pytest.raises(ValueError, match="before reset"):
         sim.observe()
+
+
+def test_the_cem_example_learns_to_track_better_than_the_baseline_agent():
+    import importlib.util
+    import pathlib
+
+    path = pathlib.Path(__file__).parent.parent / "examples" / "scenario_cem.py"
+    spec = importlib.util.spec_from_file_location("scenario_cem", path)
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    base = example.baseline()
+    gains = example.cem(iterations=2, population=6)
+    assert example.episode(gains) < base
