@@ -261,3 +261,33 @@ fn every_embedded_scenario_loads() {
         Prepared::new(s, RobotCatalog::embedded()).unwrap();
     }
 }
+
+#[test]
+fn over_the_radio_the_chain_forwards_relief_requests_to_the_base() {
+    // The same relay with `blackboard = "radio"`: the base hears a far slot's request only
+    // through the relays in between, and the rotation still holds the link.
+    let text = ucc_client::scenario::spec::EMBEDDED
+        .iter()
+        .find(|(n, _)| *n == "relay")
+        .unwrap()
+        .1
+        .replace("blackboard = true", "blackboard = \"radio\"");
+    let s = Scenario::from_toml(&text, Path::new("relay-radio.toml"), None).unwrap();
+    assert_eq!(s.sharing, ucc_client::scenario::spec::Sharing::Radio);
+    let p = Prepared::new(s, RobotCatalog::embedded()).unwrap();
+    let o = fly(&p, 1, 1).unwrap();
+    assert!(metric(&o, "link_pct") >= 90.0, "{}", o.log.join("\n"));
+    assert!(
+        o.log.iter().any(|l| l.contains("taking over slot 2")),
+        "{}",
+        o.log.join("\n")
+    );
+    let bad = text.replace("blackboard = \"radio\"", "blackboard = \"shout\"");
+    let e = Scenario::from_toml(&bad, Path::new("x.toml"), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("`blackboard` must be true, false or \"radio\""),
+        "{e}"
+    );
+}

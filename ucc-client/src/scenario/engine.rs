@@ -9,7 +9,7 @@ use usar_server::sim::map::Placed;
 use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 
 use super::metrics::{Metrics, Tracker};
-use super::spec::{Kind, Scenario, ScenarioError};
+use super::spec::{Kind, Scenario, ScenarioError, Sharing};
 use crate::agents::team::random::SplitMix;
 use crate::agents::team::{self, Act, Board, Brief, TeamAgent, TeamStep};
 use crate::speed::SpeedCommand;
@@ -486,6 +486,11 @@ impl Episode {
                 .command(m.client, Command::Drive(command.to_drive()));
         }
         // The agents.
+        let networks = if scenario.sharing == Sharing::Radio {
+            radio_networks(&self.world, &scenario.radio, &uav_truth)
+        } else {
+            Vec::new()
+        };
         let mut notes = Vec::new();
         for (i, f) in self.flyers.iter_mut().enumerate() {
             if f.crashed {
@@ -512,10 +517,10 @@ impl Episode {
                     }
                 }
                 _ => {
-                    let view = if scenario.blackboard {
-                        self.board.clone()
-                    } else {
-                        private(&self.board, i)
+                    let view = match scenario.sharing {
+                        Sharing::Blackboard => self.board.clone(),
+                        Sharing::Nothing => view(&self.board, i, |_| false),
+                        Sharing::Radio => view(&self.board, i, |k| networks[i] == networks[k]),
                     };
                     f.agent.step(&f.state, &view, time)
                 }
@@ -527,7 +532,7 @@ impl Episode {
                     f.agent.name()
                 ));
             }
-            if scenario.blackboard {
+            if scenario.sharing != Sharing::Nothing {
                 notes.extend(step.notes.into_iter().map(|n| (i, n)));
             }
             if let Some(act) = step.act {
@@ -647,30 +652,64 @@ impl Episode {
     }
 }
 
-/// The board as one UAV without a blackboard sees it: the scenario's facts, its own entries.
-fn private(board: &Board, i: usize) -> Board {
-    let mine = |v: &Vec<Option<[f64; 3]>>| {
-        v.iter()
-            .enumerate()
-            .map(|(k, p)| if k == i { *p } else { None })
-            .collect()
-    };
+/// The board as UAV `i` sees it: the scenario's facts, and the positions, batteries and
+/// notes of itself and of the UAVs `heard` says it hears.
+fn view(board: &Board, i: usize, heard: impl Fn(usize) -> bool) -> Board {
+    let seen = |k: usize| k == i || heard(k);
     Board {
         time: board.time,
-        positions: mine(&board.positions),
+        positions: board
+            .positions
+            .iter()
+            .enumerate()
+            .map(|(k, p)| if seen(k) { *p } else { None })
+            .collect(),
         batteries: board
             .batteries
             .iter()
             .enumerate()
-            .map(|(k, b)| if k == i { *b } else { None })
+            .map(|(k, b)| if seen(k) { *b } else { None })
             .collect(),
         charging: board.charging.clone(),
         carrying: board.carrying.clone(),
         found: board.found.clone(),
         targets: board.targets.clone(),
         fire_radius: board.fire_radius,
-        notes: Default::default(),
+        notes: board
+            .notes
+            .iter()
+            .filter(|(_, (by, _))| seen(*by))
+            .map(|(k, v)| (k.clone(), *v))
+            .collect(),
     }
+}
+
+/// Each UAV's radio network (the same number for UAVs that reach each other): direct links
+/// by the radio model between their true positions (walls counted by the scene's rays), and
+/// what the UAVs in between forward, as a mesh of relays does.
+fn radio_networks(world: &World, radio: &super::spec::Radio, at: &[[f64; 3]]) -> Vec<usize> {
+    let n = at.len();
+    let mut network: Vec<usize> = (0..n).collect();
+    fn root(network: &mut [usize], mut a: usize) -> usize {
+        while network[a] != a {
+            network[a] = network[network[a]];
+            a = network[a];
+        }
+        a
+    }
+    for a in 0..n {
+        for b in a + 1..n {
+            if root(&mut network, a) == root(&mut network, b) {
+                continue;
+            }
+            let walls = world.obstacles_between(at[a], at[b]);
+            if radio.strength(at[a], at[b], walls) >= radio.cutoff {
+                let (ra, rb) = (root(&mut network, a), root(&mut network, b));
+                network[ra.max(rb)] = ra.min(rb);
+            }
+        }
+    }
+    (0..n).map(|a| root(&mut network, a)).collect()
 }
 
 /// Landed on the pad: within its radius, less than half a metre above it, nearly still.
@@ -687,4 +726,36 @@ pub fn fall(p: [f64; 3], v: [f64; 3], ground_z: f64) -> ([f64; 3], f64) {
     // z down: h = v_z t + g t² / 2.
     let t = (-v[2] + (v[2] * v[2] + 2.0 * GRAVITY * h).sqrt()) / GRAVITY;
     ([p[0] + v[0] * t, p[1] + v[1] * t, ground_z], t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_agent_sees_only_what_its_network_carries() {
+        let mut board = Board {
+            positions: vec![Some([0.0; 3]), Some([1.0; 3]), Some([2.0; 3])],
+            batteries: vec![Some(1.0), Some(0.5), Some(0.2)],
+            ..Board::default()
+        };
+        board.notes.insert("relieve:2".into(), (2, 2.0));
+        board.notes.insert("ready:1".into(), (1, 1.0));
+        // UAV 0 hears UAV 1, not UAV 2.
+        let v = view(&board, 0, |k| k == 1);
+        assert_eq!(v.positions, vec![Some([0.0; 3]), Some([1.0; 3]), None]);
+        assert_eq!(v.batteries, vec![Some(1.0), Some(0.5), None]);
+        assert!(v.notes.contains_key("ready:1") && !v.notes.contains_key("relieve:2"));
+        let alone = view(&board, 2, |_| false);
+        assert_eq!(alone.positions, vec![None, None, Some([2.0; 3])]);
+        assert_eq!(alone.notes.len(), 1, "its own note only");
+    }
+
+    #[test]
+    fn a_dropped_payload_falls_with_the_uavs_velocity() {
+        // 4.905 m above the ground: 1 s of fall; moving north at 2 m/s.
+        let (at, t) = fall([0.0, 0.0, -4.905], [2.0, 0.0, 0.0], 0.0);
+        assert!((t - 1.0).abs() < 1e-9);
+        assert!((at[0] - 2.0).abs() < 1e-9 && at[2] == 0.0);
+    }
 }

@@ -66,8 +66,9 @@ pub struct Scenario {
     pub base: Option<Pad>,
     /// The downward sensor footprint that finds victims, sees targets and covers area.
     pub sensor: Sensor,
-    /// Whether the agents share a blackboard (each other's positions and posted notes).
-    pub blackboard: bool,
+    /// What the agents share: nothing, a blackboard (each other's positions and posted
+    /// notes), or what a radio link carries (only from UAVs in range).
+    pub sharing: Sharing,
     /// The search section.
     pub search: Option<Search>,
     /// Moving targets.
@@ -82,6 +83,19 @@ pub struct Scenario {
     pub delivery: Option<Delivery>,
     /// The file it came from (`None`: embedded).
     pub path: Option<PathBuf>,
+}
+
+/// What the agents of a scenario know of each other (`blackboard = false | true | "radio"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sharing {
+    /// Each agent knows only itself (and the scenario's shared facts).
+    Nothing,
+    /// Every agent sees every UAV's position and battery and every posted note.
+    Blackboard,
+    /// As the blackboard, but an agent sees only the UAVs (and their notes) its radio
+    /// reaches: directly (the `[radio]` model, walls counted by the scene's rays) or
+    /// forwarded by the UAVs in between, as a mesh of relays does.
+    Radio,
 }
 
 /// UAVs of one class flown by one agent.
@@ -272,8 +286,7 @@ struct RawScenario {
     #[serde(default)]
     seed: u64,
     period: Option<Spanned<f64>>,
-    #[serde(default)]
-    blackboard: bool,
+    blackboard: Option<Spanned<toml::Value>>,
     #[serde(default)]
     uav: Vec<Spanned<RawUav>>,
     base: Option<Spanned<RawPad>>,
@@ -805,6 +818,20 @@ impl Scenario {
             )?,
             Kind::Delivery => needs(delivery.is_some(), "a [delivery] section")?,
         }
+        let sharing = match &raw.blackboard {
+            None => Sharing::Nothing,
+            Some(v) => match v.get_ref() {
+                toml::Value::Boolean(false) => Sharing::Nothing,
+                toml::Value::Boolean(true) => Sharing::Blackboard,
+                toml::Value::String(s) if s == "radio" => Sharing::Radio,
+                other => {
+                    return Err(invalid(
+                        v.span().start,
+                        format!("`blackboard` must be true, false or \"radio\", got {other}"),
+                    ));
+                }
+            },
+        };
         let map = match file.and_then(Path::parent) {
             Some(dir) if !usar_sim_map_embedded(&raw.map) && Path::new(&raw.map).is_relative() => {
                 dir.join(&raw.map).to_string_lossy().into_owned()
@@ -822,7 +849,7 @@ impl Scenario {
             uavs,
             base,
             sensor,
-            blackboard: raw.blackboard,
+            sharing,
             search,
             targets,
             fire,
