@@ -225,6 +225,7 @@ fn bad_scenario_files_name_the_line_and_the_key() {
             "`count`",
         ),
         (format!("{good}cell = 0.0001\n"), 9, "`cell`"),
+        (format!("metrics = [\"link_pct\"]\n{good}"), 1, "\"link_pct\" is not a metric of a search scenario"),
     ];
     for (text, line, needle) in cases {
         match parse(&text) {
@@ -240,6 +241,11 @@ fn bad_scenario_files_name_the_line_and_the_key() {
             other => panic!("{needle}: {other:?}"),
         }
     }
+    let chosen = parse(&format!("metrics = [\"coverage_pct\"]\n{good}")).unwrap();
+    let p = Prepared::new(chosen, RobotCatalog::embedded()).unwrap();
+    let o = fly(&p, 1, 1).unwrap();
+    let names: Vec<&str> = o.metrics.values.iter().map(|(n, _)| *n).collect();
+    assert_eq!(names, ["time_s", "coverage_pct"]);
     let unknown = Scenario::lookup("no-such-scenario")
         .unwrap_err()
         .to_string();

@@ -431,6 +431,9 @@ impl Tracker {
                 ]);
             }
         }
+        if let Some(keep) = &scenario.metrics {
+            values.retain(|(n, _)| *n == "time_s" || keep.iter().any(|k| k == n));
+        }
         Metrics { values }
     }
 }

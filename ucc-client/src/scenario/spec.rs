@@ -81,6 +81,8 @@ pub struct Scenario {
     pub radio: Radio,
     /// The delivery section.
     pub delivery: Option<Delivery>,
+    /// The metrics to report (`None`: all of its kind; `time_s` is always reported).
+    pub metrics: Option<Vec<String>>,
     /// The file it came from (`None`: embedded).
     pub path: Option<PathBuf>,
 }
@@ -298,6 +300,7 @@ struct RawScenario {
     relay: Option<Spanned<RawRelay>>,
     radio: Option<Spanned<RawRadio>>,
     delivery: Option<Spanned<RawDelivery>>,
+    metrics: Option<Spanned<Vec<String>>>,
 }
 
 #[derive(Deserialize)]
@@ -838,7 +841,7 @@ impl Scenario {
             }
             _ => raw.map.clone(),
         };
-        Ok(Self {
+        let mut scenario = Self {
             name,
             kind: raw.kind,
             description: raw.description,
@@ -856,8 +859,29 @@ impl Scenario {
             relay,
             radio,
             delivery,
+            metrics: None,
             path: file.map(Path::to_path_buf),
-        })
+        };
+        if let Some(m) = &raw.metrics {
+            let known: Vec<&str> = super::metrics::Tracker::new(&scenario, &[], 0)
+                .finish(0.0, &scenario)
+                .values
+                .iter()
+                .map(|(n, _)| *n)
+                .collect();
+            if let Some(bad) = m.get_ref().iter().find(|n| !known.contains(&n.as_str())) {
+                return Err(invalid(
+                    m.span().start,
+                    format!(
+                        "`metrics`: {bad:?} is not a metric of a {} scenario ({})",
+                        raw.kind.name(),
+                        known.join(", ")
+                    ),
+                ));
+            }
+            scenario.metrics = Some(m.get_ref().clone());
+        }
+        Ok(scenario)
     }
 
     /// UAVs in all.
