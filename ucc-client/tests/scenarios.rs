@@ -225,7 +225,11 @@ fn bad_scenario_files_name_the_line_and_the_key() {
             "`count`",
         ),
         (format!("{good}cell = 0.0001\n"), 9, "`cell`"),
-        (format!("metrics = [\"link_pct\"]\n{good}"), 1, "\"link_pct\" is not a metric of a search scenario"),
+        (
+            format!("metrics = [\"link_pct\"]\n{good}"),
+            1,
+            "\"link_pct\" is not a metric of a search scenario",
+        ),
     ];
     for (text, line, needle) in cases {
         match parse(&text) {

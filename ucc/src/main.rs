@@ -73,7 +73,8 @@ enum Cmd {
                       Writes, in --log-dir:\n  \
                       results.csv              one row per iteration: seed, ending, the metrics\n  \
                       iteration-NNN.log        the events, with simulated times\n  \
-                      iteration-NNN.svg/.png   coverage, victims, paths, links, perimeter"
+                      iteration-NNN.svg/.png   coverage, victims, paths, links, perimeter\n  \
+                      overlay.svg/.png         every iteration on one map, the metrics' means"
     )]
     Scenario(scenario::ScenarioArgs),
     /// Read protocol lines on stdin and print them as JSON (or re-printed); exit 1 if any failed.

@@ -777,7 +777,12 @@ fn scenario_lists_runs_writes_its_files_and_names_a_bad_line() {
     );
     assert!(out.contains("iteration 2/2 (seed 5)"), "{out}");
     assert!(out.contains("target_seen_pct"), "{out}");
-    for f in ["results.csv", "iteration-001.log", "iteration-002.png"] {
+    for f in [
+        "results.csv",
+        "iteration-001.log",
+        "iteration-002.png",
+        "overlay.png",
+    ] {
         assert!(dir.join(f).is_file(), "{f}");
     }
     // A second run into the same folder is refused before flying.

@@ -96,10 +96,18 @@ fn draw<DB: DrawingBackend>(
         .iter()
         .filter_map(|(n, v)| v.map(|v| format!("{n} {}", short(v))))
         .collect();
-    let title = format!(
-        "{} · iteration {} · seed {}",
-        scenario.name, iteration, outcome.seed
-    );
+    // Iteration 0: the overlay of a run (`outcome.seed` then counts its iterations).
+    let title = if iteration == 0 {
+        format!(
+            "{} · overlay of {} iterations (means)",
+            scenario.name, outcome.seed
+        )
+    } else {
+        format!(
+            "{} · iteration {} · seed {}",
+            scenario.name, iteration, outcome.seed
+        )
+    };
     let (east, north) = extent(scenario, outcome);
     let mut chart = ChartBuilder::on(&top)
         .caption(&title, ("sans-serif", 20))
@@ -230,15 +238,19 @@ fn draw<DB: DrawingBackend>(
             .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], BLUE.filled()));
     }
     // Paths.
-    for (i, t) in outcome.tracks.iter().enumerate() {
+    // The overlay holds the UAVs' paths of several iterations, one after the other.
+    let uavs = scenario.uav_count().max(1);
+    for (k, t) in outcome.tracks.iter().enumerate() {
+        let i = k % uavs;
         let c = UAV_COLOURS[i % UAV_COLOURS.len()];
         let s = chart
             .draw_series(LineSeries::new(
                 t.iter().map(|p| (p[1], p[0])),
-                c.stroke_width(2),
+                c.mix(if iteration == 0 { 0.5 } else { 1.0 })
+                    .stroke_width(2),
             ))
             .map_err(err)?;
-        if i < 8 {
+        if k < uavs && i < 8 {
             s.label(format!("UAV{}", i + 1))
                 .legend(move |(x, y)| PathElement::new([(x, y), (x + 14, y)], c.stroke_width(2)));
         }

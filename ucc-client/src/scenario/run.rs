@@ -84,6 +84,7 @@ pub fn run_scenario(
     let seed = settings.seed.unwrap_or(scenario.seed);
     let mut sums: Vec<(&'static str, f64, usize)> = Vec::new();
     let mut simulated = 0.0;
+    let mut overlay: Option<Outcome> = None;
     for i in 0..settings.iterations {
         let seed = seed.wrapping_add(i as u64);
         let outcome = fly(prepared, seed, settings.threads)
@@ -129,17 +130,27 @@ pub fn run_scenario(
                 .map_err(|e| ScenarioRunError(e.to_string()))?;
             }
         }
+        if settings.pictures && settings.log_dir.is_some() {
+            add_to_overlay(&mut overlay, &outcome);
+        }
         observer(ScenarioProgress::Finished {
             iteration: i + 1,
             outcome: &outcome,
         });
     }
+    let means: Vec<(&'static str, f64, usize)> = sums
+        .into_iter()
+        .map(|(n, s, k)| (n, s / k as f64, k))
+        .collect();
+    if let (Some(dir), Some(mut overlay)) = (&settings.log_dir, overlay) {
+        overlay.seed = settings.iterations as u64;
+        overlay.metrics.values = means.iter().map(|&(n, m, _)| (n, Some(m))).collect();
+        super::picture::write(scenario, &geometry, &overlay, 0, &dir.join("overlay"))
+            .map_err(|e| ScenarioRunError(e.to_string()))?;
+    }
     Ok(ScenarioSummary {
         iterations: settings.iterations,
-        means: sums
-            .into_iter()
-            .map(|(n, s, k)| (n, s / k as f64, k))
-            .collect(),
+        means,
         wall: start.elapsed().as_secs_f64(),
         simulated,
     })
@@ -174,4 +185,51 @@ fn open_results(
     writeln!(out, "iteration,seed,ending,{columns}")
         .map_err(|e| ScenarioRunError(format!("cannot write {}: {e}", path.display())))?;
     Ok((path, out))
+}
+
+/// Paths kept in the overlay (the first iterations'); later ones add to the coverage and
+/// the victims only, so a long run's overlay stays small.
+pub const OVERLAY_PATHS: usize = 30;
+/// Victims kept in the overlay.
+const OVERLAY_VICTIMS: usize = 2000;
+
+/// Adds an iteration to the run's overlay: every iteration's coverage summed per cell, the
+/// first [`OVERLAY_PATHS`] iterations' paths, the victims (each found or missed).
+fn add_to_overlay(overlay: &mut Option<Outcome>, outcome: &Outcome) {
+    let Some(o) = overlay else {
+        let mut first = outcome.clone();
+        first.link.clear();
+        first.log.clear();
+        // The overlay's heat map counts iterations that saw a cell.
+        if let Some(grid) = &mut first.coverage {
+            for n in &mut grid.seen {
+                *n = u32::from(*n > 0);
+            }
+        }
+        *overlay = Some(first);
+        return;
+    };
+    if let (Some(sum), Some(grid)) = (&mut o.coverage, &outcome.coverage)
+        && sum.seen.len() == grid.seen.len()
+    {
+        for (s, g) in sum.seen.iter_mut().zip(&grid.seen) {
+            *s = s.saturating_add(u32::from(*g > 0));
+        }
+    }
+    if o.tracks.len() < OVERLAY_PATHS * outcome.tracks.len().max(1) {
+        o.tracks.extend(outcome.tracks.iter().cloned());
+        o.target_tracks
+            .extend(outcome.target_tracks.iter().cloned());
+    }
+    for v in &outcome.victims {
+        if o.victims.len() < OVERLAY_VICTIMS
+            && !o
+                .victims
+                .iter()
+                .any(|(p, t)| p.center == v.0.center && t.is_some() == v.1.is_some())
+        {
+            o.victims.push(v.clone());
+        }
+    }
+    o.fire_radius = outcome.fire_radius;
 }
