@@ -41,7 +41,8 @@ pub struct ServerArgs {
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub gust_length: Option<f64>,
     /// Faults scheduled in simulated time (TOML, see docs/quadrotor.md#faults): `FAULT`
-    /// lines for robots by spawn number.
+    /// lines for robots by spawn number, at fixed or seeded random times; or a recording,
+    /// whose server `FAULT` lines are read back.
     #[arg(long, value_name = "FILE")]
     pub faults: Option<PathBuf>,
 }

@@ -171,6 +171,109 @@ struct Part {
     /// A `FAULT {Sensor ..}` in force, and the reading a frozen part repeats.
     fault: SensorFault,
     frozen: Option<usar_proto::SenData>,
+    /// When the fault began (drift) and ends (`None`: at the next `FAULT` for the part).
+    fault_since: f64,
+    fault_until: Option<f64>,
+    /// The noise a `{Mode Noise}` fault adds (its own stream: the part's is untouched).
+    fault_noise: Noise,
+}
+
+/// Stream numbers of the fault noise generators (above any part index).
+const FAULT_STREAM: u64 = 1 << 32;
+
+/// Adds `offset()` to every measured number of a reading (the numbers the sensor measures;
+/// names, counts and flags stay).
+fn perturb(data: &mut usar_proto::SenData, mut offset: impl FnMut() -> f64) {
+    use usar_proto::SenData as D;
+    let mut v3 = |v: &mut usar_proto::Vec3| {
+        v.x += offset();
+        v.y += offset();
+        v.z += offset();
+    };
+    match data {
+        D::Imu {
+            acceleration,
+            angular_vel,
+            angular_accel,
+            rotation,
+            ..
+        } => {
+            for v in [acceleration, angular_vel, angular_accel, rotation] {
+                v3(v);
+            }
+        }
+        D::GroundTruth {
+            location,
+            orientation,
+            ..
+        }
+        | D::Ins {
+            location,
+            orientation,
+            ..
+        } => {
+            v3(location);
+            v3(orientation);
+        }
+        D::Velocity {
+            absolute, relative, ..
+        } => {
+            v3(absolute);
+            v3(relative);
+        }
+        D::Position { location: v, .. }
+        | D::Odometry { pose: v, .. }
+        | D::Accel {
+            acceleration: v, ..
+        }
+        | D::AcceleroMeter {
+            proper_acceleration: v,
+            ..
+        } => v3(v),
+        D::Sonar { readings, .. } => {
+            for r in readings {
+                r.range += offset();
+            }
+        }
+        D::Ir(r) => r.range += offset(),
+        D::RangeScanner(scan) => {
+            for r in &mut scan.ranges {
+                *r += offset();
+            }
+        }
+        D::AltitudeSensor {
+            relative, absolute, ..
+        } => {
+            let d = offset();
+            *relative += d;
+            *absolute += d;
+        }
+        D::MagneticCompass { angle, .. } => *angle += offset(),
+        D::Other { groups, .. } => {
+            // Our own lines (Battery, Rotors, Barometer): every number of every value.
+            for pair in groups.iter_mut().flat_map(|g| g.pairs.iter_mut()) {
+                let numbers: Option<Vec<f64>> = pair
+                    .value
+                    .split(',')
+                    .map(|x| x.trim().parse().ok())
+                    .collect();
+                if let Some(numbers) = numbers.filter(|n| n.iter().all(|x: &f64| x.is_finite())) {
+                    let decimals = pair
+                        .value
+                        .split(',')
+                        .next()
+                        .and_then(|x| x.split_once('.'))
+                        .map_or(0, |(_, d)| d.trim().len());
+                    let text: Vec<String> = numbers
+                        .iter()
+                        .map(|x| format!("{:.*}", decimals.max(4), x + offset()))
+                        .collect();
+                    pair.value = text.join(",");
+                }
+            }
+        }
+        _ => {}
+    }
 }
 
 /// An actuator: joint values move to their targets at once.
@@ -230,6 +333,10 @@ pub(crate) struct Robot {
     status: Timer,
     parts: Vec<Part>,
     actuators: Vec<Actuator>,
+    /// Until when its radio is off (`FAULT {Radio Off}`; infinite without a duration).
+    radio_off_until: Option<f64>,
+    /// Lines for its connection at the next output (faults the server applied on its own).
+    notices: Vec<ServerMessage>,
 }
 
 impl Robot {
@@ -252,6 +359,9 @@ impl Robot {
                 sensor: p.sensor.clone_box(),
                 fault: SensorFault::Ok,
                 frozen: None,
+                fault_since: 0.0,
+                fault_until: None,
+                fault_noise: Noise::new(spawn.seed, spawn.serial, FAULT_STREAM + p.index, 0.0),
             })
             .collect();
         let actuators = class
@@ -312,6 +422,8 @@ impl Robot {
             status: Timer::new(STATUS_INTERVAL, spawn.tick, spawn.dt, phase),
             parts,
             actuators,
+            radio_off_until: None,
+            notices: Vec::new(),
         })
     }
 
@@ -373,16 +485,26 @@ impl Robot {
     /// Applies a `FAULT` (docs/quadrotor.md#faults), logged at `info` with the time.
     pub(crate) fn fault(&mut self, fault: &Fault, time: f64) {
         let applied = match fault {
-            Fault::Sensor { name, mode } => {
+            Fault::Sensor {
+                name,
+                mode,
+                duration,
+            } => {
                 let mut found = false;
                 for (part, model) in self.parts.iter_mut().zip(&self.model.parts) {
                     if model.name.eq_ignore_ascii_case(name) {
                         part.fault = *mode;
                         part.frozen = None;
+                        part.fault_since = time;
+                        part.fault_until = duration.map(|d| time + d);
                         found = true;
                     }
                 }
                 found
+            }
+            Fault::Radio { on, duration } => {
+                self.radio_off_until = (!on).then(|| duration.map_or(f64::INFINITY, |d| time + d));
+                true
             }
             _ => self.dynamics.as_mut().is_some_and(|d| d.fault(fault)),
         };
@@ -391,6 +513,36 @@ impl Robot {
         } else {
             warn!(serial = self.serial, class = %self.class_name(), "FAULT ignored: the robot has no such part: {fault:?}");
         }
+    }
+
+    /// Applies a fault the server scheduled (`--faults`) and tells the robot's connection
+    /// with `FAULT {Time t} {Robot n} <the fault's groups>` (docs/quadrotor.md#faults).
+    pub(crate) fn scheduled_fault(&mut self, fault: &Fault, line: &usar_proto::Message, time: f64) {
+        self.fault(fault, time);
+        let group = |key: &str, value: String| usar_proto::Group {
+            pairs: vec![usar_proto::Pair {
+                key: key.to_string(),
+                value,
+            }],
+        };
+        let mut stamp = String::new();
+        usar_proto::format::push_fixed(&mut stamp, time, 4);
+        let mut groups = vec![
+            group("Time", stamp),
+            group("Robot", (self.serial + 1).to_string()),
+        ];
+        groups.extend(line.groups.iter().cloned());
+        self.notices.push(ServerMessage::Other(usar_proto::Message {
+            kind: "FAULT".to_string(),
+            groups,
+            verbatim: None,
+        }));
+    }
+
+    /// Whether its radio is off at `time` (the robot monitor and the WSS).
+    pub(crate) fn radio_off(&self, time: f64) -> bool {
+        self.radio_off_until
+            .is_some_and(|until| time < until - 1e-9)
     }
 
     /// Whether the robot has crashed.
@@ -550,7 +702,7 @@ impl Robot {
         if self.owner.is_none() {
             return u64::MAX;
         }
-        if self.parts.iter().any(|p| p.forced) {
+        if !self.notices.is_empty() || self.parts.iter().any(|p| p.forced) {
             return 0;
         }
         let parts = self.parts.iter().map(|p| p.timer.due);
@@ -569,6 +721,7 @@ impl Robot {
         let Some(owner) = self.owner else {
             return;
         };
+        out.extend(self.notices.drain(..).map(|n| (owner, n)));
         // Most ticks nothing is due (sensors report every 0.1-0.3 s): return before any work.
         if !self.status.is_due(tick)
             && self
@@ -625,15 +778,30 @@ impl Robot {
                     crashed: self.crashed.is_some(),
                     ray_hit: hits.get(i).copied().flatten(),
                 };
+                if part.fault_until.is_some_and(|until| time >= until - 1e-9) {
+                    (part.fault, part.frozen, part.fault_until) = (SensorFault::Ok, None, None);
+                }
                 if part.fault == SensorFault::Silent {
                     continue;
                 }
-                let data = match (&part.frozen, part.fault) {
+                let mut data = match (&part.frozen, part.fault) {
                     (Some(data), SensorFault::Freeze) => data.clone(),
                     _ => part.sensor.read(&reading, &mut part.noise),
                 };
-                if part.fault == SensorFault::Freeze && part.frozen.is_none() {
-                    part.frozen = Some(data.clone());
+                match part.fault {
+                    SensorFault::Freeze if part.frozen.is_none() => {
+                        part.frozen = Some(data.clone());
+                    }
+                    SensorFault::Drift(rate) => {
+                        let d = rate * (time - part.fault_since);
+                        perturb(&mut data, || d);
+                    }
+                    SensorFault::Bias(b) => perturb(&mut data, || b),
+                    SensorFault::Noise(std) => {
+                        let rng = &mut part.fault_noise;
+                        perturb(&mut data, || std * rng.draw());
+                    }
+                    _ => {}
                 }
                 let time = part.sensor.timestamped().then_some(Time::udk(time));
                 out.push((owner, ServerMessage::Sen(Sen { time, data })));

@@ -122,7 +122,7 @@ impl World {
             robots_per_connection: config.robots_per_connection,
             tiles: config.tiles,
             complaints: BTreeMap::new(),
-            faults: config.faults.faults.iter().cloned().collect(),
+            faults: config.faults.schedule(config.seed).into(),
         }
     }
 
@@ -238,8 +238,11 @@ impl World {
             let Some(f) = self.faults.pop_front() else {
                 break;
             };
-            match self.robot_mut(f.serial) {
-                Some(robot) => robot.fault(&f.fault, tick as f64 * dt),
+            match self.index_of(f.serial) {
+                Some(i) => {
+                    self.robots[i].scheduled_fault(&f.fault, &f.line, tick as f64 * dt);
+                    self.due[i] = self.robots[i].next_due();
+                }
                 None => warn!(robot = f.serial + 1, "planned fault skipped: no such robot"),
             }
         }
@@ -515,6 +518,7 @@ impl World {
                     location,
                     rotation,
                     battery_empty: r.is_dead(self.tick, self.dt),
+                    radio_off: r.radio_off(self.time()),
                 }
             })
             .collect()
@@ -587,6 +591,8 @@ pub struct RobotTruth {
     pub rotation: [f64; 3],
     /// Whether its battery is empty.
     pub battery_empty: bool,
+    /// Whether its radio is off (`FAULT {Radio Off}`, docs/quadrotor.md#faults).
+    pub radio_off: bool,
 }
 
 /// One tick's output as text ([`World::step_printed`]): for each robot that has output,
