@@ -738,3 +738,47 @@ fn gui_prints_the_url_and_serves_the_page() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--local"));
 }
+
+#[test]
+fn faults_of_the_server_are_logged_and_counted_in_the_results() {
+    let dir = scratch("faults");
+    let faults = dir.join("faults.toml");
+    std::fs::write(
+        &faults,
+        "[[fault]]\ntime = 1.0\nrobot = 1\nline = \"FAULT {Sensor Position} {Mode Bias} {Value 0.05}\"\n\
+         [[fault]]\ntime = 2.0\nrobot = 1\nline = \"FAULT {Sensor Position} {Mode Ok}\"\n",
+    )
+    .unwrap();
+    let out = run_local(
+        &dir,
+        2,
+        &[
+            "--robot",
+            "stsQuadrotor",
+            "--quiet",
+            "--faults",
+            faults.to_str().unwrap(),
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let log = std::fs::read_to_string(dir.join("UCCLOG-01.log")).unwrap();
+    assert!(
+        log.contains("fault at t=1.00s: Sensor Position Mode Bias Value 0.05"),
+        "{log}"
+    );
+    let results = std::fs::read_to_string(dir.join("UCCLOG-results.csv")).unwrap();
+    let mut rows = results.lines();
+    let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let column = header
+        .iter()
+        .position(|h| *h == "faults")
+        .expect("a faults column");
+    let counts: Vec<&str> = rows.map(|r| r.split(',').nth(column).unwrap()).collect();
+    // Robot 1 is the first iteration's: the second flies a new robot without faults.
+    assert_eq!(counts, ["2", "0"], "{results}");
+}
