@@ -1638,3 +1638,53 @@ fn scheduled_faults_are_told_to_the_robot_and_read_back_from_a_recording() {
     let again = fly(faults::FaultPlan::from_recording(&recording).expect("read back"));
     assert_eq!(first, again);
 }
+
+// ---- domain randomisation ----
+
+/// Hovers `seconds` in a world seeded `seed` with `ranges`: the draws and the mean rotor
+/// speed at the end.
+fn randomized_hover(ranges: &str, seed: u64) -> (randomize::Drawn, f64, String) {
+    let mut w = World::new(
+        floor_map(100.0),
+        with_gauges(1.0),
+        SimConfig {
+            seed,
+            randomize: Some(randomize::Randomization::from_toml(ranges).expect("ranges")),
+            ..SimConfig::default()
+        },
+    );
+    spawn(&mut w, [0.0, 0.0, -5.0], 0.0);
+    let out = run(&mut w, 4.0);
+    let speeds = last_value(&out, "Rotors", "Speeds");
+    let drawn = w.randomized().remove(0);
+    (drawn, speeds.iter().sum::<f64>() / 4.0, printed(&out))
+}
+
+#[test]
+fn each_robot_draws_its_parameters_and_a_heavier_one_hovers_faster() {
+    let ranges = "mass = [0.7, 1.4]\nnoise = [0.5, 2.0]\n";
+    let (a, wa, out_a) = randomized_hover(ranges, 1);
+    let (b, wb, _) = randomized_hover(ranges, 2);
+    let (again, _, out_again) = randomized_hover(ranges, 1);
+    assert_eq!(a, again, "the same seed, the same draws");
+    assert_eq!(out_a, out_again, "and the same bytes");
+    let (ma, mb) = (a.get("mass").unwrap(), b.get("mass").unwrap());
+    assert_ne!(ma, mb, "two episodes draw different masses");
+    // Hover: 4·kf·ω² = m·g, so ω ∝ √m.
+    let expected = (ma / mb).sqrt();
+    assert!(
+        ((wa / wb) / expected - 1.0).abs() < 0.01,
+        "ω {wa:.1} / {wb:.1} against √(m ratio) {expected:.4}"
+    );
+    let q = quadrotor::QuadrotorConfig::default();
+    let hover = (ma * q.mass * GRAVITY / (4.0 * q.thrust_coefficient)).sqrt();
+    assert!((wa / hover - 1.0).abs() < 0.01, "{wa} vs {hover}");
+    // The robot's connection is told, before its first STA.
+    assert!(
+        out_a.contains(&format!(
+            "RANDOMIZED {{Time 0.0000}} {{Robot 1}} {{mass {ma:.4}}}"
+        )),
+        "{}",
+        &out_a[..300]
+    );
+}

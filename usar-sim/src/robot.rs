@@ -300,6 +300,8 @@ pub(crate) struct Spawn<'a> {
     pub(crate) seed: u64,
     /// The wind robots with physics feel.
     pub(crate) wind: WindConfig,
+    /// Parameter ranges to draw from (`--randomize`).
+    pub(crate) randomize: Option<&'a super::randomize::Randomization>,
 }
 
 /// A crashed kinematic robot falls at this speed, m/s.
@@ -337,6 +339,8 @@ pub(crate) struct Robot {
     radio_off_until: Option<f64>,
     /// Lines for its connection at the next output (faults the server applied on its own).
     notices: Vec<ServerMessage>,
+    /// The parameters drawn for it (`--randomize`).
+    drawn: super::randomize::Drawn,
 }
 
 impl Robot {
@@ -349,6 +353,11 @@ impl Robot {
             return None;
         }
         let phase = phase(spawn.others);
+        let drawn = spawn
+            .randomize
+            .map(|r| r.draw(spawn.seed, spawn.serial))
+            .unwrap_or_default();
+        let noise_scale = drawn.get("noise");
         let parts = model
             .parts
             .iter()
@@ -362,6 +371,13 @@ impl Robot {
                 fault_since: 0.0,
                 fault_until: None,
                 fault_noise: Noise::new(spawn.seed, spawn.serial, FAULT_STREAM + p.index, 0.0),
+            })
+            .map(|mut part: Part| {
+                if let Some(k) = noise_scale {
+                    part.noise.scale(k);
+                    part.sensor.scale_noise(k);
+                }
+                part
             })
             .collect();
         let actuators = class
@@ -388,7 +404,11 @@ impl Robot {
         let dynamics: Option<Box<dyn Dynamics>> = match class.dynamics {
             DynamicsKind::Kinematic => None,
             DynamicsKind::Quadrotor => Some(Box::new(Quadrotor::new(
-                class.quadrotor.clone(),
+                {
+                    let mut q = class.quadrotor.clone();
+                    drawn.apply(&mut q);
+                    q
+                },
                 quadrotor::Limits {
                     max_tilt: class.flight.max_tilt.abs().to_radians().clamp(0.01, 1.4),
                     max_climb: class.flight.max_altitude_speed,
@@ -397,7 +417,7 @@ impl Robot {
                     battery: class.battery.is_some(),
                 },
                 spawn.rotation,
-                spawn.wind,
+                drawn.wind(spawn.wind),
                 spawn.seed,
                 spawn.serial,
                 spawn.dt,
@@ -424,7 +444,48 @@ impl Robot {
             actuators,
             radio_off_until: None,
             notices: Vec::new(),
+            drawn,
         })
+        .map(|mut robot| {
+            if !robot.drawn.0.is_empty() {
+                let time = spawn.tick as f64 * spawn.dt;
+                tracing::info!(
+                    serial = robot.serial,
+                    time,
+                    "randomized: {:?}",
+                    robot.drawn.0
+                );
+                robot.notice("RANDOMIZED", time, robot.drawn.groups());
+            }
+            robot
+        })
+    }
+
+    /// Queues `KIND {Time t} {Robot n} <groups>` for its connection (a notice of ours).
+    fn notice(&mut self, kind: &str, time: f64, rest: Vec<usar_proto::Group>) {
+        let group = |key: &str, value: String| usar_proto::Group {
+            pairs: vec![usar_proto::Pair {
+                key: key.to_string(),
+                value,
+            }],
+        };
+        let mut stamp = String::new();
+        usar_proto::format::push_fixed(&mut stamp, time, 4);
+        let mut groups = vec![
+            group("Time", stamp),
+            group("Robot", (self.serial + 1).to_string()),
+        ];
+        groups.extend(rest);
+        self.notices.push(ServerMessage::Other(usar_proto::Message {
+            kind: kind.to_string(),
+            groups,
+            verbatim: None,
+        }));
+    }
+
+    /// The parameters drawn for it (`--randomize`; empty without).
+    pub(crate) fn drawn(&self) -> &super::randomize::Drawn {
+        &self.drawn
     }
 
     /// Removes its body from the scene.
@@ -519,24 +580,7 @@ impl Robot {
     /// with `FAULT {Time t} {Robot n} <the fault's groups>` (docs/quadrotor.md#faults).
     pub(crate) fn scheduled_fault(&mut self, fault: &Fault, line: &usar_proto::Message, time: f64) {
         self.fault(fault, time);
-        let group = |key: &str, value: String| usar_proto::Group {
-            pairs: vec![usar_proto::Pair {
-                key: key.to_string(),
-                value,
-            }],
-        };
-        let mut stamp = String::new();
-        usar_proto::format::push_fixed(&mut stamp, time, 4);
-        let mut groups = vec![
-            group("Time", stamp),
-            group("Robot", (self.serial + 1).to_string()),
-        ];
-        groups.extend(line.groups.iter().cloned());
-        self.notices.push(ServerMessage::Other(usar_proto::Message {
-            kind: "FAULT".to_string(),
-            groups,
-            verbatim: None,
-        }));
+        self.notice("FAULT", time, line.groups.clone());
     }
 
     /// Whether its radio is off at `time` (the robot monitor and the WSS).

@@ -56,6 +56,8 @@ pub struct World {
     complaints: BTreeMap<ClientId, Repeats>,
     /// Faults still to come, in time order.
     faults: std::collections::VecDeque<super::faults::PlannedFault>,
+    /// Parameter ranges each robot draws from at its spawn.
+    randomize: Option<super::randomize::Randomization>,
 }
 
 /// Whether to log a warning about `client`'s command: the first few in full, then a
@@ -123,6 +125,7 @@ impl World {
             tiles: config.tiles,
             complaints: BTreeMap::new(),
             faults: config.faults.schedule(config.seed).into(),
+            randomize: config.randomize,
         }
     }
 
@@ -343,6 +346,7 @@ impl World {
             dt: self.dt,
             seed: self.seed,
             wind: self.wind,
+            randomize: self.randomize.as_ref(),
         };
         let Some(robot) = Robot::spawn(spawn, &mut self.scene) else {
             if let Some(n) = complain(&mut self.complaints, client) {
@@ -522,6 +526,11 @@ impl World {
                 }
             })
             .collect()
+    }
+
+    /// The parameters each robot drew (`SimConfig::randomize`), in spawn order.
+    pub fn randomized(&self) -> Vec<super::randomize::Drawn> {
+        self.robots.iter().map(|r| r.drawn().clone()).collect()
     }
 
     /// The map's victims and objects.

@@ -205,6 +205,10 @@ pub(crate) trait Sensor: SensorClone + std::fmt::Debug + Send + Sync {
         let _ = (opcode, params);
         false
     }
+    /// Its error model's noise, bias and bias walk times `k` (domain randomisation).
+    fn scale_noise(&mut self, k: f64) {
+        let _ = k;
+    }
     /// The camera, if this part is one (rendered by `World::render_cameras`).
     fn camera(&self) -> Option<&camera::Camera> {
         None
