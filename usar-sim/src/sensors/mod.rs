@@ -6,6 +6,7 @@
 //! to `REGISTRY`.
 
 mod altitude;
+mod barometer;
 mod battery;
 pub(crate) mod camera;
 mod compass;
@@ -245,6 +246,7 @@ pub(crate) const REGISTRY: &[SensorKind] = &[
     kind("Touch", 0.1, touch::build),
     kind("Battery", 0.1, battery::build),
     kind("Rotors", 0.1, rotors::build),
+    kind("Barometer", 0.05, barometer::build),
     kind("VictSensor", 0.8, victim::build),
 ];
 
