@@ -27,7 +27,7 @@ const EXPONENT: f64 = 5.255_88;
 /// Barometer settings.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct BarometerConfig {
+pub(crate) struct BarometerConfig {
     /// Height of the spawn point above sea level, m.
     pub sea_level: f64,
     /// Pressure errors, Pa (noise, bias, bias walk, quantum, ...). Default: the white noise
