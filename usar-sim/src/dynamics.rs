@@ -153,6 +153,15 @@ pub(crate) fn parse_fault(message: &Message) -> Result<Fault, String> {
             Err(format!("{{{key} {v}}}: expected a fraction within [0, 1]"))
         }
     };
+    // Sizes of drift, bias and noise: at most a million units (no infinity on the wire).
+    let size = |key: &str| -> Result<f64, String> {
+        let v = number(key)?;
+        if v.abs() <= 1e6 {
+            Ok(v)
+        } else {
+            Err(format!("{{{key} {v}}}: expected at most 1e6 in size"))
+        }
+    };
     let duration = || -> Result<Option<f64>, String> {
         if message.get("Duration").is_none() {
             return Ok(None);
@@ -189,10 +198,10 @@ pub(crate) fn parse_fault(message: &Message) -> Result<Fault, String> {
             m if m.eq_ignore_ascii_case("silent") => SensorFault::Silent,
             m if m.eq_ignore_ascii_case("freeze") => SensorFault::Freeze,
             m if m.eq_ignore_ascii_case("ok") => SensorFault::Ok,
-            m if m.eq_ignore_ascii_case("drift") => SensorFault::Drift(number("Rate")?),
-            m if m.eq_ignore_ascii_case("bias") => SensorFault::Bias(number("Value")?),
+            m if m.eq_ignore_ascii_case("drift") => SensorFault::Drift(size("Rate")?),
+            m if m.eq_ignore_ascii_case("bias") => SensorFault::Bias(size("Value")?),
             m if m.eq_ignore_ascii_case("noise") => {
-                let std = number("Std")?;
+                let std = size("Std")?;
                 if std < 0.0 {
                     return Err(format!("{{Std {std}}}: expected a standard deviation >= 0"));
                 }

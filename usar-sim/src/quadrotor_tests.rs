@@ -1402,6 +1402,11 @@ fn bad_fault_lines_say_what_is_wrong() {
             .unwrap_err()
             .contains("Off or On")
     );
+    assert!(
+        parse("FAULT {Sensor IMU} {Mode Noise} {Std 1e308}")
+            .unwrap_err()
+            .contains("1e6")
+    );
     assert_eq!(
         parse("FAULT {Radio off} {Duration 2}"),
         Ok(dynamics::Fault::Radio {
