@@ -96,3 +96,15 @@ def test_reset_options_and_the_vector_env():
     assert len(masses) == 2 and masses[0] != masses[1]
     assert obs["rotor_speeds"].shape == (2, 4)
     assert venv.single_observation_space["rotor_speeds"].shape == (4,)
+
+
+def test_the_draws_after_an_autoreset():
+    venv = UsarsimVectorEnv(2, "hover", robot="stsQuadrotor", state_only=True, max_steps=2)
+    venv.configure(randomize="mass = [0.8, 1.2]")
+    _, info = venv.reset(seed=1)
+    before = [d["mass"] for d in venv.randomized()]
+    assert before == [d["mass"] for d in info["randomized"]]
+    for _ in range(3):
+        venv.step(np.zeros((2, 4)))
+    after = [d["mass"] for d in venv.randomized()]
+    assert after != before and all(0.8 <= m <= 1.2 for m in after)

@@ -103,7 +103,7 @@ class Realism:
         if options and ("faults" in options or "randomize" in options):
             self.configure(faults=options.get("faults"), randomize=options.get("randomize"))
 
-    def _randomized(self):
+    def randomized(self):
         """The parameters each UAV drew at the last reset (empty dicts without)."""
         return self._batch.randomized()
 
@@ -196,8 +196,8 @@ class UsarsimEnv(Realism, Replay, gym.Env):
         self._trail = [raw["position"][0, :2].copy()]
         self._ended = False
         info = {"lockstep": self._remote.lockstep if self._remote else True}
-        if self._remote is None and self._randomized()[0]:
-            info["randomized"] = self._randomized()[0]
+        if self._remote is None and self.randomized()[0]:
+            info["randomized"] = self.randomized()[0]
         return self._tasks.row(self._tasks.observe(raw), 0), info
 
     def step(self, action):
@@ -334,7 +334,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         self._autoreset[:] = False
         raw = self._batch.observe()
         self._tasks.begin(raw, rows)
-        drawn = self._randomized()
+        drawn = self.randomized()
         return self._tasks.observe(raw), ({"randomized": drawn} if any(drawn) else {})
 
     def _new_worlds(self, rows, options=None):
