@@ -1693,3 +1693,33 @@ fn each_robot_draws_its_parameters_and_a_heavier_one_hovers_faster() {
         &out_a[..300]
     );
 }
+
+#[test]
+fn randomised_noise_scales_every_sensor_error_and_wind_drifts() {
+    let gyro_std = |ranges: Option<&str>| {
+        let mut w = World::new(
+            floor_map(100.0),
+            RobotCatalog::embedded(),
+            SimConfig {
+                seed: 3,
+                randomize: ranges.map(|r| randomize::Randomization::from_toml(r).unwrap()),
+                ..SimConfig::default()
+            },
+        );
+        let c = spawn(&mut w, [0.0, 0.0, -5.0], 0.0);
+        let out = run(&mut w, 20.0);
+        let z: Vec<f64> = imu_lines(&out).iter().map(|(_, w)| w.z).collect();
+        let mean = z.iter().sum::<f64>() / z.len() as f64;
+        let std = (z.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / z.len() as f64).sqrt();
+        (std, state(&w, c).0)
+    };
+    let (plain, _) = gyro_std(None);
+    let (tripled, _) = gyro_std(Some("noise = [3.0, 3.0]\n"));
+    assert!(
+        (tripled / plain / 3.0 - 1.0).abs() < 0.25,
+        "gyro σ {plain:.2e} → {tripled:.2e}"
+    );
+    // A drawn wind of 2 m/s carries an uncommanded vehicle away.
+    let (_, p) = gyro_std(Some("wind = [2.0, 2.0]\n"));
+    assert!(p[0].hypot(p[1]) > 1.0, "drifted: {p:?}");
+}
