@@ -227,6 +227,9 @@ impl Flight {
         if self.uav.apply(message) && self.phase != Phase::Connected {
             self.frame = Some(self.uav.time.unwrap_or(0.0));
         }
+        if let ServerMessage::Other(m) = message {
+            self.notice(&m.kind);
+        }
         if self.uav.battery_empty() && self.phase == Phase::Flying {
             let time = self.uav.time.unwrap_or(0.0);
             self.fail(RunError::BatteryEmpty { time });
@@ -313,6 +316,32 @@ impl Flight {
     /// The record, for writing the iteration's files.
     pub fn into_record(self) -> FlightRecord {
         self.record
+    }
+
+    /// A fault the server applied, or the parameters it drew: logged (as a warning: the
+    /// browser shows it too), counted and kept for the results.
+    fn notice(&mut self, kind: &str) {
+        let message = if kind.eq_ignore_ascii_case("FAULT")
+            && let Some(f) = self.uav.faults.last()
+        {
+            self.record.faults += 1;
+            format!(
+                "fault at t={}s: {}",
+                crate::geometry::Num(f.time, 2),
+                f.value
+            )
+        } else if kind.eq_ignore_ascii_case("RANDOMIZED")
+            && let Some(r) = &self.uav.randomized
+        {
+            self.record.randomized = Some(r.value.clone());
+            format!("randomized: {}", r.value)
+        } else {
+            return;
+        };
+        self.report(Progress::Warning {
+            iteration: self.iteration,
+            message,
+        });
     }
 
     fn report(&mut self, progress: Progress) {

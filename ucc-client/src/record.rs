@@ -30,6 +30,10 @@ pub struct FlightRecord {
     pub map: Option<String>,
     /// Whether the connection was made (nothing worth a file happened otherwise).
     pub connected: bool,
+    /// Faults the server applied during the flight (`usar-server --faults`).
+    pub faults: usize,
+    /// The parameters the server drew for the robot (`--randomize`), as `mass 1.3021 ..`.
+    pub randomized: Option<String>,
 }
 
 impl FlightRecord {

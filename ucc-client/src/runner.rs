@@ -122,6 +122,8 @@ pub async fn run(
             simulated_seconds: record.simulated_seconds(),
             trajectory: record.trajectory.clone(),
             files: iteration_files(settings, &record),
+            faults: record.faults,
+            randomized: record.randomized.clone().unwrap_or_default(),
         };
         let shared = Arc::clone(&shared);
         writing = Some(tokio::task::spawn_blocking(move || {

@@ -48,6 +48,10 @@ pub struct IterationSummary {
     pub trajectory: Vec<TrajectoryPoint>,
     /// Files written for this iteration.
     pub files: Vec<PathBuf>,
+    /// Faults the server applied (`usar-server --faults`).
+    pub faults: usize,
+    /// The parameters drawn for the robot (`--randomize`), as `mass 1.3021 kf 1.02 ..`.
+    pub randomized: String,
 }
 
 impl IterationSummary {
@@ -249,7 +253,7 @@ impl ResultsTable {
                 let mut out = std::io::BufWriter::new(std::fs::File::create(&self.path)?);
                 writeln!(
                     out,
-                    "iteration,status,missions_done,duration_s,distance_m,deviation_m,simulated_s,error"
+                    "iteration,status,missions_done,duration_s,distance_m,deviation_m,simulated_s,faults,randomized,error"
                 )?;
                 self.out.insert(out)
             }
@@ -257,7 +261,7 @@ impl ResultsTable {
         self.rows += 1;
         writeln!(
             out,
-            "{},{},{},{:.4},{:.4},{},{:.4},{}",
+            "{},{},{},{:.4},{:.4},{},{:.4},{},{},{}",
             self.rows,
             i.status.word(),
             i.missions_done,
@@ -265,6 +269,8 @@ impl ResultsTable {
             i.distance,
             deviation.map_or(String::new(), |d| format!("{d:.4}")),
             i.simulated_seconds,
+            i.faults,
+            i.randomized.replace([',', '\n'], " "),
             i.error().unwrap_or("").replace([',', '\n'], " "),
         )?;
         out.flush()

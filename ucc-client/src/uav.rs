@@ -148,6 +148,12 @@ pub struct UavState {
     /// What the latest VictSensor reading saw: victims' body parts (empty: no victims in
     /// view).
     pub victims: Option<Reading<Vec<VictimSighting>>>,
+    /// The faults the server applied on its own (`usar-server --faults`): each
+    /// `FAULT {Time t} {Robot n} ..` line's fault, as `Motor 1 Thrust 0`, in order.
+    pub faults: Vec<Reading<String>>,
+    /// The parameters the server drew for this robot (`--randomize`, a `RANDOMIZED` line),
+    /// as `mass 1.3021 kf 1.02 ..`.
+    pub randomized: Option<Reading<String>>,
     /// The z of the dead-reckoning origin (the spawn point).
     reckoning_origin_z: Option<f64>,
     /// The battery value taken as "full".
@@ -207,6 +213,30 @@ impl UavState {
             ServerMessage::Sen(sen) => {
                 let time = self.stamp(sen.time.map(|t| t.seconds));
                 self.apply_sensor(&sen.data, time)
+            }
+            // usar-server's notices (docs/quadrotor.md#faults, #domain-randomisation).
+            ServerMessage::Other(m)
+                if m.kind.eq_ignore_ascii_case("FAULT")
+                    || m.kind.eq_ignore_ascii_case("RANDOMIZED") =>
+            {
+                let time = self.stamp(m.get("Time").and_then(|t| t.trim().parse().ok()));
+                let value = m
+                    .groups
+                    .iter()
+                    .flat_map(|g| &g.pairs)
+                    .filter(|p| {
+                        !p.key.eq_ignore_ascii_case("Time") && !p.key.eq_ignore_ascii_case("Robot")
+                    })
+                    .map(|p| format!("{} {}", p.key, p.value))
+                    .collect::<Vec<_>>()
+                    .join(" ");
+                let reading = Reading { value, time };
+                if m.kind.eq_ignore_ascii_case("FAULT") {
+                    self.faults.push(reading);
+                } else {
+                    self.randomized = Some(reading);
+                }
+                false
             }
             _ => false,
         }

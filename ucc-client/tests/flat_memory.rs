@@ -40,6 +40,8 @@ fn iteration(n: usize, points: usize) -> IterationSummary {
         simulated_seconds: points as f64 * 0.1,
         trajectory,
         files: vec!["UCCLOG-01.log".into(), "UCCLOG-01-trajectory.csv".into()],
+        faults: 0,
+        randomized: String::new(),
     }
 }
 

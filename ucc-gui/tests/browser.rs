@@ -745,6 +745,54 @@ async fn a_long_loops_state_keeps_the_map_alive() -> Result<()> {
     .await
 }
 
+/// A fault the server applies (`--faults`) shows on the UAV's panel and in the log.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fault_shows_on_the_uav_panel_and_in_the_log() -> Result<()> {
+    let mut config = ServerConfig {
+        time_scale: TimeScale::Factor(2.0),
+        lockstep: true,
+        ..ServerConfig::default()
+    };
+    config.sim.faults = usar_server::sim::faults::FaultPlan::from_toml(
+        "[[fault]]\ntime = 0.5\nrobot = 1\nline = \"FAULT {Sensor Position} {Mode Bias} {Value 0.1}\"\n",
+    )
+    .unwrap();
+    with_page(
+        ServerChoice::Local(Box::new(config)),
+        (1400, 900),
+        1.0,
+        |c, url, _| async move {
+            open(&c, &url).await?;
+            create_uav(&c, "", "0,0,-1").await?;
+            type_into(&c, "mission-x", "3").await?;
+            type_into(&c, "mission-y", "0").await?;
+            by_id(&c, "mission-add").await?.click().await?;
+            by_id(&c, "start").await?.click().await?;
+            until("the fault on the panel", 60, || async {
+                Ok(text(&c, "uav-faults")
+                    .await?
+                    .contains("Sensor Position Mode Bias Value 0.1"))
+            })
+            .await?;
+            let shown = text(&c, "uav-faults").await?;
+            assert!(
+                shown.starts_with("1: ") && shown.contains("t=0.50"),
+                "{shown}"
+            );
+            until("the fault in the log", 30, || async {
+                Ok(text(&c, "log").await?.contains("fault at t=0.50s"))
+            })
+            .await?;
+            let dir = artifacts();
+            std::fs::create_dir_all(&dir)?;
+            std::fs::write(dir.join("fault.png"), c.screenshot().await?)?;
+            by_id(&c, "stop").await?.click().await?;
+            Ok(())
+        },
+    )
+    .await
+}
+
 /// Defect 3: the download links stay put while nothing changes (a held click reaches
 /// them), and a long run does not grow the list without bound.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -808,3 +808,109 @@ fn scenario_lists_runs_writes_its_files_and_names_a_bad_line() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn faults_of_the_server_are_logged_and_counted_in_the_results() {
+    let dir = scratch("faults");
+    let faults = dir.join("faults.toml");
+    std::fs::write(
+        &faults,
+        "[[fault]]\ntime = 1.0\nrobot = 1\nline = \"FAULT {Sensor Position} {Mode Bias} {Value 0.05}\"\n\
+         [[fault]]\ntime = 2.0\nrobot = 1\nline = \"FAULT {Sensor Position} {Mode Ok}\"\n",
+    )
+    .unwrap();
+    let out = run_local(
+        &dir,
+        2,
+        &[
+            "--robot",
+            "stsQuadrotor",
+            "--quiet",
+            "--faults",
+            faults.to_str().unwrap(),
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let log = std::fs::read_to_string(dir.join("UCCLOG-01.log")).unwrap();
+    assert!(
+        log.contains("fault at t=1.00s: Sensor Position Mode Bias Value 0.05"),
+        "{log}"
+    );
+    let results = std::fs::read_to_string(dir.join("UCCLOG-results.csv")).unwrap();
+    let mut rows = results.lines();
+    let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let column = header
+        .iter()
+        .position(|h| *h == "faults")
+        .expect("a faults column");
+    let counts: Vec<&str> = rows.map(|r| r.split(',').nth(column).unwrap()).collect();
+    // Robot 1 is the first iteration's: the second flies a new robot without faults.
+    assert_eq!(counts, ["2", "0"], "{results}");
+}
+
+#[test]
+fn randomize_draws_per_iteration_and_writes_the_draws() {
+    let dir = scratch("randomize");
+    let ranges = dir.join("ranges.toml");
+    std::fs::write(&ranges, "mass = [0.8, 1.2]\nwind = [0, 1]\n").unwrap();
+    let run = |dir: &Path| {
+        let out = run_local(
+            dir,
+            2,
+            &[
+                "--robot",
+                "stsQuadrotor",
+                "--quiet",
+                "--seed",
+                "4",
+                "--randomize",
+                ranges.to_str().unwrap(),
+            ],
+        );
+        assert!(
+            out.status.success(),
+            "{}\n{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let results = std::fs::read_to_string(dir.join("UCCLOG-results.csv")).unwrap();
+        let mut rows = results.lines();
+        let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+        let column = header.iter().position(|h| *h == "randomized").unwrap();
+        rows.map(|r| r.split(',').nth(column).unwrap().to_owned())
+            .collect::<Vec<_>>()
+    };
+    let draws = run(&dir);
+    assert_eq!(draws.len(), 2);
+    assert!(
+        draws[0].starts_with("mass 0.") || draws[0].starts_with("mass 1."),
+        "{draws:?}"
+    );
+    assert_ne!(draws[0], draws[1], "each iteration draws its own");
+    let log = std::fs::read_to_string(dir.join("UCCLOG-01.log")).unwrap();
+    assert!(log.contains(&format!("randomized: {}", draws[0])), "{log}");
+    let again = scratch("randomize-again");
+    assert_eq!(run(&again), draws, "the same seed, the same draws");
+    // A bad file names the file, the line and the key.
+    std::fs::write(&ranges, "mass = [0.8, 1.2]\nkf = [2, 1]\n").unwrap();
+    let out = ucc()
+        .args([
+            "run",
+            "--local",
+            "--start",
+            "0,0,-1",
+            "--randomize",
+            ranges.to_str().unwrap(),
+        ])
+        .args(["--goto", "1,0,-1"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("ranges.toml: line 2: key `kf`"), "{stderr}");
+}

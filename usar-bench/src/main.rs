@@ -82,6 +82,12 @@ struct Args {
     /// delivered), doubling from --uavs and then bisecting.
     #[arg(long)]
     sweep: bool,
+    /// With --sim-only: the per-robot cost of each stsQuadrotor model part. Runs --uavs
+    /// stsQuadrotors with every part on, then with each of energy, sensor noise, ground
+    /// effect and drag off, and with faults (a noisy IMU and a weak motor per robot) on,
+    /// and prints µs per robot per tick for each.
+    #[arg(long, requires = "sim_only")]
+    parts: bool,
     /// Robot class to fly: `stsAirRobot` (kinematic) or `stsQuadrotor` (rigid-body
     /// quadrotor with the same parts plus a Crash touch sensor), or `Package.Class`.
     #[arg(long, default_value = "stsAirRobot")]
@@ -246,6 +252,9 @@ fn bench(args: &Args) -> anyhow::Result<()> {
     }
     if args.sim_only && !args.scaling.is_empty() {
         return scaling(&args);
+    }
+    if args.sim_only && args.parts {
+        return parts(&args);
     }
     if args.sim_only {
         return sim_only(&args).map(|_| ());
@@ -497,13 +506,117 @@ fn plot_scaling(path: &std::path::Path, curve: &[(usize, Stat, Stat)]) -> anyhow
     draw().map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", path.display()))
 }
 
+/// The per-robot cost of each stsQuadrotor model part (`--sim-only --parts`).
+fn parts(args: &Args) -> anyhow::Result<()> {
+    use usar_sim::faults::FaultPlan;
+    use usar_sim::robots::RobotCatalog;
+    let mut args = args.clone();
+    args.robot = "stsQuadrotor".into();
+    let class = args.class();
+    let variant = |change: &dyn Fn(&mut usar_sim::RobotClass)| {
+        let mut catalog = RobotCatalog::embedded();
+        if let Some(c) = catalog.get_mut(&class) {
+            change(c);
+        }
+        catalog
+    };
+    let faults = {
+        let mut text = String::new();
+        for robot in 1..=args.uavs {
+            for line in [
+                "FAULT {Sensor IMU} {Mode Noise} {Std 0.01}",
+                "FAULT {Motor 2} {Thrust 0.95}",
+            ] {
+                text.push_str(&format!(
+                    "[[fault]]\ntime = 0.0\nrobot = {robot}\nline = \"{line}\"\n"
+                ));
+            }
+        }
+        FaultPlan::from_toml(&text).map_err(anyhow::Error::msg)?
+    };
+    let runs: Vec<(&str, RobotCatalog, FaultPlan)> = vec![
+        ("all parts on", variant(&|_| {}), FaultPlan::default()),
+        (
+            "energy off",
+            variant(&|c| c.battery = None),
+            FaultPlan::default(),
+        ),
+        (
+            "sensor noise off",
+            variant(&|c| {
+                for p in &mut c.parts {
+                    p.noise = 0.0;
+                    if p.kind == "IMU" {
+                        p.settings = Default::default();
+                    }
+                }
+            }),
+            FaultPlan::default(),
+        ),
+        (
+            "ground effect off",
+            variant(&|c| c.quadrotor.ground_effect = false),
+            FaultPlan::default(),
+        ),
+        (
+            "drag off",
+            variant(&|c| {
+                c.quadrotor.drag_linear = 0.0;
+                c.quadrotor.drag_quadratic = 0.0;
+            }),
+            FaultPlan::default(),
+        ),
+        ("faults on", variant(&|_| {}), faults),
+    ];
+    let mut table = Vec::new();
+    for (name, catalog, faults) in runs {
+        say!("--- {name}");
+        let cost = sim_only_in(&args, catalog, faults)?;
+        table.push((name, cost.tick / args.uavs as f64, cost.rtf));
+    }
+    let base = table[0].1;
+    say!(
+        "per-robot cost of each stsQuadrotor part, {} robots, {} s simulated, {} thread(s):",
+        args.uavs,
+        args.seconds,
+        args.threads.unwrap_or_else(usar_sim::default_threads)
+    );
+    say!(
+        "{:>20} {:>14} {:>12} {:>8}",
+        "run",
+        "µs/robot/tick",
+        "vs all on",
+        "RTF"
+    );
+    for (name, per, rtf) in &table {
+        say!(
+            "{name:>20} {per:>14.2} {:>+11.1}% {rtf:>8.2}",
+            (per / base - 1.0) * 100.0
+        );
+    }
+    Ok(())
+}
+
 /// Steps a world with `--uavs` robots for `--seconds` and prints the cost per tick.
 fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
+    sim_only_in(
+        args,
+        usar_sim::robots::RobotCatalog::embedded(),
+        usar_sim::faults::FaultPlan::default(),
+    )
+}
+
+/// [`sim_only`] with a catalog and faults.
+fn sim_only_in(
+    args: &Args,
+    catalog: usar_sim::robots::RobotCatalog,
+    faults: usar_sim::faults::FaultPlan,
+) -> anyhow::Result<SimCost> {
     use usar_proto::{Command, Drive, Init, Vec3};
     let mut args = args.clone();
     plan_layout(&mut args)?;
     let args = &args;
-    use usar_sim::{SimConfig, World, map::Map, robots::RobotCatalog};
+    use usar_sim::{SimConfig, World, map::Map};
     let map = match &args.map {
         None => Map::default_map(),
         Some(name) => Map::lookup(name)?,
@@ -511,9 +624,10 @@ fn sim_only(args: &Args) -> anyhow::Result<SimCost> {
     let start = map.starts().first().context("no start pose")?.location;
     let config = SimConfig {
         threads: args.threads.unwrap_or_else(usar_sim::default_threads),
+        faults,
         ..SimConfig::default()
     };
-    let mut world = World::new(map, RobotCatalog::embedded(), config);
+    let mut world = World::new(map, catalog, config);
     world.set_shortcuts(!args.reference);
     let live_before = live_bytes();
     let mut clients = Vec::new();

@@ -41,9 +41,15 @@ pub struct ServerArgs {
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub gust_length: Option<f64>,
     /// Faults scheduled in simulated time (TOML, see docs/quadrotor.md#faults): `FAULT`
-    /// lines for robots by spawn number.
+    /// lines for robots by spawn number, at fixed or seeded random times; or a recording,
+    /// whose server `FAULT` lines are read back.
     #[arg(long, value_name = "FILE")]
     pub faults: Option<PathBuf>,
+    /// Domain randomisation (TOML, see docs/quadrotor.md#domain-randomisation): each robot
+    /// spawned draws its mass, inertia, k_F, k_M, motor constants, drag, wind and sensor
+    /// noise from these ranges, seeded by --seed and its spawn number.
+    #[arg(long, value_name = "FILE")]
+    pub randomize: Option<PathBuf>,
 }
 
 /// Options that do not make a world: a map or catalog that does not load, or wind out of
@@ -64,6 +70,9 @@ pub enum ArgsError {
     /// `--faults FILE` did not load.
     #[error("--faults {0}")]
     Faults(String),
+    /// `--randomize FILE` did not load.
+    #[error("--randomize {0}")]
+    Randomize(String),
 }
 
 impl ServerArgs {
@@ -97,6 +106,12 @@ impl ServerArgs {
         if let Some(path) = &self.faults {
             config.sim.faults =
                 crate::sim::faults::FaultPlan::from_file(path).map_err(ArgsError::Faults)?;
+        }
+        if let Some(path) = &self.randomize {
+            config.sim.randomize = Some(
+                crate::sim::randomize::Randomization::from_file(path)
+                    .map_err(ArgsError::Randomize)?,
+            );
         }
         Ok(config)
     }

@@ -315,3 +315,90 @@ async fn only_the_first_lockstep_clients_may_join_the_barrier() {
     }
     server.stop().await;
 }
+
+/// A lockstep server with `faults` recording into `record`.
+async fn faulty_server(
+    faults: usar_server::sim::faults::FaultPlan,
+    record: Option<std::path::PathBuf>,
+) -> TestServer {
+    let mut config = ServerConfig {
+        time_scale: TimeScale::Max,
+        lockstep: true,
+        record,
+        ..ServerConfig::default()
+    };
+    config.sim.seed = 5;
+    config.sim.faults = faults;
+    TestServer::with(config).await
+}
+
+/// Sends the client lines of a recording in lockstep (each `SYNC` waits for its answer)
+/// and returns every line received, without terminators.
+async fn resend(c: &mut Client, client_lines: &[String]) -> Vec<String> {
+    let mut seen = vec![c.raw_line().await.unwrap()];
+    for line in client_lines {
+        c.send(line).await;
+        if line.starts_with("SYNC") {
+            seen.extend(until_sync(c).await.0);
+        } else if line.starts_with("GETSTARTPOSES") {
+            seen.push(c.raw_line().await.unwrap());
+        }
+    }
+    seen.iter().map(|l| l.trim_end().to_owned()).collect()
+}
+
+#[tokio::test]
+async fn a_faulty_run_is_reproduced_from_its_recording_alone() {
+    let dir = std::env::temp_dir().join(format!("usar-faulty-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let plan = usar_server::sim::faults::FaultPlan::from_toml(
+        "[[fault]]\ntime = 1.0\nrobot = 1\nline = \"FAULT {Motor 2} {Thrust 0.6}\"\n\
+         [[random]]\nprobability = 0.5\nrobot = 1\nline = \"FAULT {Sensor Position} {Mode Drift} {Rate 0.3}\"\n",
+    )
+    .unwrap();
+    // The run: a lockstep flight with the faults, recorded by the server.
+    let server = faulty_server(plan, Some(dir.clone())).await;
+    let mut c = server.client().await;
+    let mut lines = vec!["SYNC {Time 0}".to_string()];
+    lines.push("INIT {ClassName USARBot.stsQuadrotor} {Location 0,0,-2}".into());
+    for k in 1..=40 {
+        if k == 5 {
+            lines.push("DRIVE {LinearVelocity 1}".into());
+        }
+        lines.push(format!("SYNC {{Time {:.1}}}", f64::from(k) * 0.1));
+    }
+    let seen = resend(&mut c, &lines).await;
+    drop(c);
+    server.stop().await;
+    assert!(
+        seen.iter().filter(|l| l.starts_with("FAULT {Time")).count() == 2,
+        "the server told of both faults: {:?}",
+        seen.iter()
+            .filter(|l| l.starts_with("FAULT"))
+            .collect::<Vec<_>>()
+    );
+    let file = dir.join("connection-0001.usarlog");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let (mut client_lines, mut server_lines) = (Vec::new(), Vec::new());
+    for line in text.lines() {
+        if let Some(e) = usar_proto::record::parse_entry(line).unwrap() {
+            match e.direction {
+                usar_proto::record::Direction::Client => client_lines.push(e.text.to_owned()),
+                usar_proto::record::Direction::Server => server_lines.push(e.text.to_owned()),
+            }
+        }
+    }
+    assert_eq!(
+        server_lines, seen,
+        "the recording holds what the client saw"
+    );
+    // Again from the recording alone: its FAULT lines are the faults (`--faults REC`), its
+    // client lines the commands.
+    let plan = usar_server::sim::faults::FaultPlan::from_file(&file).unwrap();
+    let server = faulty_server(plan, None).await;
+    let mut c = server.client().await;
+    let again = resend(&mut c, &client_lines).await;
+    server.stop().await;
+    assert_eq!(again, server_lines, "the same bytes");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -509,6 +509,41 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
     assert!(sent.is_err(), "the relay does not take an unbounded flood");
     drop(accepted);
 
+    // A radio fault on the BaseStation: out of range while it lasts, then the link resumes.
+    base.write_all(b"FAULT {Radio Off}\r\n").await.unwrap();
+    let mut off = String::new();
+    for _ in 0..600 {
+        off = a.ask("GETSS {Robot BaseStation}").await;
+        if off.contains("Radio.Off") {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert_eq!(
+        off,
+        "SS {Robot BaseStation} {Strength -INF} {Error Radio.Off}"
+    );
+    let mut refused = false;
+    for _ in 0..100 {
+        if TcpStream::connect(("127.0.0.1", port)).await.is_err() {
+            refused = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert!(refused, "no relay while the radio is off");
+    base.write_all(b"FAULT {Radio On}\r\n").await.unwrap();
+    let mut resumed = false;
+    for _ in 0..600 {
+        if strength(&mut a).await >= -93.0 && TcpStream::connect(("127.0.0.1", port)).await.is_ok()
+        {
+            resumed = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert!(resumed, "the link resumes when the radio is on again");
+
     // A name no robot in the simulation has: kicked at the next poll.
     let mut ghost = Control::connect(wss_at).await;
     assert_eq!(

@@ -104,12 +104,20 @@ pub(crate) enum Fault {
     Motor { rotor: usize, thrust: f64 },
     /// The battery loses this fraction of the charge it has.
     Battery { loss: f64 },
-    /// Part `name` goes silent, freezes, or works again.
-    Sensor { name: String, mode: SensorFault },
+    /// Part `name` goes silent, freezes, drifts, adds noise or a bias, or works again; for
+    /// `duration` seconds when given (then it works again).
+    Sensor {
+        name: String,
+        mode: SensorFault,
+        duration: Option<f64>,
+    },
+    /// The robot's radio goes off (the WSS sees it out of range) or on again; off for
+    /// `duration` seconds when given.
+    Radio { on: bool, duration: Option<f64> },
 }
 
 /// What a sensor fault does.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum SensorFault {
     /// Working.
     Ok,
@@ -117,10 +125,17 @@ pub(crate) enum SensorFault {
     Silent,
     /// The reading at the fault repeats.
     Freeze,
+    /// `rate · (t − t₀)` added to every number of the reading (unit per second).
+    Drift(f64),
+    /// A constant added to every number of the reading.
+    Bias(f64),
+    /// Gaussian noise of this standard deviation added to every number of the reading.
+    Noise(f64),
 }
 
-/// Parses `FAULT {Motor i} {Thrust f}`, `FAULT {Battery f}` or `FAULT {Sensor name}
-/// {Mode Silent|Freeze|Ok}`; the error says what is wrong.
+/// Parses `FAULT {Motor i} {Thrust f}`, `FAULT {Battery f}`, `FAULT {Sensor name}
+/// {Mode Silent|Freeze|Drift|Bias|Noise|Ok} [{Rate r}|{Value b}|{Std s}] [{Duration d}]` or
+/// `FAULT {Radio Off|On} [{Duration d}]`; the error says what is wrong.
 pub(crate) fn parse_fault(message: &Message) -> Result<Fault, String> {
     let number = |key: &str| -> Result<f64, String> {
         let text = message.get(key).unwrap_or_default();
@@ -136,6 +151,26 @@ pub(crate) fn parse_fault(message: &Message) -> Result<Fault, String> {
             Ok(v)
         } else {
             Err(format!("{{{key} {v}}}: expected a fraction within [0, 1]"))
+        }
+    };
+    // Sizes of drift, bias and noise: at most a million units (no infinity on the wire).
+    let size = |key: &str| -> Result<f64, String> {
+        let v = number(key)?;
+        if v.abs() <= 1e6 {
+            Ok(v)
+        } else {
+            Err(format!("{{{key} {v}}}: expected at most 1e6 in size"))
+        }
+    };
+    let duration = || -> Result<Option<f64>, String> {
+        if message.get("Duration").is_none() {
+            return Ok(None);
+        }
+        let d = number("Duration")?;
+        if d > 0.0 {
+            Ok(Some(d))
+        } else {
+            Err(format!("{{Duration {d}}}: expected seconds > 0"))
         }
     };
     if message.get("Motor").is_some() {
@@ -163,14 +198,42 @@ pub(crate) fn parse_fault(message: &Message) -> Result<Fault, String> {
             m if m.eq_ignore_ascii_case("silent") => SensorFault::Silent,
             m if m.eq_ignore_ascii_case("freeze") => SensorFault::Freeze,
             m if m.eq_ignore_ascii_case("ok") => SensorFault::Ok,
-            m => return Err(format!("{{Mode {m}}}: expected Silent, Freeze or Ok")),
+            m if m.eq_ignore_ascii_case("drift") => SensorFault::Drift(size("Rate")?),
+            m if m.eq_ignore_ascii_case("bias") => SensorFault::Bias(size("Value")?),
+            m if m.eq_ignore_ascii_case("noise") => {
+                let std = size("Std")?;
+                if std < 0.0 {
+                    return Err(format!("{{Std {std}}}: expected a standard deviation >= 0"));
+                }
+                SensorFault::Noise(std)
+            }
+            m => {
+                return Err(format!(
+                    "{{Mode {m}}}: expected Silent, Freeze, Drift, Bias, Noise or Ok"
+                ));
+            }
         };
         return Ok(Fault::Sensor {
             name: name.trim().to_string(),
             mode,
+            duration: duration()?,
         });
     }
-    Err("FAULT needs {Motor i} [{Thrust f}], {Battery f} or {Sensor name} {Mode m}".into())
+    if let Some(state) = message.get("Radio") {
+        let on = match state.trim() {
+            s if s.eq_ignore_ascii_case("off") => false,
+            s if s.eq_ignore_ascii_case("on") => true,
+            s => return Err(format!("{{Radio {s}}}: expected Off or On")),
+        };
+        return Ok(Fault::Radio {
+            on,
+            duration: duration()?,
+        });
+    }
+    Err(
+        "FAULT needs {Motor i} [{Thrust f}], {Battery f}, {Sensor name} {Mode m} or {Radio Off|On}"
+            .into(),
+    )
 }
 
 /// What a flight model moves in one tick.

@@ -1,21 +1,34 @@
 //! A faults file (`usar-server --faults FILE`, docs/quadrotor.md#faults): `FAULT` lines
-//! scheduled in simulated time for robots by spawn number.
+//! scheduled in simulated time for robots by spawn number, at a fixed time or at a random
+//! one drawn from the world's seed.
 //!
 //! ```toml
 //! [[fault]]
 //! time = 5.0                           # simulated seconds
 //! robot = 1                            # the first robot spawned
 //! line = "FAULT {Motor 1} {Thrust 0}"
+//!
+//! [[random]]
+//! probability = 0.02                   # per second
+//! robot = 1
+//! line = "FAULT {Sensor Position} {Mode Silent} {Duration 3}"
 //! ```
+//!
+//! A recording (docs/recording.md) is a faults file too: the `FAULT` lines the server sent
+//! when it applied its faults are read back as fixed-time faults, so a faulty run is
+//! reproducible from its recording alone.
 
 use serde::Deserialize;
+use usar_proto::Message;
 
 use super::dynamics::{Fault, parse_fault};
+use super::noise::Noise;
 
-/// The faults of a run, in time order.
+/// The faults of a run: fixed-time ones in time order and random ones.
 #[derive(Debug, Clone, Default)]
 pub struct FaultPlan {
     pub(crate) faults: Vec<PlannedFault>,
+    random: Vec<RandomFault>,
 }
 
 /// One fault: when, to whom, what.
@@ -25,13 +38,31 @@ pub(crate) struct PlannedFault {
     /// Spawn number from 0 (the file counts from 1).
     pub(crate) serial: u64,
     pub(crate) fault: Fault,
+    /// The `FAULT` line (its groups go into the notice to the robot's connection).
+    pub(crate) line: Message,
 }
+
+/// A fault that happens with a probability per second, at most once.
+#[derive(Debug, Clone)]
+struct RandomFault {
+    probability: f64,
+    from: f64,
+    until: f64,
+    serial: u64,
+    fault: Fault,
+    line: Message,
+}
+
+/// Stream numbers of the random faults' draws (apart from every part's).
+const RANDOM_STREAM: u64 = 1 << 40;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct File {
     #[serde(default)]
     fault: Vec<Entry>,
+    #[serde(default)]
+    random: Vec<RandomEntry>,
 }
 
 #[derive(Deserialize)]
@@ -40,6 +71,33 @@ struct Entry {
     time: f64,
     robot: u64,
     line: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RandomEntry {
+    probability: f64,
+    robot: u64,
+    line: String,
+    #[serde(default)]
+    from: f64,
+    until: Option<f64>,
+}
+
+/// The `FAULT` line's message and fault; the error names `at`.
+fn fault_line(at: &str, robot: u64, line: &str) -> Result<(Message, Fault), String> {
+    if robot == 0 {
+        return Err(format!("{at}: robot counts from 1 (the first spawned)"));
+    }
+    let message = match usar_proto::Command::parse(line) {
+        Ok(c) => match c.message {
+            usar_proto::Command::Other(m) if m.kind.eq_ignore_ascii_case("FAULT") => m,
+            _ => return Err(format!("{at}: not a FAULT line")),
+        },
+        Err(error) => return Err(format!("{at}: {error}")),
+    };
+    let fault = parse_fault(&message).map_err(|error| format!("{at}: {error}"))?;
+    Ok((message, fault))
 }
 
 impl FaultPlan {
@@ -52,36 +110,131 @@ impl FaultPlan {
             if !(e.time.is_finite() && e.time >= 0.0) {
                 return Err(format!("{at}: time must be >= 0 s, got {}", e.time));
             }
-            if e.robot == 0 {
-                return Err(format!("{at}: robot counts from 1 (the first spawned)"));
-            }
-            let message = match usar_proto::Command::parse(&e.line) {
-                Ok(c) => match c.message {
-                    usar_proto::Command::Other(m) if m.kind.eq_ignore_ascii_case("FAULT") => m,
-                    _ => return Err(format!("{at}: not a FAULT line")),
-                },
-                Err(error) => return Err(format!("{at}: {error}")),
-            };
-            let fault = parse_fault(&message).map_err(|error| format!("{at}: {error}"))?;
+            let (line, fault) = fault_line(&at, e.robot, &e.line)?;
             faults.push(PlannedFault {
                 time: e.time,
                 serial: e.robot - 1,
                 fault,
+                line,
             });
         }
         faults.sort_by(|a, b| a.time.total_cmp(&b.time));
-        Ok(Self { faults })
+        let mut random = Vec::new();
+        for (i, e) in file.random.iter().enumerate() {
+            let at = format!("random {} (line {:?})", i + 1, e.line);
+            if !(e.probability.is_finite() && (0.0..=1.0).contains(&e.probability)) {
+                return Err(format!(
+                    "{at}: probability (per second) must be within [0, 1], got {}",
+                    e.probability
+                ));
+            }
+            let until = e.until.unwrap_or(f64::INFINITY);
+            if !(e.from.is_finite() && e.from >= 0.0 && until >= e.from) {
+                return Err(format!(
+                    "{at}: from must be >= 0 s and until >= from, got {} and {until}",
+                    e.from
+                ));
+            }
+            let (line, fault) = fault_line(&at, e.robot, &e.line)?;
+            random.push(RandomFault {
+                probability: e.probability,
+                from: e.from,
+                until,
+                serial: e.robot - 1,
+                fault,
+                line,
+            });
+        }
+        Ok(Self { faults, random })
     }
 
-    /// Reads and parses a faults file.
+    /// The `FAULT` lines a server sent in a recording (`FAULT {Time t} {Robot n} ...`, S
+    /// lines), as fixed-time faults.
+    pub fn from_recording(text: &str) -> Result<Self, String> {
+        let mut faults = Vec::new();
+        for (n, line) in text.lines().enumerate() {
+            let entry = usar_proto::record::parse_entry(line)
+                .map_err(|e| format!("line {}: {e}", n + 1))?;
+            let Some(entry) = entry.filter(|e| {
+                e.direction == usar_proto::record::Direction::Server
+                    && Message::word(e.text).eq_ignore_ascii_case("FAULT")
+            }) else {
+                continue;
+            };
+            let at = format!("line {}", n + 1);
+            let message = Message::parse(entry.text)
+                .map_err(|e| format!("{at}: {e}"))?
+                .message;
+            let number = |key: &str| {
+                message
+                    .get(key)
+                    .and_then(|v| v.trim().parse::<f64>().ok())
+                    .filter(|v| v.is_finite() && *v >= 0.0)
+                    .ok_or_else(|| format!("{at}: a server FAULT line needs {{{key} ..}}"))
+            };
+            let (time, robot) = (number("Time")?, number("Robot")?);
+            let mut line = message.clone();
+            line.groups.retain(|g| {
+                !g.pairs.iter().any(|p| {
+                    p.key.eq_ignore_ascii_case("Time") || p.key.eq_ignore_ascii_case("Robot")
+                })
+            });
+            let fault = parse_fault(&line).map_err(|e| format!("{at}: {e}"))?;
+            faults.push(PlannedFault {
+                time,
+                serial: (robot as u64).saturating_sub(1),
+                fault,
+                line,
+            });
+        }
+        faults.sort_by(|a, b| a.time.total_cmp(&b.time));
+        Ok(Self {
+            faults,
+            random: Vec::new(),
+        })
+    }
+
+    /// Reads and parses a faults file, or a recording (it starts with `# usar-record`).
     pub fn from_file(path: &std::path::Path) -> Result<Self, String> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        if text.starts_with("# usar-record") {
+            return Self::from_recording(&text).map_err(|e| format!("{}: {e}", path.display()));
+        }
         Self::from_toml(&text).map_err(|e| format!("{}: {e}", path.display()))
     }
 
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
-        self.faults.is_empty()
+        self.faults.is_empty() && self.random.is_empty()
+    }
+
+    /// Every fault at its time, the random ones drawn from `seed`: a random fault of
+    /// probability `p` per second happens at `from + E`, `E` exponential with the rate
+    /// `−ln(1 − p)` (so that it happens within a second with probability `p`), unless that
+    /// is after `until`. The same seed gives the same times.
+    pub(crate) fn schedule(&self, seed: u64) -> Vec<PlannedFault> {
+        let mut out = self.faults.clone();
+        for (i, r) in self.random.iter().enumerate() {
+            let mut rng = Noise::new(seed, r.serial, RANDOM_STREAM + i as u64, 0.0);
+            let u = rng.uniform();
+            let time = if r.probability >= 1.0 {
+                r.from
+            } else if r.probability <= 0.0 {
+                continue;
+            } else {
+                r.from + (1.0 - u).ln() / (1.0 - r.probability).ln()
+            };
+            if time <= r.until {
+                out.push(PlannedFault {
+                    time,
+                    serial: r.serial,
+                    fault: r.fault.clone(),
+                    line: r.line.clone(),
+                });
+            }
+        }
+        out.sort_by(|a, b| a.time.total_cmp(&b.time));
+        out
     }
 }
 

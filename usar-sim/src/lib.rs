@@ -38,6 +38,7 @@ mod obj;
 pub mod part;
 pub mod power;
 pub mod quadrotor;
+pub mod randomize;
 pub mod render;
 mod robot;
 pub mod robots;
@@ -78,6 +79,9 @@ pub struct SimConfig {
     pub robots_per_connection: usize,
     /// Faults scheduled in simulated time (`--faults FILE`, docs/quadrotor.md#faults).
     pub faults: faults::FaultPlan,
+    /// Parameter ranges every robot spawned draws from (`--randomize FILE`,
+    /// docs/quadrotor.md#domain-randomisation).
+    pub randomize: Option<randomize::Randomization>,
     /// The image server's grid of camera tiles, which camera CONF lines report.
     pub tiles: Tiles,
 }
@@ -130,6 +134,7 @@ impl Default for SimConfig {
             wind: None,
             robots_per_connection: 1,
             faults: faults::FaultPlan::default(),
+            randomize: None,
             tiles: Tiles::default(),
         }
     }

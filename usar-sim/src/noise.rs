@@ -56,6 +56,13 @@ impl ErrorModel {
     fn is_off(&self) -> bool {
         *self == Self::default()
     }
+
+    /// Noise, bias and bias walk times `k` (domain randomisation).
+    pub(crate) fn scale(&mut self, k: f64) {
+        self.noise *= k;
+        self.bias *= k;
+        self.bias_walk *= k;
+    }
 }
 
 /// The state of an [`ErrorModel`] on `N` axes.
@@ -75,6 +82,11 @@ impl<const N: usize> Errors<N> {
             last: 0.0,
             history: VecDeque::new(),
         }
+    }
+
+    /// Its noise, bias and bias walk times `k`.
+    pub(crate) fn scale(&mut self, k: f64) {
+        self.model.scale(k);
     }
 
     /// The reading at `time` of the true value `truth` (no random numbers are drawn when
@@ -149,6 +161,11 @@ impl Noise {
             0.0
         };
         Self { state, std_dev }
+    }
+
+    /// Its standard deviation times `k`.
+    pub(crate) fn scale(&mut self, k: f64) {
+        self.std_dev *= k;
     }
 
     /// `value` plus a Gaussian sample (value unchanged when the noise is off).

@@ -1074,7 +1074,7 @@ impl Dynamics for Quadrotor {
                 }
                 None => false,
             },
-            super::dynamics::Fault::Sensor { .. } => false,
+            super::dynamics::Fault::Sensor { .. } | super::dynamics::Fault::Radio { .. } => false,
         }
     }
 }

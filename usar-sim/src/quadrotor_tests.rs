@@ -1382,6 +1382,38 @@ fn bad_fault_lines_say_what_is_wrong() {
             .contains("Freeze")
     );
     assert!(parse("FAULT {Foo 1}").unwrap_err().contains("Motor"));
+    assert!(
+        parse("FAULT {Sensor IMU} {Mode Drift}")
+            .unwrap_err()
+            .contains("{Rate")
+    );
+    assert!(
+        parse("FAULT {Sensor IMU} {Mode Noise} {Std -1}")
+            .unwrap_err()
+            .contains(">= 0")
+    );
+    assert!(
+        parse("FAULT {Sensor IMU} {Mode Silent} {Duration 0}")
+            .unwrap_err()
+            .contains("Duration")
+    );
+    assert!(
+        parse("FAULT {Radio dim}")
+            .unwrap_err()
+            .contains("Off or On")
+    );
+    assert!(
+        parse("FAULT {Sensor IMU} {Mode Noise} {Std 1e308}")
+            .unwrap_err()
+            .contains("1e6")
+    );
+    assert_eq!(
+        parse("FAULT {Radio off} {Duration 2}"),
+        Ok(dynamics::Fault::Radio {
+            on: false,
+            duration: Some(2.0)
+        })
+    );
     assert_eq!(
         parse("FAULT {Motor 2} {Thrust 0.5}"),
         Ok(dynamics::Fault::Motor {
@@ -1423,4 +1455,271 @@ fn a_faults_file_fails_a_motor_at_its_time() {
         failed.0[2] > -29.0 && failed.2[2].abs() > 0.5,
         "falls spinning: {failed:?}"
     );
+}
+
+/// Time and location of Position lines.
+type Positions = Vec<(f64, [f64; 3])>;
+
+/// (time, x, y, z) of each Position line.
+fn position_lines(out: &[(ClientId, ServerMessage)]) -> Positions {
+    out.iter()
+        .filter_map(|(_, m)| match m {
+            ServerMessage::Sen(sen) => match &sen.data {
+                SenData::Position { location, .. } => Some((
+                    sen.time.map_or(0.0, |t| t.seconds),
+                    [location.x, location.y, location.z],
+                )),
+                _ => None,
+            },
+            _ => None,
+        })
+        .collect()
+}
+
+/// A hover of 6 s with `line` sent after 1 s: the Position lines with and without it.
+fn hover_with_fault(line: &str) -> (Positions, Positions) {
+    let fly = |fault: bool| {
+        let mut w = world_with(RobotCatalog::embedded(), None, 4);
+        let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+        let mut out = run(&mut w, 1.0);
+        if fault {
+            command(&mut w, c, line);
+        }
+        out.extend(run(&mut w, 5.0));
+        position_lines(&out)
+    };
+    (fly(false), fly(true))
+}
+
+#[test]
+fn a_drift_fault_makes_the_reported_altitude_diverge_at_its_rate() {
+    let (truth, drifting) = hover_with_fault("FAULT {Sensor Position} {Mode Drift} {Rate 0.1}");
+    assert_eq!(truth.len(), drifting.len());
+    assert!(truth.len() > 50);
+    for ((t, a), (_, b)) in truth.iter().zip(&drifting) {
+        let expected = if *t < 1.0 { 0.0 } else { 0.1 * (t - 1.0) };
+        for i in 0..3 {
+            assert!(
+                (b[i] - a[i] - expected).abs() < 2e-4,
+                "t {t}: axis {i}: {} vs {} + {expected}",
+                b[i],
+                a[i]
+            );
+        }
+    }
+    let last = truth.len() - 1;
+    assert!(
+        drifting[last].1[2] - truth[last].1[2] > 0.45,
+        "z drifted 0.5 m in 5 s"
+    );
+}
+
+#[test]
+fn bias_and_noise_faults_add_their_size_to_the_readings() {
+    let (truth, biased) = hover_with_fault("FAULT {Sensor Position} {Mode Bias} {Value -0.3}");
+    for ((t, a), (_, b)) in truth.iter().zip(&biased) {
+        let expected = if *t <= 1.0 + 1e-9 { 0.0 } else { -0.3 };
+        assert!(
+            (b[2] - a[2] - expected).abs() < 2e-4,
+            "t {t}: {b:?} vs {a:?}"
+        );
+    }
+    let (truth, noisy) = hover_with_fault("FAULT {Sensor Position} {Mode Noise} {Std 0.2}");
+    let errors: Vec<f64> = truth
+        .iter()
+        .zip(&noisy)
+        .filter(|((t, _), _)| *t > 1.0)
+        .flat_map(|((_, a), (_, b))| (0..3).map(move |i| b[i] - a[i]))
+        .collect();
+    let n = errors.len() as f64;
+    let mean = errors.iter().sum::<f64>() / n;
+    let std = (errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n).sqrt();
+    assert!(n > 100.0 && mean.abs() < 0.05, "mean {mean} of {n}");
+    assert!((std / 0.2 - 1.0).abs() < 0.15, "std {std}");
+}
+
+#[test]
+fn the_position_sensor_drops_out_for_its_duration() {
+    let (truth, dropped) = hover_with_fault("FAULT {Sensor Position} {Mode Silent} {Duration 2}");
+    let times: Vec<f64> = dropped.iter().map(|(t, _)| *t).collect();
+    assert!(
+        times.iter().all(|t| !(1.001..2.999).contains(t)),
+        "{times:?}"
+    );
+    assert!(times.iter().any(|t| *t < 1.0) && times.iter().any(|t| *t > 3.0));
+    // After the dropout the readings are the healthy ones again.
+    let after: Vec<_> = truth.iter().filter(|(t, _)| *t >= 3.0).collect();
+    let again: Vec<_> = dropped.iter().filter(|(t, _)| *t >= 3.0).collect();
+    assert_eq!(after, again);
+}
+
+#[test]
+fn a_radio_fault_holds_for_its_duration() {
+    let mut w = world();
+    let c = spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+    run(&mut w, 1.0);
+    let radio_off = |w: &World| w.robots_truth()[0].radio_off;
+    assert!(!radio_off(&w));
+    command(&mut w, c, "FAULT {Radio Off} {Duration 1.5}");
+    run(&mut w, 1.0);
+    assert!(radio_off(&w));
+    run(&mut w, 1.0);
+    assert!(!radio_off(&w), "on again after 1.5 s");
+    command(&mut w, c, "FAULT {Radio Off}");
+    run(&mut w, 10.0);
+    assert!(radio_off(&w), "off until told otherwise");
+    command(&mut w, c, "FAULT {Radio On}");
+    assert!(!radio_off(&w));
+}
+
+#[test]
+fn random_faults_happen_at_their_rate_and_repeat_for_a_seed() {
+    let plan = |p: f64| {
+        faults::FaultPlan::from_toml(&format!(
+            "[[random]]\nprobability = {p}\nrobot = 1\nfrom = 2.0\nline = \"FAULT {{Motor 1}}\"\n"
+        ))
+        .expect("plan")
+    };
+    let time = |p: f64, seed: u64| plan(p).schedule(seed).first().map(|f| f.time);
+    assert_eq!(time(0.1, 5), time(0.1, 5), "the same seed, the same time");
+    assert_ne!(time(0.1, 5), time(0.1, 6));
+    assert_eq!(time(1.0, 5), Some(2.0));
+    assert_eq!(time(0.0, 5), None);
+    // Within one second of `from` with probability p (over 4000 seeds).
+    let within = (0..4000)
+        .filter(|&s| time(0.3, s).is_some_and(|t| t < 3.0))
+        .count() as f64
+        / 4000.0;
+    assert!((within - 0.3).abs() < 0.03, "{within}");
+    let e = faults::FaultPlan::from_toml(
+        "[[random]]\nprobability = 2\nrobot = 1\nline = \"FAULT {Motor 1}\"\n",
+    )
+    .unwrap_err();
+    assert!(e.contains("random 1") && e.contains("probability"), "{e}");
+}
+
+#[test]
+fn scheduled_faults_are_told_to_the_robot_and_read_back_from_a_recording() {
+    let plan = faults::FaultPlan::from_toml(
+        "[[random]]\nprobability = 0.5\nrobot = 1\nline = \"FAULT {Sensor Position} {Mode Drift} {Rate 0.2}\"\n\
+         [[fault]]\ntime = 1.0\nrobot = 1\nline = \"FAULT {Motor 2} {Thrust 0.8}\"\n",
+    )
+    .expect("plan");
+    let fly = |plan: faults::FaultPlan| {
+        let mut w = World::new(
+            Map::default_map(),
+            RobotCatalog::embedded(),
+            SimConfig {
+                faults: plan,
+                seed: 3,
+                ..SimConfig::default()
+            },
+        );
+        spawn(&mut w, [0.0, 0.0, -2.0], 0.0);
+        printed(&run(&mut w, 8.0))
+    };
+    let first = fly(plan);
+    let notices: Vec<&str> = first
+        .lines()
+        .filter_map(|l| l.split_once(' ').map(|s| s.1))
+        .filter(|l| l.starts_with("FAULT"))
+        .collect();
+    assert_eq!(notices.len(), 2, "{notices:?}");
+    assert!(
+        notices.contains(&"FAULT {Time 1.0000} {Robot 1} {Motor 2} {Thrust 0.8}"),
+        "{notices:?}"
+    );
+    assert!(
+        notices
+            .iter()
+            .any(|n| n.contains("{Robot 1} {Sensor Position} {Mode Drift} {Rate 0.2}")),
+        "{notices:?}"
+    );
+    // The notices as a recording's S lines make the same run.
+    let recording: String = std::iter::once("# usar-record 1".to_string())
+        .chain(notices.iter().map(|l| format!("0.0000 S {l}")))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let again = fly(faults::FaultPlan::from_recording(&recording).expect("read back"));
+    assert_eq!(first, again);
+}
+
+// ---- domain randomisation ----
+
+/// Hovers `seconds` in a world seeded `seed` with `ranges`: the draws and the mean rotor
+/// speed at the end.
+fn randomized_hover(ranges: &str, seed: u64) -> (randomize::Drawn, f64, String) {
+    let mut w = World::new(
+        floor_map(100.0),
+        with_gauges(1.0),
+        SimConfig {
+            seed,
+            randomize: Some(randomize::Randomization::from_toml(ranges).expect("ranges")),
+            ..SimConfig::default()
+        },
+    );
+    spawn(&mut w, [0.0, 0.0, -5.0], 0.0);
+    let out = run(&mut w, 4.0);
+    let speeds = last_value(&out, "Rotors", "Speeds");
+    let drawn = w.randomized().remove(0);
+    (drawn, speeds.iter().sum::<f64>() / 4.0, printed(&out))
+}
+
+#[test]
+fn each_robot_draws_its_parameters_and_a_heavier_one_hovers_faster() {
+    let ranges = "mass = [0.7, 1.4]\nnoise = [0.5, 2.0]\n";
+    let (a, wa, out_a) = randomized_hover(ranges, 1);
+    let (b, wb, _) = randomized_hover(ranges, 2);
+    let (again, _, out_again) = randomized_hover(ranges, 1);
+    assert_eq!(a, again, "the same seed, the same draws");
+    assert_eq!(out_a, out_again, "and the same bytes");
+    let (ma, mb) = (a.get("mass").unwrap(), b.get("mass").unwrap());
+    assert_ne!(ma, mb, "two episodes draw different masses");
+    // Hover: 4·kf·ω² = m·g, so ω ∝ √m.
+    let expected = (ma / mb).sqrt();
+    assert!(
+        ((wa / wb) / expected - 1.0).abs() < 0.01,
+        "ω {wa:.1} / {wb:.1} against √(m ratio) {expected:.4}"
+    );
+    let q = quadrotor::QuadrotorConfig::default();
+    let hover = (ma * q.mass * GRAVITY / (4.0 * q.thrust_coefficient)).sqrt();
+    assert!((wa / hover - 1.0).abs() < 0.01, "{wa} vs {hover}");
+    // The robot's connection is told, before its first STA.
+    assert!(
+        out_a.contains(&format!(
+            "RANDOMIZED {{Time 0.0000}} {{Robot 1}} {{mass {ma:.4}}}"
+        )),
+        "{}",
+        &out_a[..300]
+    );
+}
+
+#[test]
+fn randomised_noise_scales_every_sensor_error_and_wind_drifts() {
+    let gyro_std = |ranges: Option<&str>| {
+        let mut w = World::new(
+            floor_map(100.0),
+            RobotCatalog::embedded(),
+            SimConfig {
+                seed: 3,
+                randomize: ranges.map(|r| randomize::Randomization::from_toml(r).unwrap()),
+                ..SimConfig::default()
+            },
+        );
+        let c = spawn(&mut w, [0.0, 0.0, -5.0], 0.0);
+        let out = run(&mut w, 20.0);
+        let z: Vec<f64> = imu_lines(&out).iter().map(|(_, w)| w.z).collect();
+        let mean = z.iter().sum::<f64>() / z.len() as f64;
+        let std = (z.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / z.len() as f64).sqrt();
+        (std, state(&w, c).0)
+    };
+    let (plain, _) = gyro_std(None);
+    let (tripled, _) = gyro_std(Some("noise = [3.0, 3.0]\n"));
+    assert!(
+        (tripled / plain / 3.0 - 1.0).abs() < 0.25,
+        "gyro σ {plain:.2e} → {tripled:.2e}"
+    );
+    // A drawn wind of 2 m/s carries an uncommanded vehicle away.
+    let (_, p) = gyro_std(Some("wind = [2.0, 2.0]\n"));
+    assert!(p[0].hypot(p[1]) > 1.0, "drifted: {p:?}");
 }

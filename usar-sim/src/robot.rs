@@ -171,6 +171,109 @@ struct Part {
     /// A `FAULT {Sensor ..}` in force, and the reading a frozen part repeats.
     fault: SensorFault,
     frozen: Option<usar_proto::SenData>,
+    /// When the fault began (drift) and ends (`None`: at the next `FAULT` for the part).
+    fault_since: f64,
+    fault_until: Option<f64>,
+    /// The noise a `{Mode Noise}` fault adds (its own stream: the part's is untouched).
+    fault_noise: Noise,
+}
+
+/// Stream numbers of the fault noise generators (above any part index).
+const FAULT_STREAM: u64 = 1 << 32;
+
+/// Adds `offset()` to every measured number of a reading (the numbers the sensor measures;
+/// names, counts and flags stay).
+fn perturb(data: &mut usar_proto::SenData, mut offset: impl FnMut() -> f64) {
+    use usar_proto::SenData as D;
+    let mut v3 = |v: &mut usar_proto::Vec3| {
+        v.x += offset();
+        v.y += offset();
+        v.z += offset();
+    };
+    match data {
+        D::Imu {
+            acceleration,
+            angular_vel,
+            angular_accel,
+            rotation,
+            ..
+        } => {
+            for v in [acceleration, angular_vel, angular_accel, rotation] {
+                v3(v);
+            }
+        }
+        D::GroundTruth {
+            location,
+            orientation,
+            ..
+        }
+        | D::Ins {
+            location,
+            orientation,
+            ..
+        } => {
+            v3(location);
+            v3(orientation);
+        }
+        D::Velocity {
+            absolute, relative, ..
+        } => {
+            v3(absolute);
+            v3(relative);
+        }
+        D::Position { location: v, .. }
+        | D::Odometry { pose: v, .. }
+        | D::Accel {
+            acceleration: v, ..
+        }
+        | D::AcceleroMeter {
+            proper_acceleration: v,
+            ..
+        } => v3(v),
+        D::Sonar { readings, .. } => {
+            for r in readings {
+                r.range += offset();
+            }
+        }
+        D::Ir(r) => r.range += offset(),
+        D::RangeScanner(scan) => {
+            for r in &mut scan.ranges {
+                *r += offset();
+            }
+        }
+        D::AltitudeSensor {
+            relative, absolute, ..
+        } => {
+            let d = offset();
+            *relative += d;
+            *absolute += d;
+        }
+        D::MagneticCompass { angle, .. } => *angle += offset(),
+        D::Other { groups, .. } => {
+            // Our own lines (Battery, Rotors, Barometer): every number of every value.
+            for pair in groups.iter_mut().flat_map(|g| g.pairs.iter_mut()) {
+                let numbers: Option<Vec<f64>> = pair
+                    .value
+                    .split(',')
+                    .map(|x| x.trim().parse().ok())
+                    .collect();
+                if let Some(numbers) = numbers.filter(|n| n.iter().all(|x: &f64| x.is_finite())) {
+                    let decimals = pair
+                        .value
+                        .split(',')
+                        .next()
+                        .and_then(|x| x.split_once('.'))
+                        .map_or(0, |(_, d)| d.trim().len());
+                    let text: Vec<String> = numbers
+                        .iter()
+                        .map(|x| format!("{:.*}", decimals.max(4), x + offset()))
+                        .collect();
+                    pair.value = text.join(",");
+                }
+            }
+        }
+        _ => {}
+    }
 }
 
 /// An actuator: joint values move to their targets at once.
@@ -197,6 +300,8 @@ pub(crate) struct Spawn<'a> {
     pub(crate) seed: u64,
     /// The wind robots with physics feel.
     pub(crate) wind: WindConfig,
+    /// Parameter ranges to draw from (`--randomize`).
+    pub(crate) randomize: Option<&'a super::randomize::Randomization>,
 }
 
 /// A crashed kinematic robot falls at this speed, m/s.
@@ -232,6 +337,12 @@ pub(crate) struct Robot {
     status: Timer,
     parts: Vec<Part>,
     actuators: Vec<Actuator>,
+    /// Until when its radio is off (`FAULT {Radio Off}`; infinite without a duration).
+    radio_off_until: Option<f64>,
+    /// Lines for its connection at the next output (faults the server applied on its own).
+    notices: Vec<ServerMessage>,
+    /// The parameters drawn for it (`--randomize`).
+    drawn: super::randomize::Drawn,
 }
 
 impl Robot {
@@ -244,6 +355,11 @@ impl Robot {
             return None;
         }
         let phase = phase(spawn.others);
+        let drawn = spawn
+            .randomize
+            .map(|r| r.draw(spawn.seed, spawn.serial))
+            .unwrap_or_default();
+        let noise_scale = drawn.get("noise");
         let parts = model
             .parts
             .iter()
@@ -254,6 +370,16 @@ impl Robot {
                 sensor: p.sensor.clone_box(),
                 fault: SensorFault::Ok,
                 frozen: None,
+                fault_since: 0.0,
+                fault_until: None,
+                fault_noise: Noise::new(spawn.seed, spawn.serial, FAULT_STREAM + p.index, 0.0),
+            })
+            .map(|mut part: Part| {
+                if let Some(k) = noise_scale {
+                    part.noise.scale(k);
+                    part.sensor.scale_noise(k);
+                }
+                part
             })
             .collect();
         let actuators = class
@@ -280,7 +406,11 @@ impl Robot {
         let dynamics: Option<Box<dyn Dynamics>> = match class.dynamics {
             DynamicsKind::Kinematic => None,
             DynamicsKind::Quadrotor => Some(Box::new(Quadrotor::new(
-                class.quadrotor.clone(),
+                {
+                    let mut q = class.quadrotor.clone();
+                    drawn.apply(&mut q);
+                    q
+                },
                 quadrotor::Limits {
                     max_tilt: class.flight.max_tilt.abs().to_radians().clamp(0.01, 1.4),
                     max_climb: class.flight.max_altitude_speed,
@@ -289,7 +419,7 @@ impl Robot {
                     battery: class.battery.is_some(),
                 },
                 spawn.rotation,
-                spawn.wind,
+                drawn.wind(spawn.wind),
                 spawn.seed,
                 spawn.serial,
                 spawn.dt,
@@ -315,7 +445,50 @@ impl Robot {
             status: Timer::new(STATUS_INTERVAL, spawn.tick, spawn.dt, phase),
             parts,
             actuators,
+            radio_off_until: None,
+            notices: Vec::new(),
+            drawn,
         })
+        .map(|mut robot| {
+            if !robot.drawn.0.is_empty() {
+                let time = spawn.tick as f64 * spawn.dt;
+                tracing::info!(
+                    serial = robot.serial,
+                    time,
+                    "randomized: {:?}",
+                    robot.drawn.0
+                );
+                robot.notice("RANDOMIZED", time, robot.drawn.groups());
+            }
+            robot
+        })
+    }
+
+    /// Queues `KIND {Time t} {Robot n} <groups>` for its connection (a notice of ours).
+    fn notice(&mut self, kind: &str, time: f64, rest: Vec<usar_proto::Group>) {
+        let group = |key: &str, value: String| usar_proto::Group {
+            pairs: vec![usar_proto::Pair {
+                key: key.to_string(),
+                value,
+            }],
+        };
+        let mut stamp = String::new();
+        usar_proto::format::push_fixed(&mut stamp, time, 4);
+        let mut groups = vec![
+            group("Time", stamp),
+            group("Robot", (self.serial + 1).to_string()),
+        ];
+        groups.extend(rest);
+        self.notices.push(ServerMessage::Other(usar_proto::Message {
+            kind: kind.to_string(),
+            groups,
+            verbatim: None,
+        }));
+    }
+
+    /// The parameters drawn for it (`--randomize`; empty without).
+    pub(crate) fn drawn(&self) -> &super::randomize::Drawn {
+        &self.drawn
     }
 
     /// Removes its body from the scene.
@@ -391,16 +564,26 @@ impl Robot {
     /// Applies a `FAULT` (docs/quadrotor.md#faults), logged at `info` with the time.
     pub(crate) fn fault(&mut self, fault: &Fault, time: f64) {
         let applied = match fault {
-            Fault::Sensor { name, mode } => {
+            Fault::Sensor {
+                name,
+                mode,
+                duration,
+            } => {
                 let mut found = false;
                 for (part, model) in self.parts.iter_mut().zip(&self.model.parts) {
                     if model.name.eq_ignore_ascii_case(name) {
                         part.fault = *mode;
                         part.frozen = None;
+                        part.fault_since = time;
+                        part.fault_until = duration.map(|d| time + d);
                         found = true;
                     }
                 }
                 found
+            }
+            Fault::Radio { on, duration } => {
+                self.radio_off_until = (!on).then(|| duration.map_or(f64::INFINITY, |d| time + d));
+                true
             }
             _ => self.dynamics.as_mut().is_some_and(|d| d.fault(fault)),
         };
@@ -409,6 +592,19 @@ impl Robot {
         } else {
             warn!(serial = self.serial, class = %self.class_name(), "FAULT ignored: the robot has no such part: {fault:?}");
         }
+    }
+
+    /// Applies a fault the server scheduled (`--faults`) and tells the robot's connection
+    /// with `FAULT {Time t} {Robot n} <the fault's groups>` (docs/quadrotor.md#faults).
+    pub(crate) fn scheduled_fault(&mut self, fault: &Fault, line: &usar_proto::Message, time: f64) {
+        self.fault(fault, time);
+        self.notice("FAULT", time, line.groups.clone());
+    }
+
+    /// Whether its radio is off at `time` (the robot monitor and the WSS).
+    pub(crate) fn radio_off(&self, time: f64) -> bool {
+        self.radio_off_until
+            .is_some_and(|until| time < until - 1e-9)
     }
 
     /// Whether the robot has crashed.
@@ -568,7 +764,7 @@ impl Robot {
         if self.owner.is_none() {
             return u64::MAX;
         }
-        if self.parts.iter().any(|p| p.forced) {
+        if !self.notices.is_empty() || self.parts.iter().any(|p| p.forced) {
             return 0;
         }
         let parts = self.parts.iter().map(|p| p.timer.due);
@@ -587,6 +783,7 @@ impl Robot {
         let Some(owner) = self.owner else {
             return;
         };
+        out.extend(self.notices.drain(..).map(|n| (owner, n)));
         // Most ticks nothing is due (sensors report every 0.1-0.3 s): return before any work.
         if !self.status.is_due(tick)
             && self
@@ -643,15 +840,30 @@ impl Robot {
                     crashed: self.crashed.is_some(),
                     ray_hit: hits.get(i).copied().flatten(),
                 };
+                if part.fault_until.is_some_and(|until| time >= until - 1e-9) {
+                    (part.fault, part.frozen, part.fault_until) = (SensorFault::Ok, None, None);
+                }
                 if part.fault == SensorFault::Silent {
                     continue;
                 }
-                let data = match (&part.frozen, part.fault) {
+                let mut data = match (&part.frozen, part.fault) {
                     (Some(data), SensorFault::Freeze) => data.clone(),
                     _ => part.sensor.read(&reading, &mut part.noise),
                 };
-                if part.fault == SensorFault::Freeze && part.frozen.is_none() {
-                    part.frozen = Some(data.clone());
+                match part.fault {
+                    SensorFault::Freeze if part.frozen.is_none() => {
+                        part.frozen = Some(data.clone());
+                    }
+                    SensorFault::Drift(rate) => {
+                        let d = rate * (time - part.fault_since);
+                        perturb(&mut data, || d);
+                    }
+                    SensorFault::Bias(b) => perturb(&mut data, || b),
+                    SensorFault::Noise(std) => {
+                        let rng = &mut part.fault_noise;
+                        perturb(&mut data, || std * rng.draw());
+                    }
+                    _ => {}
                 }
                 let time = part.sensor.timestamped().then_some(Time::udk(time));
                 out.push((owner, ServerMessage::Sen(Sen { time, data })));

@@ -56,6 +56,8 @@ pub struct World {
     complaints: BTreeMap<ClientId, Repeats>,
     /// Faults still to come, in time order.
     faults: std::collections::VecDeque<super::faults::PlannedFault>,
+    /// Parameter ranges each robot draws from at its spawn.
+    randomize: Option<super::randomize::Randomization>,
 }
 
 /// Whether to log a warning about `client`'s command: the first few in full, then a
@@ -122,7 +124,8 @@ impl World {
             robots_per_connection: config.robots_per_connection,
             tiles: config.tiles,
             complaints: BTreeMap::new(),
-            faults: config.faults.faults.iter().cloned().collect(),
+            faults: config.faults.schedule(config.seed).into(),
+            randomize: config.randomize,
         }
     }
 
@@ -238,8 +241,11 @@ impl World {
             let Some(f) = self.faults.pop_front() else {
                 break;
             };
-            match self.robot_mut(f.serial) {
-                Some(robot) => robot.fault(&f.fault, tick as f64 * dt),
+            match self.index_of(f.serial) {
+                Some(i) => {
+                    self.robots[i].scheduled_fault(&f.fault, &f.line, tick as f64 * dt);
+                    self.due[i] = self.robots[i].next_due();
+                }
                 None => warn!(robot = f.serial + 1, "planned fault skipped: no such robot"),
             }
         }
@@ -340,6 +346,7 @@ impl World {
             dt: self.dt,
             seed: self.seed,
             wind: self.wind,
+            randomize: self.randomize.as_ref(),
         };
         let Some(robot) = Robot::spawn(spawn, &mut self.scene) else {
             if let Some(n) = complain(&mut self.complaints, client) {
@@ -515,9 +522,15 @@ impl World {
                     location,
                     rotation,
                     battery_empty: r.is_dead(self.tick, self.dt),
+                    radio_off: r.radio_off(self.time()),
                 }
             })
             .collect()
+    }
+
+    /// The parameters each robot drew (`SimConfig::randomize`), in spawn order.
+    pub fn randomized(&self) -> Vec<super::randomize::Drawn> {
+        self.robots.iter().map(|r| r.drawn().clone()).collect()
     }
 
     /// The map's victims and objects.
@@ -608,6 +621,8 @@ pub struct RobotTruth {
     pub rotation: [f64; 3],
     /// Whether its battery is empty.
     pub battery_empty: bool,
+    /// Whether its radio is off (`FAULT {Radio Off}`, docs/quadrotor.md#faults).
+    pub radio_off: bool,
 }
 
 /// One tick's output as text ([`World::step_printed`]): for each robot that has output,

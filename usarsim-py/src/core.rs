@@ -21,6 +21,8 @@ const NO_RANGE: f64 = 4.0;
 /// The Touch part (`event = "contact"`, read every physics tick) added to the robot class in
 /// process: a UAV "touched" something in a period when any of its readings said so.
 const CONTACT: &str = "PyContact";
+/// The Rotors part added for rotor speeds in the observation.
+const ROTORS: &str = "PyRotors";
 /// The largest sensor noise standard deviation a robot file accepts (docs/robots.md).
 const MAX_NOISE: f64 = 100.0;
 
@@ -75,6 +77,12 @@ pub(crate) struct Settings {
     pub(crate) state_only: bool,
     /// How actions command the robot.
     pub(crate) action: ActionMode,
+    /// Faults scheduled in each world (the faults file's format; docs/python.md#faults).
+    pub(crate) faults: usar_sim::faults::FaultPlan,
+    /// Parameter ranges each UAV draws from at each reset (docs/python.md#faults).
+    pub(crate) randomize: Option<usar_sim::randomize::Randomization>,
+    /// Rotor speeds in the observation (a `Rotors` part added to the class).
+    pub(crate) rotors: bool,
 }
 
 impl Settings {
@@ -146,7 +154,61 @@ impl Settings {
             dt,
             state_only: false,
             action: ActionMode::Velocity,
+            faults: usar_sim::faults::FaultPlan::default(),
+            randomize: None,
+            rotors: false,
         })
+    }
+
+    /// Faults (a faults file's text, docs/quadrotor.md#faults), domain randomisation (a
+    /// randomisation file's text) and rotor speeds in the observation, for the worlds made
+    /// from now on; `None` leaves a setting as it is, an empty text turns it off.
+    pub(crate) fn configure(
+        &mut self,
+        faults: Option<&str>,
+        randomize: Option<&str>,
+        rotors: Option<bool>,
+    ) -> Result<(), SimError> {
+        if let Some(text) = faults {
+            self.faults = usar_sim::faults::FaultPlan::from_toml(text)
+                .map_err(|e| invalid(format!("faults: {e}")))?;
+        }
+        if let Some(text) = randomize {
+            self.randomize = match text.trim() {
+                "" => None,
+                _ => Some(
+                    usar_sim::randomize::Randomization::from_toml(text)
+                        .map_err(|e| invalid(format!("randomize: {e}")))?,
+                ),
+            };
+        }
+        if let Some(on) = rotors {
+            let class = self
+                .catalog
+                .get_mut(&self.robot)
+                .ok_or_else(|| invalid(format!("robot: unknown robot class {:?}", self.robot)))?;
+            if on && class.dynamics != DynamicsKind::Quadrotor {
+                return Err(invalid(format!(
+                    "rotor_speeds: needs a robot with rotors (such as stsQuadrotor); {} is \
+                     kinematic",
+                    self.robot
+                )));
+            }
+            class.parts.retain(|p| p.name != ROTORS);
+            if on {
+                class.parts.push(PartConfig {
+                    kind: "Rotors".to_string(),
+                    name: ROTORS.to_string(),
+                    position: [0.0; 3],
+                    direction: [0.0; 3],
+                    interval: Some(self.dt),
+                    noise: 0.0,
+                    settings: toml::Table::new(),
+                });
+            }
+            self.rotors = on;
+        }
+        Ok(())
     }
 
     /// With the action mode `mode`: `"velocity"`, or for a robot with physics `"attitude"`
@@ -252,6 +314,8 @@ struct Uav {
     client: ClientId,
     state: UavState,
     touched: bool,
+    /// The latest rotor speeds, rad/s (with `Settings::rotors`).
+    rotors: [f64; 4],
 }
 
 /// One world with its UAVs.
@@ -272,6 +336,8 @@ impl WorldSim {
         let config = SimConfig {
             seed,
             dt: settings.dt,
+            faults: settings.faults.clone(),
+            randomize: settings.randomize.clone(),
             ..SimConfig::default()
         };
         let mut world = World::new(settings.map.clone(), settings.catalog.clone(), config);
@@ -290,6 +356,7 @@ impl WorldSim {
                 client,
                 state: UavState::new(),
                 touched: false,
+                rotors: [0.0; 4],
             });
         }
         if world.robot_count() != poses.len() {
@@ -348,6 +415,22 @@ impl WorldSim {
                 uav.touched |= *touch;
                 continue;
             }
+            if let ServerMessage::Sen(sen) = &message
+                && let SenData::Other { kind, groups } = &sen.data
+                && kind == "Rotors"
+            {
+                let speeds = groups
+                    .iter()
+                    .flat_map(|g| &g.pairs)
+                    .find(|p| p.key == "Speeds");
+                let w: Vec<f64> = speeds.map_or_else(Vec::new, |p| {
+                    p.value.split(',').filter_map(|v| v.parse().ok()).collect()
+                });
+                if let [a, b, c, d] = w[..] {
+                    uav.rotors = [a, b, c, d];
+                }
+                continue;
+            }
             uav.state.apply(&message);
         }
     }
@@ -361,7 +444,15 @@ impl WorldSim {
     pub(crate) fn observe(&self, obs: &mut Observations) {
         for uav in &self.uavs {
             obs.push_state(&uav.state, uav.touched, self.world.time());
+            if obs.with_rotors {
+                obs.rotor_speeds.extend(uav.rotors);
+            }
         }
+    }
+
+    /// The parameters each UAV drew (domain randomisation), in UAV order.
+    pub(crate) fn randomized(&self) -> Vec<usar_sim::randomize::Drawn> {
+        self.world.randomized()
     }
 }
 
@@ -391,6 +482,10 @@ pub(crate) struct Observations {
     pub(crate) time: Vec<f64>,
     /// Leave `sonar` and `laser` empty.
     pub(crate) no_ranges: bool,
+    /// Rotor speeds, rad/s, four per UAV (with `with_rotors`).
+    pub(crate) rotor_speeds: Vec<f64>,
+    /// Fill `rotor_speeds`.
+    pub(crate) with_rotors: bool,
 }
 
 fn xyz(r: Option<&ucc_client::uav::Reading<ucc_client::Coordinates>>) -> [f64; 3] {
@@ -412,6 +507,8 @@ impl Observations {
             crashed: Vec::with_capacity(n),
             time: Vec::with_capacity(n),
             no_ranges: false,
+            rotor_speeds: Vec::new(),
+            with_rotors: false,
         }
     }
 
@@ -553,6 +650,7 @@ impl Batch {
         } else {
             Observations::with_capacity(self.len())
         };
+        obs.with_rotors = self.settings.rotors;
         for w in &self.worlds {
             w.observe(&mut obs);
         }

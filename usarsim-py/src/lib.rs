@@ -80,6 +80,9 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
     }
     put("battery", obs.battery, 1)?;
     put("time", obs.time, 1)?;
+    if obs.with_rotors {
+        put("rotor_speeds", obs.rotor_speeds, 4)?;
+    }
     dict.set_item("touched", obs.touched.into_pyarray(py))?;
     dict.set_item("crashed", obs.crashed.into_pyarray(py))?;
     Ok(dict)
@@ -185,6 +188,38 @@ impl PyBatch {
                 uavs_per_world,
             }),
         })
+    }
+
+    /// Faults (a faults file's text), domain randomisation (a randomisation file's text,
+    /// `""` for none) and rotor speeds in the observation (`rotor_speeds` key), for the
+    /// worlds made at the next resets; `None` leaves a setting (docs/python.md).
+    #[pyo3(signature = (faults = None, randomize = None, rotor_speeds = None))]
+    fn configure(
+        &mut self,
+        faults: Option<&str>,
+        randomize: Option<&str>,
+        rotor_speeds: Option<bool>,
+    ) -> PyResult<()> {
+        Ok(self
+            .get()
+            .settings
+            .configure(faults, randomize, rotor_speeds)?)
+    }
+
+    /// The parameters each UAV drew at its world's last reset (domain randomisation): one
+    /// dict per UAV, world-major (empty without randomisation).
+    fn randomized<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let mut out = Vec::new();
+        for world in &self.get().worlds {
+            for drawn in world.randomized() {
+                let dict = PyDict::new(py);
+                for (k, v) in drawn.0 {
+                    dict.set_item(k, v)?;
+                }
+                out.push(dict);
+            }
+        }
+        Ok(out)
     }
 
     /// Total number of UAVs (worlds × UAVs per world).

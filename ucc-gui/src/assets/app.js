@@ -150,6 +150,8 @@ function panels(changed) {
   $("uav-attitude").textContent = l ? fmt3(l.attitude, 3) + " rad" : "";
   $("uav-battery").textContent = l && l.battery ? `${(l.battery.level * 100).toFixed(0)}% (${l.battery.remaining} s)` : "";
   $("uav-time").textContent = l ? fmt(l.time) + " s" : "";
+  // Faults the server applied (usar-server --faults): how many, and the latest.
+  $("uav-faults").textContent = l && l.faults ? `${l.faults.count}: ${l.faults.last} (t=${fmt(l.faults.time)} s)` : "";
   let sensors = "";
   if (l) {
     if (l.sonars) sensors += "sonars " + l.sonars.map((s) => fmt(s)).join(" ") + "\n";

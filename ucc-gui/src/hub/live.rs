@@ -28,6 +28,8 @@ pub struct Live {
     pub command: Option<[f64; 4]>,
     /// Laser hits of this sample in the world frame (x, y).
     pub hits: Vec<[f64; 2]>,
+    /// Faults the server applied so far (`--faults`) and the latest: time and what.
+    pub faults: (usize, Option<(f64, String)>),
 }
 
 impl Live {
@@ -66,6 +68,10 @@ impl Live {
             altitude: uav.altitude.as_ref().map(|r| r.value),
             command: command.map(|c| [c.forward, c.right, c.up, c.yaw]),
             hits: Vec::new(),
+            faults: (
+                uav.faults.len(),
+                uav.faults.last().map(|f| (f.time, f.value.clone())),
+            ),
         };
         if hits && let (Some(p), Some(l)) = (uav.position.as_ref(), laser) {
             let hits = l.hits(&p.value, uav.yaw());
@@ -91,6 +97,9 @@ impl Live {
             "velocity": arr(&self.velocity),
             "battery": self.battery.map(|b| json!({"level": finite(b.0), "remaining": b.1})),
         });
+        if let (count, Some((time, what))) = &self.faults {
+            v["faults"] = json!({"count": count, "time": finite(*time), "last": what});
+        }
         if detail {
             v["laser"] = self
                 .laser

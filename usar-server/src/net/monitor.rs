@@ -2,6 +2,7 @@
 //! Server (docs/wss.md; the wire reference is side-servers.md §3.2).
 //!
 //! * `GETPOS` → `POSITIONS {Robots n} {Name R Location x,y,z BatteryEmpty False} ...`
+//!   (` Radio Off` after `BatteryEmpty ..` while a robot's radio has failed: ours)
 //! * `GETOBS {From A} {To B}` → `NUMOBS {From A} {To B} {ObstCount 3.0000}` (−1 for an
 //!   unknown robot); `GETOBS {Start x,y,z} {End x,y,z}` → `NUMOBS {Start ..} {End ..}
 //!   {ObstCount n}`; neither pair: an empty line.
@@ -33,10 +34,12 @@ pub(crate) fn reply(world: &World, line: &str) -> Option<String> {
             out.push_str(" Location ");
             push_fixed_list(&mut out, &r.location, 4);
             out.push_str(if r.battery_empty {
-                " BatteryEmpty True}"
+                " BatteryEmpty True"
             } else {
-                " BatteryEmpty False}"
+                " BatteryEmpty False"
             });
+            // Ours: a robot whose radio failed (docs/wss.md); the WSS sees it out of range.
+            out.push_str(if r.radio_off { " Radio Off}" } else { "}" });
         }
         return Some(out);
     }

@@ -126,6 +126,8 @@ struct State {
     links: Vec<Link>,
     /// Latest positions from the monitor.
     positions: HashMap<String, [f64; 3]>,
+    /// Robots whose radio is off (the monitor's `Radio Off`, a fault; docs/wss.md).
+    radio_off: std::collections::HashSet<String>,
     /// Wall counts per unordered pair, with the positions they were counted at.
     walls: HashMap<(String, String), Walls>,
     /// Relayed connections: the WSS's outgoing local port → (from, to).
@@ -192,6 +194,9 @@ impl Wss {
         let (Some(pa), Some(pb)) = (state.positions.get(a), state.positions.get(b)) else {
             return f64::NAN;
         };
+        if state.radio_off.contains(a) || state.radio_off.contains(b) {
+            return f64::NEG_INFINITY;
+        }
         let Some((walls, ..)) = state.walls.get(&pair(a, b)) else {
             return f64::NAN;
         };
@@ -356,6 +361,8 @@ async fn request(
             let s = wss.strength(&state, &name, robot);
             if s.is_nan() {
                 format!("SS {{Robot {robot}}} {{Strength NaN}} {{Error Model.Returned.NaN}}")
+            } else if s == f64::NEG_INFINITY {
+                format!("SS {{Robot {robot}}} {{Strength -INF}} {{Error Radio.Off}}")
             } else if s.is_infinite() || s > 0.0 {
                 format!("SS {{Robot {robot}}} {{Strength INF}} {{Error Model.Returned.INF}}")
             } else {
@@ -576,22 +583,24 @@ async fn ask(m: &mut BufReader<TcpStream>, request: &str) -> Result<String, ()> 
     }
 }
 
-/// `POSITIONS {Robots n} {Name R Location x,y,z BatteryEmpty False} ...` → name, place,
-/// battery empty.
-fn positions(line: &str) -> Vec<(String, [f64; 3], bool)> {
+/// `POSITIONS {Robots n} {Name R Location x,y,z BatteryEmpty False [Radio Off]} ...` → name,
+/// place, battery empty, radio off (our monitor's extension for a radio fault).
+fn positions(line: &str) -> Vec<(String, [f64; 3], bool, bool)> {
     let mut out = Vec::new();
     for block in line.split('{').skip(1) {
         let tokens: Vec<&str> = block
             .trim_end_matches(['}', ' '])
             .split_whitespace()
             .collect();
-        if let ["Name", name, "Location", at, "BatteryEmpty", empty] = tokens[..] {
+        let radio_off = matches!(tokens[..], [.., "Radio", off] if off.eq_ignore_ascii_case("Off"));
+        if let ["Name", name, "Location", at, "BatteryEmpty", empty, ..] = tokens[..] {
             let p: Vec<f64> = at.split(',').filter_map(|x| x.parse().ok()).collect();
             if let [x, y, z] = p[..] {
                 out.push((
                     name.to_owned(),
                     [x, y, z],
                     empty.eq_ignore_ascii_case("True"),
+                    radio_off,
                 ));
             }
         }
@@ -610,6 +619,7 @@ async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> 
             .filter(|f| !f.2)
             .map(|f| (f.0.clone(), f.1))
             .collect();
+        state.radio_off = found.iter().filter(|f| f.3).map(|f| f.0.clone()).collect();
         let names: Vec<String> = state.robots.keys().cloned().collect();
         for name in &names {
             if !state.positions.contains_key(name)
@@ -752,9 +762,13 @@ mod tests {
                 "POSITIONS {Robots 2} {Name A Location 1.0000,2.0000,-1.0000 BatteryEmpty False} {Name B Location 0,0,0 BatteryEmpty True}"
             ),
             vec![
-                ("A".to_owned(), [1.0, 2.0, -1.0], false),
-                ("B".to_owned(), [0.0; 3], true)
+                ("A".to_owned(), [1.0, 2.0, -1.0], false, false),
+                ("B".to_owned(), [0.0; 3], true, false)
             ]
+        );
+        assert_eq!(
+            positions("POSITIONS {Robots 1} {Name A Location 1,2,3 BatteryEmpty False Radio Off}"),
+            vec![("A".to_owned(), [1.0, 2.0, 3.0], false, true)]
         );
     }
 }

@@ -37,6 +37,10 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
 }
 
 impl Sensor for Altitude {
+    fn scale_noise(&mut self, k: f64) {
+        self.1.scale(k);
+    }
+
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
         let [truth] = self.1.apply([at.spawn_z - at.position[2]], at.time, noise);
         let relative = noise.apply(truth);

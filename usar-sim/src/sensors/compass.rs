@@ -39,6 +39,10 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
 }
 
 impl Sensor for Compass {
+    fn scale_noise(&mut self, k: f64) {
+        self.1.scale(k);
+    }
+
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
         let [yaw] = self.1.apply([at.rotation[2]], at.time, noise);
         let angle = if self.0.usarsim_quirk {

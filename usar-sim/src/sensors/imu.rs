@@ -78,6 +78,11 @@ impl Imu {
 }
 
 impl Sensor for Imu {
+    fn scale_noise(&mut self, k: f64) {
+        self.accel.scale(k);
+        self.gyro.scale(k);
+    }
+
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
         let mut data = self.read_exact(at);
         if let SenData::Imu {

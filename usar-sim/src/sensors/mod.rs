@@ -6,6 +6,7 @@
 //! to `REGISTRY`.
 
 mod altitude;
+mod barometer;
 mod battery;
 pub(crate) mod camera;
 mod compass;
@@ -205,6 +206,10 @@ pub(crate) trait Sensor: SensorClone + std::fmt::Debug + Send + Sync {
         let _ = (opcode, params);
         false
     }
+    /// Its error model's noise, bias and bias walk times `k` (domain randomisation).
+    fn scale_noise(&mut self, k: f64) {
+        let _ = k;
+    }
     /// The camera, if this part is one (rendered by `World::render_cameras`).
     fn camera(&self) -> Option<&camera::Camera> {
         None
@@ -241,6 +246,7 @@ pub(crate) const REGISTRY: &[SensorKind] = &[
     kind("Touch", 0.1, touch::build),
     kind("Battery", 0.1, battery::build),
     kind("Rotors", 0.1, rotors::build),
+    kind("Barometer", 0.05, barometer::build),
     kind("VictSensor", 0.8, victim::build),
 ];
 

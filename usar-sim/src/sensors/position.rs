@@ -51,6 +51,10 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
 }
 
 impl Sensor for Position {
+    fn scale_noise(&mut self, k: f64) {
+        self.errors.scale(k);
+    }
+
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
         let c = &self.config;
         if let Some((fix, t)) = self.last.filter(|_| c.dropout_rate > 0.0) {

@@ -14,7 +14,7 @@ from gymnasium.vector.utils import batch_space
 from . import _core
 from ._maps import MapInfo
 from ._render import TopView
-from ._task import Tasks, action_space, observation_space
+from ._task import Tasks, action_space, observation_space, with_rotor_speeds
 
 
 def _robot(name: str) -> str:
@@ -74,7 +74,41 @@ class Replay:
                 self.step(a)
 
 
-class UsarsimEnv(Replay, gym.Env):
+class Realism:
+    """Faults, domain randomisation and rotor speeds (docs/python.md#faults-randomisation-rotor-speeds),
+    for the in-process world; they apply from the next reset. ``reset(options={"faults": text,
+    "randomize": text})`` does the same for one reset on."""
+
+    def configure(self, *, faults: str | None = None, randomize: str | None = None,
+                  rotor_speeds: bool | None = None) -> None:
+        """``faults``: a faults file's text (``[[fault]]`` / ``[[random]]`` entries, robot 1 the
+        first UAV of each world; random times drawn from the episode's seed); ``randomize``: a
+        randomisation file's text (``mass = [0.9, 1.1]`` ...; ``""`` turns it off), drawn per
+        episode from its seed and reported in the reset's ``info["randomized"]``;
+        ``rotor_speeds``: the four rotor speeds (rad/s) as the observation key
+        ``rotor_speeds``. ``None`` leaves a setting as it is; a bad text is a ValueError
+        naming the entry, line or key."""
+        if getattr(self, "_server", None) is not None:
+            raise ValueError("configure: only for the in-process world")
+        self._batch.configure(faults, randomize, rotor_speeds)
+        if rotor_speeds and "rotor_speeds" not in self._tasks.keys:
+            self._tasks.keys.append("rotor_speeds")
+            self._set_spaces(with_rotor_speeds)
+        elif rotor_speeds is False and "rotor_speeds" in self._tasks.keys:
+            self._tasks.keys.remove("rotor_speeds")
+            self._set_spaces(None)
+
+    def _options(self, options):
+        """Applies the realism options of a reset (``faults``, ``randomize``)."""
+        if options and ("faults" in options or "randomize" in options):
+            self.configure(faults=options.get("faults"), randomize=options.get("randomize"))
+
+    def randomized(self):
+        """The parameters each UAV drew at the last reset (empty dicts without)."""
+        return self._batch.randomized()
+
+
+class UsarsimEnv(Realism, Replay, gym.Env):
     """One stsAirRobot in a map (`usarsim/Waypoints-v0`, `usarsim/Hover-v0`).
 
     Keyword options: ``map`` (embedded name or map file), ``robot``, ``start`` (a PlayerStart
@@ -141,8 +175,13 @@ class UsarsimEnv(Replay, gym.Env):
         super().reset(seed=seed)
         return self._restore(self.np_random.bit_generator.state, options)
 
+    def _set_spaces(self, extend):
+        base = self.__dict__.setdefault("_base_space", self.observation_space)
+        self.observation_space = extend(base, self._tasks.flat) if extend else base
+
     def _restore(self, rng_state, options):
         """The reset after the seeding: from the generator state `rng_state`."""
+        self._options(options)
         self._np_random = _rng(rng_state)
         self._replay = {"rng": rng_state, "options": options, "actions": []}
         starts = self._tasks.new_starts(self.np_random, [0], False, options)
@@ -156,7 +195,10 @@ class UsarsimEnv(Replay, gym.Env):
         self._tasks.begin(raw, [0])
         self._trail = [raw["position"][0, :2].copy()]
         self._ended = False
-        return self._tasks.row(self._tasks.observe(raw), 0), {"lockstep": self._remote.lockstep if self._remote else True}
+        info = {"lockstep": self._remote.lockstep if self._remote else True}
+        if self._remote is None and self.randomized()[0]:
+            info["randomized"] = self.randomized()[0]
+        return self._tasks.row(self._tasks.observe(raw), 0), info
 
     def step(self, action):
         if self._closed:
@@ -225,7 +267,7 @@ def _with_masks(info: dict, mask: np.ndarray) -> dict:
     return out
 
 
-class UsarsimVectorEnv(Replay, VectorEnv):
+class UsarsimVectorEnv(Realism, Replay, VectorEnv):
     """`num_envs` independent worlds with one UAV each, stepped by Rust in one call.
 
     Same options as :class:`UsarsimEnv` (no ``server``), plus ``autoreset_mode``:
@@ -277,7 +319,14 @@ class UsarsimVectorEnv(Replay, VectorEnv):
             rngs = self._rngs
         return self._restore([r.bit_generator.state for r in rngs], options)
 
+    def _set_spaces(self, extend):
+        base = self.__dict__.setdefault("_base_space", self.single_observation_space)
+        single = extend(base, self._tasks.flat) if extend else base
+        self.single_observation_space = single
+        self.observation_space = batch_space(single, self.num_envs)
+
     def _restore(self, rng_states, options):
+        self._options(options)
         self._rngs = [_rng(s) for s in rng_states]
         self._replay = {"rng": rng_states, "options": options, "actions": []}
         rows = np.arange(self.num_envs)
@@ -285,7 +334,8 @@ class UsarsimVectorEnv(Replay, VectorEnv):
         self._autoreset[:] = False
         raw = self._batch.observe()
         self._tasks.begin(raw, rows)
-        return self._tasks.observe(raw), {}
+        drawn = self.randomized()
+        return self._tasks.observe(raw), ({"randomized": drawn} if any(drawn) else {})
 
     def _new_worlds(self, rows, options=None):
         """Seeds and starts of fresh worlds for `rows` (and their new tasks)."""

@@ -36,6 +36,20 @@ BOUNDS = {
     "yaw_error": (-np.pi, np.pi, 1),
 }
 
+#: Bounds of the opt-in rotor speeds (rad/s; docs/python.md#faults-randomisation-rotor-speeds).
+BOUNDS["rotor_speeds"] = (0.0, 1e4, 4)
+
+
+def with_rotor_speeds(space: spaces.Space, flat: bool) -> spaces.Space:
+    """`space` with the four rotor speeds appended (a ``rotor_speeds`` key, or the flat Box
+    four values longer)."""
+    lo, hi, width = BOUNDS["rotor_speeds"]
+    if flat:
+        return spaces.Box(np.concatenate([space.low, np.full(width, lo, np.float32)]),
+                          np.concatenate([space.high, np.full(width, hi, np.float32)]), dtype=np.float32)
+    return spaces.Dict({**space.spaces, "rotor_speeds": spaces.Box(np.float32(lo), np.float32(hi), (width,), np.float32)})
+
+
 #: Reward for each waypoint reached.
 WAYPOINT_BONUS = 10.0
 #: Reward per control period in which the body touched a wall, the floor or another UAV.
