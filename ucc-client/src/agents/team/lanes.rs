@@ -232,7 +232,7 @@ mod tests {
         assert_eq!(pts[0], [0.0, 1.5, -4.0]);
         assert_eq!(pts[1], [10.0, 1.5, -4.0]);
         assert_eq!(pts[2], [10.0, 4.5, -4.0]);
-        assert_eq!(pts[5], [0.0, 7.5, -4.0]);
+        assert_eq!(pts[5], [10.0, 7.5, -4.0]);
         // A width that is no multiple: the last lane still half a spacing from the edge.
         let pts = lanes([[0.0, 0.0], [10.0, 10.0]], 3.0, -4.0);
         assert_eq!(pts.last().unwrap()[1], 8.5);
