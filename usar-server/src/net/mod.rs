@@ -14,7 +14,7 @@ pub mod monitor;
 mod recording;
 mod session;
 mod side;
-mod truth;
+pub mod truth;
 pub mod wss;
 
 pub(crate) use driver::wait_of;
