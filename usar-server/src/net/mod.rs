@@ -531,7 +531,7 @@ impl Drop for AddressSlot {
 }
 
 /// Accept errors that concern one connection only (the listener stays usable).
-fn is_transient(e: &std::io::Error) -> bool {
+pub(crate) fn is_transient(e: &std::io::Error) -> bool {
     use std::io::ErrorKind::*;
     matches!(
         e.kind(),
