@@ -30,8 +30,8 @@ for t in "${targets[@]}"; do
   # -rss_limit_mb: a finding if one input takes more; -max_len: inputs of up to 4 KiB.
   cargo +nightly fuzz run "$t" "corpus/$t" -- -max_total_time="$seconds" \
     -print_final_stats=1 -rss_limit_mb=1024 -max_len=4096 >"$log" 2>&1 || true
-  execs=$(awk -F: '/stat::number_of_executed_units/ { gsub(/ /, "", $2); print $2 }' "$log" | tail -1)
-  rate=$(awk -F: '/stat::average_exec_per_sec/ { gsub(/ /, "", $2); print $2 }' "$log" | tail -1)
+  execs=$(awk '/stat::number_of_executed_units/ { print $NF }' "$log" | tail -1)
+  rate=$(awk '/stat::average_exec_per_sec/ { print $NF }' "$log" | tail -1)
   after=$(find "artifacts/$t" -type f | wc -l)
   # Keep the corpus small: minimise, then pack.
   cargo +nightly fuzz cmin "$t" "corpus/$t" >/dev/null 2>&1 || true

@@ -1,6 +1,6 @@
 //! The image server's binary protocol (UPIS, TCP 5003; docs/camera.md), sans I/O: the
 //! requests a client sends ([`RequestParser`]), the frames the server sends
-//! ([`frame_header`], [`raw_payload`], [`FrameParser`], [`decode_raw`]).
+//! ([`frame_header`], [`raw_payload`], [`crop`], [`FrameParser`], [`decode_raw`]).
 //!
 //! Requests: `OK` (a full frame) or `U` followed by x, y, width, height as u32
 //! big-endian (a rectangle of it); any other byte is ignored, so `OK\r\n` works. A frame:
@@ -160,6 +160,31 @@ pub fn raw_payload(width: u16, height: u16, rgb: &[u8], bgr: bool, out: &mut Vec
         }
         out.resize(out.len() + pitch - 3 * w, 0);
     }
+}
+
+/// The part of a `width` × `height` frame of R, G, B pixels that a `U` request asks for
+/// (top-left corner `x`, `y` and size), clipped to the frame: its width, height and pixels
+/// (`None`: nothing of it is in the frame). `rgb` must hold `3 · width · height` bytes.
+pub fn crop(
+    width: u16,
+    height: u16,
+    rgb: &[u8],
+    x: u32,
+    y: u32,
+    w: u32,
+    h: u32,
+) -> Option<(u16, u16, Vec<u8>)> {
+    let (fw, fh) = (u32::from(width), u32::from(height));
+    let (x1, y1) = (x.saturating_add(w).min(fw), y.saturating_add(h).min(fh));
+    if x >= x1 || y >= y1 {
+        return None;
+    }
+    let mut out = Vec::with_capacity(3 * ((x1 - x) * (y1 - y)) as usize);
+    for row in y..y1 {
+        let start = 3 * (row * fw + x) as usize;
+        out.extend_from_slice(&rgb[start..start + 3 * (x1 - x) as usize]);
+    }
+    Some(((x1 - x) as u16, (y1 - y) as u16, out))
 }
 
 /// A frame as a client receives it.
@@ -339,5 +364,24 @@ mod tests {
             Err(FrameError::TooLarge { .. })
         ));
         assert!(decode_raw(&[0, 5, 0, 2, 1, 2], true).is_err());
+    }
+
+    #[test]
+    fn rectangles_are_clipped_to_the_frame() {
+        let rgb: Vec<u8> = (0..24).collect();
+        assert_eq!(
+            crop(4, 2, &rgb, 1, 1, 2, 1),
+            Some((2, 1, vec![15, 16, 17, 18, 19, 20]))
+        );
+        assert_eq!(
+            crop(4, 2, &rgb, 3, 0, 100, u32::MAX).map(|c| (c.0, c.1)),
+            Some((1, 2))
+        );
+        assert_eq!(crop(4, 2, &rgb, 4, 0, 1, 1), None);
+        assert_eq!(crop(4, 2, &rgb, 0, 0, 0, 5), None);
+        assert_eq!(
+            crop(4, 2, &rgb, u32::MAX, u32::MAX, u32::MAX, u32::MAX),
+            None
+        );
     }
 }

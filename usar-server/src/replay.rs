@@ -5,16 +5,19 @@
 //! and logged, never answered.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use futures::StreamExt;
 use tokio::io::AsyncWriteExt;
 use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::Semaphore;
 use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
 use usar_proto::codec::LineCodec;
 use usar_proto::record::{self, Direction};
+use usar_proto::shown::Repeats;
 use usar_proto::{Message, ServerMessage};
 
 /// The longest line a recording or capture may hold (bytes): 1 MiB. Files of any size are
@@ -297,8 +300,13 @@ impl<R: std::io::BufRead> Iterator for Lines<R> {
 /// What every recording's first line starts with (then the version).
 const RECORD_PREFIX: &str = "# usar-record";
 
+/// Clients served at once; more are closed on accept.
+pub const MAX_REPLAY_CLIENTS: usize = 64;
+
 /// Serves `file` to every client that connects until `shutdown` is cancelled; each client
-/// gets the whole stream from the start, read from the file as it is sent.
+/// gets the whole stream from the start, read from the file as it is sent. At most
+/// [`MAX_REPLAY_CLIENTS`] at once; a failing accept (out of file descriptors) is waited out,
+/// never the end of the server.
 pub async fn serve(
     listener: TcpListener,
     file: ReplayFile,
@@ -306,11 +314,29 @@ pub async fn serve(
     shutdown: CancellationToken,
 ) -> std::io::Result<()> {
     let tracker = TaskTracker::new();
+    let slots = Arc::new(Semaphore::new(MAX_REPLAY_CLIENTS));
+    let (mut refused, mut failed) = (Repeats::default(), Repeats::default());
     loop {
         tokio::select! {
             _ = shutdown.cancelled() => break,
             accepted = listener.accept() => {
-                let (stream, peer) = accepted?;
+                let (stream, peer) = match accepted {
+                    Ok(x) => x,
+                    Err(error) if crate::net::is_transient(&error) => {
+                        if let Some(count) = failed.note() {
+                            warn!(%error, count, "accept failed; waiting");
+                        }
+                        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+                        continue;
+                    }
+                    Err(error) => return Err(error),
+                };
+                let Ok(permit) = slots.clone().try_acquire_owned() else {
+                    if let Some(count) = refused.note() {
+                        warn!(%peer, max = MAX_REPLAY_CLIENTS, count, "too many clients; closing");
+                    }
+                    continue;
+                };
                 info!(%peer, "replaying");
                 let file = file.clone();
                 let token = shutdown.child_token();
@@ -322,6 +348,7 @@ pub async fn serve(
                             Err(error) => info!(%peer, %error, "client left"),
                         },
                     }
+                    drop(permit);
                 });
             }
         }

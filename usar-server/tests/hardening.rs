@@ -348,3 +348,82 @@ fn huge_numbers_in_error_messages_are_short() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `usar-server replay` under a connection flood (the attack suite's rule for every listening
+/// program): with the open files limited to 48, 100 clients that never read must not end
+/// the replay server (it exited on the first "Too many open files"); once they leave, a new
+/// client gets the whole recording.
+#[test]
+fn the_replay_server_outlives_a_connection_flood() {
+    let dir = scratch("replay-flood");
+    let file = dir.join("small.usarlog");
+    std::fs::write(
+        &file,
+        "# usar-record 1\n0.0000 S NFO {Gametype BotDeathMatch} {Level X}\n\
+         0.0100 S SEN {Time 0.0100} {Type Position} {Name Position} {Location 0,0,-1}\n",
+    )
+    .unwrap();
+    let log = dir.join("stderr.txt");
+    let bin = std::env::var_os("USAR_SERVER_BIN")
+        .unwrap_or_else(|| env!("CARGO_BIN_EXE_usar-server").into());
+    let mut child = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -n 48 && exec \"$0\" \"$@\"")
+        .arg(bin)
+        .arg("replay")
+        .arg(&file)
+        .args(["--port", "0"])
+        .stdout(Stdio::piped())
+        .stderr(std::fs::File::create(&log).unwrap())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let addr = line
+        .trim_end()
+        .rsplit(' ')
+        .find(|w| w.starts_with("127.0.0.1:"))
+        .unwrap_or_else(|| panic!("ready line: {line:?}"))
+        .to_owned();
+    // (A connect the server's full queue leaves unanswered gives up after 200 ms.)
+    let to: std::net::SocketAddr = addr.parse().unwrap();
+    let flood: Vec<std::net::TcpStream> = (0..100)
+        .filter_map(|_| std::net::TcpStream::connect_timeout(&to, Duration::from_millis(200)).ok())
+        .collect();
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "the replay server exited under {} connections: {}",
+        flood.len(),
+        std::fs::read_to_string(&log).unwrap()
+    );
+    drop(flood);
+    // The flood has left: a new client is served the whole recording.
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let got = loop {
+        let mut text = String::new();
+        if let Ok(mut client) = std::net::TcpStream::connect(&addr) {
+            client
+                .set_read_timeout(Some(Duration::from_secs(10)))
+                .unwrap();
+            let _ = client.read_to_string(&mut text);
+        }
+        if text.contains("SEN {Time 0.0100}") || Instant::now() > deadline {
+            break text;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let alive = child.try_wait().unwrap().is_none();
+    terminate(&child);
+    let _ = child.wait();
+    let stderr = std::fs::read_to_string(&log).unwrap();
+    assert!(alive, "the replay server exited: {stderr}");
+    assert!(
+        got.starts_with("NFO {Gametype BotDeathMatch}"),
+        "{got:?}\n{stderr}"
+    );
+    assert!(got.contains("SEN {Time 0.0100}"), "{got:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -17,7 +17,6 @@
 //! one frame in flight: TCP back-pressure bounds the rest).
 
 use std::collections::VecDeque;
-use std::net::SocketAddr;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -25,10 +24,10 @@ use std::time::{Duration, Instant};
 use bytes::Bytes;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{Semaphore, watch};
+use tokio::sync::watch;
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
-use tracing::{debug, info, warn};
+use tracing::{debug, warn};
 use usar_proto::image::{self, ImageRequest, RequestParser};
 use usar_proto::shown::Repeats;
 
@@ -208,25 +207,6 @@ fn encode(config: &ImageConfig, width: u16, height: u16, rgb: &[u8]) -> Bytes {
     Bytes::from(out)
 }
 
-/// The part of the frame a `U` asks for, clipped to the frame (`None`: nothing of it is
-/// in the frame).
-fn crop(frame: &Captured, x: u32, y: u32, width: u32, height: u32) -> Option<(u16, u16, Vec<u8>)> {
-    let (fw, fh) = (u32::from(frame.width), u32::from(frame.height));
-    let (x1, y1) = (
-        x.saturating_add(width).min(fw),
-        y.saturating_add(height).min(fh),
-    );
-    if x >= x1 || y >= y1 {
-        return None;
-    }
-    let mut rgb = Vec::with_capacity(3 * ((x1 - x) * (y1 - y)) as usize);
-    for row in y..y1 {
-        let start = 3 * (row * fw + x) as usize;
-        rgb.extend_from_slice(&frame.rgb[start..start + 3 * (x1 - x) as usize]);
-    }
-    Some(((x1 - x) as u16, (y1 - y) as u16, rgb))
-}
-
 /// Accepts image clients until `shutdown`; each is served on its own task.
 pub(super) async fn accept(
     listener: TcpListener,
@@ -236,44 +216,29 @@ pub(super) async fn accept(
     shutdown: CancellationToken,
     tracker: TaskTracker,
 ) {
-    let slots = Arc::new(Semaphore::new(config.max_clients.max(1)));
-    loop {
-        let accepted = tokio::select! {
-            _ = shutdown.cancelled() => return,
-            accepted = listener.accept() => accepted,
-        };
-        let (stream, peer) = match accepted {
-            Ok(x) => x,
-            Err(error) => {
-                warn!(%error, "image server: accept failed");
-                tokio::time::sleep(Duration::from_millis(10)).await;
-                continue;
-            }
-        };
-        let Ok(permit) = slots.clone().try_acquire_owned() else {
-            warn!(%peer, max = config.max_clients, "image server: too many clients; closing");
-            continue;
-        };
-        info!(%peer, "image client connected");
-        let _ = stream.set_nodelay(true);
-        let (feed, wake, shutdown) = (feed.clone(), wake.clone(), shutdown.clone());
-        tracker.spawn(async move {
-            serve(stream, peer, feed, wake, config, shutdown).await;
-            drop(permit);
-            info!(%peer, "image client left");
-        });
-    }
+    super::side::accept(
+        "image server",
+        listener,
+        config.max_clients,
+        tracker,
+        shutdown,
+        move |stream, stop, spoke| serve(stream, feed.clone(), wake.clone(), config, stop, spoke),
+    )
+    .await;
 }
 
 /// Serves one image client until it leaves, the socket fails or the server shuts down.
 async fn serve(
     mut stream: TcpStream,
-    peer: SocketAddr,
     feed: Arc<Feed>,
     wake: std::sync::mpsc::Sender<Request>,
     config: ImageConfig,
     shutdown: CancellationToken,
+    spoke: Arc<AtomicBool>,
 ) {
+    let Ok(peer) = stream.peer_addr() else {
+        return;
+    };
     let mut frames = feed.frames.subscribe();
     let mut parser = RequestParser::default();
     let mut pending: VecDeque<ImageRequest> = VecDeque::new();
@@ -282,8 +247,24 @@ async fn serve(
     }
     let (mut got, mut requests, mut buf) = (0u64, Vec::new(), vec![0u8; 4096]);
     let mut outside = Repeats::default();
+    // The frame sent on connect was not asked for: a client that has already left (connection
+    // churn) gets none rendered or written into its closed socket.
+    let mut unasked = config.legacy;
     loop {
         while let Some(request) = pending.pop_front() {
+            if std::mem::take(&mut unasked) {
+                match stream.try_read(&mut buf) {
+                    Ok(0) => {
+                        debug!(%peer, "image client left before its first frame");
+                        return;
+                    }
+                    Ok(n) => {
+                        parser.push(&buf[..n], &mut requests);
+                        pending.extend(requests.drain(..));
+                    }
+                    Err(_) => {}
+                }
+            }
             // The first frame newer than the last one this client got.
             feed.wanted.store(true, Ordering::SeqCst);
             let _ = wake.send(Request::Wake);
@@ -304,18 +285,20 @@ async fn serve(
                     y,
                     width,
                     height,
-                } => match crop(&frame, x, y, width, height) {
-                    Some((w, h, rgb)) => encode(&config, w, h, &rgb),
-                    None => {
-                        if let Some(count) = outside.note() {
-                            warn!(%peer, x, y, width, height, frame_width = frame.width,
+                } => {
+                    match image::crop(frame.width, frame.height, &frame.rgb, x, y, width, height) {
+                        Some((w, h, rgb)) => encode(&config, w, h, &rgb),
+                        None => {
+                            if let Some(count) = outside.note() {
+                                warn!(%peer, x, y, width, height, frame_width = frame.width,
                                 frame_height = frame.height, count,
                                 "image request U: the rectangle has no pixel in the frame; \
                                  not answered");
+                            }
+                            continue;
                         }
-                        continue;
                     }
-                },
+                }
             };
             let written = tokio::select! {
                 _ = shutdown.cancelled() => return,
@@ -340,6 +323,9 @@ async fn serve(
             Ok(n) => {
                 requests.clear();
                 parser.push(&buf[..n], &mut requests);
+                if !requests.is_empty() {
+                    spoke.store(true, Ordering::Relaxed);
+                }
                 pending.extend(requests.drain(..));
             }
             Err(error) => {
@@ -386,27 +372,5 @@ mod tests {
         assert_eq!(px(0, 240), [0, 0, 0], "tile 2 has no camera");
         assert_eq!(px(320, 240), [0, 0, 255]);
         assert!(!rgb.chunks(3).any(|p| p == [9, 9, 9]));
-    }
-
-    #[test]
-    fn rectangles_are_clipped_to_the_frame() {
-        let frame = Captured {
-            seq: 1,
-            width: 4,
-            height: 2,
-            rgb: (0..24).collect(),
-            full: Bytes::new(),
-        };
-        assert_eq!(
-            crop(&frame, 1, 1, 2, 1),
-            Some((2, 1, vec![15, 16, 17, 18, 19, 20]))
-        );
-        assert_eq!(
-            crop(&frame, 3, 0, 100, u32::MAX).map(|c| (c.0, c.1)),
-            Some((1, 2))
-        );
-        assert_eq!(crop(&frame, 4, 0, 1, 1), None);
-        assert_eq!(crop(&frame, 0, 0, 0, 5), None);
-        assert_eq!(crop(&frame, u32::MAX, u32::MAX, u32::MAX, u32::MAX), None);
     }
 }

@@ -14,7 +14,7 @@ pub mod monitor;
 mod recording;
 mod session;
 mod side;
-mod truth;
+pub mod truth;
 pub mod wss;
 
 pub(crate) use driver::wait_of;
@@ -531,7 +531,7 @@ impl Drop for AddressSlot {
 }
 
 /// Accept errors that concern one connection only (the listener stays usable).
-fn is_transient(e: &std::io::Error) -> bool {
+pub(crate) fn is_transient(e: &std::io::Error) -> bool {
     use std::io::ErrorKind::*;
     matches!(
         e.kind(),

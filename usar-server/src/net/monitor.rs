@@ -22,7 +22,7 @@ use super::side;
 use crate::sim::World;
 
 /// The reply to one request line, without its CR LF; `None`: no reply.
-pub(crate) fn reply(world: &World, line: &str) -> Option<String> {
+pub fn reply(world: &World, line: &str) -> Option<String> {
     let line = line.trim();
     let word = line.split([' ', '{']).next().unwrap_or("");
     if word.eq_ignore_ascii_case("GETPOS") {

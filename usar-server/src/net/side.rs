@@ -1,15 +1,19 @@
-//! What the side servers (USARTruth on 3989, the robot monitor on 7435) share: questions to
-//! the simulation thread, the accept loop with its connection limit, and bounded line reading.
+//! What the side servers (the image server on 5003, USARTruth on 3989, the robot monitor on
+//! 7435, the WSS on 50000) share: questions to the simulation thread, the accept loop with
+//! its connection limit, and bounded line reading.
 
-use std::sync::Arc;
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::Sender;
+use std::sync::{Arc, Mutex};
 
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{Semaphore, oneshot};
+use tokio::sync::oneshot;
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
+use usar_proto::shown::Repeats;
 
 use super::driver::{Ask, Request};
 use crate::sim::World;
@@ -33,19 +37,84 @@ pub(super) async fn ask<T: Send + 'static>(
     answer.await.ok()
 }
 
-/// Accepts connections on `listener` until `shutdown`, at most [`MAX_CONNECTIONS`] at once,
-/// and serves each with `serve` on `tracker`.
+/// The connections a side server serves, oldest first: at its limit, the oldest connection
+/// that has not completed a request is closed to make room for a new one (the Gamebots
+/// port's rule, docs/limits.md), so that idle or slow clients cannot lock the port.
+#[derive(Default)]
+pub(super) struct Slots {
+    next: u64,
+    live: BTreeMap<u64, (Arc<AtomicBool>, CancellationToken)>,
+}
+
+/// A connection's place in [`Slots`], given back when dropped.
+pub(super) struct Slot {
+    slots: Arc<Mutex<Slots>>,
+    id: u64,
+    /// Set by the session once the client has completed a request.
+    pub(super) spoke: Arc<AtomicBool>,
+}
+
+impl Drop for Slot {
+    fn drop(&mut self) {
+        lock(&self.slots).live.remove(&self.id);
+    }
+}
+
+fn lock(slots: &Mutex<Slots>) -> std::sync::MutexGuard<'_, Slots> {
+    slots.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Slots {
+    /// A place for a new connection, at most `max` at once: a free one, or the oldest
+    /// connection's that has not completed a request (its `stop` is cancelled; then the
+    /// flag is true); `None` when every connection has. `stop` ends the new connection's
+    /// session.
+    pub(super) fn take(
+        slots: &Arc<Mutex<Self>>,
+        max: usize,
+        stop: CancellationToken,
+    ) -> Option<(Slot, bool)> {
+        let mut s = lock(slots);
+        let full = s.live.len() >= max.max(1);
+        if full {
+            let quiet = s
+                .live
+                .iter()
+                .find(|(_, (spoke, _))| !spoke.load(Ordering::Relaxed))
+                .map(|(id, _)| *id)?;
+            if let Some((_, evicted)) = s.live.remove(&quiet) {
+                evicted.cancel();
+            }
+        }
+        let id = s.next;
+        s.next += 1;
+        let spoke = Arc::new(AtomicBool::new(false));
+        s.live.insert(id, (spoke.clone(), stop));
+        let slot = Slot {
+            slots: slots.clone(),
+            id,
+            spoke,
+        };
+        Some((slot, full))
+    }
+}
+
+/// Accepts connections on `listener` until `shutdown`, at most `max` at once (see [`Slots`]), and serves each with `serve` on `tracker`: `serve` gets the connection,
+/// the token that ends it (shutdown, or closed to make room) and the flag to set once the
+/// client has completed a request.
 pub(super) async fn accept<F, Fut>(
     service: &'static str,
     listener: TcpListener,
+    max: usize,
     tracker: TaskTracker,
     shutdown: CancellationToken,
     serve: F,
 ) where
-    F: Fn(TcpStream, CancellationToken) -> Fut + Send + 'static,
+    F: Fn(TcpStream, CancellationToken, Arc<AtomicBool>) -> Fut + Send + 'static,
     Fut: std::future::Future<Output = ()> + Send + 'static,
 {
-    let slots = Arc::new(Semaphore::new(MAX_CONNECTIONS));
+    let slots: Arc<Mutex<Slots>> = Arc::default();
+    let (mut refused, mut evictions) = (Repeats::default(), Repeats::default());
     loop {
         let (stream, peer) = tokio::select! {
             _ = shutdown.cancelled() => return,
@@ -58,16 +127,24 @@ pub(super) async fn accept<F, Fut>(
                 }
             },
         };
-        let Ok(permit) = slots.clone().try_acquire_owned() else {
-            warn!(service, %peer, max = MAX_CONNECTIONS, "too many connections; closing");
+        let stop = shutdown.child_token();
+        let Some((slot, evicted)) = Slots::take(&slots, max, stop.clone()) else {
+            if let Some(count) = refused.note() {
+                warn!(service, %peer, max, count,
+                    "too many connections, each has completed a request; closing");
+            }
             continue;
         };
+        if evicted && let Some(count) = evictions.note() {
+            warn!(service, %peer, max, count,
+                "too many connections: closed the oldest that had not completed a request");
+        }
         info!(service, %peer, "connected");
         let _ = stream.set_nodelay(true);
-        let done = serve(stream, shutdown.child_token());
+        let done = serve(stream, stop.clone(), slot.spoke.clone());
         tracker.spawn(async move {
             done.await;
-            drop(permit);
+            drop(slot);
             info!(service, %peer, "disconnected");
         });
     }
@@ -88,9 +165,12 @@ pub(super) async fn serve_lines(
     accept(
         service,
         listener,
+        MAX_CONNECTIONS,
         tracker.clone(),
         shutdown,
-        move |stream, stop| answer_lines(service, stream, requests.clone(), stop, answer),
+        move |stream, stop, spoke| {
+            answer_lines(service, stream, requests.clone(), stop, spoke, answer)
+        },
     )
     .await;
 }
@@ -100,6 +180,7 @@ async fn answer_lines(
     stream: TcpStream,
     requests: Sender<Request>,
     stop: CancellationToken,
+    spoke: Arc<AtomicBool>,
     answer: fn(&World, &str) -> Option<String>,
 ) {
     let peer = stream
@@ -114,7 +195,10 @@ async fn answer_lines(
             line = lines.next() => line,
         };
         let line = match line {
-            Ok(line) => String::from_utf8_lossy(&line).into_owned(),
+            Ok(line) => {
+                spoke.store(true, Ordering::Relaxed);
+                String::from_utf8_lossy(&line).into_owned()
+            }
             Err(LineError::Closed) => return,
             Err(LineError::TooLong) => {
                 warn!(service, %peer, max = MAX_LINE, "request line too long; closing");
@@ -223,6 +307,28 @@ mod tests {
         let long = vec![b'x'; MAX_LINE * 2];
         let mut lines = Lines::new(&long[..]);
         assert!(matches!(lines.next().await, Err(LineError::TooLong)));
+    }
+
+    #[test]
+    fn at_the_limit_the_oldest_quiet_connection_makes_room() {
+        let slots: Arc<Mutex<Slots>> = Arc::default();
+        let stops: Vec<CancellationToken> = (0..4).map(|_| CancellationToken::new()).collect();
+        let taken: Vec<Slot> = stops
+            .iter()
+            .take(3)
+            .map(|stop| Slots::take(&slots, 3, stop.clone()).unwrap().0)
+            .collect();
+        taken[0].spoke.store(true, Ordering::Relaxed);
+        // Full: the second (the oldest that has not completed a request) is closed.
+        let (fourth, evicted) = Slots::take(&slots, 3, stops[3].clone()).unwrap();
+        assert!(evicted);
+        assert!(!stops[0].is_cancelled() && stops[1].is_cancelled());
+        // Every connection has completed a request: the next one is refused.
+        taken[2].spoke.store(true, Ordering::Relaxed);
+        fourth.spoke.store(true, Ordering::Relaxed);
+        assert!(Slots::take(&slots, 3, CancellationToken::new()).is_none());
+        drop(taken);
+        assert!(Slots::take(&slots, 3, CancellationToken::new()).is_some());
     }
 
     #[test]

@@ -107,6 +107,12 @@ fn answer(world: &World, query: &Query) -> String {
     out
 }
 
+/// The answer to one request line (see the module's documentation), ending in `{End}`
+/// and CR LF.
+pub fn reply(world: &World, line: &str) -> String {
+    answer(world, &Query::parse(line))
+}
+
 /// Serves USARTruth on `listener` until `shutdown` (a blank or unreadable line is the
 /// default query, as USARSim answers it).
 pub(super) async fn serve(
@@ -121,7 +127,7 @@ pub(super) async fn serve(
         requests,
         tracker,
         shutdown,
-        |world, line| Some(answer(world, &Query::parse(line))),
+        |world, line| Some(reply(world, line)),
     )
     .await;
 }

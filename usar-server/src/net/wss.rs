@@ -10,6 +10,7 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::net::{IpAddr, SocketAddr};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -59,8 +60,6 @@ impl WssConfig {
     }
 }
 
-/// Control connections served at once.
-const MAX_CONTROL: usize = 64;
 /// The longest control line (bytes); a longer one closes the connection.
 const MAX_LINE: usize = 4096;
 /// Relayed connections open at once, in all.
@@ -159,29 +158,19 @@ pub async fn serve(listener: TcpListener, config: WssConfig, shutdown: Cancellat
         shutdown: shutdown.clone(),
     });
     tokio::spawn(poll(wss.clone()));
-    let slots = Arc::new(Semaphore::new(MAX_CONTROL));
-    loop {
-        let (stream, peer) = tokio::select! {
-            _ = shutdown.cancelled() => return,
-            accepted = listener.accept() => match accepted {
-                Ok(x) => x,
-                Err(error) => {
-                    warn!(%error, "WSS: accept failed");
-                    tokio::time::sleep(Duration::from_millis(10)).await;
-                    continue;
-                }
-            },
-        };
-        let Ok(permit) = slots.clone().try_acquire_owned() else {
-            warn!(%peer, max = MAX_CONTROL, "WSS: too many control connections; closing");
-            continue;
-        };
-        let wss = wss.clone();
-        tokio::spawn(async move {
-            control(wss, stream, peer).await;
-            drop(permit);
-        });
-    }
+    // The side servers' accept loop: at most 64 control connections, the oldest that has
+    // not completed a request closed to make room.
+    let tracker = tokio_util::task::TaskTracker::new();
+    let max = super::side::MAX_CONNECTIONS;
+    super::side::accept(
+        "WSS",
+        listener,
+        max,
+        tracker,
+        shutdown,
+        move |stream, stop, spoke| control(wss.clone(), stream, stop, spoke),
+    )
+    .await;
 }
 
 impl Wss {
@@ -236,7 +225,15 @@ impl<R: tokio::io::AsyncRead + Unpin> Requests<R> {
 }
 
 /// One control connection: one reply per request.
-async fn control(wss: Arc<Wss>, stream: TcpStream, peer: SocketAddr) {
+async fn control(
+    wss: Arc<Wss>,
+    stream: TcpStream,
+    stop: CancellationToken,
+    spoke: Arc<AtomicBool>,
+) {
+    let Ok(peer) = stream.peer_addr() else {
+        return;
+    };
     let (read, mut write) = stream.into_split();
     let mut requests = Requests {
         read,
@@ -247,7 +244,7 @@ async fn control(wss: Arc<Wss>, stream: TcpStream, peer: SocketAddr) {
     loop {
         let kick = me.as_ref().map_or(never.clone(), |m| m.1.clone());
         let got = tokio::select! {
-            _ = wss.shutdown.cancelled() => break,
+            _ = stop.cancelled() => break,
             _ = kick.cancelled() => {
                 info!(%peer, "WSS: robot kicked (not in the simulation, or its battery is empty)");
                 break;
@@ -255,7 +252,10 @@ async fn control(wss: Arc<Wss>, stream: TcpStream, peer: SocketAddr) {
             got = requests.next() => got,
         };
         let line = match got {
-            Ok(Some(line)) => line,
+            Ok(Some(line)) => {
+                spoke.store(true, Ordering::Relaxed);
+                line
+            }
             Ok(None) => break,
             Err(()) => {
                 warn!(%peer, max = MAX_LINE, "WSS: request line too long; closing");
@@ -309,6 +309,52 @@ async fn request(
     ip: IpAddr,
     line: &str,
 ) -> String {
+    match answer(wss, me, ip, line) {
+        Answer::Reply(text) => text,
+        Answer::Relay {
+            other,
+            target,
+            reachable,
+        } => {
+            let name = me.as_ref().map(|m| m.0.clone()).unwrap_or_default();
+            relay(wss, &name, &other, target, reachable).await
+        }
+    }
+}
+
+/// What a control line needs: a reply, or a new relay port (`DNS`, the only request that
+/// needs I/O).
+#[derive(Debug)]
+enum Answer {
+    Reply(String),
+    /// A relay port from the robot to `other`'s port `target`; listening at once if
+    /// `reachable`.
+    Relay {
+        other: String,
+        target: u16,
+        reachable: bool,
+    },
+}
+
+impl From<String> for Answer {
+    fn from(text: String) -> Self {
+        Self::Reply(text)
+    }
+}
+
+impl From<&str> for Answer {
+    fn from(text: &str) -> Self {
+        Self::Reply(text.to_owned())
+    }
+}
+
+/// [`request`] without I/O: registers, answers, or says which relay port to open.
+fn answer(
+    wss: &Wss,
+    me: &mut Option<(String, CancellationToken)>,
+    ip: IpAddr,
+    line: &str,
+) -> Answer {
     let (kind, blocks) = parse(line);
     let robot = value(&blocks, "Robot").unwrap_or("");
     let Some((name, _)) = me.as_ref() else {
@@ -350,23 +396,25 @@ async fn request(
                 return "ERROR {Reason Robot.Name.Must.Not.Be.Empty}".into();
             }
             if robot == name {
-                return format!("SS {{Robot {robot}}} {{Strength INF}} {{Error SS.To.Self}}");
+                return format!("SS {{Robot {robot}}} {{Strength INF}} {{Error SS.To.Self}}")
+                    .into();
             }
             let state = wss.lock();
             if !state.robots.contains_key(robot) {
                 return format!(
                     "SS {{Robot {robot}}} {{Strength NaN}} {{Error Robot.Does.Not.Exist}}"
-                );
+                )
+                .into();
             }
             let s = wss.strength(&state, &name, robot);
             if s.is_nan() {
-                format!("SS {{Robot {robot}}} {{Strength NaN}} {{Error Model.Returned.NaN}}")
+                format!("SS {{Robot {robot}}} {{Strength NaN}} {{Error Model.Returned.NaN}}").into()
             } else if s == f64::NEG_INFINITY {
-                format!("SS {{Robot {robot}}} {{Strength -INF}} {{Error Radio.Off}}")
+                format!("SS {{Robot {robot}}} {{Strength -INF}} {{Error Radio.Off}}").into()
             } else if s.is_infinite() || s > 0.0 {
-                format!("SS {{Robot {robot}}} {{Strength INF}} {{Error Model.Returned.INF}}")
+                format!("SS {{Robot {robot}}} {{Strength INF}} {{Error Model.Returned.INF}}").into()
             } else {
-                format!("SS {{Robot {robot}}} {{Strength {}}}", stringify(s))
+                format!("SS {{Robot {robot}}} {{Strength {}}}", stringify(s)).into()
             }
         }
         "DNS" => {
@@ -378,7 +426,7 @@ async fn request(
                 Some(Ok(p)) => Some(p),
                 None => None,
             };
-            dns(wss, &name, robot, port).await
+            dns(wss, &name, robot, port)
         }
         "REVERSEDNS" => {
             let Some(Ok(port)) = value(&blocks, "Port").map(str::parse::<u16>) else {
@@ -387,9 +435,11 @@ async fn request(
             let state = wss.lock();
             match state.outgoing.get(&port) {
                 Some((from, to)) if *to == name => {
-                    format!("REVERSEDNSREPLY {{Port {port}}} {{Robot {from}}}")
+                    format!("REVERSEDNSREPLY {{Port {port}}} {{Robot {from}}}").into()
                 }
-                _ => format!("REVERSEDNSREPLY {{Port {port}}} {{Error UnknownOrIllegalPort}}"),
+                _ => {
+                    format!("REVERSEDNSREPLY {{Port {port}}} {{Error UnknownOrIllegalPort}}").into()
+                }
             }
         }
         _ => "ERROR {Reason Method.Unknown.Or.Can.INIT.only.once}".into(),
@@ -397,11 +447,11 @@ async fn request(
 }
 
 /// `DNS`: the relay port from `me` to `other`'s `port` (its first port without one).
-async fn dns(wss: &Arc<Wss>, me: &str, other: &str, port: Option<u16>) -> String {
+fn dns(wss: &Wss, me: &str, other: &str, port: Option<u16>) -> Answer {
     let (target, existing, reachable) = {
         let state = wss.lock();
         let Some(robot) = state.robots.get(other).filter(|_| other != me) else {
-            return format!("DNSREPLY {{Robot {other}}} {{Port -1}} {{Error NoSuchRobot}}");
+            return format!("DNSREPLY {{Robot {other}}} {{Port -1}} {{Error NoSuchRobot}}").into();
         };
         let target = match port {
             None => robot.ports.first().copied(),
@@ -410,7 +460,8 @@ async fn dns(wss: &Arc<Wss>, me: &str, other: &str, port: Option<u16>) -> String
         let Some(target) = target else {
             return format!(
                 "DNSREPLY {{Robot {other}}} {{Port -1}} {{Error RobotDoesNotListenOnThisPort}}"
-            );
+            )
+            .into();
         };
         let existing = state
             .links
@@ -420,8 +471,17 @@ async fn dns(wss: &Arc<Wss>, me: &str, other: &str, port: Option<u16>) -> String
         (target, existing, wss.in_range(&state, me, other))
     };
     if let Some(port) = existing {
-        return format!("DNSREPLY {{Robot {other}}} {{Port {port}}}");
+        return format!("DNSREPLY {{Robot {other}}} {{Port {port}}}").into();
     }
+    Answer::Relay {
+        other: other.to_owned(),
+        target,
+        reachable,
+    }
+}
+
+/// Opens a relay port from `me` to `other`'s port `target` and answers the `DNS`.
+async fn relay(wss: &Arc<Wss>, me: &str, other: &str, target: u16, reachable: bool) -> String {
     // A port of our own for this pair: bound now (and kept for the pair), listening only
     // while the pair is in range.
     let listener = match TcpListener::bind((wss.bind_ip(), 0)).await {
@@ -608,6 +668,63 @@ fn positions(line: &str) -> Vec<(String, [f64; 3], bool, bool)> {
     out
 }
 
+/// `NUMOBS ... {ObstCount n}` → n, whole.
+fn obstacle_count(line: &str) -> Option<f64> {
+    line.rsplit("{ObstCount ")
+        .next()
+        .and_then(|v| v.trim_end_matches('}').trim().parse::<f64>().ok())
+        .map(f64::trunc)
+}
+
+/// The control protocol without sockets (the fuzz target's door: fuzz/fuzz_targets/wss.rs):
+/// a WSS that read the robot monitor's `GETPOS` reply `positions` (every pair of robots
+/// `walls` walls apart, the monitor's `GETOBS` reply read by the same rule as from a real
+/// one) answers `lines`, each sent on the control connection numbered by its first
+/// element; a `DNS` that would open a relay port answers port 0. Returns the replies.
+#[doc(hidden)]
+pub fn answer_offline(positions_reply: &str, walls: &str, lines: &[(usize, &str)]) -> Vec<String> {
+    let wss = Wss {
+        config: WssConfig::new(SocketAddr::from(([127, 0, 0, 1], 7435))),
+        state: Mutex::default(),
+        relayed: Arc::new(Semaphore::new(MAX_RELAYED)),
+        shutdown: CancellationToken::new(),
+    };
+    {
+        let mut state = wss.lock();
+        state.positions = positions(positions_reply)
+            .into_iter()
+            .filter(|p| !p.2)
+            .map(|p| (p.0, p.1))
+            .collect();
+        if let Some(n) = obstacle_count(walls).filter(|n| *n >= 0.0) {
+            let found: Vec<(String, [f64; 3])> = state
+                .positions
+                .iter()
+                .map(|(k, v)| (k.clone(), *v))
+                .collect();
+            for (a, pa) in &found {
+                for (b, pb) in &found {
+                    state.walls.insert(pair(a, b), (n, *pa, *pb));
+                }
+            }
+        }
+    }
+    let mut connections: Vec<Option<(String, CancellationToken)>> = Vec::new();
+    let ip = IpAddr::from([127, 0, 0, 1]);
+    lines
+        .iter()
+        .map(|&(c, line)| {
+            if c >= connections.len() {
+                connections.resize_with(c + 1, || None);
+            }
+            match answer(&wss, &mut connections[c], ip, line) {
+                Answer::Reply(text) => text,
+                Answer::Relay { other, .. } => format!("DNSREPLY {{Robot {other}}} {{Port 0}}"),
+            }
+        })
+        .collect()
+}
+
 async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> {
     let reply = ask(m, "GETPOS").await?;
     let found = positions(&reply);
@@ -652,11 +769,7 @@ async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> 
     };
     for ((a, b), pa, pb) in stale {
         let reply = ask(m, &format!("GETOBS {{From {a}}} {{To {b}}}")).await?;
-        let count = reply
-            .rsplit("{ObstCount ")
-            .next()
-            .and_then(|v| v.trim_end_matches('}').trim().parse::<f64>().ok())
-            .map(f64::trunc);
+        let count = obstacle_count(&reply);
         let mut state = wss.lock();
         match count {
             Some(n) if n >= 0.0 => {

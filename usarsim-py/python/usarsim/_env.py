@@ -69,9 +69,12 @@ class Replay:
         self.spec = state["spec"]
         replay = state["replay"]
         if replay is not None:
-            self._restore(replay["rng"], replay["options"])
-            for a in replay["actions"]:
-                self.step(a)
+            self._resume(replay)
+
+    def _resume(self, replay):
+        self._restore(replay["rng"], replay["options"])
+        for a in replay["actions"]:
+            self.step(a)
 
 
 class Realism:
@@ -328,7 +331,10 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
     def _restore(self, rng_states, options):
         self._options(options)
         self._rngs = [_rng(s) for s in rng_states]
-        self._replay = {"rng": rng_states, "options": options, "actions": []}
+        # The actions since the last reset; once every sub-env has autoreset since, only those
+        # since the oldest of their last autoresets (`resets`: step and rng state of each),
+        # so that the record stays as short as an episode however long the run.
+        self._replay = {"rng": rng_states, "options": options, "actions": [], "resets": {}}
         rows = np.arange(self.num_envs)
         self._batch.reset(rows.tolist(), *self._new_worlds(rows, options))
         self._autoreset[:] = False
@@ -355,16 +361,50 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         self._replay["actions"].append(a.copy())
         if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
             return self._step_same(a)
-        done = np.flatnonzero(self._autoreset)
+        return self._step_next(a)
+
+    def _step_next(self, a, forced=()):
+        """A NEXT_STEP step; the rows in `forced` reset in it too (replaying a record)."""
+        done = np.union1d(np.flatnonzero(self._autoreset), np.asarray(forced, dtype=np.int64)).astype(np.int64)
+        replay = self._replay
+        if len(done):
+            step = len(replay["actions"]) - 1
+            for i in done:
+                replay["resets"][int(i)] = (step, self._rngs[i].bit_generator.state)
+            if len(replay["resets"]) == self.num_envs:
+                # Every sub-env has reset since: forget the steps before the oldest last reset.
+                oldest = min(t for t, _ in replay["resets"].values())
+                if oldest > 0:
+                    del replay["actions"][:oldest]
+                    replay["resets"] = {i: (t - oldest, r) for i, (t, r) in replay["resets"].items()}
+                replay["rng"], replay["options"] = None, None
         reset = (done.tolist(), *self._new_worlds(done)) if len(done) else None
         self._batch.step(a, reset)
         raw = self._batch.observe()
-        live = ~self._autoreset
+        live = np.ones(self.num_envs, dtype=bool)
+        live[done] = False
         if len(done):
             self._tasks.begin(raw, done)
         reward, term, trunc, info = self._tasks.reward(raw, live)
         self._autoreset = term | trunc
         return self._tasks.observe(raw), reward, term, trunc, _with_masks(info, live)
+
+    def _resume(self, replay):
+        if replay["rng"] is not None:
+            return super()._resume(replay)
+        # A shortened record: any worlds, then each sub-env reset at its recorded step from
+        # its recorded rng state, and the steps replayed.
+        resets = replay["resets"]
+        self._restore([resets[i][1] for i in range(self.num_envs)], None)
+        self._replay = {"rng": None, "options": None, "actions": [], "resets": {}}
+        for k, a in enumerate(replay["actions"]):
+            forced = [i for i, (t, _) in resets.items() if t == k]
+            for i in forced:
+                self._rngs[i] = _rng(resets[i][1])
+            self._replay["actions"].append(np.array(a, copy=True))
+            self._step_next(np.asarray(a), forced)
+        self._replay = {"rng": None, "options": None, "actions": [np.array(a, copy=True) for a in replay["actions"]],
+                        "resets": dict(resets)}
 
     def _step_same(self, a):
         self._batch.step(a)
