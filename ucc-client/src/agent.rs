@@ -71,6 +71,11 @@ pub struct Step {
     pub events: Vec<AgentEvent>,
     /// Every mission is done.
     pub all_done: bool,
+    /// Radio messages to send to other UAVs (with
+    /// [`RunSettings::radio`](crate::RunSettings::radio); ignored, with a log line,
+    /// without). One that does not get through comes back in the next step's
+    /// [`UavState::undelivered`].
+    pub send: Vec<crate::radio::Outgoing>,
 }
 
 /// Why an agent refused a mission.

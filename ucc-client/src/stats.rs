@@ -151,12 +151,7 @@ impl Summary {
     /// Counts an iteration; keeps it whole if fewer than `keep` are kept, and its path for
     /// the overlay if `overlay`. Returns how far its path lies from the first completed
     /// iteration's (symmetric Hausdorff distance, metres), or `None` before one completed.
-    pub fn add(
-        &mut self,
-        iteration: &IterationSummary,
-        keep: usize,
-        overlay: bool,
-    ) -> Option<f64> {
+    pub fn add(&mut self, iteration: &IterationSummary, keep: usize, overlay: bool) -> Option<f64> {
         let path = iteration.path();
         if iteration.is_done() {
             self.statistics.completed += 1;
