@@ -1,7 +1,8 @@
 //! The [`Agent`] trait: a control algorithm that flies missions.
 //!
 //! Agents do no I/O and read no clock: the runner hands them the [`UavState`] and the
-//! simulated time, they answer with a [`Step`] (a speed command, log lines, mission events).
+//! simulated time, they answer with a [`Step`] (a speed command, log lines, mission events,
+//! radio messages). Camera frames and radio messages reach them in the [`UavState`].
 //! So they behave the same at any simulation speed and are unit-tested with synthetic states.
 
 use std::fmt;
