@@ -127,6 +127,11 @@ impl Server {
         &self.addr
     }
 
+    /// An in-process server's image server (with [`Sides::camera`]), `host:port`.
+    pub fn image_server(&self) -> Option<String> {
+        self.image.as_ref().map(|(addr, ..)| addr.clone())
+    }
+
     /// Whether this is a server inside this process.
     pub fn is_local(&self) -> bool {
         self.map.is_some()

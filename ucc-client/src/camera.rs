@@ -30,6 +30,23 @@ pub struct CameraImage {
     pub index: u64,
 }
 
+impl CameraImage {
+    /// The image as a PNG file's bytes.
+    pub fn to_png(&self) -> Vec<u8> {
+        let mut out = std::io::Cursor::new(Vec::new());
+        image::write_buffer_with_format(
+            &mut out,
+            &self.rgb,
+            self.width,
+            self.height,
+            image::ColorType::Rgb8,
+            image::ImageFormat::Png,
+        )
+        .expect("an RGB image of its own size encodes as PNG in memory");
+        out.into_inner()
+    }
+}
+
 /// A frame that cannot be read.
 #[derive(Debug, thiserror::Error)]
 pub enum CameraError {

@@ -324,7 +324,14 @@ impl Side {
     /// UAV flies; hands frames and messages to the flight; sends what the agent sent.
     async fn serve(&mut self, flight: &mut Flight, settings: &RunSettings) -> Result<(), RunError> {
         if let Some(camera) = &settings.camera {
+            if !camera.is_active()
+                && let Some(image) = self.image.take()
+            {
+                let _ = image.close().await;
+                self.last_frame = None; // a new connection numbers its frames from 0
+            }
             if self.image.is_none()
+                && camera.is_active()
                 && let Some(request) = flight.camera_request()
             {
                 let error = |error: String| RunError::Camera {

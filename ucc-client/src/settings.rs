@@ -5,6 +5,8 @@
 use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use usar_proto::{Command, Init};
@@ -130,7 +132,7 @@ pub enum Lockstep {
 
 /// Camera frames for the agent (docs/camera.md): where the image server is and what to do
 /// with the frames.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct CameraSettings {
     /// `host:port` of the image server (USARSim: TCP 5003). An in-process server fills in
     /// its own.
@@ -145,6 +147,9 @@ pub struct CameraSettings {
     /// Write every `save_every`-th frame received as a PNG into the log directory
     /// (`PREFIX-NN-frame-IIIII.png`); 0 writes none.
     pub save_every: u32,
+    /// Read frames only while this is `true` (a viewer that shows them only while its
+    /// panel is open: `ucc gui`); `None`: always.
+    pub active: Option<Arc<AtomicBool>>,
 }
 
 impl Default for CameraSettings {
@@ -154,7 +159,17 @@ impl Default for CameraSettings {
             bgr: true,
             tile: (320, 240),
             save_every: 0,
+            active: None,
         }
+    }
+}
+
+impl CameraSettings {
+    /// Whether frames are to be read now.
+    pub fn is_active(&self) -> bool {
+        self.active
+            .as_ref()
+            .is_none_or(|a| a.load(std::sync::atomic::Ordering::Relaxed))
     }
 }
 

@@ -183,13 +183,14 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
             }
             local.config.time_scale = scale;
             let server = ucc_client::Backend::Local(Box::new(local.config.clone()))
-                .start()
+                .start_with(crate::CAMERA)
                 .await
                 .map_err(|e| {
                     RequestError::Server(format!("cannot restart the local server: {e}"))
                 })?;
             let mut hub = app.shared.lock();
             hub.addr = server.addr().to_string();
+            hub.image_server = server.image_server();
             hub.time_scale = scale;
             let line = format!("local server at {} runs at time scale {scale}", hub.addr);
             hub.log(0, "info", line);

@@ -446,11 +446,12 @@ impl Hub {
                     ),
                 )
             })?;
-        let (addr, local, log_dir, map) = (
+        let (addr, local, log_dir, map, image_server) = (
             self.addr.clone(),
             self.local,
             self.log_dir.clone(),
             self.geometry.clone(),
+            self.image_server.clone(),
         );
         let u = self.uav(uav)?;
         if u.flying() {
@@ -462,7 +463,13 @@ impl Hub {
                 u.name
             )));
         }
-        let settings = run_settings(u, n, addr, local, log_dir, map);
+        let mut settings = run_settings(u, n, addr, local, log_dir, map);
+        // The camera panel's frames, read only while a page shows them.
+        settings.camera = image_server.map(|server| ucc_client::CameraSettings {
+            server,
+            active: Some(u.camera_on.clone()),
+            ..ucc_client::CameraSettings::default()
+        });
         let agent = u.agent.clone();
         u.iterations = n;
         u.status = Status::Running;
