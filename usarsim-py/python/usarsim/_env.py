@@ -14,7 +14,7 @@ from gymnasium.vector.utils import batch_space
 from . import _core
 from ._maps import MapInfo
 from ._render import TopView
-from ._task import Tasks, action_space, observation_space
+from ._task import Tasks, action_space, add_extras, camera_kinds, image_size, observation_space, with_extras
 
 
 def _robot(name: str) -> str:
@@ -82,7 +82,8 @@ class UsarsimEnv(Replay, gym.Env):
     seeded random ones), ``n_waypoints``, ``period`` (control period, s), ``noise`` (sensor
     noise std for every part), ``max_steps``, ``server`` (``"host:port"`` to fly a running
     usar-server or USARSim instead of the in-process world), ``render_mode``, ``state_only``,
-    ``flat``, ``action_mode`` (docs/python.md).
+    ``flat``, ``action_mode``, ``camera`` (None, ``"depth"``, ``"rgb"`` or ``"rgbd"``: image
+    observations) and ``camera_size`` (docs/python.md).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -91,22 +92,28 @@ class UsarsimEnv(Replay, gym.Env):
                  start=None, waypoints=None, n_waypoints: int = 3, waypoint_radius: float = 0.5,
                  period: float = 0.1, noise: float | None = None, max_steps: int | None = None,
                  server: str | None = None, render_mode: str | None = None, state_only: bool = False,
-                 flat: bool = False, action_mode: str = "velocity") -> None:
+                 flat: bool = False, action_mode: str = "velocity", camera: str | None = None,
+                 camera_size=(64, 64)) -> None:
         self._recipe = dict(task=task, map=map, robot=robot, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, period=period,
                             noise=noise, max_steps=max_steps, server=server, render_mode=render_mode,
-                            state_only=state_only, flat=flat, action_mode=action_mode)
+                            state_only=state_only, flat=flat, action_mode=action_mode, camera=camera,
+                            camera_size=camera_size)
         self.render_mode = _render_mode(render_mode)
         if state_only and server is not None:
             raise ValueError("state_only: only for the in-process world (the server's robot has its sensors)")
         if action_mode != "velocity" and server is not None:
             raise ValueError("action_mode: only 'velocity' for a remote server")
-        self.observation_space = observation_space(state_only, flat)
+        self._kinds = camera_kinds(camera)
+        size = image_size(camera_size)
+        if self._kinds and server is not None:
+            raise ValueError("camera: only for the in-process world")
+        self.observation_space = with_extras(observation_space(state_only, flat), self._kinds, size)
         self.action_space = action_space()
         self._robot, self._period, self._server = _robot(robot), float(period), server
         # The in-process world (also the map geometry for a remote server running the same map).
         self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise, bool(state_only),
-                                  action_mode)
+                                  action_mode, size if self._kinds else None)
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, 1, self.map, start=start, waypoints=waypoints, n_waypoints=n_waypoints,
                             waypoint_radius=waypoint_radius, max_steps=max_steps, state_only=state_only, flat=flat)
@@ -156,7 +163,15 @@ class UsarsimEnv(Replay, gym.Env):
         self._tasks.begin(raw, [0])
         self._trail = [raw["position"][0, :2].copy()]
         self._ended = False
-        return self._tasks.row(self._tasks.observe(raw), 0), {"lockstep": self._remote.lockstep if self._remote else True}
+        return self._obs(raw), {"lockstep": self._remote.lockstep if self._remote else True}
+
+    def _obs(self, raw):
+        """The observation of the UAV, with its camera's pictures when asked."""
+        obs = self._tasks.row(self._tasks.observe(raw), 0)
+        if not self._kinds:
+            return obs
+        images = self._batch.images(rgb="rgb" in self._kinds, depth="depth" in self._kinds)
+        return add_extras(obs, images, 0)
 
     def step(self, action):
         if self._closed:
@@ -175,7 +190,7 @@ class UsarsimEnv(Replay, gym.Env):
         self._trail.append(raw["position"][0, :2].copy())
         reward, term, trunc, info = self._tasks.reward(raw)
         self._ended = bool(term[0] or trunc[0])
-        obs = self._tasks.row(self._tasks.observe(raw), 0)
+        obs = self._obs(raw)
         return obs, float(reward[0]), bool(term[0]), bool(trunc[0]), {k: v[0] for k, v in info.items()}
 
     def render(self):
