@@ -823,4 +823,114 @@ mod tests {
         assert!(p.value.x > 2.0, "moved north by dead reckoning: {p:?}");
         assert!(f.record().log.iter().any(|l| l.contains("dead reckoning")));
     }
+
+    /// Says hello to `Robot2` at every step and notes what it is shown.
+    struct Sender(std::sync::Arc<std::sync::Mutex<Vec<UavState>>>);
+
+    impl Agent for Sender {
+        fn name(&self) -> &str {
+            "sender"
+        }
+        fn add_mission(&mut self, _: Mission) -> Result<(), crate::MissionRefused> {
+            Ok(())
+        }
+        fn start(&mut self, _: f64) {}
+        fn stop(&mut self) {}
+        fn step(&mut self, uav: &UavState, _: f64) -> Step {
+            self.0.lock().unwrap().push(uav.clone());
+            Step {
+                send: vec![Outgoing {
+                    to: "Robot2".into(),
+                    data: b"hello".to_vec(),
+                }],
+                ..Step::default()
+            }
+        }
+    }
+
+    #[test]
+    fn frames_and_radio_reach_the_agent_through_the_flight() {
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let settings = RunSettings {
+            missions: vec![Mission::Hover { seconds: 5.0 }],
+            camera: Some(crate::CameraSettings::default()),
+            radio: Some(crate::RadioSettings::default()),
+            ..RunSettings::default()
+        };
+        let mut f = Flight::new(1, &settings, Box::new(Sender(seen.clone()))).unwrap();
+        f.spawn();
+        f.on_message(&position(0.1, 0.0));
+        f.end_of_frame();
+        // After the spawn the flight asks for the camera's CONF; its tile becomes the request.
+        let commands: Vec<String> = std::iter::from_fn(|| f.poll_command())
+            .map(|c| c.to_string())
+            .collect();
+        assert!(
+            commands.iter().any(|c| c == "GETCONF {Type Camera}"),
+            "{commands:?}"
+        );
+        assert_eq!(f.camera_request(), None);
+        f.on_message(&line(
+            "CONF {Type Camera} {Name cams}{TextureOffsetX 320}{TextureOffsetY 0}{TextureResolutionX 320}{TextureResolutionY 240}{CameraDefFov 80.0000}{CameraMinFov 20.0000}{CameraMaxFov 120.0000}{CameraFov 80.0000}",
+        ));
+        assert_eq!(
+            f.camera_request(),
+            Some(ImageRequest::Rect {
+                x: 320,
+                y: 0,
+                width: 320,
+                height: 240
+            })
+        );
+        // The whole frame a legacy server sends first is not the UAV's tile.
+        let image = |width, height, index| {
+            Arc::new(CameraImage {
+                width,
+                height,
+                rgb: vec![0; 3 * (width * height) as usize],
+                index,
+            })
+        };
+        assert!(!f.on_image(image(640, 480, 0)));
+        assert!(f.on_image(image(320, 240, 1)));
+        f.on_radio(Message {
+            from: "Robot2".into(),
+            data: b"hi".to_vec(),
+        });
+        let sent = f.poll_radio().expect("the first step's message");
+        f.on_undelivered(Undelivered {
+            message: sent,
+            strength: -120.0,
+            reason: "out of range".into(),
+        });
+        f.on_message(&position(0.2, 0.0));
+        f.end_of_frame();
+        f.on_message(&position(0.3, 0.0));
+        f.end_of_frame();
+        let seen = seen.lock().unwrap();
+        let second = &seen[1];
+        assert_eq!(second.image.as_ref().unwrap().value.index, 1);
+        assert_eq!(second.inbox.len(), 1);
+        assert_eq!(second.undelivered[0].strength, -120.0);
+        assert_eq!(second.signal["Robot2"], -120.0);
+        // Shown once: the next step's inbox and failures are empty; the image stays.
+        assert!(seen[2].inbox.is_empty() && seen[2].undelivered.is_empty());
+        assert!(seen[2].image.is_some());
+        assert!(f.record().log.iter().any(|l| l.contains("not delivered")));
+    }
+
+    #[test]
+    fn a_send_without_the_radio_is_dropped_with_a_log_line() {
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let mut f = flight(Box::new(Sender(seen)));
+        f.on_message(&position(0.1, 0.0));
+        f.end_of_frame();
+        assert!(f.poll_radio().is_none());
+        assert!(
+            f.record()
+                .log
+                .iter()
+                .any(|l| l.contains("the run has no radio"))
+        );
+    }
 }
