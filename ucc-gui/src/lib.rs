@@ -238,6 +238,18 @@ pub async fn serve(
     let mut hub = Hub::new(server_addr, local.is_some(), config.log_dir);
     if let Some(l) = &local {
         hub.image_server = l.server.as_ref().and_then(|s| s.image_server());
+        hub.camera_classes = l
+            .config
+            .robots
+            .classes()
+            .iter()
+            .filter(|r| {
+                r.parts
+                    .iter()
+                    .any(|p| p.kind.eq_ignore_ascii_case("Camera"))
+            })
+            .map(|r| r.class.clone())
+            .collect();
         hub.geometry = Some(l.geometry.clone());
         hub.map = l.config.map.level().to_owned();
         hub.time_scale = l.config.time_scale;

@@ -168,6 +168,7 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
             hub.addr = addr.clone();
             hub.local = false;
             hub.geometry = None;
+            hub.image_server = None;
             hub.robot_classes = None;
             hub.map = String::new();
             hub.log(0, "info", format!("server: {addr}"));

@@ -223,6 +223,8 @@ pub struct Hub {
     pub addr: String,
     /// The image server of the local server (camera frames for the camera panel).
     pub image_server: Option<String>,
+    /// The local server's robot classes that have a camera (`Package.Class`).
+    pub camera_classes: Vec<String>,
     /// Whether the server runs in this process (time scale, lockstep, map geometry).
     pub local: bool,
     /// The local server's time scale.
@@ -276,6 +278,7 @@ impl Hub {
         Self {
             addr,
             image_server: None,
+            camera_classes: Vec::new(),
             local,
             time_scale: TimeScale::Factor(1.0),
             paused: false,
