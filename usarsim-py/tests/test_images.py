@@ -84,3 +84,26 @@ def test_the_radio_signal_fades_with_distance_and_walls():
     obs, _ = far.reset(seed=0)
     assert obs["uav_0"]["signal"][1] < near[1] - 5.0
     assert "signal" not in usarsim.multi_uav(n=2).observation_space("uav_0").spaces
+
+
+@pytest.mark.parametrize("mode", ["next", "same"])
+def test_the_vector_env_batches_images(mode):
+    from gymnasium.vector import AutoresetMode
+
+    autoreset = AutoresetMode.NEXT_STEP if mode == "next" else AutoresetMode.SAME_STEP
+    env = usarsim.UsarsimVectorEnv(3, camera="rgbd", camera_size=(16, 8), max_steps=3, autoreset_mode=autoreset)
+    obs, _ = env.reset(seed=0)
+    assert obs["rgb"].shape == (3, 8, 16, 3) and obs["depth"].shape == (3, 8, 16, 1)
+    assert env.observation_space.contains(obs)
+    finals = []
+    for _ in range(4):
+        obs, _, term, trunc, info = env.step(np.zeros((3, 4)))
+        assert env.observation_space.contains(obs)
+        finals += [f for f in info.get("final_obs", []) if f is not None]
+    if mode == "same":
+        assert finals and finals[0]["depth"].shape == (8, 16, 1)
+    single = usarsim.UsarsimEnv(camera="depth", camera_size=(16, 8), start=(0.0, 0.0, -1.0, 0.0))
+    one, _ = single.reset(seed=0)
+    many = usarsim.UsarsimVectorEnv(2, camera="depth", camera_size=(16, 8), start=(0.0, 0.0, -1.0, 0.0))
+    both, _ = many.reset(seed=0)
+    assert np.array_equal(both["depth"][0], one["depth"]), "the same picture from the same world"

@@ -243,7 +243,7 @@ def _with_masks(info: dict, mask: np.ndarray) -> dict:
 class UsarsimVectorEnv(Replay, VectorEnv):
     """`num_envs` independent worlds with one UAV each, stepped by Rust in one call.
 
-    Same options as :class:`UsarsimEnv` (no ``server``), plus ``autoreset_mode``:
+    Same options as :class:`UsarsimEnv` (``camera`` included; no ``server``), plus ``autoreset_mode``:
     ``AutoresetMode.NEXT_STEP`` (default, Gymnasium's): the step after an episode ends resets
     that sub-environment, ignores its action and returns its first observation with reward
     0; ``AutoresetMode.SAME_STEP``: the step that ends an episode resets it and returns the
@@ -257,22 +257,26 @@ class UsarsimVectorEnv(Replay, VectorEnv):
                  robot: str = "stsAirRobot", start=None, waypoints=None, n_waypoints: int = 3,
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
                  max_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP,
-                 state_only: bool = False, flat: bool = False, action_mode: str = "velocity") -> None:
+                 state_only: bool = False, flat: bool = False, action_mode: str = "velocity",
+                 camera: str | None = None, camera_size=(64, 64)) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
         self._recipe = dict(num_envs=num_envs, task=task, map=map, robot=robot, start=start,
                             waypoints=waypoints, n_waypoints=n_waypoints, waypoint_radius=waypoint_radius,
                             period=period, noise=noise, max_steps=max_steps, autoreset_mode=autoreset_mode,
-                            state_only=state_only, flat=flat, action_mode=action_mode)
+                            state_only=state_only, flat=flat, action_mode=action_mode, camera=camera,
+                            camera_size=camera_size)
         self.metadata = {**type(self).metadata, "autoreset_mode": _autoreset_mode(autoreset_mode)}
         self.num_envs = int(num_envs)
-        self.single_observation_space = observation_space(state_only, flat)
+        self._kinds = camera_kinds(camera)
+        size = image_size(camera_size)
+        self.single_observation_space = with_extras(observation_space(state_only, flat), self._kinds, size)
         self.single_action_space = action_space()
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         first = _first(map)
         self._batch = _core.Batch(map, _robot(robot), [0] * self.num_envs, np.repeat(first, self.num_envs, 0),
-                                  1, period, noise, bool(state_only), action_mode)
+                                  1, period, noise, bool(state_only), action_mode, size if self._kinds else None)
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, self.num_envs, self.map, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, max_steps=max_steps,
@@ -300,7 +304,16 @@ class UsarsimVectorEnv(Replay, VectorEnv):
         self._autoreset[:] = False
         raw = self._batch.observe()
         self._tasks.begin(raw, rows)
-        return self._tasks.observe(raw), {}
+        return self._observe_all(raw), {}
+
+    def _observe_all(self, raw):
+        """Every sub-environment's observation, with the cameras' pictures when asked."""
+        obs = self._tasks.observe(raw)
+        if not self._kinds:
+            return obs
+        out = dict(obs) if isinstance(obs, dict) else {"state": obs}
+        out.update(self._batch.images(rgb="rgb" in self._kinds, depth="depth" in self._kinds))
+        return out
 
     def _new_worlds(self, rows, options=None):
         """Seeds and starts of fresh worlds for `rows` (and their new tasks)."""
@@ -329,27 +342,27 @@ class UsarsimVectorEnv(Replay, VectorEnv):
             self._tasks.begin(raw, done)
         reward, term, trunc, info = self._tasks.reward(raw, live)
         self._autoreset = term | trunc
-        return self._tasks.observe(raw), reward, term, trunc, _with_masks(info, live)
+        return self._observe_all(raw), reward, term, trunc, _with_masks(info, live)
 
     def _step_same(self, a):
         self._batch.step(a)
         raw = self._batch.observe()
         reward, term, trunc, info = self._tasks.reward(raw)
-        obs = self._tasks.observe(raw)
+        obs = self._observe_all(raw)
         infos = _with_masks(info, np.ones(self.num_envs, dtype=bool))
         ended = np.flatnonzero(term | trunc)
         if len(ended):
             mask = term | trunc
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in ended:
-                final_obs[i] = self._tasks.row(obs, i)
+                final_obs[i] = {k: v[i] for k, v in obs.items()} if isinstance(obs, dict) else obs[i]
             infos["final_obs"], infos["_final_obs"] = final_obs, mask
             infos["final_info"] = _with_masks({k: np.where(mask, v, np.zeros_like(v)) for k, v in info.items()}, mask)
             infos["_final_info"] = mask.copy()
             self._batch.reset(ended.tolist(), *self._new_worlds(ended))
             raw = self._batch.observe()
             self._tasks.begin(raw, ended)
-            obs = self._tasks.observe(raw)
+            obs = self._observe_all(raw)
         return obs, reward, term, trunc, infos
 
 
