@@ -1,7 +1,8 @@
 //! The [`Agent`] trait: a control algorithm that flies missions.
 //!
 //! Agents do no I/O and read no clock: the runner hands them the [`UavState`] and the
-//! simulated time, they answer with a [`Step`] (a speed command, log lines, mission events).
+//! simulated time, they answer with a [`Step`] (a speed command, log lines, mission events,
+//! radio messages). Camera frames and radio messages reach them in the [`UavState`].
 //! So they behave the same at any simulation speed and are unit-tested with synthetic states.
 
 use std::fmt;
@@ -71,6 +72,11 @@ pub struct Step {
     pub events: Vec<AgentEvent>,
     /// Every mission is done.
     pub all_done: bool,
+    /// Radio messages to send to other UAVs (with
+    /// [`RunSettings::radio`](crate::RunSettings::radio); ignored, with a log line,
+    /// without). One that does not get through comes back in the next step's
+    /// [`UavState::undelivered`].
+    pub send: Vec<crate::radio::Outgoing>,
 }
 
 /// Why an agent refused a mission.

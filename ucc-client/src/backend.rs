@@ -33,6 +33,10 @@ pub const LOCAL_CONNECTIONS: usize = 8192;
 pub struct Server {
     addr: String,
     map: Option<MapGeometry>,
+    /// An in-process server's image server (whether its raw pixels are B, G, R, its tile
+    /// size) and WSS.
+    image: Option<(String, bool, (u32, u32))>,
+    wss: Option<String>,
     #[cfg(feature = "local")]
     local: Option<(usar_server::LocalServer, Box<usar_server::ServerConfig>)>,
 }
@@ -42,13 +46,40 @@ pub struct Server {
 #[error("the local server: {0}")]
 pub struct BackendError(String);
 
+/// The side services an in-process server runs for the flights (a remote server has what
+/// it has).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Sides {
+    /// The image server, for camera frames (docs/camera.md).
+    pub camera: bool,
+    /// The WSS and its robot monitor, for the radio (docs/wss.md).
+    pub radio: bool,
+}
+
+impl Sides {
+    /// What `settings` ask for.
+    pub fn of(settings: &RunSettings) -> Self {
+        Self {
+            camera: settings.camera.is_some(),
+            radio: settings.radio.is_some(),
+        }
+    }
+}
+
 impl Backend {
     /// Starts the server (a remote one is only named: nothing is connected yet).
     pub async fn start(self) -> Result<Server, BackendError> {
+        self.start_with(Sides::default()).await
+    }
+
+    /// [`Backend::start`] with the side services `sides` on an in-process server.
+    pub async fn start_with(self, sides: Sides) -> Result<Server, BackendError> {
         match self {
             Self::Remote(addr) => Ok(Server {
                 addr,
                 map: None,
+                image: None,
+                wss: None,
                 #[cfg(feature = "local")]
                 local: None,
             }),
@@ -56,12 +87,21 @@ impl Backend {
             Self::Local(config) => {
                 let config = Box::new(for_one_owner(*config));
                 let map = MapGeometry::from(&config.map);
-                let local = usar_server::LocalServer::start((*config).clone())
+                let local_sides = usar_server::LocalSides {
+                    image: sides.camera,
+                    radio: sides.radio,
+                };
+                let local = usar_server::LocalServer::start_with((*config).clone(), local_sides)
                     .await
                     .map_err(|e| BackendError(e.to_string()))?;
                 Ok(Server {
                     addr: local.addr().to_string(),
                     map: Some(map),
+                    image: local.image_addr().map(|a| {
+                        let tiles = config.sim.tiles;
+                        (a.to_string(), config.image.bgr, (tiles.width, tiles.height))
+                    }),
+                    wss: local.wss_addr().map(|a| a.to_string()),
                     local: Some((local, config)),
                 })
             }
@@ -87,6 +127,11 @@ impl Server {
         &self.addr
     }
 
+    /// An in-process server's image server (with [`Sides::camera`]), `host:port`.
+    pub fn image_server(&self) -> Option<String> {
+        self.image.as_ref().map(|(addr, ..)| addr.clone())
+    }
+
     /// Whether this is a server inside this process.
     pub fn is_local(&self) -> bool {
         self.map.is_some()
@@ -109,12 +154,25 @@ impl Server {
     }
 
     /// `settings` pointed at this server: its address, its lockstep ([`Server::lockstep`]
-    /// of the settings' own) and, when known, its map geometry.
+    /// of the settings' own), when known its map geometry, and an in-process server's
+    /// image server and WSS for the camera and the radio.
     pub fn settings(&self, settings: RunSettings) -> RunSettings {
+        let mut camera = settings.camera;
+        if let (Some(camera), Some((image, bgr, tile))) = (&mut camera, &self.image) {
+            camera.server = image.clone();
+            camera.bgr = *bgr;
+            camera.tile = *tile;
+        }
+        let mut radio = settings.radio;
+        if let (Some(radio), Some(wss)) = (&mut radio, &self.wss) {
+            radio.wss = wss.clone();
+        }
         RunSettings {
             addr: self.addr.clone(),
             lockstep: self.lockstep(settings.lockstep),
             map: self.map.clone().or(settings.map),
+            camera,
+            radio,
             ..settings
         }
     }

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 use tokio::sync::watch;
-use usar_proto::image::{FrameParser, decode_raw};
+use usar_proto::image::{FrameParser, ImageRequest, decode_raw};
 
 pub use usar_proto::image::Frame;
 
@@ -28,6 +28,23 @@ pub struct CameraImage {
     pub rgb: Vec<u8>,
     /// Frames received on the connection before this one.
     pub index: u64,
+}
+
+impl CameraImage {
+    /// The image as a PNG file's bytes.
+    pub fn to_png(&self) -> Vec<u8> {
+        let mut out = std::io::Cursor::new(Vec::new());
+        image::write_buffer_with_format(
+            &mut out,
+            &self.rgb,
+            self.width,
+            self.height,
+            image::ColorType::Rgb8,
+            image::ImageFormat::Png,
+        )
+        .expect("an RGB image of its own size encodes as PNG in memory");
+        out.into_inner()
+    }
 }
 
 /// A frame that cannot be read.
@@ -76,11 +93,21 @@ pub struct ImageClient {
 impl ImageClient {
     /// Connects and starts asking for frames (`bgr`: raw pixels come as B, G, R).
     pub async fn connect(addr: std::net::SocketAddr, bgr: bool) -> Result<Self, CameraError> {
+        Self::connect_with(addr, bgr, ImageRequest::Full).await
+    }
+
+    /// Connects and asks `request` after each frame (a rectangle: one robot's tile).
+    pub async fn connect_with(
+        addr: std::net::SocketAddr,
+        bgr: bool,
+        request: ImageRequest,
+    ) -> Result<Self, CameraError> {
+        let ask = request.to_bytes();
         let mut stream = TcpStream::connect(addr).await?;
         let _ = stream.set_nodelay(true);
         let (tx, latest) = watch::channel(None);
         let task = tokio::spawn(async move {
-            stream.write_all(b"OK").await?;
+            stream.write_all(&ask).await?;
             let mut parser = FrameParser::new(MAX_FRAME);
             let (mut buf, mut index) = (vec![0u8; 1 << 16], 0u64);
             loop {
@@ -88,7 +115,7 @@ impl ImageClient {
                     let image = decode(&frame, bgr, index)?;
                     index += 1;
                     tx.send_replace(Some(Arc::new(image)));
-                    stream.write_all(b"OK").await?;
+                    stream.write_all(&ask).await?;
                 }
                 let n = stream.read(&mut buf).await?;
                 if n == 0 {

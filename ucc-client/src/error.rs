@@ -100,6 +100,22 @@ pub enum RunError {
     /// A picture could not be written.
     #[error(transparent)]
     Picture(#[from] PictureError),
+    /// Camera frames were asked for and the image server failed.
+    #[error("camera frames from the image server at {addr}: {error}")]
+    Camera {
+        /// `host:port` of the image server.
+        addr: String,
+        /// Why.
+        error: String,
+    },
+    /// The radio was asked for and the WSS failed.
+    #[error("the radio through the WSS at {addr}: {error}")]
+    Radio {
+        /// `host:port` of the WSS.
+        addr: String,
+        /// Why.
+        error: String,
+    },
 }
 
 impl RunError {
@@ -120,6 +136,8 @@ impl RunError {
                 | Self::NoStartPoses { .. }
                 | Self::Output { .. }
                 | Self::Picture(_)
+                | Self::Camera { .. }
+                | Self::Radio { .. }
         )
     }
 }

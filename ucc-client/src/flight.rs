@@ -41,17 +41,21 @@
 //! ```
 
 use std::collections::VecDeque;
+use std::sync::Arc;
 
-use usar_proto::{Barrier, Command, Nfo, ServerMessage};
+use usar_proto::image::ImageRequest;
+use usar_proto::{Barrier, Command, Conf, ConfItem, ItemQuery, Nfo, ServerMessage};
 
 use crate::agent::{Agent, AgentEvent, SpeedCommand};
+use crate::camera::CameraImage;
 use crate::error::RunError;
 use crate::geometry::{Coordinates, Num};
 use crate::mission::Mission;
 use crate::progress::Progress;
+use crate::radio::{Message, Outgoing, Undelivered};
 use crate::record::{FlightRecord, TrajectoryPoint};
 use crate::settings::{RunSettings, Start};
-use crate::uav::UavState;
+use crate::uav::{Reading, UavState};
 
 /// Where a flight is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -99,7 +103,29 @@ pub struct Flight {
     record: FlightRecord,
     commands: VecDeque<Command>,
     progress: VecDeque<Progress>,
+    /// The camera: the tile size asked for (`None`: no frames wanted), and once the
+    /// camera's CONF came, the rectangle of the image server's frame that is this UAV's.
+    camera: Option<CameraWanted>,
+    /// Whether the agent may send radio messages.
+    radio: bool,
+    /// Radio messages the agent sent, for the driver.
+    outbox: VecDeque<Outgoing>,
+    /// Agent steps so far.
+    steps: u64,
 }
+
+/// What the flight knows about the camera it was asked to read.
+#[derive(Debug, Clone, Copy)]
+struct CameraWanted {
+    tile: (u32, u32),
+    rect: Option<ImageRequest>,
+    /// Steps without a camera CONF since it was asked for (a robot without a camera
+    /// answers nothing).
+    waited: u32,
+}
+
+/// Steps after which a camera CONF that has not come means the robot has no camera.
+const CONF_STEPS: u32 = 20;
 
 impl std::fmt::Debug for Flight {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -144,6 +170,14 @@ impl Flight {
             },
             commands: VecDeque::new(),
             progress: VecDeque::new(),
+            camera: settings.camera.as_ref().map(|c| CameraWanted {
+                tile: c.tile,
+                rect: None,
+                waited: 0,
+            }),
+            radio: settings.radio.is_some(),
+            outbox: VecDeque::new(),
+            steps: 0,
         })
     }
 
@@ -213,6 +247,7 @@ impl Flight {
                     self.record.start = Some(Coordinates::new(l.x, l.y, l.z));
                 }
             }
+            ServerMessage::Conf(Conf::Items { items, .. }) => self.on_camera_conf(items),
             ServerMessage::Sync(Barrier { time }) => {
                 if let Some(lockstep) = &mut self.lockstep {
                     lockstep.reached = time.seconds;
@@ -295,6 +330,63 @@ impl Flight {
         self.agent.stop();
         self.phase = Phase::Failed;
         self.error = Some(error);
+    }
+
+    /// The rectangle of the image server's frame that shows this UAV's camera, once its
+    /// CONF came (the flight asks for it after the spawn when the settings want frames).
+    pub fn camera_request(&self) -> Option<ImageRequest> {
+        self.camera.and_then(|c| c.rect)
+    }
+
+    /// A camera frame arrived: the agent sees it from its next step on. A frame of another
+    /// size than the tile (the whole frame a legacy image server sends first) is ignored;
+    /// returns whether it was taken.
+    pub fn on_image(&mut self, image: Arc<CameraImage>) -> bool {
+        let Some(camera) = &self.camera else {
+            return false;
+        };
+        if (image.width, image.height) != camera.tile {
+            return false;
+        }
+        let time = self.uav.time.unwrap_or(0.0);
+        self.uav.image = Some(Reading { value: image, time });
+        true
+    }
+
+    /// A radio message arrived: the agent sees it at its next step.
+    pub fn on_radio(&mut self, message: Message) {
+        self.uav
+            .signal
+            .entry(message.from.clone())
+            .or_insert(f64::NAN);
+        self.uav.inbox.push(message);
+    }
+
+    /// A message the agent sent did not get through: the agent sees it at its next step.
+    pub fn on_undelivered(&mut self, undelivered: Undelivered) {
+        self.log(format!(
+            "radio: message to {} not delivered: {}",
+            undelivered.message.to, undelivered.reason
+        ));
+        self.uav
+            .signal
+            .insert(undelivered.message.to.clone(), undelivered.strength);
+        self.uav.undelivered.push(undelivered);
+    }
+
+    /// The radio signal to `to` (dBm) as the WSS reports it now.
+    pub fn set_signal(&mut self, to: &str, strength: f64) {
+        self.uav.signal.insert(to.to_owned(), strength);
+    }
+
+    /// The next radio message the agent sent, in order.
+    pub fn poll_radio(&mut self) -> Option<Outgoing> {
+        self.outbox.pop_front()
+    }
+
+    /// How many times the agent has stepped.
+    pub fn steps(&self) -> u64 {
+        self.steps
     }
 
     /// The UAV as last seen.
@@ -389,6 +481,12 @@ impl Flight {
                     time,
                     position,
                 });
+                if self.camera.is_some() {
+                    self.commands.push_back(Command::GetConf(ItemQuery {
+                        kind: "Camera".into(),
+                        name: None,
+                    }));
+                }
                 self.agent.start(time);
                 self.fly(time);
             }
@@ -413,6 +511,27 @@ impl Flight {
         self.stepped = Some(time);
         self.record_point(time);
         let step = self.agent.step(&self.uav, time);
+        self.steps += 1;
+        self.uav.inbox.clear();
+        self.uav.undelivered.clear();
+        self.camera_waited();
+        if !step.send.is_empty() {
+            if self.radio {
+                for message in &step.send {
+                    self.uav
+                        .signal
+                        .entry(message.to.clone())
+                        .or_insert(f64::NAN);
+                }
+                self.outbox.extend(step.send);
+            } else {
+                self.log(format!(
+                    "radio: {} message(s) not sent: the run has no radio (RunSettings::radio, \
+                     ucc run --radio)",
+                    step.send.len()
+                ));
+            }
+        }
         for event in step.events {
             match &event {
                 AgentEvent::MissionStarted { index, .. } => self.mission_start = (*index, time),
@@ -462,6 +581,55 @@ impl Flight {
                 mission,
                 seconds: self.mission_timeout,
                 hint,
+            });
+        }
+    }
+
+    /// The camera's CONF: its tile's top-left pixel in the image server's frame.
+    fn on_camera_conf(&mut self, items: &[ConfItem]) {
+        let Some(camera) = &mut self.camera else {
+            return;
+        };
+        let found = items.iter().find_map(|item| match item {
+            ConfItem::Camera {
+                name,
+                texture_offset_x,
+                texture_offset_y,
+                ..
+            } => Some((name.clone(), *texture_offset_x, *texture_offset_y)),
+            _ => None,
+        });
+        let Some((name, x, y)) = found else {
+            return;
+        };
+        let (width, height) = camera.tile;
+        camera.rect = Some(ImageRequest::Rect {
+            x: u32::try_from(x).unwrap_or(0),
+            y: u32::try_from(y).unwrap_or(0),
+            width,
+            height,
+        });
+        self.log(format!(
+            "camera {name}: its {width}x{height} tile of the image server's frame is at {x},{y}"
+        ));
+    }
+
+    /// Counts the steps without a camera CONF; says once that the robot has no camera.
+    fn camera_waited(&mut self) {
+        let Some(camera) = &mut self.camera else {
+            return;
+        };
+        if camera.rect.is_some() || camera.waited > CONF_STEPS {
+            return;
+        }
+        camera.waited += 1;
+        if camera.waited > CONF_STEPS {
+            let message = "frames asked for, but the robot has no camera (GETCONF {Type \
+                           Camera} answered nothing): the agent gets no images"
+                .to_owned();
+            self.report(Progress::Warning {
+                iteration: self.iteration,
+                message,
             });
         }
     }
@@ -683,5 +851,115 @@ mod tests {
         assert!((p.value.y - 2.0).abs() < 1e-9 && p.value.z == -1.0, "{p:?}");
         assert!(p.value.x > 2.0, "moved north by dead reckoning: {p:?}");
         assert!(f.record().log.iter().any(|l| l.contains("dead reckoning")));
+    }
+
+    /// Says hello to `Robot2` at every step and notes what it is shown.
+    struct Sender(std::sync::Arc<std::sync::Mutex<Vec<UavState>>>);
+
+    impl Agent for Sender {
+        fn name(&self) -> &str {
+            "sender"
+        }
+        fn add_mission(&mut self, _: Mission) -> Result<(), crate::MissionRefused> {
+            Ok(())
+        }
+        fn start(&mut self, _: f64) {}
+        fn stop(&mut self) {}
+        fn step(&mut self, uav: &UavState, _: f64) -> Step {
+            self.0.lock().unwrap().push(uav.clone());
+            Step {
+                send: vec![Outgoing {
+                    to: "Robot2".into(),
+                    data: b"hello".to_vec(),
+                }],
+                ..Step::default()
+            }
+        }
+    }
+
+    #[test]
+    fn frames_and_radio_reach_the_agent_through_the_flight() {
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let settings = RunSettings {
+            missions: vec![Mission::Hover { seconds: 5.0 }],
+            camera: Some(crate::CameraSettings::default()),
+            radio: Some(crate::RadioSettings::default()),
+            ..RunSettings::default()
+        };
+        let mut f = Flight::new(1, &settings, Box::new(Sender(seen.clone()))).unwrap();
+        f.spawn();
+        f.on_message(&position(0.1, 0.0));
+        f.end_of_frame();
+        // After the spawn the flight asks for the camera's CONF; its tile becomes the request.
+        let commands: Vec<String> = std::iter::from_fn(|| f.poll_command())
+            .map(|c| c.to_string())
+            .collect();
+        assert!(
+            commands.iter().any(|c| c == "GETCONF {Type Camera}"),
+            "{commands:?}"
+        );
+        assert_eq!(f.camera_request(), None);
+        f.on_message(&line(
+            "CONF {Type Camera} {Name cams}{TextureOffsetX 320}{TextureOffsetY 0}{TextureResolutionX 320}{TextureResolutionY 240}{CameraDefFov 80.0000}{CameraMinFov 20.0000}{CameraMaxFov 120.0000}{CameraFov 80.0000}",
+        ));
+        assert_eq!(
+            f.camera_request(),
+            Some(ImageRequest::Rect {
+                x: 320,
+                y: 0,
+                width: 320,
+                height: 240
+            })
+        );
+        // The whole frame a legacy server sends first is not the UAV's tile.
+        let image = |width, height, index| {
+            Arc::new(CameraImage {
+                width,
+                height,
+                rgb: vec![0; 3 * (width * height) as usize],
+                index,
+            })
+        };
+        assert!(!f.on_image(image(640, 480, 0)));
+        assert!(f.on_image(image(320, 240, 1)));
+        f.on_radio(Message {
+            from: "Robot2".into(),
+            data: b"hi".to_vec(),
+        });
+        let sent = f.poll_radio().expect("the first step's message");
+        f.on_undelivered(Undelivered {
+            message: sent,
+            strength: -120.0,
+            reason: "out of range".into(),
+        });
+        f.on_message(&position(0.2, 0.0));
+        f.end_of_frame();
+        f.on_message(&position(0.3, 0.0));
+        f.end_of_frame();
+        let seen = seen.lock().unwrap();
+        let second = &seen[1];
+        assert_eq!(second.image.as_ref().unwrap().value.index, 1);
+        assert_eq!(second.inbox.len(), 1);
+        assert_eq!(second.undelivered[0].strength, -120.0);
+        assert_eq!(second.signal["Robot2"], -120.0);
+        // Shown once: the next step's inbox and failures are empty; the image stays.
+        assert!(seen[2].inbox.is_empty() && seen[2].undelivered.is_empty());
+        assert!(seen[2].image.is_some());
+        assert!(f.record().log.iter().any(|l| l.contains("not delivered")));
+    }
+
+    #[test]
+    fn a_send_without_the_radio_is_dropped_with_a_log_line() {
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let mut f = flight(Box::new(Sender(seen)));
+        f.on_message(&position(0.1, 0.0));
+        f.end_of_frame();
+        assert!(f.poll_radio().is_none());
+        assert!(
+            f.record()
+                .log
+                .iter()
+                .any(|l| l.contains("the run has no radio"))
+        );
     }
 }

@@ -92,6 +92,6 @@ pub use geometry::Coordinates;
 pub use mission::{Mission, MissionError};
 pub use progress::{Observer, Progress};
 pub use runner::run;
-pub use settings::{Lockstep, Pictures, RunSettings, Start};
+pub use settings::{CameraSettings, Lockstep, Pictures, RadioSettings, RunSettings, Start};
 pub use stats::{IterationStatus, IterationSummary, Statistics, Summary};
 pub use uav::UavState;

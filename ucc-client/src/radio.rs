@@ -73,6 +73,29 @@ pub struct Message {
     pub data: Vec<u8>,
 }
 
+/// A message an agent sends ([`Step::send`](crate::Step::send)): the runner sends it
+/// through the UAV's [`Radio`] after the step.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Outgoing {
+    /// The other UAV's name (its robot name in the simulation).
+    pub to: String,
+    /// Its bytes.
+    pub data: Vec<u8>,
+}
+
+/// A message that did not get through, handed back to the agent in the next
+/// [`UavState::undelivered`](crate::UavState::undelivered).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Undelivered {
+    /// The message.
+    pub message: Outgoing,
+    /// The signal to the other UAV when it was sent, dBm (NaN: unknown; the cut-off is
+    /// [`CUTOFF`]).
+    pub strength: f64,
+    /// Why, in words ([`RadioError`]'s message).
+    pub reason: String,
+}
+
 /// One UAV's registration with a WSS and its listener for others' messages.
 #[derive(Debug)]
 pub struct Radio {

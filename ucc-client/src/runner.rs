@@ -17,13 +17,15 @@ use tokio_util::sync::CancellationToken;
 use usar_proto::{Barrier, Command, Nfo, ServerMessage, StartPose};
 
 use crate::agent::AgentFactory;
+use crate::camera::ImageClient;
 use crate::connection::{Connection, ConnectionError};
 pub use crate::error::RunError;
 use crate::flight::{Flight, Phase};
 use crate::output::{iteration_files, write_iteration};
 use crate::picture::MapPicture;
 use crate::progress::{Observer, Progress};
-use crate::settings::{LOCKSTEP_STEP, Lockstep, Pictures, RunSettings};
+use crate::radio::{Radio, RadioError, Undelivered};
+use crate::settings::{CameraSettings, LOCKSTEP_STEP, Lockstep, Pictures, RunSettings};
 use crate::stats::{IterationStatus, IterationSummary, ResultsTable, Summary};
 
 /// Without lockstep, the readings of one time stamp are taken as complete when nothing more
@@ -295,9 +297,200 @@ async fn fly_inner(
     flight.spawn();
     drain(flight, observer);
 
+    let mut side = Side::default();
+    let result = fly_loop(flight, settings, &mut conn, &mut side, observer).await;
+    let frames = side.finish(flight, settings).await;
+    result?;
+    frames?;
+    conn.disconnect().await?;
+    Ok(())
+}
+
+/// The camera and the radio of one flight (when the settings ask for them).
+#[derive(Default)]
+struct Side {
+    image: Option<ImageClient>,
+    /// The index of the last frame handed to the flight.
+    last_frame: Option<u64>,
+    /// Frames handed to the flight.
+    frames: u64,
+    /// PNG files being written.
+    saving: Vec<JoinHandle<Result<PathBuf, RunError>>>,
+    radio: Option<Radio>,
+    /// The flight's step count when the signals were last asked.
+    signals_at: u64,
+}
+
+impl Side {
+    /// Connects the image client once the flight knows its tile, joins the radio once the
+    /// UAV flies; hands frames and messages to the flight; sends what the agent sent.
+    async fn serve(&mut self, flight: &mut Flight, settings: &RunSettings) -> Result<(), RunError> {
+        if let Some(camera) = &settings.camera {
+            if !camera.is_active()
+                && let Some(image) = self.image.take()
+            {
+                let _ = image.close().await;
+                self.last_frame = None; // a new connection numbers its frames from 0
+            }
+            if self.image.is_none()
+                && camera.is_active()
+                && let Some(request) = flight.camera_request()
+            {
+                let error = |error: String| RunError::Camera {
+                    addr: camera.server.clone(),
+                    error,
+                };
+                let addr = resolve(&camera.server).await.map_err(error)?;
+                let client = ImageClient::connect_with(addr, camera.bgr, request)
+                    .await
+                    .map_err(|e| error(e.to_string()))?;
+                self.image = Some(client);
+            }
+            self.take_frame(flight, settings, camera);
+        }
+        let Some(radio_settings) = &settings.radio else {
+            return Ok(());
+        };
+        if self.radio.is_none() {
+            if flight.phase() != Phase::Flying {
+                return Ok(());
+            }
+            let error = |error: String| RunError::Radio {
+                addr: radio_settings.wss.clone(),
+                error,
+            };
+            let addr = resolve(&radio_settings.wss).await.map_err(error)?;
+            let radio = Radio::join(addr, &settings.name)
+                .await
+                .map_err(|e| error(e.to_string()))?;
+            flight.log(format!(
+                "radio: joined the WSS at {} as {}",
+                radio_settings.wss, settings.name
+            ));
+            self.radio = Some(radio);
+        }
+        let Some(radio) = &mut self.radio else {
+            return Ok(());
+        };
+        while let Some(message) = radio.try_recv() {
+            flight.on_radio(message);
+        }
+        while let Some(message) = flight.poll_radio() {
+            if let Err(e) = radio.send(&message.to, &message.data).await {
+                let strength = match &e {
+                    RadioError::OutOfRange { strength, .. } => *strength,
+                    _ => f64::NAN,
+                };
+                flight.on_undelivered(Undelivered {
+                    message,
+                    strength,
+                    reason: e.to_string(),
+                });
+            }
+        }
+        if flight.steps() > self.signals_at {
+            self.signals_at = flight.steps();
+            let mut names: Vec<String> = flight.uav().signal.keys().cloned().collect();
+            names.extend(radio_settings.peers.iter().cloned());
+            names.sort();
+            names.dedup();
+            for name in names.iter().filter(|n| **n != settings.name) {
+                let strength = radio.strength(name).await.unwrap_or(f64::NAN);
+                flight.set_signal(name, strength);
+            }
+        }
+        Ok(())
+    }
+
+    /// Hands the latest frame to the flight if it is new; writes every N-th as PNG.
+    fn take_frame(&mut self, flight: &mut Flight, settings: &RunSettings, camera: &CameraSettings) {
+        let Some(frame) = self.image.as_ref().and_then(ImageClient::latest) else {
+            return;
+        };
+        if self.last_frame.is_some_and(|last| frame.index <= last) {
+            return;
+        }
+        self.last_frame = Some(frame.index);
+        if !flight.on_image(Arc::clone(&frame)) {
+            return;
+        }
+        self.frames += 1;
+        let n = self.frames;
+        if camera.save_every == 0 || !(n - 1).is_multiple_of(u64::from(camera.save_every)) {
+            return;
+        }
+        let iteration = flight.record().iteration;
+        if let Some(path) = settings.file(&format!("{iteration:02}-frame-{n:05}.png")) {
+            self.saving.push(tokio::task::spawn_blocking(move || {
+                image::save_buffer(
+                    &path,
+                    &frame.rgb,
+                    frame.width,
+                    frame.height,
+                    image::ColorType::Rgb8,
+                )
+                .map_err(|e| RunError::Output {
+                    path: path.clone(),
+                    error: std::io::Error::other(e),
+                })?;
+                Ok(path)
+            }));
+        }
+    }
+
+    /// Closes the image client and waits for the frames being written; logs them.
+    async fn finish(
+        &mut self,
+        flight: &mut Flight,
+        settings: &RunSettings,
+    ) -> Result<(), RunError> {
+        if let Some(image) = self.image.take() {
+            let _ = image.close().await;
+        }
+        let mut written = 0;
+        let mut first_error = None;
+        for saving in self.saving.drain(..) {
+            match saving
+                .await
+                .unwrap_or_else(|e| std::panic::resume_unwind(e.into_panic()))
+            {
+                Ok(_) => written += 1,
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        if written > 0 {
+            let iteration = flight.record().iteration;
+            flight.log(format!(
+                "camera: {} frame(s) received, {written} written as \
+                 {}-{iteration:02}-frame-NNNNN.png",
+                self.frames, settings.prefix
+            ));
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+}
+
+async fn resolve(addr: &str) -> Result<std::net::SocketAddr, String> {
+    tokio::net::lookup_host(addr)
+        .await
+        .map_err(|e| e.to_string())?
+        .next()
+        .ok_or_else(|| "no address".to_owned())
+}
+
+async fn fly_loop(
+    flight: &mut Flight,
+    settings: &RunSettings,
+    conn: &mut Connection,
+    side: &mut Side,
+    observer: &mut dyn Observer,
+) -> Result<(), RunError> {
     let spawned_by = Instant::now() + settings.stream_timeout;
     loop {
-        send_all(flight, &mut conn).await?;
+        send_all(flight, conn).await?;
+        side.serve(flight, settings).await?;
         drain(flight, observer);
         match flight.phase() {
             Phase::Done => break,
@@ -319,7 +512,10 @@ async fn fly_inner(
         } else {
             deadline
         };
-        match tokio::time::timeout_at(wait, conn.next_message()).await {
+        let message = tokio::time::timeout_at(wait, conn.next_message()).await;
+        // The frames and messages that came meanwhile, before the agent may step.
+        side.serve(flight, settings).await?;
+        match message {
             Ok(message) => flight.on_message(&message?),
             Err(_) if quiet && Instant::now() < deadline => flight.end_of_frame(),
             Err(_) if flight.phase() == Phase::Spawning && flight.is_streaming() => {
@@ -340,7 +536,6 @@ async fn fly_inner(
             }
         }
     }
-    conn.disconnect().await?;
     Ok(())
 }
 

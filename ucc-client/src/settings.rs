@@ -5,6 +5,8 @@
 use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use usar_proto::{Command, Init};
@@ -128,6 +130,59 @@ pub enum Lockstep {
     Required,
 }
 
+/// Camera frames for the agent (docs/camera.md): where the image server is and what to do
+/// with the frames.
+#[derive(Debug, Clone)]
+pub struct CameraSettings {
+    /// `host:port` of the image server (USARSim: TCP 5003). An in-process server fills in
+    /// its own.
+    pub server: String,
+    /// Raw frames carry pixels as B, G, R (USARSim, and usar-server without
+    /// `--image-rgb`).
+    pub bgr: bool,
+    /// A camera's tile in the image server's frame, pixels (USARSim's `CameraWidth` ×
+    /// `CameraHeight`, 320 × 240): the UAV's frame is the tile at its camera's CONF
+    /// `TextureOffsetX/Y`.
+    pub tile: (u32, u32),
+    /// Write every `save_every`-th frame received as a PNG into the log directory
+    /// (`PREFIX-NN-frame-IIIII.png`); 0 writes none.
+    pub save_every: u32,
+    /// Read frames only while this is `true` (a viewer that shows them only while its
+    /// panel is open: `ucc gui`); `None`: always.
+    pub active: Option<Arc<AtomicBool>>,
+}
+
+impl Default for CameraSettings {
+    fn default() -> Self {
+        Self {
+            server: "localhost:5003".into(),
+            bgr: true,
+            tile: (320, 240),
+            save_every: 0,
+            active: None,
+        }
+    }
+}
+
+impl CameraSettings {
+    /// Whether frames are to be read now.
+    pub fn is_active(&self) -> bool {
+        self.active
+            .as_ref()
+            .is_none_or(|a| a.load(std::sync::atomic::Ordering::Relaxed))
+    }
+}
+
+/// The UAV's radio through a Wireless Simulation Server (docs/wss.md).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RadioSettings {
+    /// `host:port` of the WSS (TCP 50000). An in-process server fills in its own.
+    pub wss: String,
+    /// Other UAVs whose signal the agent sees at every step
+    /// ([`UavState::signal`](crate::UavState::signal)), besides those it talked to.
+    pub peers: Vec<String>,
+}
+
 /// Everything a run needs besides the agent.
 #[derive(Debug, Clone)]
 pub struct RunSettings {
@@ -171,6 +226,12 @@ pub struct RunSettings {
     /// trajectory included (default 100): a long loop's memory stays flat; the statistics,
     /// the results table, the overlay and the files cover every iteration.
     pub kept_iterations: usize,
+    /// Camera frames for the agent ([`UavState::image`](crate::UavState::image)); `None`
+    /// (the default) keeps state-only runs as fast as without an image server.
+    pub camera: Option<CameraSettings>,
+    /// The radio for the agent ([`Step::send`](crate::Step::send),
+    /// [`UavState::inbox`](crate::UavState::inbox)); `None`: no radio.
+    pub radio: Option<RadioSettings>,
 }
 
 impl Default for RunSettings {
@@ -193,6 +254,8 @@ impl Default for RunSettings {
             pictures: Pictures::All,
             map: None,
             kept_iterations: 100,
+            camera: None,
+            radio: None,
         }
     }
 }

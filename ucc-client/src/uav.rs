@@ -7,7 +7,13 @@
 //! it. When several sensors give the same quantity, the best one wins (Position over
 //! GroundTruth over INS; GroundTruth over IMU over INS for the orientation).
 
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
 use usar_proto::{NamedRange, Scan, SenData, ServerMessage};
+
+use crate::camera::CameraImage;
+use crate::radio::{Message, Undelivered};
 
 use crate::geometry::{Coordinates, Num, body_to_world_vector, from_wire, world_to_body_vector};
 
@@ -154,6 +160,22 @@ pub struct UavState {
     /// The parameters the server drew for this robot (`--randomize`, a `RANDOMIZED` line),
     /// as `mass 1.3021 kf 1.02 ..`.
     pub randomized: Option<Reading<String>>,
+    /// The latest frame of the UAV's camera (its tile of the image server's frame), when
+    /// the run asks for frames ([`RunSettings::camera`](crate::RunSettings::camera));
+    /// shared, not copied, from step to step. The image server sends no time stamp: the
+    /// reading's time is the simulated time known when the frame arrived.
+    pub image: Option<Reading<Arc<CameraImage>>>,
+    /// Radio messages received since the previous step, oldest first (with
+    /// [`RunSettings::radio`](crate::RunSettings::radio)).
+    pub inbox: Vec<Message>,
+    /// Messages of the previous step's [`Step::send`](crate::Step::send) that did not get
+    /// through (out of range, behind walls, no such UAV).
+    pub undelivered: Vec<Undelivered>,
+    /// The radio signal to other UAVs (by name), dBm, as the WSS last reported it: the
+    /// peers of [`RadioSettings`](crate::settings::RadioSettings), and every UAV this one
+    /// sent to or heard from. NaN: not known yet; below [`CUTOFF`](crate::radio::CUTOFF):
+    /// out of range.
+    pub signal: BTreeMap<String, f64>,
     /// The z of the dead-reckoning origin (the spawn point).
     reckoning_origin_z: Option<f64>,
     /// The battery value taken as "full".

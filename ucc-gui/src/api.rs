@@ -106,3 +106,35 @@ pub(crate) async fn file(
     )
         .into_response()
 }
+
+/// The latest camera frame of a UAV as PNG; asking keeps its run reading frames (for
+/// [`CAMERA_IDLE`](crate::hub::CAMERA_IDLE)). 404 with the reason when there is none.
+pub(crate) async fn camera(State(app): State<App>, Path(uav): Path<u32>) -> Response {
+    let (frame, local) = {
+        let mut hub = app.shared.lock();
+        let local = hub.image_server.is_some();
+        match hub.uav(uav) {
+            Ok(u) => (u.camera_frame(), local),
+            Err(e) => return (StatusCode::NOT_FOUND, e.to_string()).into_response(),
+        }
+    };
+    let Some(frame) = frame else {
+        let why = if local {
+            "no camera frame yet (the robot needs a camera, e.g. AirRobot, and must fly)"
+        } else {
+            "camera frames need the local server (ucc gui --local)"
+        };
+        return (StatusCode::NOT_FOUND, why).into_response();
+    };
+    let png = tokio::task::spawn_blocking(move || frame.to_png())
+        .await
+        .unwrap_or_default();
+    (
+        [
+            (header::CONTENT_TYPE, "image/png"),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        png,
+    )
+        .into_response()
+}

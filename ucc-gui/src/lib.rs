@@ -58,6 +58,11 @@ const ASSETS: &[(&str, &str, &str)] = &[
     ),
     ("side.js", "text/javascript", include_str!("assets/side.js")),
     (
+        "camera.js",
+        "text/javascript",
+        include_str!("assets/camera.js"),
+    ),
+    (
         "plots.js",
         "text/javascript",
         include_str!("assets/plots.js"),
@@ -87,6 +92,12 @@ const ASSETS: &[(&str, &str, &str)] = &[
 
 /// The content security policy of the page: everything from this server, nothing inline.
 const CSP: &str = "default-src 'self'; connect-src 'self'; img-src 'self' data: blob:; object-src 'none'; base-uri 'none'; frame-ancestors 'none'";
+
+/// The side services of the local server: the image server, for the camera panel.
+pub(crate) const CAMERA: ucc_client::backend::Sides = ucc_client::backend::Sides {
+    camera: true,
+    radio: false,
+};
 
 /// How often a page gets an update.
 pub const UPDATE_PERIOD: Duration = Duration::from_millis(50);
@@ -204,7 +215,9 @@ pub async fn serve(
             // The Backend configures it for its one owner, this process: no per-address cap
             // (50 UAVs from one page are 50 connections from 127.0.0.1).
             let config = *c;
-            let server = Backend::Local(Box::new(config.clone())).start().await?;
+            let server = Backend::Local(Box::new(config.clone()))
+                .start_with(CAMERA)
+                .await?;
             let robots = config
                 .robots
                 .classes()
@@ -224,6 +237,19 @@ pub async fn serve(
     };
     let mut hub = Hub::new(server_addr, local.is_some(), config.log_dir);
     if let Some(l) = &local {
+        hub.image_server = l.server.as_ref().and_then(|s| s.image_server());
+        hub.camera_classes = l
+            .config
+            .robots
+            .classes()
+            .iter()
+            .filter(|r| {
+                r.parts
+                    .iter()
+                    .any(|p| p.kind.eq_ignore_ascii_case("Camera"))
+            })
+            .map(|r| r.class.clone())
+            .collect();
         hub.geometry = Some(l.geometry.clone());
         hub.map = l.config.map.level().to_owned();
         hub.time_scale = l.config.time_scale;
@@ -253,6 +279,7 @@ pub async fn serve(
         .route("/api/state", get(api::state))
         .route("/api/log", get(api::log_file))
         .route("/api/files/{uav}/{index}", get(api::file))
+        .route("/api/camera/{uav}", get(api::camera))
         .layer(middleware::from_fn_with_state(app.clone(), guard::guard))
         .with_state(app.clone());
     let stop = shutdown.clone();

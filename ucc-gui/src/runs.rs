@@ -187,6 +187,9 @@ fn observe(shared: &Shared, id: u32, progress: &Progress, local: bool) {
         } => {
             let live = Live::of(*time, uav, *command, !local);
             hub.sample(id, *iteration, live);
+            if let Ok(u) = hub.uav(id) {
+                u.camera_sample(uav.image.as_ref().map(|i| &i.value));
+            }
         }
         Progress::Agent {
             event: AgentEvent::MissionStarted { index, .. },

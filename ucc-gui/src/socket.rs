@@ -168,6 +168,7 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
             hub.addr = addr.clone();
             hub.local = false;
             hub.geometry = None;
+            hub.image_server = None;
             hub.robot_classes = None;
             hub.map = String::new();
             hub.log(0, "info", format!("server: {addr}"));
@@ -183,13 +184,14 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
             }
             local.config.time_scale = scale;
             let server = ucc_client::Backend::Local(Box::new(local.config.clone()))
-                .start()
+                .start_with(crate::CAMERA)
                 .await
                 .map_err(|e| {
                     RequestError::Server(format!("cannot restart the local server: {e}"))
                 })?;
             let mut hub = app.shared.lock();
             hub.addr = server.addr().to_string();
+            hub.image_server = server.image_server();
             hub.time_scale = scale;
             let line = format!("local server at {} runs at time scale {scale}", hub.addr);
             hub.log(0, "info", line);

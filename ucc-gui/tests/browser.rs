@@ -1065,3 +1065,58 @@ async fn screenshots_for_the_docs() -> Result<()> {
     })
     .await
 }
+
+/// Issue 20: the camera panel shows the selected AirRobot's view live, fetched only while
+/// the panel is open. Writes `camera-panel.png`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_camera_panel_shows_the_selected_uavs_view_while_open() -> Result<()> {
+    with_page(local(TimeScale::Factor(1.0)), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        js(&c, "
+            U.send({op: 'create', robot: 'AirRobot', agent: 'base', start: '-3,0,-1.5', name: 'Cam'});
+            U.send({op: 'add_mission', uav: 1, kind: 'Hover', seconds: '60'});
+            U.send({op: 'start', uav: 1, iterations: '1'});").await?;
+        until("the UAV flying", 20, || async {
+            Ok(js(&c, "return [...U.uavs.values()].some(u => u.info.status === 'running')").await? == json!(true))
+        })
+        .await?;
+        assert_eq!(js(&c, "return U.camera.n").await?, json!(0), "fetched while closed");
+        c.find(Locator::Css("#camera-panel summary")).await?.click().await?;
+        until("a camera frame", 30, || async {
+            Ok(js(&c, "return document.getElementById('camera').naturalWidth").await? == json!(320))
+        })
+        .await?;
+        // A picture, not a blank: a wall or the sky above, the floor below.
+        let colours = c.execute_async("
+            const done = arguments[arguments.length - 1];
+            fetch('/api/camera/1').then((r) => r.blob()).then(createImageBitmap).then((img) => {
+              const cv = document.createElement('canvas'); cv.width = 320; cv.height = 240;
+              const g = cv.getContext('2d'); g.drawImage(img, 0, 0);
+              done([[...g.getImageData(160, 2, 1, 1).data].slice(0, 3), [...g.getImageData(160, 237, 1, 1).data].slice(0, 3)]);
+            });", vec![]).await?;
+        assert_ne!(colours[1], colours[0], "one colour: {colours}");
+        assert!(colours.as_array().unwrap().iter().all(|c| c != &json!([0, 0, 0])), "{colours}");
+        let n = js(&c, "return U.camera.n").await?.as_u64().unwrap();
+        until("more frames", 10, || async {
+            Ok(js(&c, "return U.camera.n").await?.as_u64().unwrap() > n + 2)
+        })
+        .await?;
+        let dir = artifacts();
+        std::fs::create_dir_all(&dir)?;
+        std::fs::write(dir.join("camera-panel.png"), c.screenshot().await?)?;
+        // The defect: the 3D view failed to draw while no UAV existed yet ("drawing failed:
+        // Cannot set properties of null"), and the page showed it.
+        let shown = js(&c, "const e = document.getElementById('error'); return e.hidden ? '' : e.textContent").await?;
+        assert_eq!(shown, json!(""), "the page shows an error");
+        // Closed: no more requests.
+        c.find(Locator::Css("#camera-panel summary")).await?.click().await?;
+        tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+        let closed = js(&c, "return U.camera.n").await?;
+        tokio::time::sleep(std::time::Duration::from_millis(700)).await;
+        assert_eq!(js(&c, "return U.camera.n").await?, closed, "fetched while closed");
+        assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
+        js(&c, "U.send({op: 'stop', uav: 1})").await?;
+        Ok(())
+    })
+    .await
+}

@@ -233,3 +233,37 @@ fn the_page_gets_the_victims_with_their_names() {
         "victims are not drawn twice"
     );
 }
+
+/// Issue 20: a run reads camera frames (while the panel asks) only for a robot class with a
+/// camera on a server with an image server: a stsAirRobot's run asks nothing (no "no camera"
+/// warning in every run's log), an AirRobot's does, switched off until a page asks.
+#[test]
+fn only_robots_with_a_camera_get_the_camera_setting() {
+    let mut hub = hub();
+    hub.image_server = Some("127.0.0.1:5003".into());
+    hub.camera_classes = vec!["USARBot.AirRobot".into()];
+    let mut settings_of = |robot: &str| {
+        let Ok(Action::Created(id)) = hub.apply(Request::Create {
+            robot: robot.into(),
+            agent: "base".into(),
+            start: "0,0,-1".into(),
+            name: String::new(),
+        }) else {
+            panic!("not created");
+        };
+        hub.apply(goto(id, "1")).unwrap();
+        let Ok(Action::Start(_, settings, _)) = hub.apply(Request::Start {
+            uav: id,
+            iterations: "1".into(),
+        }) else {
+            panic!("not started");
+        };
+        settings
+    };
+    assert!(settings_of("stsAirRobot").camera.is_none());
+    let camera = settings_of("AirRobot")
+        .camera
+        .expect("the AirRobot's camera");
+    assert_eq!(camera.server, "127.0.0.1:5003");
+    assert!(!camera.is_active(), "no frames until a page asks");
+}

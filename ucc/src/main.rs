@@ -19,7 +19,10 @@ use ucc_client::backend::{self, Backend};
 use ucc_client::mission::{load_missions, parse_point};
 use ucc_client::picture::MapGeometry;
 use ucc_client::runner::start_poses;
-use ucc_client::{Coordinates, Lockstep, Mission, Progress, RunSettings, Start, Summary};
+use ucc_client::{
+    CameraSettings, Coordinates, Lockstep, Mission, Progress, RadioSettings, RunSettings, Start,
+    Summary,
+};
 use usar_server::sim::map::Map;
 use usar_server::{ServerArgs, ServerConfig, TimeScale};
 
@@ -186,6 +189,32 @@ struct RunArgs {
     /// Map pictures to draw: all (each iteration and the overlay), overlay, or none.
     #[arg(long, default_value = "all", value_name = "all|overlay|none")]
     pictures: ucc_client::Pictures,
+    /// Give the agent the UAV's camera frames (UavState::image) from the image server at
+    /// --host:--image-port (with --local, its own); the robot needs a camera (the stock
+    /// AirRobot has one). Off by default: state-only runs stay fast. See docs/camera.md.
+    #[arg(long)]
+    camera: bool,
+    /// The image server's port (USARSim: 5003), with --camera.
+    #[arg(long, default_value_t = 5003, value_name = "PORT")]
+    image_port: u16,
+    /// Write every N-th camera frame as PNG into --log-dir (PREFIX-NN-frame-IIIII.png,
+    /// NN the iteration, IIIII the frame's number); implies --camera.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    frames: Option<u32>,
+    /// Raw frames of the image server carry R, G, B (usar-server --image-rgb), not USARSim's
+    /// B, G, R.
+    #[arg(long)]
+    image_rgb: bool,
+    /// Give the agent a radio through the WSS at --host:--wss-port (with --local, its own):
+    /// Step::send, UavState::inbox, ::undelivered and ::signal (docs/wss.md).
+    #[arg(long)]
+    radio: bool,
+    /// The WSS's port (50000), with --radio.
+    #[arg(long, default_value_t = 50000, value_name = "PORT")]
+    wss_port: u16,
+    /// With --radio: another UAV whose signal the agent sees at every step (repeatable).
+    #[arg(long, value_name = "NAME")]
+    peer: Vec<String>,
     /// Print only the progress bar, failures and the summary.
     #[arg(long, short)]
     quiet: bool,
@@ -442,7 +471,11 @@ async fn run_command(args: RunArgs) -> anyhow::Result<ExitCode> {
         ..RunSettings::default()
     }
     .class_name();
-    let server = backend.start().await?;
+    let sides = backend::Sides {
+        camera: args.camera || args.frames.is_some(),
+        radio: args.radio,
+    };
+    let server = backend.start_with(sides).await?;
     if let Some(problem) = server.spawn_problem(&class, &args.start) {
         _ = server.stop().await;
         bail!("{problem}");
@@ -543,6 +576,16 @@ async fn run(
         record: args.record,
         keep_going: true,
         pictures: args.pictures,
+        camera: (args.camera || args.frames.is_some()).then(|| CameraSettings {
+            server: format!("{}:{}", args.host, args.image_port),
+            bgr: !args.image_rgb,
+            save_every: args.frames.unwrap_or(0),
+            ..CameraSettings::default()
+        }),
+        radio: args.radio.then(|| RadioSettings {
+            wss: format!("{}:{}", args.host, args.wss_port),
+            peers: args.peer,
+        }),
         ..RunSettings::default()
     });
     let bar = progress_bar(settings.iterations);

@@ -121,6 +121,12 @@ struct Args {
     /// min / median / max.
     #[arg(long, value_name = "NAMES", num_args = 0..=1, default_missing_value = "all")]
     scenarios: Option<String>,
+    /// With --camera: only the fleet figure: this many stsAirRobots (every sensor on), each
+    /// with a 64x64 camera rendered at 10 Hz, in one world on --threads threads (default
+    /// 2) for --seconds simulated seconds; prints the real-time factor (issue 20's goal:
+    /// 100 UAVs at real time on 2 cores).
+    #[arg(long, value_name = "N", requires = "camera", value_parser = at_least_one)]
+    camera_fleet: Option<usize>,
 }
 
 impl Args {
@@ -898,9 +904,94 @@ fn camera_catalog(w: u32, h: u32) -> anyhow::Result<usar_sim::RobotCatalog> {
     )?)
 }
 
+/// `--camera --camera-fleet N`: N stsAirRobots with every sensor and a 64x64 camera each,
+/// rendered every 0.1 simulated seconds, in one world; the real-time factor.
+fn camera_fleet(args: &Args, uavs: usize) -> anyhow::Result<()> {
+    use usar_proto::{Command, Drive, Init, Vec3};
+    use usar_sim::{SimConfig, World, map::Map, robots::RobotCatalog};
+    let mut catalog = RobotCatalog::embedded();
+    let camera = camera_catalog(64, 64)?;
+    let part = camera.classes()[0].parts[0].clone();
+    let class = catalog
+        .get_mut("USARBot.stsAirRobot")
+        .context("the stsAirRobot class")?;
+    class.parts.push(part);
+    let threads = args.threads.unwrap_or(2);
+    let config = SimConfig {
+        threads,
+        ..SimConfig::default()
+    };
+    let map = Map::lookup(args.map.as_deref().unwrap_or("empty_room"))?;
+    let mut world = World::new(map, catalog, config);
+    let side = (uavs as f64).sqrt().ceil() as usize;
+    let mut clients = Vec::new();
+    for i in 0..uavs {
+        let c = world.connect();
+        let (x, y) = (
+            (i % side) as f64 * 1.6 - side as f64 * 0.8,
+            (i / side) as f64 * 1.6 - side as f64 * 0.8,
+        );
+        world.command(
+            c,
+            Command::Init(Init {
+                class_name: "USARBot.stsAirRobot".into(),
+                location: Some(Vec3::new(x, y, -1.5)),
+                ..Init::default()
+            }),
+        );
+        // Turning: a new view in every frame.
+        world.command(
+            c,
+            Command::Drive(Drive {
+                rotational_velocity: Some(0.5),
+                ..Drive::default()
+            }),
+        );
+        clients.push(c);
+    }
+    anyhow::ensure!(
+        world.robot_count() == uavs,
+        "only {} of {uavs} UAVs spawned (a smaller N, or a bigger --map)",
+        world.robot_count()
+    );
+    let ticks = ((args.seconds / world.dt()).round() as u64).max(1);
+    let every = (0.1 / world.dt()).round() as u64;
+    let (mut out, mut frames) = (Vec::new(), Vec::new());
+    let (mut step_time, mut render_time, mut rendered) = (Duration::ZERO, Duration::ZERO, 0u64);
+    let began = Instant::now();
+    for tick in 0..ticks {
+        let t = Instant::now();
+        out.clear();
+        world.step(&mut out);
+        step_time += t.elapsed();
+        if tick % every == 0 {
+            let t = Instant::now();
+            world.render_cameras(&mut frames);
+            render_time += t.elapsed();
+            rendered += frames.len() as u64;
+        }
+    }
+    let wall = began.elapsed().as_secs_f64();
+    let simulated = ticks as f64 * world.dt();
+    say!(
+        "camera fleet: {uavs} stsAirRobots (all their sensors) + a 64x64 camera each at 10 Hz, \
+         {threads} threads, {simulated:.0} simulated s: real-time factor {:.2} ({:.1} s wall: \
+         {:.1} s stepping, {:.1} s rendering {rendered} frames, {:.0} frames/s)",
+        simulated / wall,
+        wall,
+        step_time.as_secs_f64(),
+        render_time.as_secs_f64(),
+        rendered as f64 / render_time.as_secs_f64().max(1e-9)
+    );
+    Ok(())
+}
+
 /// `--camera`: the renderer on one core, then the image server.
 fn camera(args: &Args) -> anyhow::Result<()> {
     use usar_sim::{SimConfig, World, map::Map};
+    if let Some(uavs) = args.camera_fleet {
+        return camera_fleet(args, uavs);
+    }
     let budget = Duration::from_secs_f64((args.seconds / 10.0).max(0.5));
     say!("camera renderer, one core (frames per CPU-second, million rays per CPU-second):");
     for map_name in ["empty_room", "city"] {

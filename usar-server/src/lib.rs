@@ -40,6 +40,6 @@ pub mod replay;
 pub use usar_sim as sim;
 
 pub use args::{ArgsError, ServerArgs};
-pub use local::LocalServer;
+pub use local::{LocalServer, LocalSides};
 pub use net::image::ImageConfig;
 pub use net::{ServerConfig, ServerError, SideListeners, TimeScale, run, run_with};

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use tokio_util::sync::CancellationToken;
 
-use crate::net::{ServerConfig, ServerError, run};
+use crate::net::{ServerConfig, ServerError, SideListeners, run_with};
 
 /// A usar-server running on a tokio task of the caller's runtime, on `127.0.0.1` and a port
 /// the OS chose. Dropping it stops the server (without waiting); [`LocalServer::stop`] waits.
@@ -24,6 +24,8 @@ use crate::net::{ServerConfig, ServerError, run};
 #[derive(Debug)]
 pub struct LocalServer {
     addr: SocketAddr,
+    image: Option<SocketAddr>,
+    wss: Option<SocketAddr>,
     shutdown: CancellationToken,
     task: Option<tokio::task::JoinHandle<Result<(), ServerError>>>,
 }
@@ -31,15 +33,46 @@ pub struct LocalServer {
 impl LocalServer {
     /// Binds a free loopback port and starts serving `config` on it.
     pub async fn start(config: ServerConfig) -> Result<Self, ServerError> {
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+        Self::start_with(config, LocalSides::default()).await
+    }
+
+    /// [`LocalServer::start`] with side services, each on a free loopback port of its own.
+    pub async fn start_with(config: ServerConfig, sides: LocalSides) -> Result<Self, ServerError> {
+        let bind = async |on: bool| -> Result<_, ServerError> {
+            Ok(match on {
+                true => Some(tokio::net::TcpListener::bind("127.0.0.1:0").await?),
+                false => None,
+            })
+        };
+        let listener = bind(true).await?.expect("bound");
         let addr = listener.local_addr()?;
+        let side = SideListeners {
+            image: bind(sides.image).await?,
+            truth: None,
+            monitor: bind(sides.radio).await?,
+            wss: bind(sides.radio).await?,
+        };
+        let at = |l: &Option<tokio::net::TcpListener>| l.as_ref().and_then(|l| l.local_addr().ok());
+        let (image, wss) = (at(&side.image), at(&side.wss));
         let shutdown = CancellationToken::new();
-        let task = tokio::spawn(run(listener, config, shutdown.clone()));
+        let task = tokio::spawn(run_with(listener, side, config, shutdown.clone()));
         Ok(Self {
             addr,
+            image,
+            wss,
             shutdown,
             task: Some(task),
         })
+    }
+
+    /// The image server's address (with [`LocalSides::image`]).
+    pub fn image_addr(&self) -> Option<SocketAddr> {
+        self.image
+    }
+
+    /// The WSS's address (with [`LocalSides::radio`]).
+    pub fn wss_addr(&self) -> Option<SocketAddr> {
+        self.wss
     }
 
     /// The address to connect to.
@@ -61,6 +94,15 @@ impl LocalServer {
             )),
         }
     }
+}
+
+/// The side services a [`LocalServer`] runs besides the Gamebots port (none by default).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LocalSides {
+    /// The image server (docs/camera.md).
+    pub image: bool,
+    /// The WSS and its robot monitor (docs/wss.md).
+    pub radio: bool,
 }
 
 impl Drop for LocalServer {

@@ -18,6 +18,21 @@ fn start(
     std::net::SocketAddr,
     CancellationToken,
 ) {
+    start_with(ServerConfig {
+        image,
+        time_scale: TimeScale::Factor(1.0),
+        ..ServerConfig::default()
+    })
+}
+
+/// [`start`] with any configuration.
+fn start_with(
+    config: ServerConfig,
+) -> (
+    std::net::SocketAddr,
+    std::net::SocketAddr,
+    CancellationToken,
+) {
     let (tx, rx) = std::sync::mpsc::channel();
     let shutdown = CancellationToken::new();
     let token = shutdown.clone();
@@ -28,11 +43,6 @@ fn start(
             let side = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
             tx.send((main.local_addr().unwrap(), side.local_addr().unwrap()))
                 .unwrap();
-            let config = ServerConfig {
-                image,
-                time_scale: TimeScale::Factor(1.0),
-                ..ServerConfig::default()
-            };
             let side = SideListeners {
                 image: Some(side),
                 ..SideListeners::default()
@@ -106,6 +116,25 @@ impl Client {
             .unwrap();
         quiet
     }
+}
+
+/// The latest `STA {Time t}` among the lines a Gamebots connection sends within `wait`.
+fn latest_sta(s: &mut TcpStream, wait: Duration) -> f64 {
+    s.set_read_timeout(Some(Duration::from_millis(50))).unwrap();
+    let end = std::time::Instant::now() + wait;
+    let (mut text, mut buf) = (String::new(), vec![0u8; 1 << 16]);
+    while std::time::Instant::now() < end {
+        if let Ok(n) = s.read(&mut buf) {
+            assert!(n > 0, "the robot's connection closed");
+            text.push_str(&String::from_utf8_lossy(&buf[..n]));
+        }
+    }
+    text.match_indices("STA {Time ")
+        .filter_map(|(i, m)| {
+            let rest = &text[i + m.len()..];
+            rest[..rest.find('}')?].parse::<f64>().ok()
+        })
+        .fold(f64::NAN, f64::max)
 }
 
 fn pixel(rgb: &[u8], width: usize, x: usize, y: usize) -> [u8; 3] {
@@ -193,7 +222,7 @@ fn bad_requests_get_no_frame_and_do_not_hurt_the_connection_or_others() {
         legacy: false,
         ..ImageConfig::default()
     });
-    let _robot = air_robot(main, "Start1");
+    let mut robot = air_robot(main, "Start1");
     // A client that asks for frames and never reads them.
     let mut hog = TcpStream::connect(addr).unwrap();
     hog.set_write_timeout(Some(Duration::from_secs(2))).unwrap();
@@ -225,7 +254,8 @@ fn bad_requests_get_no_frame_and_do_not_hurt_the_connection_or_others() {
     let (w, h, _) = decode_raw(&client.frame().payload, true).unwrap();
     assert_eq!((w, h), (40, 10));
     // The hog floods OKs without reading; the other client still gets frame after frame,
-    // and the world goes on (its STA lines keep coming).
+    // and the world goes on (the robot's STA lines keep coming, their time increasing).
+    let before = latest_sta(&mut robot, Duration::from_millis(300));
     for _ in 0..2000 {
         if hog.write_all(b"OK").is_err() {
             break;
@@ -237,11 +267,118 @@ fn bad_requests_get_no_frame_and_do_not_hurt_the_connection_or_others() {
         client.frame();
     }
     assert!(start.elapsed() < Duration::from_secs(20));
+    let after = latest_sta(&mut robot, Duration::from_secs(1));
+    assert!(
+        after > before + 0.5,
+        "the world stalled: STA time {before} then {after}"
+    );
     // A truncated U, then the client leaves: the server serves the next client.
     client.send(&request.to_bytes()[..7]);
     drop(client);
     let mut next = Client::connect(addr);
     next.send(b"OK");
     next.frame();
+    shutdown.cancel();
+}
+
+/// Issue 20: in lockstep, a frame asked for at a barrier shows the world at the barrier's
+/// simulated time. A camera robot flies towards the empty room's far wall; the frame taken
+/// at the barrier of t = 1 s equals the picture a fresh world renders with the robot where
+/// its Position sensor says it was at t = 1 s, and not the one of a step (0.1 s) before.
+#[test]
+fn a_frame_at_a_lockstep_barrier_shows_the_barriers_time() {
+    use usar_server::sim::{RobotCatalog, SimConfig, World};
+    // The stsAirRobot (Position sensor, kinematic, level) with the AirRobot's camera.
+    let mut robots = RobotCatalog::embedded();
+    let mut camera = robots
+        .get("USARBot.AirRobot")
+        .unwrap()
+        .parts
+        .iter()
+        .find(|p| p.kind == "Camera")
+        .unwrap()
+        .clone();
+    camera.settings.remove("mount");
+    robots
+        .get_mut("USARBot.stsAirRobot")
+        .unwrap()
+        .parts
+        .push(camera);
+    let config = ServerConfig {
+        robots: robots.clone(),
+        lockstep: true,
+        time_scale: TimeScale::Max,
+        image: ImageConfig {
+            legacy: false,
+            ..ImageConfig::default()
+        },
+        ..ServerConfig::default()
+    };
+    let map = config.map.clone();
+    let (main, image, shutdown) = start_with(config);
+    let mut images = Client::connect(image);
+    let mut robot = TcpStream::connect(main).unwrap();
+    robot
+        .set_read_timeout(Some(Duration::from_secs(30)))
+        .unwrap();
+    let mut lines = std::io::BufReader::new(robot.try_clone().unwrap());
+    // Reads up to the answer of the SYNC just sent; the Position readings by time.
+    let mut positions = std::collections::BTreeMap::new();
+    let mut until_sync = |positions: &mut std::collections::BTreeMap<String, [f64; 3]>| loop {
+        let mut line = String::new();
+        assert!(std::io::BufRead::read_line(&mut lines, &mut line).unwrap() > 0);
+        if line.starts_with("SYNC {Time") {
+            return;
+        }
+        if let Ok(p) = usar_proto::ServerMessage::parse(line.trim_end())
+            && let usar_proto::ServerMessage::Sen(sen) = p.message
+            && let usar_proto::SenData::Position { location, .. } = sen.data
+        {
+            let time = format!("{:.1}", sen.time.unwrap().seconds);
+            positions.insert(time, [location.x, location.y, location.z]);
+        }
+    };
+    robot.write_all(b"SYNC {Time 0}\r\n").unwrap();
+    until_sync(&mut positions);
+    robot
+        .write_all(
+            b"INIT {ClassName USARBot.stsAirRobot} {Location 0,0,-1.5} {Rotation 0,0,0}\r\n\
+              DRIVE {LinearVelocity 1.5}\r\nSYNC {Time 1.0}\r\n",
+        )
+        .unwrap();
+    until_sync(&mut positions);
+    // The world stands at t = 1 s: the frame asked for now.
+    images.send(b"OK");
+    let (w, h, rgb) = decode_raw(&images.frame().payload, true).unwrap();
+    assert_eq!((w, h), (640, 480));
+    let tile: Vec<u8> = (0..240)
+        .flat_map(|y| rgb[3 * y * 640..3 * (y * 640 + 320)].to_vec())
+        .collect();
+    // What the camera sees with the robot at `at`, in a world of its own.
+    let render = |at: [f64; 3]| {
+        let mut world = World::new(map.clone(), robots.clone(), SimConfig::default());
+        let client = world.connect();
+        let init = format!(
+            "INIT {{ClassName USARBot.stsAirRobot}} {{Location {},{},{}}} {{Rotation 0,0,0}}",
+            at[0], at[1], at[2]
+        );
+        world.command(client, usar_proto::Command::parse(&init).unwrap().message);
+        let mut frames = Vec::new();
+        world.render_cameras(&mut frames);
+        frames.remove(0).image.rgb
+    };
+    let same = |a: &[u8], b: &[u8]| {
+        a.chunks(3).zip(b.chunks(3)).filter(|(p, q)| p == q).count() as f64 / (320.0 * 240.0)
+    };
+    let (now, earlier) = (positions["1.0"], positions["0.9"]);
+    assert!(now[0] - earlier[0] > 0.1, "the robot moved: {positions:?}");
+    let at_barrier = same(&tile, &render(now));
+    let a_step_before = same(&tile, &render(earlier));
+    // Pixel for pixel the world at the barrier (the renderer is deterministic and the
+    // positions exact); the world one lockstep step (0.1 s, 0.15 m) before differs.
+    assert!(
+        at_barrier == 1.0 && a_step_before < 0.995,
+        "pixels equal to the world at t = 1 s: {at_barrier}, at t = 0.9 s: {a_step_before}"
+    );
     shutdown.cancel();
 }

@@ -10,7 +10,7 @@ use ucc_client::uav::UavState;
 use usar_proto::SenData;
 use usar_proto::{Command, Init, ServerMessage, Vec3};
 use usar_sim::robots::{DynamicsKind, PartConfig};
-use usar_sim::{ClientId, Map, RobotCatalog, RobotClass, SimConfig, World};
+use usar_sim::{CameraFrame, ClientId, Map, RobotCatalog, RobotClass, SimConfig, World};
 
 /// Horizontal sonars + SonarTop + SonarBottom.
 pub(crate) const SONARS: usize = 10;
@@ -83,7 +83,14 @@ pub(crate) struct Settings {
     pub(crate) randomize: Option<usar_sim::randomize::Randomization>,
     /// Rotor speeds in the observation (a `Rotors` part added to the class).
     pub(crate) rotors: bool,
+    /// The observation camera's width and height ([`Settings::camera`]).
+    pub(crate) camera: Option<(u32, u32)>,
 }
+
+/// The largest side of an observation image, pixels.
+pub(crate) const MAX_IMAGE_SIDE: u32 = 1024;
+/// How far the observation camera sees, m: farther (or nothing) reads this depth.
+pub(crate) const DEPTH_MAX: f64 = 100.0;
 
 impl Settings {
     /// Checks and loads: `map` is an embedded map name or a map file; `noise` (if given)
@@ -157,6 +164,7 @@ impl Settings {
             faults: usar_sim::faults::FaultPlan::default(),
             randomize: None,
             rotors: false,
+            camera: None,
         })
     }
 
@@ -277,6 +285,41 @@ impl Settings {
         self
     }
 
+    /// With one forward-looking camera of `width` × `height` pixels (80° wide, seeing to
+    /// [`DEPTH_MAX`]) in place of the robot class's cameras, for image observations.
+    pub(crate) fn camera(mut self, width: u32, height: u32) -> Result<Self, SimError> {
+        for (what, side) in [("width", width), ("height", height)] {
+            if !(1..=MAX_IMAGE_SIDE).contains(&side) {
+                return Err(invalid(format!(
+                    "camera_size: {what} must be 1 to {MAX_IMAGE_SIDE} pixels, got {side}"
+                )));
+            }
+        }
+        if let Some(class) = self.catalog.get_mut(&self.robot) {
+            class
+                .parts
+                .retain(|p| !p.kind.eq_ignore_ascii_case("Camera"));
+            class.parts.push(PartConfig {
+                kind: "Camera".to_string(),
+                name: "Observation".to_string(),
+                position: [0.1, 0.0, 0.1],
+                direction: [0.0; 3],
+                interval: None,
+                noise: 0.0,
+                settings: toml::Table::from_iter([
+                    ("width".to_string(), toml::Value::Integer(i64::from(width))),
+                    (
+                        "height".to_string(),
+                        toml::Value::Integer(i64::from(height)),
+                    ),
+                    ("range".to_string(), toml::Value::Float(DEPTH_MAX)),
+                ]),
+            });
+        }
+        self.camera = Some((width, height));
+        Ok(self)
+    }
+
     /// Physics ticks per control period.
     fn ticks(&self) -> usize {
         ((self.period / self.dt).round() as usize).max(1)
@@ -326,6 +369,8 @@ pub(crate) struct WorldSim {
     /// Clients are numbered 1.. in connection order, so `client.0 - first` is the index.
     first: u64,
     out: Vec<(ClientId, ServerMessage)>,
+    /// The cameras' latest pictures (reused).
+    frames: Vec<CameraFrame>,
 }
 
 impl WorldSim {
@@ -372,6 +417,7 @@ impl WorldSim {
             uavs,
             first,
             out: Vec::new(),
+            frames: Vec::new(),
         };
         let first = settings
             .catalog
@@ -438,6 +484,39 @@ impl WorldSim {
     /// Simulated seconds.
     pub(crate) fn time(&self) -> f64 {
         self.world.time()
+    }
+
+    /// Renders every UAV's camera and appends, per UAV, its R, G, B bytes (`rgb`) and its
+    /// depths in metres, [`DEPTH_MAX`] where nothing is nearer (`depth`).
+    pub(crate) fn render(&mut self, rgb: Option<&mut Vec<u8>>, depth: Option<&mut Vec<f32>>) {
+        self.world.render_cameras(&mut self.frames);
+        if let Some(rgb) = rgb {
+            for f in &self.frames {
+                rgb.extend_from_slice(&f.image.rgb);
+            }
+        }
+        if let Some(depth) = depth {
+            for f in &self.frames {
+                depth.extend(f.image.depth.iter().map(|d| d.min(DEPTH_MAX as f32)));
+            }
+        }
+    }
+
+    /// The radio signal between every two UAVs, dBm (row-major `n × n`, the WSS's default
+    /// model: distance and walls between their centres; 0 on the diagonal).
+    pub(crate) fn signals(&self, out: &mut Vec<f64>) {
+        let model = usar_server::net::wss::WssConfig::new(([127, 0, 0, 1], 0).into());
+        let robots = self.world.robots_truth();
+        for a in &robots {
+            for b in &robots {
+                out.push(if std::ptr::eq(a, b) {
+                    0.0
+                } else {
+                    let walls = f64::from(self.world.obstacles_between(a.location, b.location));
+                    model.strength(a.location, b.location, walls)
+                });
+            }
+        }
     }
 
     /// Appends each UAV's observation to `obs`.
@@ -638,6 +717,35 @@ impl Batch {
             Some((i, e)) => Err(invalid(format!("world {i}: {e}"))),
             None => Ok(()),
         }
+    }
+
+    /// Every UAV's camera picture, world-major: R, G, B bytes (`rgb`) and depths (`depth`),
+    /// rendered in parallel over the worlds.
+    pub(crate) fn images(&mut self, rgb: bool, depth: bool) -> (Vec<u8>, Vec<f32>) {
+        let parts: Vec<Mutex<(Vec<u8>, Vec<f32>)>> =
+            self.worlds.iter().map(|_| Mutex::default()).collect();
+        par_worlds(&mut self.worlds, |i, w| {
+            let mut part = parts[i].lock().unwrap_or_else(PoisonError::into_inner);
+            let (r, d) = &mut *part;
+            w.render(rgb.then_some(r), depth.then_some(d));
+        });
+        let (mut r, mut d) = (Vec::new(), Vec::new());
+        for part in parts {
+            let (pr, pd) = part.into_inner().unwrap_or_else(PoisonError::into_inner);
+            r.extend(pr);
+            d.extend(pd);
+        }
+        (r, d)
+    }
+
+    /// The radio signal between the UAVs of each world, dBm: `uavs_per_world²` values per
+    /// world (see [`WorldSim::signals`]).
+    pub(crate) fn signals(&self) -> Vec<f64> {
+        let mut out = Vec::with_capacity(self.worlds.len() * self.uavs_per_world.pow(2));
+        for w in &self.worlds {
+            w.signals(&mut out);
+        }
+        out
     }
 
     /// Every UAV's observation, world-major.

@@ -147,7 +147,7 @@ impl PyBatch {
 impl PyBatch {
     #[new]
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false, action_mode = "velocity"))]
+    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false, action_mode = "velocity", camera = None))]
     fn new(
         py: Python<'_>,
         map: &str,
@@ -159,6 +159,7 @@ impl PyBatch {
         noise: Option<f64>,
         state_only: bool,
         action_mode: &str,
+        camera: Option<(u32, u32)>,
     ) -> PyResult<Self> {
         if seeds.is_empty() || uavs_per_world == 0 {
             return Err(PyValueError::new_err(
@@ -168,6 +169,9 @@ impl PyBatch {
         let mut settings = Settings::new(map, robot, period, noise)?.action_mode(action_mode)?;
         if state_only {
             settings = settings.state_only();
+        }
+        if let Some((width, height)) = camera {
+            settings = settings.camera(width, height)?;
         }
         let poses: Vec<Pose> = rows::<4>(&starts, seeds.len() * uavs_per_world, "starts")?;
         let worlds = py.detach(|| {
@@ -290,6 +294,49 @@ impl PyBatch {
     fn observe<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let obs = self.get().observe();
         to_dict(py, obs)
+    }
+
+    /// Every UAV's camera picture (the batch needs `camera=(width, height)`): a dict with
+    /// `rgb` uint8 `(n, height, width, 3)` and/or `depth` float32 `(n, height, width, 1)`
+    /// (metres, 100 where nothing is nearer), rendered now, worlds in parallel.
+    #[pyo3(signature = (rgb = true, depth = true))]
+    fn images<'py>(
+        &mut self,
+        py: Python<'py>,
+        rgb: bool,
+        depth: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let Some((w, h)) = self.get().settings.camera else {
+            return Err(PyValueError::new_err(
+                "images: the batch has no camera (Batch(..., camera=(width, height)))",
+            ));
+        };
+        let n = self.get().len();
+        let inner = self.get();
+        let (r, d) = py.detach(|| inner.images(rgb, depth));
+        let shape = |c: usize| [n, h as usize, w as usize, c];
+        let out = PyDict::new(py);
+        if rgb {
+            let a = numpy::ndarray::Array4::from_shape_vec(shape(3), r)
+                .map_err(|e| PyValueError::new_err(format!("images: {e}")))?;
+            out.set_item("rgb", a.into_pyarray(py))?;
+        }
+        if depth {
+            let a = numpy::ndarray::Array4::from_shape_vec(shape(1), d)
+                .map_err(|e| PyValueError::new_err(format!("images: {e}")))?;
+            out.set_item("depth", a.into_pyarray(py))?;
+        }
+        Ok(out)
+    }
+
+    /// The radio signal between the UAVs of each world, dBm, float64
+    /// `(worlds, uavs_per_world, uavs_per_world)` (the WSS's default model: distance and
+    /// walls; 0 on the diagonal; below -93 no link).
+    fn signals<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let (worlds, per) = (self.get().worlds.len(), self.get().uavs_per_world);
+        let a = numpy::ndarray::Array3::from_shape_vec((worlds, per, per), self.get().signals())
+            .map_err(|e| PyValueError::new_err(format!("signals: {e}")))?;
+        Ok(a.into_pyarray(py).into_any())
     }
 
     /// Simulated seconds of world `index`.

@@ -7,6 +7,7 @@ import { Map2d } from "./map2d.js";
 import { SideView } from "./side.js";
 import { Plots } from "./plots.js";
 import { View3d } from "./view3d.js";
+import { CameraFeed } from "./camera.js";
 
 const $ = (id) => document.getElementById(id);
 const token = new URLSearchParams(location.search).get("token");
@@ -16,6 +17,9 @@ let selected = null, ws = null, logDirty = false, dirty = true, optionsShown = n
 const map = new Map2d($("map"), store);
 const sides = { north: new SideView($("side-north"), 0), east: new SideView($("side-east"), 1) };
 let plots = null, view3d = null, last3d = -1e9, pending3d = false;
+const camera = new CameraFeed($("camera"), (t) => { $("camera-status").textContent = t; }, { q });
+const showCamera = () => camera.show(selected, $("camera-panel").open);
+$("camera-panel").addEventListener("toggle", showCamera);
 window.uccFrameTimes = []; // draw time of each frame, ms (the benchmark reads it)
 window.uccUpdates = 0; // state updates received
 window.uccParts = { map: 0, side: 0, plots: 0, view3d: 0, update: 0 }; // ms spent per part (the benchmark reads it)
@@ -85,7 +89,7 @@ function merge(m) {
     $("pause").textContent = s.paused ? "Resume" : "Pause";
     $("pause").dataset.paused = s.paused;
   }
-  if (selected !== null && !store.uavs.has(selected)) selected = null;
+  if (selected !== null && !store.uavs.has(selected)) { selected = null; showCamera(); }
   if (selected === null && store.uavs.size) select(store.uavs.keys().next().value);
   if (changed.log) logDirty = true;
   panels(changed);
@@ -93,7 +97,7 @@ function merge(m) {
 }
 
 function select(id) {
-  selected = id; send({ op: "select", uav: id });
+  selected = id; send({ op: "select", uav: id }); showCamera();
   optionsShown = null; listKey = null;
   panels({ info: true, files: true }); dirty = true;
   const li = $("uav-list").querySelector(`li[data-id="${id}"]`);
@@ -281,7 +285,7 @@ window.addEventListener("resize", () => { dirty = true; });
 window.ucc = {
   get view() { return map.view; }, uavs: store.uavs, store, send, receive, select,
   fit: () => { map.fit(); dirty = true; }, toScreen: (x, y) => map.toScreen(x, y), drawMap,
-  side: sides, WALL_COLOR, MAX_LOG, get view3d() { return view3d; },
+  side: sides, WALL_COLOR, MAX_LOG, get view3d() { return view3d; }, camera,
 };
 
 function start() {

@@ -92,7 +92,7 @@ export class View3d {
   }
 
   ensureCapacity(n) {
-    if (n <= this.capacity) return;
+    if (n <= this.capacity && this.uavMesh) return;
     this.capacity = Math.max(64, 1 << Math.ceil(Math.log2(n)));
     if (this.uavMesh) { this.scene.remove(this.uavMesh); this.uavMesh.dispose(); }
     this.uavMesh = new THREE.InstancedMesh(this.body, new THREE.MeshLambertMaterial({ color: 0xffffff }), this.capacity);

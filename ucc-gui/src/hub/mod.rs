@@ -17,7 +17,9 @@ pub mod update;
 
 use std::collections::HashSet;
 use std::path::PathBuf;
-use std::sync::{Condvar, Mutex, MutexGuard};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use tokio_util::sync::CancellationToken;
@@ -131,7 +133,17 @@ pub struct Uav {
     /// Bumped whenever what `info` shows changes (name, status, missions, options…): a
     /// page is sent `info` again only then.
     pub info_version: u64,
+    /// Whether its run reads camera frames now: while a page shows its camera panel
+    /// (`/api/camera/ID`, asked at least every [`CAMERA_IDLE`]).
+    pub camera_on: Arc<AtomicBool>,
+    /// When a page last asked for its camera frame.
+    pub camera_asked: Option<Instant>,
+    /// The latest camera frame.
+    pub frame: Option<Arc<ucc_client::camera::CameraImage>>,
 }
+
+/// A camera panel not asked for this long is taken as closed: the run stops reading frames.
+pub const CAMERA_IDLE: Duration = Duration::from_secs(2);
 
 impl Uav {
     fn new(
@@ -170,6 +182,26 @@ impl Uav {
             files_version: 0,
             cancel: None,
             info_version: 1,
+            camera_on: Arc::default(),
+            camera_asked: None,
+            frame: None,
+        }
+    }
+
+    /// A page asks for the camera frame: the run reads frames (again); the latest one.
+    pub fn camera_frame(&mut self) -> Option<Arc<ucc_client::camera::CameraImage>> {
+        self.camera_asked = Some(Instant::now());
+        self.camera_on.store(true, Ordering::Relaxed);
+        self.frame.clone()
+    }
+
+    /// A new camera frame; stops the frames when no page asked for them lately.
+    pub fn camera_sample(&mut self, frame: Option<&Arc<ucc_client::camera::CameraImage>>) {
+        if let Some(frame) = frame {
+            self.frame = Some(Arc::clone(frame));
+        }
+        if self.camera_asked.is_none_or(|t| t.elapsed() > CAMERA_IDLE) {
+            self.camera_on.store(false, Ordering::Relaxed);
         }
     }
 
@@ -189,6 +221,10 @@ impl Uav {
 pub struct Hub {
     /// `host:port` of the server.
     pub addr: String,
+    /// The image server of the local server (camera frames for the camera panel).
+    pub image_server: Option<String>,
+    /// The local server's robot classes that have a camera (`Package.Class`).
+    pub camera_classes: Vec<String>,
     /// Whether the server runs in this process (time scale, lockstep, map geometry).
     pub local: bool,
     /// The local server's time scale.
@@ -241,6 +277,8 @@ impl Hub {
     pub fn new(addr: String, local: bool, log_dir: PathBuf) -> Self {
         Self {
             addr,
+            image_server: None,
+            camera_classes: Vec::new(),
             local,
             time_scale: TimeScale::Factor(1.0),
             paused: false,

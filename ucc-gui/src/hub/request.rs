@@ -452,6 +452,8 @@ impl Hub {
             self.log_dir.clone(),
             self.geometry.clone(),
         );
+        let image_server = self.image_server.clone();
+        let cameras = self.camera_classes.clone();
         let u = self.uav(uav)?;
         if u.flying() {
             return Err(RequestError::State(format!("{} is already flying", u.name)));
@@ -462,7 +464,19 @@ impl Hub {
                 u.name
             )));
         }
-        let settings = run_settings(u, n, addr, local, log_dir, map);
+        let mut settings = run_settings(u, n, addr, local, log_dir, map);
+        // The camera panel's frames, read only while a page shows them (robots with a camera).
+        let has_camera = cameras
+            .iter()
+            .any(|c| c.eq_ignore_ascii_case(&settings.class_name()));
+        settings.camera =
+            image_server
+                .filter(|_| has_camera)
+                .map(|server| ucc_client::CameraSettings {
+                    server,
+                    active: Some(u.camera_on.clone()),
+                    ..ucc_client::CameraSettings::default()
+                });
         let agent = u.agent.clone();
         u.iterations = n;
         u.status = Status::Running;

@@ -14,7 +14,8 @@ from gymnasium.vector.utils import batch_space
 from . import _core
 from ._maps import MapInfo
 from ._render import TopView
-from ._task import Tasks, action_space, observation_space, with_rotor_speeds
+from ._task import (Tasks, action_space, add_extras, camera_kinds, image_size, observation_space, with_extras,
+                    with_rotor_speeds)
 
 
 def _robot(name: str) -> str:
@@ -119,7 +120,8 @@ class UsarsimEnv(Realism, Replay, gym.Env):
     seeded random ones), ``n_waypoints``, ``period`` (control period, s), ``noise`` (sensor
     noise std for every part), ``max_steps``, ``server`` (``"host:port"`` to fly a running
     usar-server or USARSim instead of the in-process world), ``render_mode``, ``state_only``,
-    ``flat``, ``action_mode`` (docs/python.md).
+    ``flat``, ``action_mode``, ``camera`` (None, ``"depth"``, ``"rgb"`` or ``"rgbd"``: image
+    observations) and ``camera_size`` (docs/python.md).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -128,22 +130,28 @@ class UsarsimEnv(Realism, Replay, gym.Env):
                  start=None, waypoints=None, n_waypoints: int = 3, waypoint_radius: float = 0.5,
                  period: float = 0.1, noise: float | None = None, max_steps: int | None = None,
                  server: str | None = None, render_mode: str | None = None, state_only: bool = False,
-                 flat: bool = False, action_mode: str = "velocity") -> None:
+                 flat: bool = False, action_mode: str = "velocity", camera: str | None = None,
+                 camera_size=(64, 64)) -> None:
         self._recipe = dict(task=task, map=map, robot=robot, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, period=period,
                             noise=noise, max_steps=max_steps, server=server, render_mode=render_mode,
-                            state_only=state_only, flat=flat, action_mode=action_mode)
+                            state_only=state_only, flat=flat, action_mode=action_mode, camera=camera,
+                            camera_size=camera_size)
         self.render_mode = _render_mode(render_mode)
         if state_only and server is not None:
             raise ValueError("state_only: only for the in-process world (the server's robot has its sensors)")
         if action_mode != "velocity" and server is not None:
             raise ValueError("action_mode: only 'velocity' for a remote server")
-        self.observation_space = observation_space(state_only, flat)
+        self._kinds = camera_kinds(camera)
+        size = image_size(camera_size)
+        if self._kinds and server is not None:
+            raise ValueError("camera: only for the in-process world")
+        self.observation_space = with_extras(observation_space(state_only, flat), self._kinds, size)
         self.action_space = action_space()
         self._robot, self._period, self._server = _robot(robot), float(period), server
         # The in-process world (also the map geometry for a remote server running the same map).
         self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise, bool(state_only),
-                                  action_mode)
+                                  action_mode, size if self._kinds else None)
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, 1, self.map, start=start, waypoints=waypoints, n_waypoints=n_waypoints,
                             waypoint_radius=waypoint_radius, max_steps=max_steps, state_only=state_only, flat=flat)
@@ -201,7 +209,15 @@ class UsarsimEnv(Realism, Replay, gym.Env):
         info = {"lockstep": self._remote.lockstep if self._remote else True}
         if self._remote is None and self.randomized()[0]:
             info["randomized"] = self.randomized()[0]
-        return self._tasks.row(self._tasks.observe(raw), 0), info
+        return self._obs(raw), info
+
+    def _obs(self, raw):
+        """The observation of the UAV, with its camera's pictures when asked."""
+        obs = self._tasks.row(self._tasks.observe(raw), 0)
+        if not self._kinds:
+            return obs
+        images = self._batch.images(rgb="rgb" in self._kinds, depth="depth" in self._kinds)
+        return add_extras(obs, images, 0)
 
     def step(self, action):
         if self._closed:
@@ -220,7 +236,7 @@ class UsarsimEnv(Realism, Replay, gym.Env):
         self._trail.append(raw["position"][0, :2].copy())
         reward, term, trunc, info = self._tasks.reward(raw)
         self._ended = bool(term[0] or trunc[0])
-        obs = self._tasks.row(self._tasks.observe(raw), 0)
+        obs = self._obs(raw)
         return obs, float(reward[0]), bool(term[0]), bool(trunc[0]), {k: v[0] for k, v in info.items()}
 
     def render(self):
@@ -273,7 +289,7 @@ def _with_masks(info: dict, mask: np.ndarray) -> dict:
 class UsarsimVectorEnv(Realism, Replay, VectorEnv):
     """`num_envs` independent worlds with one UAV each, stepped by Rust in one call.
 
-    Same options as :class:`UsarsimEnv` (no ``server``), plus ``autoreset_mode``:
+    Same options as :class:`UsarsimEnv` (``camera`` included; no ``server``), plus ``autoreset_mode``:
     ``AutoresetMode.NEXT_STEP`` (default, Gymnasium's): the step after an episode ends resets
     that sub-environment, ignores its action and returns its first observation with reward
     0; ``AutoresetMode.SAME_STEP``: the step that ends an episode resets it and returns the
@@ -287,22 +303,26 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                  robot: str = "stsAirRobot", start=None, waypoints=None, n_waypoints: int = 3,
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
                  max_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP,
-                 state_only: bool = False, flat: bool = False, action_mode: str = "velocity") -> None:
+                 state_only: bool = False, flat: bool = False, action_mode: str = "velocity",
+                 camera: str | None = None, camera_size=(64, 64)) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
         self._recipe = dict(num_envs=num_envs, task=task, map=map, robot=robot, start=start,
                             waypoints=waypoints, n_waypoints=n_waypoints, waypoint_radius=waypoint_radius,
                             period=period, noise=noise, max_steps=max_steps, autoreset_mode=autoreset_mode,
-                            state_only=state_only, flat=flat, action_mode=action_mode)
+                            state_only=state_only, flat=flat, action_mode=action_mode, camera=camera,
+                            camera_size=camera_size)
         self.metadata = {**type(self).metadata, "autoreset_mode": _autoreset_mode(autoreset_mode)}
         self.num_envs = int(num_envs)
-        self.single_observation_space = observation_space(state_only, flat)
+        self._kinds = camera_kinds(camera)
+        size = image_size(camera_size)
+        self.single_observation_space = with_extras(observation_space(state_only, flat), self._kinds, size)
         self.single_action_space = action_space()
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         first = _first(map)
         self._batch = _core.Batch(map, _robot(robot), [0] * self.num_envs, np.repeat(first, self.num_envs, 0),
-                                  1, period, noise, bool(state_only), action_mode)
+                                  1, period, noise, bool(state_only), action_mode, size if self._kinds else None)
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, self.num_envs, self.map, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, max_steps=max_steps,
@@ -341,7 +361,16 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         raw = self._batch.observe()
         self._tasks.begin(raw, rows)
         drawn = self.randomized()
-        return self._tasks.observe(raw), ({"randomized": drawn} if any(drawn) else {})
+        return self._observe_all(raw), ({"randomized": drawn} if any(drawn) else {})
+
+    def _observe_all(self, raw):
+        """Every sub-environment's observation, with the cameras' pictures when asked."""
+        obs = self._tasks.observe(raw)
+        if not self._kinds:
+            return obs
+        out = dict(obs) if isinstance(obs, dict) else {"state": obs}
+        out.update(self._batch.images(rgb="rgb" in self._kinds, depth="depth" in self._kinds))
+        return out
 
     def _new_worlds(self, rows, options=None):
         """Seeds and starts of fresh worlds for `rows` (and their new tasks)."""
@@ -387,7 +416,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
             self._tasks.begin(raw, done)
         reward, term, trunc, info = self._tasks.reward(raw, live)
         self._autoreset = term | trunc
-        return self._tasks.observe(raw), reward, term, trunc, _with_masks(info, live)
+        return self._observe_all(raw), reward, term, trunc, _with_masks(info, live)
 
     def _resume(self, replay):
         if replay["rng"] is not None:
@@ -410,21 +439,21 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         self._batch.step(a)
         raw = self._batch.observe()
         reward, term, trunc, info = self._tasks.reward(raw)
-        obs = self._tasks.observe(raw)
+        obs = self._observe_all(raw)
         infos = _with_masks(info, np.ones(self.num_envs, dtype=bool))
         ended = np.flatnonzero(term | trunc)
         if len(ended):
             mask = term | trunc
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in ended:
-                final_obs[i] = self._tasks.row(obs, i)
+                final_obs[i] = {k: v[i] for k, v in obs.items()} if isinstance(obs, dict) else obs[i]
             infos["final_obs"], infos["_final_obs"] = final_obs, mask
             infos["final_info"] = _with_masks({k: np.where(mask, v, np.zeros_like(v)) for k, v in info.items()}, mask)
             infos["_final_info"] = mask.copy()
             self._batch.reset(ended.tolist(), *self._new_worlds(ended))
             raw = self._batch.observe()
             self._tasks.begin(raw, ended)
-            obs = self._tasks.observe(raw)
+            obs = self._observe_all(raw)
         return obs, reward, term, trunc, infos
 
 

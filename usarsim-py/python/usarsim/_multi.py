@@ -12,7 +12,7 @@ from gymnasium.error import ClosedEnvironmentError, ResetNeeded
 from ._env import Replay, _actions, _first, _render_mode, _rng, _robot, _seed
 from ._maps import MapInfo
 from ._render import TopView
-from ._task import Tasks, action_space, observation_space
+from ._task import Tasks, action_space, add_extras, camera_kinds, image_size, observation_space, with_extras
 
 try:
     from pettingzoo import ParallelEnv
@@ -26,6 +26,9 @@ class MultiUavEnv(Replay, ParallelEnv):
     Each agent has its own task (its waypoints, or its pose to hold); starts are seeded
     random free places 1.2 m apart unless ``start`` lists one pose per UAV. An agent that has
     finished is removed from ``agents`` and hovers in place (still an obstacle to the others).
+    Opt-in observations: ``camera`` (``"depth"``, ``"rgb"``, ``"rgbd"``) of ``camera_size``,
+    and with ``radio`` the signal to every agent (``signal``, dBm, in ``possible_agents``
+    order; 0 for itself; the link breaks below -93).
     """
 
     metadata = {"render_modes": ["rgb_array"], "name": "usarsim_multi_uav_v0", "render_fps": 10}
@@ -34,14 +37,16 @@ class MultiUavEnv(Replay, ParallelEnv):
                  robot: str = "stsAirRobot", starts=None, n_waypoints: int = 3,
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
                  max_steps: int | None = None, render_mode: str | None = None, state_only: bool = False,
-                 flat: bool = False, action_mode: str = "velocity") -> None:
+                 flat: bool = False, action_mode: str = "velocity", camera: str | None = None,
+                 camera_size=(64, 64), radio: bool = False) -> None:
         if ParallelEnv is object:
             raise ImportError("usarsim.multi_uav needs pettingzoo: pip install pettingzoo")
         if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1):
             raise ValueError(f"n: expected an integer >= 1, got {n!r}")
         self._recipe = dict(n=n, task=task, map=map, robot=robot, starts=starts, n_waypoints=n_waypoints,
                             waypoint_radius=waypoint_radius, period=period, noise=noise, max_steps=max_steps,
-                            render_mode=render_mode, state_only=state_only, flat=flat, action_mode=action_mode)
+                            render_mode=render_mode, state_only=state_only, flat=flat, action_mode=action_mode,
+                            camera=camera, camera_size=camera_size, radio=radio)
         self.n = int(n)
         self.render_mode = _render_mode(render_mode)
         self.possible_agents = [f"uav_{i}" for i in range(self.n)]
@@ -49,8 +54,12 @@ class MultiUavEnv(Replay, ParallelEnv):
         first = _first(map)
         probe = _core.Batch(map, _robot(robot), [0], first, 1, period, noise, bool(state_only), action_mode)
         self.map = MapInfo(probe)
-        self._args = (map, _robot(robot), period, noise, bool(state_only), action_mode)
-        self._space = observation_space(state_only, flat)
+        self._kinds = camera_kinds(camera)
+        size = image_size(camera_size)
+        self._radio = bool(radio)
+        self._args = (map, _robot(robot), period, noise, bool(state_only), action_mode,
+                      size if self._kinds else None)
+        self._space = with_extras(observation_space(state_only, flat), self._kinds, size, self.n if radio else 0)
         self._starts = None if starts is None else np.asarray(starts, dtype=np.float64)
         if self._starts is not None and self._starts.shape != (self.n, 4):
             raise ValueError(f"starts: expected shape ({self.n}, 4), got {self._starts.shape}")
@@ -76,7 +85,12 @@ class MultiUavEnv(Replay, ParallelEnv):
         return action_space()
 
     def _split(self, arrays):
-        return {a: self._tasks.row(arrays, i) for i, a in enumerate(self.possible_agents) if a in self.agents}
+        images = {}
+        if self._kinds:
+            images = self._batch.images(rgb="rgb" in self._kinds, depth="depth" in self._kinds)
+        signals = self._batch.signals()[0] if self._radio else None
+        return {a: add_extras(self._tasks.row(arrays, i), images, i, None if signals is None else signals[i])
+                for i, a in enumerate(self.possible_agents) if a in self.agents}
 
     def reset(self, seed=None, options=None):
         if self._closed:
@@ -89,9 +103,9 @@ class MultiUavEnv(Replay, ParallelEnv):
         self._rng = _rng(rng_state)
         self._replay = {"rng": rng_state, "options": options, "actions": []}
         starts = self._tasks.new_starts(self._rng, range(self.n), True, options, poses=self._starts)
-        map_, robot, period, noise, state_only, action_mode = self._args
+        map_, robot, period, noise, state_only, action_mode, camera = self._args
         self._batch = _core.Batch(map_, robot, [_seed(self._rng)], starts, self.n, period, noise, state_only,
-                                  action_mode)
+                                  action_mode, camera)
         self.agents = list(self.possible_agents)
         self._raw = self._batch.observe()
         self._tasks.begin(self._raw, range(self.n))

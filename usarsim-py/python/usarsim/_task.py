@@ -74,6 +74,64 @@ def observation_space(state_only: bool = False, flat: bool = False) -> spaces.Sp
                         for k in keys})
 
 
+#: The image observations of each ``camera`` option.
+CAMERA_KINDS = {"depth": ("depth",), "rgb": ("rgb",), "rgbd": ("rgb", "depth")}
+#: Depth observations read at most this many metres (farther, or nothing: this).
+DEPTH_MAX = 100.0
+#: The weakest radio signal observed, dBm (weaker reads this; the link breaks below -93).
+SIGNAL_MIN = -200.0
+
+
+def camera_kinds(camera) -> tuple:
+    """The image keys of the ``camera`` option (None: none)."""
+    if camera is None:
+        return ()
+    if camera not in CAMERA_KINDS:
+        raise ValueError(f"camera: expected None, 'depth', 'rgb' or 'rgbd', got {camera!r}")
+    return CAMERA_KINDS[camera]
+
+
+def image_size(size) -> tuple:
+    """``camera_size`` as (width, height), each 1..1024 pixels."""
+    try:
+        w, h = (int(v) for v in size)
+        ok = all(float(v) == int(v) for v in size) and 1 <= w <= 1024 and 1 <= h <= 1024
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f"camera_size: expected (width, height), each 1 to 1024 pixels, got {size!r}")
+    return w, h
+
+
+def with_extras(space: spaces.Space, kinds: tuple, size: tuple, radio: int = 0) -> spaces.Space:
+    """`space` with the image observations `kinds` of `size` (width, height), channel-last,
+    and with `radio` > 0 the signal to each of `radio` agents: a Dict (a flat observation
+    becomes its ``state`` entry). Unchanged without any."""
+    if not kinds and not radio:
+        return space
+    items = dict(space.spaces) if isinstance(space, spaces.Dict) else {"state": space}
+    w, h = size
+    if "rgb" in kinds:
+        items["rgb"] = spaces.Box(0, 255, (h, w, 3), np.uint8)
+    if "depth" in kinds:
+        items["depth"] = spaces.Box(np.float32(0.0), np.float32(DEPTH_MAX), (h, w, 1), np.float32)
+    if radio:
+        items["signal"] = spaces.Box(np.float32(SIGNAL_MIN), np.float32(0.0), (radio,), np.float32)
+    return spaces.Dict(items)
+
+
+def add_extras(obs, images: dict, i: int, signal=None):
+    """Observation `obs` of UAV `i` with its rows of `images` and its `signal` row."""
+    if not images and signal is None:
+        return obs
+    out = dict(obs) if isinstance(obs, dict) else {"state": obs}
+    for k, v in images.items():
+        out[k] = v[i]
+    if signal is not None:
+        out["signal"] = np.clip(signal, SIGNAL_MIN, 0.0).astype(np.float32)
+    return out
+
+
 def action_space() -> spaces.Box:
     """The action space of one UAV: four values in -1..1, read as the action mode says
     (velocity: forward, right, up, yaw rate; attitude: roll, pitch, yaw rate, thrust;

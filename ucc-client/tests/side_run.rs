@@ -1,0 +1,388 @@
+//! The runner with the camera and the radio on (issue 20, the client side): camera frames
+//! reach the agent and are written as PNG; agents talk by radio through the WSS.
+#![cfg(feature = "local")]
+
+use std::sync::{Arc, Mutex};
+
+use tokio_util::sync::CancellationToken;
+use ucc_client::backend::{Backend, Sides};
+use ucc_client::{
+    Agent, CameraSettings, Coordinates, Mission, MissionRefused, Progress, RunSettings, Start,
+    Step, UavState, agents,
+};
+
+/// The `base` agent, recording what it is shown.
+struct Watching<T: Send> {
+    inner: Box<dyn Agent>,
+    seen: Arc<Mutex<Vec<T>>>,
+    look: fn(&UavState, f64) -> Option<T>,
+}
+
+impl<T: Send> Agent for Watching<T> {
+    fn name(&self) -> &str {
+        "watching"
+    }
+    fn add_mission(&mut self, mission: Mission) -> Result<(), MissionRefused> {
+        self.inner.add_mission(mission)
+    }
+    fn start(&mut self, time: f64) {
+        self.inner.start(time);
+    }
+    fn stop(&mut self) {
+        self.inner.stop();
+    }
+    fn step(&mut self, uav: &UavState, time: f64) -> Step {
+        if let Some(seen) = (self.look)(uav, time) {
+            self.seen.lock().unwrap().push(seen);
+        }
+        self.inner.step(uav, time)
+    }
+}
+
+fn temp_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("ucc-side-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// An AirRobot flies with frames asked for: its agent sees its camera's tile, and every
+/// 5th frame is a PNG in the log folder showing the same view.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn camera_frames_reach_the_agent_and_every_nth_is_written_as_png() {
+    let config = usar_server::ServerConfig {
+        map: usar_server::sim::Map::embedded("rescue").unwrap(),
+        ..usar_server::ServerConfig::default()
+    };
+    let settings = RunSettings {
+        robot: "AirRobot".into(),
+        start: Start::at(Coordinates::new(-12.0, 0.0, -1.5)),
+        missions: vec![Mission::goto(Coordinates::new(-9.0, 0.0, -1.5))],
+        log_dir: Some(temp_dir("frames")),
+        camera: Some(CameraSettings {
+            save_every: 5,
+            ..CameraSettings::default()
+        }),
+        ..RunSettings::default()
+    };
+    let server = Backend::Local(Box::new(config))
+        .start_with(Sides::of(&settings))
+        .await
+        .unwrap();
+    let settings = server.settings(settings);
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let factory = {
+        let seen = seen.clone();
+        move || {
+            Box::new(Watching {
+                inner: agents::create("base").unwrap(),
+                seen: seen.clone(),
+                look: |uav, _| {
+                    uav.image
+                        .as_ref()
+                        .map(|i| (i.value.width, i.value.height, i.value.index, i.time))
+                },
+            }) as Box<dyn Agent>
+        }
+    };
+    let summary = ucc_client::run(
+        &settings,
+        &factory,
+        &mut |_: &Progress| {},
+        &CancellationToken::new(),
+    )
+    .await
+    .unwrap();
+    server.stop().await.unwrap();
+    assert_eq!(summary.flown, 1);
+    let seen = seen.lock().unwrap().clone();
+    assert!(
+        seen.len() > 5,
+        "the agent saw frames at most steps: {seen:?}"
+    );
+    assert!(seen.iter().all(|s| (s.0, s.1) == (320, 240)), "{seen:?}");
+    // Several different frames, in order.
+    let mut indices: Vec<u64> = seen.iter().map(|s| s.2).collect();
+    indices.dedup();
+    assert!(indices.len() > 2 && indices.is_sorted(), "{indices:?}");
+
+    let dir = settings.log_dir.unwrap();
+    let mut pngs: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.contains("-frame-"))
+        .collect();
+    pngs.sort();
+    assert_eq!(pngs.first().unwrap(), "UCCLOG-01-frame-00001.png");
+    assert!(pngs.iter().all(|n| {
+        let i: u64 = n[16..21].parse().unwrap();
+        i % 5 == 1
+    }));
+    let png = image::open(dir.join(&pngs[0])).unwrap().to_rgb8();
+    assert_eq!(png.dimensions(), (320, 240));
+    // The sky above, something else below (the AirRobot's camera looks a little down).
+    assert_eq!(png.get_pixel(160, 2).0, usar_server::sim::render::SKY);
+    assert_ne!(png.get_pixel(160, 237).0, usar_server::sim::render::SKY);
+    let log = std::fs::read_to_string(dir.join("UCCLOG-01.log")).unwrap();
+    assert!(log.contains("camera cams: its 320x240 tile"), "{log}");
+    assert!(
+        log.contains("written as UCCLOG-01-frame-NNNNN.png"),
+        "{log}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Frames not asked for: no image server is needed and the agent sees none.
+#[tokio::test]
+async fn without_the_camera_setting_the_agent_sees_no_frames() {
+    let settings = RunSettings {
+        robot: "AirRobot".into(),
+        start: Start::at(Coordinates::new(0.0, 0.0, -1.5)),
+        missions: vec![Mission::Hover { seconds: 0.5 }],
+        ..RunSettings::default()
+    };
+    let server = Backend::Local(Box::default())
+        .start_with(Sides::of(&settings))
+        .await
+        .unwrap();
+    let settings = server.settings(settings);
+    assert!(settings.camera.is_none());
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let factory = {
+        let seen = seen.clone();
+        move || {
+            Box::new(Watching {
+                inner: agents::create("base").unwrap(),
+                seen: seen.clone(),
+                look: |uav, _| Some(uav.image.is_some()),
+            }) as Box<dyn Agent>
+        }
+    };
+    ucc_client::run(
+        &settings,
+        &factory,
+        &mut |_: &Progress| {},
+        &CancellationToken::new(),
+    )
+    .await
+    .unwrap();
+    server.stop().await.unwrap();
+    let seen = seen.lock().unwrap();
+    assert!(!seen.is_empty() && seen.iter().all(|s| !s), "{seen:?}");
+}
+
+/// What a talking UAV saw at one step.
+#[derive(Debug, Clone, Default)]
+struct Heard {
+    time: f64,
+    /// Messages received: (from, text).
+    inbox: Vec<(String, String)>,
+    /// Messages that did not get through: (to, strength).
+    undelivered: Vec<(String, f64)>,
+    /// The signal to the other UAV, dBm.
+    signal: Option<f64>,
+}
+
+/// The `base` agent that says hello to `peer` every 5th step and notes what it hears.
+struct Talker {
+    inner: Box<dyn Agent>,
+    me: &'static str,
+    peer: &'static str,
+    steps: u64,
+    heard: Arc<Mutex<Vec<Heard>>>,
+}
+
+impl Agent for Talker {
+    fn name(&self) -> &str {
+        "talker"
+    }
+    fn add_mission(&mut self, mission: Mission) -> Result<(), MissionRefused> {
+        self.inner.add_mission(mission)
+    }
+    fn start(&mut self, time: f64) {
+        self.inner.start(time);
+    }
+    fn stop(&mut self) {
+        self.inner.stop();
+    }
+    fn step(&mut self, uav: &UavState, time: f64) -> Step {
+        self.heard.lock().unwrap().push(Heard {
+            time,
+            inbox: uav
+                .inbox
+                .iter()
+                .map(|m| {
+                    (
+                        m.from.clone(),
+                        String::from_utf8_lossy(&m.data).into_owned(),
+                    )
+                })
+                .collect(),
+            undelivered: uav
+                .undelivered
+                .iter()
+                .map(|u| (u.message.to.clone(), u.strength))
+                .collect(),
+            signal: uav.signal.get(self.peer).copied(),
+        });
+        self.steps += 1;
+        let mut step = self.inner.step(uav, time);
+        if self.steps.is_multiple_of(5) {
+            step.send.push(ucc_client::radio::Outgoing {
+                to: self.peer.into(),
+                data: format!("hello from {} at {time:.1}", self.me).into_bytes(),
+            });
+        }
+        step
+    }
+}
+
+/// Eight thin walls between y = 2 and y = 4.1, 3 m high, 20 m wide.
+fn walls_map() -> usar_server::sim::Map {
+    let mut text =
+        "level = \"Walls\"\n[[box]]\ncenter = [0.0, 0.0, 0.1]\nsize = [60.0, 60.0, 0.2]\n"
+            .to_owned();
+    for i in 0..8 {
+        let y = 2.0 + 0.3 * f64::from(i);
+        text.push_str(&format!(
+            "[[box]]\ncenter = [0.0, {y}, -1.5]\nsize = [20.0, 0.1, 3.0]\n"
+        ));
+    }
+    usar_server::sim::Map::from_toml(&text, std::path::Path::new("walls.toml")).unwrap()
+}
+
+/// Two UAVs talk by radio through the WSS while one flies down behind eight walls: their
+/// messages get through while the line of sight clears the walls' tops, then come back
+/// undelivered with the signal below the cut-off, and the log says so.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_uavs_talk_until_one_flies_down_behind_walls() {
+    use usar_server::net::wss::{self, WssConfig};
+    let bind = async || tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let (main, monitor, wss_listener) = (bind().await, bind().await, bind().await);
+    let (gamebots, monitor_at, wss_at) = (
+        main.local_addr().unwrap(),
+        monitor.local_addr().unwrap(),
+        wss_listener.local_addr().unwrap(),
+    );
+    let shutdown = CancellationToken::new();
+    let config = usar_server::ServerConfig {
+        map: walls_map(),
+        lockstep: true,
+        time_scale: usar_server::TimeScale::Factor(2.0),
+        ..usar_server::ServerConfig::default()
+    };
+    let side = usar_server::SideListeners {
+        monitor: Some(monitor),
+        ..usar_server::SideListeners::default()
+    };
+    tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
+    // The WSS polls every 100 ms (1 s by default) so that links follow a short flight.
+    let wss_config = WssConfig {
+        poll: std::time::Duration::from_millis(100),
+        ..WssConfig::new(monitor_at)
+    };
+    tokio::spawn(wss::serve(wss_listener, wss_config, shutdown.clone()));
+
+    let dir = temp_dir("radio");
+    let uav = |name: &str, start: Coordinates, missions: Vec<Mission>, peer: &str| RunSettings {
+        addr: gamebots.to_string(),
+        name: name.into(),
+        prefix: name.into(),
+        start: Start::at(start),
+        missions,
+        lockstep: ucc_client::Lockstep::Required,
+        log_dir: Some(dir.clone()),
+        pictures: ucc_client::Pictures::None,
+        radio: Some(ucc_client::RadioSettings {
+            wss: wss_at.to_string(),
+            peers: vec![peer.into()],
+        }),
+        ..RunSettings::default()
+    };
+    // Robot1 hovers low on the near side; Robot2 starts high above the far side (the line
+    // of sight passes over the walls) and flies down behind them, then waits there.
+    let one = uav(
+        "Robot1",
+        Coordinates::new(0.0, 0.0, -1.0),
+        vec![Mission::Hover { seconds: 12.0 }],
+        "Robot2",
+    );
+    let two = uav(
+        "Robot2",
+        Coordinates::new(0.0, 6.0, -8.0),
+        vec![
+            Mission::Hover { seconds: 3.0 },
+            Mission::goto(Coordinates::new(0.0, 6.0, -1.0)),
+            Mission::Hover { seconds: 4.0 },
+        ],
+        "Robot1",
+    );
+    let talker = |me: &'static str, peer: &'static str, heard: &Arc<Mutex<Vec<Heard>>>| {
+        let heard = heard.clone();
+        move || {
+            Box::new(Talker {
+                inner: agents::create("base").unwrap(),
+                me,
+                peer,
+                steps: 0,
+                heard: heard.clone(),
+            }) as Box<dyn Agent>
+        }
+    };
+    let (heard1, heard2) = (Arc::default(), Arc::default());
+    let (f1, f2) = (
+        talker("Robot1", "Robot2", &heard1),
+        talker("Robot2", "Robot1", &heard2),
+    );
+    let cancel = CancellationToken::new();
+    let (mut o1, mut o2) = (|_: &Progress| {}, |_: &Progress| {});
+    let (r1, r2) = tokio::join!(
+        ucc_client::run(&one, &f1, &mut o1, &cancel),
+        ucc_client::run(&two, &f2, &mut o2, &cancel),
+    );
+    shutdown.cancel();
+    r1.unwrap();
+    r2.unwrap();
+    let heard1: Vec<Heard> = heard1.lock().unwrap().clone();
+    let heard2: Vec<Heard> = heard2.lock().unwrap().clone();
+
+    // Robot1 heard Robot2 while it was high up.
+    let got: Vec<&(String, String)> = heard1.iter().flat_map(|h| &h.inbox).collect();
+    assert!(!got.is_empty(), "Robot1 heard nothing: {heard1:?}");
+    assert!(
+        got.iter()
+            .all(|(from, text)| from == "Robot2" && text.starts_with("hello from Robot2"))
+    );
+    // In range at first, then out of range behind the walls.
+    let in_range = |h: &&Heard| h.signal.is_some_and(|s| s > -93.0);
+    let out = |h: &&Heard| h.signal.is_some_and(|s| s < -93.0);
+    let first_in = heard2.iter().find(in_range).expect("in range at first");
+    let first_out = heard2
+        .iter()
+        .find(out)
+        .expect("out of range behind the walls");
+    assert!(first_in.time < first_out.time);
+    // Robot2's messages came back undelivered once behind the walls.
+    let failed: Vec<&(String, f64)> = heard2.iter().flat_map(|h| &h.undelivered).collect();
+    assert!(!failed.is_empty(), "{heard2:?}");
+    assert!(
+        failed
+            .iter()
+            .all(|(to, s)| to == "Robot1" && (s.is_nan() || *s < -93.0))
+    );
+    let log = std::fs::read_to_string(dir.join("Robot2-01.log")).unwrap();
+    assert!(
+        log.contains("radio: message to Robot1 not delivered"),
+        "{log}"
+    );
+    // Nothing Robot2 sent from behind the walls arrived.
+    let last_sent: f64 = got
+        .iter()
+        .map(|(_, t)| t.rsplit(' ').next().unwrap().parse().unwrap())
+        .fold(0.0, f64::max);
+    assert!(
+        last_sent < first_out.time + 1.0,
+        "{last_sent} {}",
+        first_out.time
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
