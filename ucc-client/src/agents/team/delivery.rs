@@ -59,6 +59,14 @@ pub fn repulsion(uav: &UavState) -> (f64, f64) {
     push
 }
 
+/// `command` with the sonars' [`repulsion`] added.
+fn clear_of_obstacles(mut command: SpeedCommand, uav: &UavState) -> SpeedCommand {
+    let (f, r) = repulsion(uav);
+    command.forward += f;
+    command.right += r;
+    command.clamped()
+}
+
 fn landed(uav: &UavState, pad_z: f64, pos: [f64; 3]) -> bool {
     let low = uav
         .free_below
@@ -142,12 +150,7 @@ impl TeamAgent for Courier {
                 }
             }
             Phase::Carry => match self.route.steer(pos, yaw) {
-                Some(mut c) => {
-                    let (f, r) = repulsion(uav);
-                    c.forward += f;
-                    c.right += r;
-                    c.clamped()
-                }
+                Some(c) => clear_of_obstacles(c, uav),
                 None => {
                     self.phase = next(
                         Phase::LandDrop,
@@ -189,12 +192,7 @@ impl TeamAgent for Courier {
                 }
             }
             Phase::Home => match self.route.steer(pos, yaw) {
-                Some(mut c) => {
-                    let (f, r) = repulsion(uav);
-                    c.forward += f;
-                    c.right += r;
-                    c.clamped()
-                }
+                Some(c) => clear_of_obstacles(c, uav),
                 None => {
                     self.phase = if brief.base.is_some() {
                         next(Phase::LandHome, &mut out, "back at the base: landing")

@@ -17,20 +17,34 @@ use crate::uav::UavState;
 pub const INFO: TeamAgentInfo = TeamAgentInfo {
     name: "lane-search",
     description: "searches the area lane by lane (equal strips for several UAVs), recharging at the base",
-    create: || Box::new(Sweep::new(false)),
+    create: || Box::new(Searcher::new(Pattern::Lanes)),
 };
 
 /// The registry entry of `partition-search`.
 pub const PARTITION_INFO: TeamAgentInfo = TeamAgentInfo {
     name: "partition-search",
     description: "splits the area into strips weighted by distance to the base (thesis fig. 3.3), lanes each, recharging at the base",
-    create: || Box::new(Sweep::new(true)),
+    create: || Box::new(Searcher::new(Pattern::Partition)),
 };
 
-/// The lane searcher.
+/// How a searcher lays out its route over its strip of the area.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pattern {
+    /// Lanes, equal strips (`lane-search`).
+    Lanes,
+    /// Lanes, strips weighted by distance to the base (`partition-search`).
+    Partition,
+    /// A square spiral from the strip's centre (`spiral-search`).
+    Spiral,
+    /// Random points, seeded (`random-search`).
+    Random,
+}
+
+/// The searchers: a route over this UAV's strip of the area by [`Pattern`], flown at cruise
+/// height, going home to recharge and back (the shared behaviour of the search agents).
 #[derive(Debug, Clone)]
-pub struct Sweep {
-    weighted: bool,
+pub struct Searcher {
+    pattern: Pattern,
     brief: Option<Brief>,
     route: Route,
     homing: Homing,
@@ -99,11 +113,11 @@ pub fn strips(area: [[f64; 2]; 2], n: usize, base: Option<[f64; 3]>) -> Vec<[[f6
         .collect()
 }
 
-impl Sweep {
-    /// A searcher; `weighted`: strips weighted by distance to the base.
-    pub fn new(weighted: bool) -> Self {
+impl Searcher {
+    /// A searcher flying `pattern`.
+    pub fn new(pattern: Pattern) -> Self {
         Self {
-            weighted,
+            pattern,
             brief: None,
             route: Route::default(),
             homing: Homing::Away,
@@ -113,21 +127,31 @@ impl Sweep {
     }
 }
 
-impl TeamAgent for Sweep {
+impl TeamAgent for Searcher {
     fn name(&self) -> &str {
-        if self.weighted {
-            PARTITION_INFO.name
-        } else {
-            INFO.name
+        match self.pattern {
+            Pattern::Lanes => INFO.name,
+            Pattern::Partition => PARTITION_INFO.name,
+            Pattern::Spiral => super::spiral::INFO.name,
+            Pattern::Random => super::random::INFO.name,
         }
     }
 
     fn start(&mut self, brief: &Brief) {
         if let Some(search) = &brief.search {
-            let base = brief.base.map(|b| b.location).filter(|_| self.weighted);
+            let base = brief
+                .base
+                .map(|b| b.location)
+                .filter(|_| self.pattern == Pattern::Partition);
             let strip = strips(search.area, brief.group.len(), base)[brief.rank()];
             let spacing = 2.0 * brief.footprint * 0.9;
-            self.route = Route::new(lanes(strip, spacing, -brief.altitude), 0.5);
+            let z = -brief.altitude;
+            let points = match self.pattern {
+                Pattern::Lanes | Pattern::Partition => lanes(strip, spacing, z),
+                Pattern::Spiral => super::spiral::spiral(strip, spacing, z),
+                Pattern::Random => super::random::points(strip, brief.seed, brief.index, z),
+            };
+            self.route = Route::new(points, 0.5);
             self.reserve = search.reserve;
         }
         self.brief = Some(brief.clone());
@@ -146,9 +170,8 @@ impl TeamAgent for Sweep {
     }
 }
 
-/// One step of a route-following searcher that goes home to recharge: shared by the lane,
-/// spiral and random searchers.
-pub(crate) fn sweep_step(
+/// One step of a route-following searcher that goes home to recharge.
+fn sweep_step(
     route: &mut Route,
     homing: &mut Homing,
     done: &mut bool,

@@ -2,29 +2,18 @@
 //! seeded by the scenario's seed and the UAV's index, so a run repeats; it goes home to
 //! recharge like the lane searcher. The baseline the patterns are measured against.
 
-use super::lanes::{strips, sweep_step};
-use super::{Board, Brief, Homing, Route, TeamAgent, TeamAgentInfo, TeamStep};
-use crate::uav::UavState;
+use super::TeamAgentInfo;
+use super::lanes::{Pattern, Searcher};
 
 /// The registry entry.
 pub const INFO: TeamAgentInfo = TeamAgentInfo {
     name: "random-search",
     description: "flies to random points of the area (seeded), recharging at the base",
-    create: || Box::new(RandomSearch::default()),
+    create: || Box::new(Searcher::new(Pattern::Random)),
 };
 
 /// Points drawn per iteration (the route; the time limit usually ends it first).
 const POINTS: usize = 2000;
-
-/// The random searcher.
-#[derive(Debug, Clone, Default)]
-pub struct RandomSearch {
-    brief: Option<Brief>,
-    route: Route,
-    homing: Homing,
-    reserve: f64,
-    done: bool,
-}
 
 /// A small deterministic generator (SplitMix64).
 #[derive(Debug, Clone)]
@@ -42,40 +31,17 @@ impl SplitMix {
     }
 }
 
-impl TeamAgent for RandomSearch {
-    fn name(&self) -> &str {
-        INFO.name
-    }
-
-    fn start(&mut self, brief: &Brief) {
-        if let Some(search) = &brief.search {
-            let [[x0, y0], [x1, y1]] = strips(search.area, brief.group.len(), None)[brief.rank()];
-            let mut rng =
-                SplitMix(brief.seed ^ (brief.index as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
-            let points = (0..POINTS)
-                .map(|_| {
-                    [
-                        x0 + rng.next_f64() * (x1 - x0),
-                        y0 + rng.next_f64() * (y1 - y0),
-                        -brief.altitude,
-                    ]
-                })
-                .collect();
-            self.route = Route::new(points, 0.5);
-            self.reserve = search.reserve;
-        }
-        self.brief = Some(brief.clone());
-    }
-
-    fn step(&mut self, uav: &UavState, board: &Board, _time: f64) -> TeamStep {
-        sweep_step(
-            &mut self.route,
-            &mut self.homing,
-            &mut self.done,
-            self.reserve,
-            self.brief.as_ref(),
-            uav,
-            board,
-        )
-    }
+/// [`POINTS`] points drawn in `strip` at height `z`, from `seed` and the UAV's `index`.
+pub fn points(strip: [[f64; 2]; 2], seed: u64, index: usize, z: f64) -> Vec<[f64; 3]> {
+    let [[x0, y0], [x1, y1]] = strip;
+    let mut rng = SplitMix(seed ^ (index as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
+    (0..POINTS)
+        .map(|_| {
+            [
+                x0 + rng.next_f64() * (x1 - x0),
+                y0 + rng.next_f64() * (y1 - y0),
+                z,
+            ]
+        })
+        .collect()
 }

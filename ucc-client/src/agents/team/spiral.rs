@@ -2,26 +2,15 @@
 //! strip when several fly it), legs two footprint radii apart less 10 % overlap, until the
 //! spiral has passed every edge; it goes home to recharge like the lane searcher.
 
-use super::lanes::{strips, sweep_step};
-use super::{Board, Brief, Homing, Route, TeamAgent, TeamAgentInfo, TeamStep};
-use crate::uav::UavState;
+use super::TeamAgentInfo;
+use super::lanes::{Pattern, Searcher};
 
 /// The registry entry.
 pub const INFO: TeamAgentInfo = TeamAgentInfo {
     name: "spiral-search",
     description: "searches in a square spiral outwards from the area's centre, recharging at the base",
-    create: || Box::new(Spiral::default()),
+    create: || Box::new(Searcher::new(Pattern::Spiral)),
 };
-
-/// The spiral searcher.
-#[derive(Debug, Clone, Default)]
-pub struct Spiral {
-    brief: Option<Brief>,
-    route: Route,
-    homing: Homing,
-    reserve: f64,
-    done: bool,
-}
 
 /// The corners of a square spiral from the centre of `area`, `spacing` between legs, at
 /// height `z`, clipped to the area, ending once it is larger than the area.
@@ -60,34 +49,6 @@ pub fn spiral(area: [[f64; 2]; 2], spacing: f64, z: f64) -> Vec<[f64; 3]> {
         leg += spacing;
     }
     points
-}
-
-impl TeamAgent for Spiral {
-    fn name(&self) -> &str {
-        INFO.name
-    }
-
-    fn start(&mut self, brief: &Brief) {
-        if let Some(search) = &brief.search {
-            let strip = strips(search.area, brief.group.len(), None)[brief.rank()];
-            let spacing = 2.0 * brief.footprint * 0.9;
-            self.route = Route::new(spiral(strip, spacing, -brief.altitude), 0.5);
-            self.reserve = search.reserve;
-        }
-        self.brief = Some(brief.clone());
-    }
-
-    fn step(&mut self, uav: &UavState, board: &Board, _time: f64) -> TeamStep {
-        sweep_step(
-            &mut self.route,
-            &mut self.homing,
-            &mut self.done,
-            self.reserve,
-            self.brief.as_ref(),
-            uav,
-            board,
-        )
-    }
 }
 
 #[cfg(test)]
