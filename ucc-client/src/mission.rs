@@ -272,7 +272,8 @@ pub const MAX_COORDINATE: f64 = 100_000.0;
 /// The longest hover, simulated seconds (as `--mission-timeout`'s limit).
 const MAX_HOVER: f64 = 1e6;
 
-fn line_of(text: &str, offset: usize) -> usize {
+/// The 1-based line of byte `offset` in `text` (for errors that name the line).
+pub(crate) fn line_of(text: &str, offset: usize) -> usize {
     text.as_bytes()[..offset.min(text.len())]
         .iter()
         .filter(|b| **b == b'\n')

@@ -2,6 +2,7 @@
 //! construction (the agents step every period of simulated time, whatever the wall clock
 //! does), deterministic under the seed, and as fast as the world steps.
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use usar_proto::{Command, Init, Vec3};
@@ -517,10 +518,14 @@ impl Episode {
                     }
                 }
                 _ => {
+                    // The whole board is lent as it is; a partial view is built only when
+                    // the agent may not see all of it.
                     let view = match scenario.sharing {
-                        Sharing::Blackboard => self.board.clone(),
-                        Sharing::Nothing => view(&self.board, i, |_| false),
-                        Sharing::Radio => view(&self.board, i, |k| networks[i] == networks[k]),
+                        Sharing::Blackboard => Cow::Borrowed(&self.board),
+                        Sharing::Nothing => Cow::Owned(view(&self.board, i, |_| false)),
+                        Sharing::Radio => {
+                            Cow::Owned(view(&self.board, i, |k| networks[i] == networks[k]))
+                        }
                     };
                     f.agent.step(&f.state, &view, time)
                 }

@@ -5,6 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
+
+use crate::mission::line_of;
 use toml::Spanned;
 
 /// The longest scenario file read (bytes).
@@ -922,12 +924,4 @@ fn check_area(a: &[[f64; 2]; 2]) -> Result<(), String> {
             "{a:?}: must be [[x_min, y_min], [x_max, y_max]] with max > min"
         ))
     }
-}
-
-fn line_of(text: &str, offset: usize) -> usize {
-    text.as_bytes()[..offset.min(text.len())]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
-        + 1
 }
