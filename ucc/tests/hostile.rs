@@ -304,6 +304,11 @@ async fn the_tap_survives_the_attack_suite() {
     let attacks: [(&str, Attack); 3] = [
         ("200 connections, idle", |addr, stop| {
             tokio::spawn(async move {
+                // The healthy client connects first: at the tap's cap (32) the excess is
+                // refused, so an attacker that won the race for every slot would measure the
+                // cap, not the tap's health. Its measurement starts 0.7 s in, with all 200
+                // connections made.
+                tokio::time::sleep(Duration::from_millis(300)).await;
                 let mut held = Vec::new();
                 for _ in 0..200 {
                     if let Ok(Ok(s)) =
