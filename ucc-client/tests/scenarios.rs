@@ -301,3 +301,86 @@ fn over_the_radio_the_chain_forwards_relief_requests_to_the_base() {
         "{e}"
     );
 }
+
+#[test]
+fn a_recorded_run_holds_each_uavs_traffic_and_repeats_byte_for_byte() {
+    use usar_proto::ServerMessage;
+    use usar_proto::record::{Direction, parse_entry};
+    let base = std::env::temp_dir().join(format!("ucc-scenario-record-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&base);
+    let p = prepared("tracking");
+    let run = |dir: &str| {
+        let settings = ScenarioRun {
+            seed: Some(3),
+            record: Some(base.join(dir)),
+            ..ScenarioRun::default()
+        };
+        let mut outcome = None;
+        run_scenario(&p, &settings, &mut |progress| {
+            let ucc_client::scenario::run::ScenarioProgress::Finished { outcome: o, .. } = progress;
+            outcome = Some(o.clone());
+        })
+        .unwrap();
+        outcome.unwrap()
+    };
+    let outcome = run("a");
+    run("b");
+    let file = base.join("a/iteration-001/connection-0001.usarlog");
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert_eq!(
+        text,
+        std::fs::read_to_string(base.join("b/iteration-001/connection-0001.usarlog")).unwrap(),
+        "the same seed records the same bytes"
+    );
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some(usar_proto::record::HEADER));
+    let entries: Vec<_> = lines.map(|l| parse_entry(l).unwrap().unwrap()).collect();
+    assert!(
+        entries[0].text.starts_with("NFO {Gametype"),
+        "{:?}",
+        entries[0]
+    );
+    assert_eq!(entries[1].direction, Direction::Client);
+    assert!(
+        entries[1]
+            .text
+            .starts_with("INIT {ClassName USARBot.stsAirRobot}")
+    );
+    assert!(entries.windows(2).all(|w| w[0].time <= w[1].time));
+    let drives = entries
+        .iter()
+        .filter(|e| e.direction == Direction::Client && e.text.starts_with("DRIVE"))
+        .count();
+    assert!(drives > 100, "{drives} DRIVE lines");
+    // The server lines are what the UAV saw: replayed into a state, they end where it flew.
+    let mut state = ucc_client::UavState::new();
+    for e in entries.iter().filter(|e| e.direction == Direction::Server) {
+        state.apply(&ServerMessage::parse(e.text).unwrap().message);
+    }
+    let seen = state.position.unwrap().value;
+    let flown = outcome.tracks[0].last().unwrap();
+    let off = ((seen.x - flown[0]).powi(2) + (seen.y - flown[1]).powi(2)).sqrt();
+    assert!(off < 1.0, "recorded {seen:?}, flown to {flown:?}");
+    assert_eq!(
+        entries.last().unwrap().time,
+        outcome.metrics.get("time_s").unwrap()
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+#[test]
+fn a_recording_that_cannot_be_written_fails_the_run_naming_the_place() {
+    let file = std::env::temp_dir().join(format!("ucc-scenario-notadir-{}", std::process::id()));
+    std::fs::write(&file, "a file, not a folder").unwrap();
+    let settings = ScenarioRun {
+        record: Some(file.clone()),
+        ..ScenarioRun::default()
+    };
+    let e = run_scenario(&prepared("tracking"), &settings, &mut |_| {}).unwrap_err();
+    let _ = std::fs::remove_file(&file);
+    assert!(
+        e.to_string().contains(&file.display().to_string())
+            && e.to_string().contains("iteration 1"),
+        "{e}"
+    );
+}

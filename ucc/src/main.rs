@@ -72,7 +72,8 @@ enum Cmd {
     /// lockstep: its UAVs, agents, moving targets and metrics (docs/scenarios.md).
     #[command(
         after_help = "Examples:\n  ucc scenario --list\n  ucc scenario search --iterations 5\n  \
-                      ucc scenario my-scenario.toml --seed 7 --log-dir runs/mine\n\n\
+                      ucc scenario my-scenario.toml --seed 7 --log-dir runs/mine\n  \
+                      ucc scenario relay --record rec    (then: usar-server replay rec/iteration-001/connection-0001.usarlog)\n\n\
                       Writes, in --log-dir:\n  \
                       results.csv              one row per iteration: seed, ending, the metrics\n  \
                       iteration-NNN.log        the events, with simulated times\n  \

@@ -42,6 +42,10 @@ pub(crate) struct ScenarioArgs {
     /// Overwrite an earlier run's files in the log folder.
     #[arg(long)]
     force: bool,
+    /// Record each UAV's traffic, as `usar-server --record` would, into
+    /// DIR/iteration-NNN/connection-KKKK.usarlog (UAV k in connection k; docs/recording.md).
+    #[arg(long, value_name = "DIR")]
+    record: Option<PathBuf>,
     /// Print only the summary.
     #[arg(long, short = 'q')]
     quiet: bool,
@@ -99,6 +103,7 @@ fn run(args: ScenarioArgs, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
         pictures: !args.no_pictures,
         threads: args.threads as usize,
         force: args.force,
+        record: args.record.clone(),
     };
     let s = &prepared.scenario;
     if !args.quiet {

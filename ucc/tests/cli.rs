@@ -767,6 +767,8 @@ fn scenario_lists_runs_writes_its_files_and_names_a_bad_line() {
             "--log-dir",
         ])
         .arg(&dir)
+        .arg("--record")
+        .arg(dir.join("rec"))
         .output()
         .unwrap();
     let out = String::from_utf8_lossy(&run.stdout);
@@ -782,6 +784,7 @@ fn scenario_lists_runs_writes_its_files_and_names_a_bad_line() {
         "iteration-001.log",
         "iteration-002.png",
         "overlay.png",
+        "rec/iteration-002/connection-0001.usarlog",
     ] {
         assert!(dir.join(f).is_file(), "{f}");
     }

@@ -139,6 +139,15 @@ impl World {
         self.map.time_limit()
     }
 
+    /// The game-info `NFO` a server sends each connection on accept.
+    pub fn game_info(&self) -> ServerMessage {
+        ServerMessage::Nfo(Nfo::GameInfo {
+            gametype: "BotDeathMatch".into(),
+            level: self.level().to_owned(),
+            time_limit: self.time_limit(),
+        })
+    }
+
     /// Simulated seconds (tick × dt).
     pub fn time(&self) -> f64 {
         self.tick as f64 * self.dt

@@ -3,7 +3,10 @@
 //! does), deterministic under the seed, and as fast as the world steps.
 
 use std::borrow::Cow;
+use std::path::Path;
 use std::sync::Arc;
+
+use usar_proto::record::{Direction, RecordFile};
 
 use usar_proto::{Command, Init, Vec3};
 use usar_server::sim::map::Placed;
@@ -118,6 +121,8 @@ struct Flyer {
     last_truth: Option<[f64; 3]>,
     velocity: [f64; 3],
     level: Option<f64>,
+    /// The INIT line that spawned it (for a recording).
+    init: String,
 }
 
 struct Mover {
@@ -179,8 +184,25 @@ fn draw_victims(map: &mut Map, scenario: &Scenario, seed: u64) -> Result<(), Str
 
 /// Flies one iteration with `seed`, every UAV by its agent.
 pub fn fly(prepared: &Prepared, seed: u64, threads: usize) -> Result<Outcome, String> {
+    fly_recorded(prepared, seed, threads, None)
+}
+
+/// [`fly`], recording each UAV's traffic into `record` ([`Episode::record`]); a recording
+/// that stops (a full disk) fails the iteration, naming the file.
+pub fn fly_recorded(
+    prepared: &Prepared,
+    seed: u64,
+    threads: usize,
+    record: Option<&Path>,
+) -> Result<Outcome, String> {
     let mut episode = Episode::new(Arc::new(prepared.clone()), seed, threads)?;
+    if let Some(dir) = record {
+        episode.record(dir)?;
+    }
     while episode.step(&[]).is_none() {}
+    if let Some(e) = episode.record_error() {
+        return Err(e.to_owned());
+    }
     Ok(episode.finish())
 }
 
@@ -205,6 +227,10 @@ pub struct Episode {
     period: f64,
     total: usize,
     ending: Option<Ending>,
+    /// Each UAV's traffic ([`Episode::record`]), by index.
+    recording: Vec<RecordFile>,
+    /// Why a recording stopped.
+    record_error: Option<String>,
 }
 
 impl Episode {
@@ -237,7 +263,9 @@ impl Episode {
                 let at = std::array::from_fn(|i| group.start[i] + k as f64 * group.spacing[i]);
                 let client = world.connect();
                 let name = format!("UAV{}", index + 1);
-                world.command(client, init(&group.class, &name, at));
+                let spawn = init(&group.class, &name, at);
+                let init_line = spawn.to_string();
+                world.command(client, spawn);
                 if world.robot_count() != index + 1 {
                     return Err(format!(
                         "{name} ({}) cannot spawn at {at:?}: the place is inside a solid or another robot",
@@ -284,6 +312,7 @@ impl Episode {
                     last_truth: None,
                     velocity: [0.0; 3],
                     level: None,
+                    init: init_line,
                 });
             }
         }
@@ -341,7 +370,69 @@ impl Episode {
             period,
             total,
             ending: None,
+            recording: Vec::new(),
+            record_error: None,
         })
+    }
+
+    /// From now on (call it before the first step), records each UAV's traffic as
+    /// `usar-server --record` would (docs/recording.md): `dir/connection-NNNN.usarlog`, UAV
+    /// k in connection k, holding the game info, its INIT, every line the world sent it and
+    /// every command it flew, stamped with simulated time. A write error stops the recording
+    /// (see [`Episode::record_error`]); the flight goes on.
+    pub fn record(&mut self, dir: &Path) -> Result<(), String> {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        let time = self.world.time();
+        let info = self.world.game_info().to_string();
+        self.recording.clear();
+        for (i, f) in self.flyers.iter().enumerate() {
+            let path = dir.join(format!("connection-{:04}.usarlog", i + 1));
+            let mut file = RecordFile::create(&path)
+                .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+            let wrote = file.with(|w| {
+                w.write_at(time, Direction::Server, &info)?;
+                w.write(Direction::Client, &f.init)
+            });
+            if let Err(stopped) = wrote {
+                return Err(format!(
+                    "cannot write {}: {}",
+                    path.display(),
+                    stopped.error
+                ));
+            }
+            self.recording.push(file);
+        }
+        Ok(())
+    }
+
+    /// Why the recording stopped (a full disk), naming the file; `None` while it goes on.
+    pub fn record_error(&self) -> Option<&str> {
+        self.record_error.as_deref()
+    }
+
+    /// Writes one line into UAV `i`'s recording, if there is one.
+    fn note(
+        recording: &mut [RecordFile],
+        error: &mut Option<String>,
+        i: usize,
+        time: f64,
+        direction: Direction,
+        line: &dyn std::fmt::Display,
+    ) {
+        let Some(file) = recording.get_mut(i) else {
+            return;
+        };
+        if let Err(stopped) = file.with(|w| w.write_at(time, direction, &line.to_string())) {
+            let kept = stopped
+                .kept
+                .map_or_else(|e| format!("not cut: {e}"), |n| format!("{n} bytes kept"));
+            error.get_or_insert(format!(
+                "recording {} stopped: {} ({kept})",
+                file.path().display(),
+                stopped.error
+            ));
+        }
     }
 
     /// Steps one period: the world, the metrics, the targets and every agent; the UAVs
@@ -356,7 +447,18 @@ impl Episode {
         let prepared = Arc::clone(&self.prepared);
         let scenario = &prepared.scenario;
         for _ in 0..self.ticks {
+            let from = self.out.len();
             self.world.step(&mut self.out);
+            if !self.recording.is_empty() {
+                let time = self.world.time();
+                for (client, message) in &self.out[from..] {
+                    let i = client.0.wrapping_sub(self.first) as usize;
+                    if self.flyers.get(i).is_some_and(|f| f.client == *client) {
+                        let (files, error) = (&mut self.recording, &mut self.record_error);
+                        Self::note(files, error, i, time, Direction::Server, message);
+                    }
+                }
+            }
         }
         for (client, message) in self.out.drain(..) {
             let i = client.0.wrapping_sub(self.first) as usize;
@@ -557,7 +659,10 @@ impl Episode {
             }
             f.done = step.done;
             if let Some(c) = step.command {
-                self.world.command(f.client, Command::Drive(c.to_drive()));
+                let drive = Command::Drive(c.to_drive());
+                let (files, error) = (&mut self.recording, &mut self.record_error);
+                Self::note(files, error, i, time, Direction::Client, &drive);
+                self.world.command(f.client, drive);
             }
         }
         for (i, (key, value)) in notes {

@@ -5,7 +5,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use super::engine::{Ending, Outcome, Prepared, fly};
+use super::engine::{Ending, Outcome, Prepared, fly_recorded};
 use crate::picture::MapGeometry;
 
 /// How to run a scenario.
@@ -23,6 +23,9 @@ pub struct ScenarioRun {
     pub threads: usize,
     /// Write into a folder that holds an earlier run's results.
     pub force: bool,
+    /// Record each UAV's traffic into `DIR/iteration-NNN/connection-KKKK.usarlog`
+    /// ([`super::engine::Episode::record`]).
+    pub record: Option<PathBuf>,
 }
 
 impl Default for ScenarioRun {
@@ -34,6 +37,7 @@ impl Default for ScenarioRun {
             pictures: true,
             threads: 1,
             force: false,
+            record: None,
         }
     }
 }
@@ -87,7 +91,11 @@ pub fn run_scenario(
     let mut overlay: Option<Outcome> = None;
     for i in 0..settings.iterations {
         let seed = seed.wrapping_add(i as u64);
-        let outcome = fly(prepared, seed, settings.threads)
+        let record = settings
+            .record
+            .as_ref()
+            .map(|dir| dir.join(format!("iteration-{:03}", i + 1)));
+        let outcome = fly_recorded(prepared, seed, settings.threads, record.as_deref())
             .map_err(|e| ScenarioRunError(format!("iteration {}: {e}", i + 1)))?;
         simulated += outcome.metrics.get("time_s").unwrap_or(0.0);
         for (name, value) in &outcome.metrics.values {

@@ -44,7 +44,7 @@ use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, trace, warn};
 use usar_proto::record::Direction;
-use usar_proto::{Barrier, Command, Init, Nfo, ServerMessage};
+use usar_proto::{Barrier, Command, Init, ServerMessage};
 
 use super::TimeScale;
 use super::recording::Recording;
@@ -150,12 +150,7 @@ pub(super) struct Settings {
 
 /// The `NFO` game-info line sent on accept.
 pub(super) fn game_info(world: &World) -> Bytes {
-    let nfo = ServerMessage::Nfo(Nfo::GameInfo {
-        gametype: "BotDeathMatch".into(),
-        level: world.level().to_owned(),
-        time_limit: world.time_limit(),
-    });
-    let mut line = nfo.to_string();
+    let mut line = world.game_info().to_string();
     line.push_str("\r\n");
     Bytes::from(line)
 }
