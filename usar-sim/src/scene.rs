@@ -120,11 +120,30 @@ pub(crate) struct Scene {
     /// near it). A robot whose motion stays inside its own leaf box then moves without a
     /// tree query or a shape cast.
     clear: Vec<bool>,
+    /// By leaf: the robot's last sweep, when it left the robot where it was, pressed
+    /// against one map solid ([`Rest`]).
+    resting: Vec<Option<Rest>>,
     /// By leaf: how cameras draw the solid (colour, segmentation id); [`Look::default`]
     /// for solids without one.
     looks: Vec<Look>,
     /// The map's victims: their colliders and boxes (the VictSensor's targets).
     pub(crate) victims: Vec<VictimBody>,
+}
+
+/// A sweep that left its robot where it was, pressed against one map solid: a UAV landed
+/// with a descending set point, one leaning on a wall. The sweep is a function of the start,
+/// the motion, the robot's shape and the colliders near it; while the same motion starts
+/// from the same place (bit for bit) and nothing but that solid (which never moves) is near,
+/// its answer is the same, and it is not cast again: landed UAVs cost a tree query a tick,
+/// not GJK contact queries.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Rest {
+    centre: V3,
+    motion: V3,
+    /// The solid's leaf.
+    solid: u32,
+    /// The contact normal the sweep reported.
+    normal: V3,
 }
 
 /// `Collider::user_data` of the map's solids (walls for the robot monitor's count).
@@ -207,6 +226,7 @@ impl Scene {
             shortcuts: true,
             stale: false,
             clear: Vec::new(),
+            resting: Vec::new(),
             looks: Vec::new(),
             victims: Vec::new(),
         }
@@ -363,6 +383,9 @@ impl Scene {
         let leaf = handle.into_raw_parts().0;
         self.bvh.remove(leaf);
         self.set_clear(leaf, false);
+        if let Some(rest) = self.resting.get_mut(leaf as usize) {
+            *rest = None;
+        }
         if let Some(look) = self.looks.get_mut(leaf as usize) {
             *look = Look::default();
         }
@@ -688,6 +711,27 @@ impl Scene {
         self.bvh.intersect_aabb(&swept).all(|leaf| leaf == me)
     }
 
+    /// The contact normal of `leaf`'s last sweep if it is a [`Rest`] that this sweep repeats:
+    /// the same start and motion, and no collider but the solid within the reach of any
+    /// slide (at most the motion's length in every direction, padded as
+    /// [`Scene::clear_path`] pads).
+    fn still_resting(&self, leaf: u32, shape: BodyShape, centre: V3, motion: V3) -> Option<V3> {
+        let rest = self.resting.get(leaf as usize).copied().flatten()?;
+        if rest.centre != centre || rest.motion != motion {
+            return None;
+        }
+        let reach = norm(motion) + f64::from(SWEEP_PAD);
+        let half = [shape.radius, shape.radius, shape.half_height];
+        let lo: V3 = std::array::from_fn(|i| centre[i] - half[i] - reach);
+        let hi: V3 = std::array::from_fn(|i| centre[i] + half[i] + reach);
+        let near = Aabb::new(to_vector(lo), to_vector(hi));
+        let alone = self
+            .bvh
+            .intersect_aabb(&near)
+            .all(|l| l == leaf || l == rest.solid);
+        alone.then_some(rest.normal)
+    }
+
     /// Moves the body `handle` from `centre` by `motion`, stopping in front of the first
     /// obstacle and sliding along it (up to three contacts). Returns the new centre.
     /// Also returns the normal of the first surface hit (pointing out of it, towards the
@@ -704,8 +748,16 @@ impl Scene {
         let limit = LIMIT;
         let motion: V3 =
             std::array::from_fn(|i| (centre[i] + motion[i]).clamp(-limit, limit) - centre[i]);
+        let leaf = handle.into_raw_parts().0;
+        if self.shortcuts
+            && let Some(normal) = self.still_resting(leaf, shape, centre, motion)
+        {
+            return (centre, Some(normal));
+        }
         let cylinder = shape.cylinder();
         let mut pos = centre;
+        // The solid every cast so far hit at once (time 0), if every cast did so.
+        let mut pressed: Option<Option<u32>> = None;
         let length = norm(motion);
         let mut rest = if length > MAX_STEP {
             scale(motion, MAX_STEP / length)
@@ -735,9 +787,21 @@ impl Scene {
                     options,
                 )
             };
-            let Some((_, hit)) = hit else {
+            let Some((solid, hit)) = hit else {
                 pos = add(pos, rest);
+                pressed = Some(None);
                 break;
+            };
+            let static_now = hit.time_of_impact == 0.0
+                && self
+                    .colliders
+                    .get(solid)
+                    .is_some_and(|c| c.user_data != BODY);
+            let solid = solid.into_raw_parts().0;
+            pressed = match pressed {
+                None if static_now => Some(Some(solid)),
+                Some(Some(s)) if static_now && s == solid => Some(Some(s)),
+                _ => Some(None),
             };
             let toi = f64::from(hit.time_of_impact).clamp(0.0, 1.0);
             pos = add(pos, scale(rest, toi));
@@ -756,6 +820,20 @@ impl Scene {
                 break;
             }
         }
+        let memo = match (pressed, contact) {
+            (Some(Some(solid)), Some(normal)) if pos == centre => Some(Rest {
+                centre,
+                motion,
+                solid,
+                normal,
+            }),
+            _ => None,
+        };
+        let i = leaf as usize;
+        if i >= self.resting.len() {
+            self.resting.resize(i + 1, None);
+        }
+        self.resting[i] = memo;
         if let Some(collider) = self.colliders.get_mut(handle) {
             collider.set_position(upright_pose(pos));
         }

@@ -903,6 +903,16 @@ fn crowd_output(threads: usize, shortcuts: bool, printed: bool) -> String {
     assert_eq!(w.robot_count(), 200);
     let mut out = Vec::new();
     for (i, &c) in clients.iter().enumerate() {
+        // Every twentieth one, at the crowd's edge, descends straight down and then presses
+        // on the ground, among the others flying past it (the resting sweeps).
+        if i % 20 == 9 && i < 100 {
+            let down = Drive {
+                altitude_velocity: Some(-5.0),
+                ..Drive::default()
+            };
+            drive(&mut w, c, down);
+            continue;
+        }
         drive(
             &mut w,
             c,
