@@ -303,6 +303,19 @@ fn over_the_radio_the_chain_forwards_relief_requests_to_the_base() {
 }
 
 #[test]
+fn ten_uavs_cover_the_block_recharging_in_turns_without_a_collision_stall() {
+    // Before: three UAVs flew into a tower's side while climbing and stayed there (81 %
+    // covered), the others met head-on over the pad, and a UAV parked on the pad counted a
+    // recharge every 10 s (274 in one iteration).
+    let o = fly(&prepared("search-swarm"), 1, 1).unwrap();
+    assert!(metric(&o, "coverage_pct") >= 95.0, "{:?}", o.metrics);
+    assert_eq!(metric(&o, "victims_found"), metric(&o, "victims_total"));
+    assert_eq!(metric(&o, "crashes"), 0.0);
+    let recharges = metric(&o, "recharges");
+    assert!((10.0..=40.0).contains(&recharges), "{recharges} recharges");
+}
+
+#[test]
 fn a_recorded_run_holds_each_uavs_traffic_and_repeats_byte_for_byte() {
     use usar_proto::ServerMessage;
     use usar_proto::record::{Direction, parse_entry};

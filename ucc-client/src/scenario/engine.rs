@@ -123,6 +123,8 @@ struct Flyer {
     level: Option<f64>,
     /// The INIT line that spawned it (for a recording).
     init: String,
+    /// Recharged during its present visit to the pad.
+    recharged: bool,
 }
 
 struct Mover {
@@ -277,6 +279,21 @@ impl Episode {
                 let half = (scenario.sensor.fov.to_radians() / 2.0).tan();
                 let footprint =
                     (h * half).min((scenario.sensor.range.powi(2) - h * h).max(0.0).sqrt());
+                let spot = scenario
+                    .base
+                    .map_or(at, |b| team::landing_spot(&b, at, index));
+                if let Some(base) = &scenario.base {
+                    let r = team::distance2(spot, base.location);
+                    if r > base.radius {
+                        return Err(format!(
+                            "{name} has no room on the base pad: its landing spot is {r:.1} m \
+                             from the centre and the pad's radius is {} m (make [base] \
+                             `radius` at least {:.1})",
+                            base.radius,
+                            r + 0.5
+                        ));
+                    }
+                }
                 briefs.push(Brief {
                     index,
                     group: members.clone(),
@@ -290,9 +307,7 @@ impl Episode {
                         .min(class.flight.max_lateral_speed),
                     base: scenario.base,
                     start: at,
-                    spot: scenario
-                        .base
-                        .map_or(at, |b| team::landing_spot(&b, at, index)),
+                    spot,
                     search: scenario.search.clone(),
                     relay: scenario.relay,
                     radio: scenario.radio,
@@ -313,6 +328,7 @@ impl Episode {
                     velocity: [0.0; 3],
                     level: None,
                     init: init_line,
+                    recharged: false,
                 });
             }
         }
@@ -510,16 +526,21 @@ impl Episode {
                 self.board.charging[i] = true;
                 f.charge += self.period;
                 if f.charge >= base.charge_time && level < 0.999 {
+                    // The pad keeps a parked UAV topped up; a recharge counts once a visit.
                     self.world.recharge(f.client);
-                    self.tracker.recharges += 1;
                     f.charge = 0.0;
-                    self.log.push(format!(
-                        "t={time:.1}s {}: recharged on the base pad",
-                        f.name
-                    ));
+                    if !f.recharged {
+                        f.recharged = true;
+                        self.tracker.recharges += 1;
+                        self.log.push(format!(
+                            "t={time:.1}s {}: recharged on the base pad",
+                            f.name
+                        ));
+                    }
                 }
             } else {
                 f.charge = 0.0;
+                f.recharged = false;
             }
         }
         self.tracker.observe(

@@ -217,7 +217,8 @@ fn sweep_step(
             }
         }
         if *homing != Homing::Away {
-            out.command = Some(homing.steer(brief.spot, brief.altitude, pos, yaw, charging, level));
+            out.command =
+                Some(homing.steer(brief.spot, brief.home_altitude(), pos, yaw, charging, level));
             if *homing == Homing::Away {
                 out.log.push("recharged: back to the search".into());
             }

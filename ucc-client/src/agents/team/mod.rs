@@ -68,6 +68,13 @@ impl Brief {
             .position(|&i| i == self.index)
             .unwrap_or(0)
     }
+
+    /// The height it flies home at: the cruise height plus a layer of its own (1 m apart,
+    /// five layers), so that UAVs converging on the base from all sides pass over each
+    /// other instead of meeting head-on at one height.
+    pub fn home_altitude(&self) -> f64 {
+        self.altitude + (self.index % 5) as f64
+    }
 }
 
 /// What every agent knows each period: the scenario's shared facts and, when the scenario
@@ -212,6 +219,9 @@ pub fn distance2(a: [f64; 3], b: [f64; 3]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
+/// Metres: a route point higher than this above the UAV is climbed to before flying on.
+pub const CLIMB_FIRST: f64 = 2.0;
+
 /// Follows a list of points: which one is next, and the command towards it.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Route {
@@ -238,7 +248,9 @@ impl Route {
         self.next >= self.points.len()
     }
 
-    /// Moves past reached points; the command to the next (`None` when finished).
+    /// Moves past reached points; the command to the next (`None` when finished). A point
+    /// more than [`CLIMB_FIRST`] above the UAV is climbed to straight up first, so that a
+    /// take-off to cruise height does not fly into the side of a building on the way.
     pub fn steer(&mut self, position: [f64; 3], yaw: f64) -> Option<SpeedCommand> {
         while let Some(&p) = self.points.get(self.next) {
             let d = (0..3)
@@ -246,7 +258,13 @@ impl Route {
                 .sum::<f64>()
                 .sqrt();
             if d > self.tolerance {
-                return Some(fly_to(position, yaw, p, 1.0, 1.5));
+                // z is down: the point is above when its z is smaller.
+                let to = if position[2] - p[2] > CLIMB_FIRST {
+                    [position[0], position[1], p[2]]
+                } else {
+                    p
+                };
+                return Some(fly_to(position, yaw, to, 1.0, 1.5));
             }
             self.next += 1;
         }
@@ -333,13 +351,21 @@ impl Homing {
 /// A battery at this level or above counts as charged.
 pub const CHARGED: f64 = 0.95;
 
-/// The landing spot of UAV `index` starting at `start` on a base pad (see [`Brief::spot`]).
+/// Metres: the scale of the landing spots' sunflower on a base pad ([`landing_spot`]).
+const SPOT_SCALE: f64 = 1.25;
+
+/// The landing spot of UAV `index` starting at `start` on a base pad (see [`Brief::spot`]):
+/// its start when that is on the pad, else spot `index` of a sunflower (Vogel's spiral)
+/// around the pad's centre, neighbours about 1.9 m apart, so that UAVs of 0.9 m landing
+/// together do not land on each other: the first ten spots lie within 3.9 m of the
+/// centre, sixteen within 4.9 m.
 pub fn landing_spot(base: &Pad, start: [f64; 3], index: usize) -> [f64; 3] {
     if distance2(start, base.location) <= base.radius * 0.8 {
         return [start[0], start[1], base.location[2]];
     }
-    let a = index as f64 * 2.399_963; // the golden angle
-    let r = base.radius * 0.6 * ((index % 7) as f64 / 7.0).sqrt();
+    let k = index as f64;
+    let a = k * 2.399_963; // the golden angle
+    let r = SPOT_SCALE * (k + 0.5).sqrt();
     [
         base.location[0] + r * a.cos(),
         base.location[1] + r * a.sin(),
@@ -363,6 +389,37 @@ pub fn battery_seconds(uav: &UavState) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn landing_spots_leave_room_between_uavs_and_a_start_on_the_pad_is_kept() {
+        let base = Pad {
+            location: [10.0, -5.0, 0.0],
+            radius: 5.0,
+            charge_time: 10.0,
+        };
+        let far = [40.0, 40.0, -0.5];
+        let spots: Vec<[f64; 3]> = (0..16).map(|i| landing_spot(&base, far, i)).collect();
+        for (i, a) in spots.iter().enumerate() {
+            assert!(distance2(*a, base.location) <= 4.95, "spot {i} off the pad");
+            for b in &spots[i + 1..] {
+                assert!(distance2(*a, *b) >= 1.8, "spots {a:?} and {b:?} too close");
+            }
+        }
+        assert_eq!(
+            landing_spot(&base, [11.0, -5.0, -0.5], 3),
+            [11.0, -5.0, 0.0]
+        );
+    }
+
+    #[test]
+    fn a_route_climbs_straight_up_to_a_high_point_before_flying_towards_it() {
+        let mut route = Route::new(vec![[50.0, 0.0, -40.0]], 0.5);
+        let c = route.steer([0.0, 0.0, -0.5], 0.0).unwrap();
+        assert_eq!((c.forward, c.right), (0.0, 0.0));
+        assert!(c.up > 99.0);
+        let c = route.steer([0.0, 0.0, -39.0], 0.0).unwrap();
+        assert!(c.forward > 99.0, "{c:?}");
+    }
 
     #[test]
     fn registry_names_match_agents() {
