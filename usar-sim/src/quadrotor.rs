@@ -806,6 +806,22 @@ impl Quadrotor {
         centre: V3,
     ) -> [f64; 4] {
         let radius = self.config.rotor_radius;
+        // Nothing within reach of any hub's ray (the hubs lie within `arm` of the centre
+        // however the body tilts): no ray can hit, as at cruise height, so none is cast.
+        let arm = self
+            .rotors
+            .iter()
+            .map(|&(x, y, _)| x.hypot(y))
+            .fold(0.0, f64::max);
+        let lo = [centre[0] - arm, centre[1] - arm, centre[2] - arm];
+        let hi = [
+            centre[0] + arm,
+            centre[1] + arm,
+            centre[2] + arm + 4.0 * radius,
+        ];
+        if scene.alone_in(body, lo, hi) {
+            return [1.0; 4];
+        }
         let r = quat_matrix(self.q);
         std::array::from_fn(|i| {
             let (x, y, _) = self.rotors[i];

@@ -698,6 +698,22 @@ impl Scene {
         alone
     }
 
+    /// Whether no collider but `handle` has its tree box inside the box `lo`..`hi` (padded
+    /// by `SWEEP_PAD`): then no ray within that box can hit anything but `handle`. With
+    /// shortcuts off, `false` (the caller casts).
+    pub(crate) fn alone_in(&self, handle: ColliderHandle, lo: V3, hi: V3) -> bool {
+        if !self.shortcuts {
+            return false;
+        }
+        let pad = f64::from(SWEEP_PAD);
+        let lo: V3 = std::array::from_fn(|i| lo[i] - pad);
+        let hi: V3 = std::array::from_fn(|i| hi[i] + pad);
+        let me = handle.into_raw_parts().0;
+        self.bvh
+            .intersect_aabb(&Aabb::new(to_vector(lo), to_vector(hi)))
+            .all(|leaf| leaf == me)
+    }
+
     /// Whether nothing but `handle` has its tree box within the gap `SKIN` (doubled, for
     /// rounding) of the box swept by a body of `shape` moving from `centre` by `motion`: then
     /// the shape cast cannot hit anything and is skipped (most robots, most ticks).
