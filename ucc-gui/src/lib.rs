@@ -16,6 +16,7 @@ mod api;
 mod guard;
 pub mod hub;
 pub mod runs;
+pub mod scenario;
 mod socket;
 
 use std::net::SocketAddr;
@@ -253,6 +254,7 @@ pub async fn serve(
         hub.geometry = Some(l.geometry.clone());
         hub.map = l.config.map.level().to_owned();
         hub.time_scale = l.config.time_scale;
+        hub.catalog = l.config.robots.clone();
         hub.robot_classes = Some(
             l.config
                 .robots
@@ -280,6 +282,13 @@ pub async fn serve(
         .route("/api/log", get(api::log_file))
         .route("/api/files/{uav}/{index}", get(api::file))
         .route("/api/camera/{uav}", get(api::camera))
+        .route("/api/scenarios", get(api::scenarios))
+        .route(
+            "/api/scenario",
+            get(api::scenario_state).post(api::scenario_start),
+        )
+        .route("/api/scenario/stop", axum::routing::post(api::scenario_stop))
+        .route("/api/scenario/results.csv", get(api::scenario_csv))
         .layer(middleware::from_fn_with_state(app.clone(), guard::guard))
         .with_state(app.clone());
     let stop = shutdown.clone();
