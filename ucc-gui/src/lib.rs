@@ -64,6 +64,11 @@ const ASSETS: &[(&str, &str, &str)] = &[
         include_str!("assets/camera.js"),
     ),
     (
+        "scenario.js",
+        "text/javascript",
+        include_str!("assets/scenario.js"),
+    ),
+    (
         "plots.js",
         "text/javascript",
         include_str!("assets/plots.js"),

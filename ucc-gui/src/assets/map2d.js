@@ -19,6 +19,7 @@ export class Map2d {
   constructor(canvas, store) {
     this.canvas = canvas; this.ctx = canvas.getContext("2d"); this.store = store;
     this.view = { cx: 0, cy: 0, scale: 20 }; this.fitted = false; this.geometry = null;
+    this.layer = null; // a scenario's things: under(ctx, map), over(ctx, map), points() (scenario.js)
     this.w = 1; this.h = 1;
   }
 
@@ -34,6 +35,7 @@ export class Map2d {
       lists.push(c.info.missions.filter((m) => m.kind === "GotoXyz").map((m) => [m.x, m.y]));
       if (c.live && c.live.position) lists.push([c.live.position]);
     }
+    if (this.layer && this.layer.show) lists.push(this.layer.state.points());
     Object.assign(this.view, fitView(bounds(eachOf(lists)), this.w, this.h));
     this.fitted = true;
   }
@@ -127,6 +129,7 @@ export class Map2d {
     for (let x = Math.ceil(wx0 / step) * step; x <= wx1; x += step) { const [, sy] = this.toScreen(x, 0); ctx.moveTo(0, sy); ctx.lineTo(W, sy); }
     for (let y = Math.ceil(wy0 / step) * step; y <= wy1; y += step) { const [sx] = this.toScreen(0, y); ctx.moveTo(sx, 0); ctx.lineTo(sx, H); }
     ctx.stroke();
+    if (this.layer) this.layer.under(ctx, this);
     if (this.geometry) {
       // What stands at the flown heights (not the floor, not the ceiling), labelled with its height.
       let low = Infinity, high = -Infinity;
@@ -155,6 +158,7 @@ export class Map2d {
       ctx.fillStyle = "#444";
       for (const c of uavs.values()) for (const h of c.hits) { const [sx, sy] = this.toScreen(h[0], h[1]); ctx.fillRect(sx - 1, sy - 1, 2, 2); }
     }
+    if (this.layer) this.layer.over(ctx, this);
     const many = uavs.size > 50;
     ctx.font = "11px sans-serif";
     // Trails and UAVs are batched per colour: one path each, whatever the number of UAVs.
