@@ -139,14 +139,19 @@ export class Map2d {
         if (c.live && c.live.position) seen(c.live.position[2]);
       }
       if (low > high) { low = -3; high = -0.5; }
+      // A scenario is seen from above: everything standing on the ground, half see-through
+      // over its heat map.
+      const scene = this.layer && this.layer.show && this.layer.state.fixed;
+      if (scene) high = Math.max(high, -0.05);
       const { solids, victims } = splitGeometry(this.geometry);
       const polygon = (f) => {
         ctx.beginPath();
         f.outline.forEach((p, i) => { const [sx, sy] = this.toScreen(p[0], p[1]); i ? ctx.lineTo(sx, sy) : ctx.moveTo(sx, sy); });
         ctx.closePath(); ctx.fill();
       };
-      ctx.fillStyle = WALL_COLOR;
+      ctx.fillStyle = WALL_COLOR; if (scene) ctx.globalAlpha = 0.6;
       for (const f of solids) if (f.z_min <= high && f.z_max >= low) polygon(f);
+      ctx.globalAlpha = 1;
       // Victims lie on the floor: drawn at any height, with their names.
       ctx.fillStyle = VICTIM_COLOR; ctx.font = "11px sans-serif";
       for (const v of victims) {
