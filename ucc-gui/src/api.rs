@@ -147,38 +147,35 @@ pub(crate) async fn scenarios() -> impl IntoResponse {
     axum::Json(crate::hub::scenario::list())
 }
 
-/// The HTTP status of a refused request.
-fn refused(e: &RequestError) -> StatusCode {
-    match e {
+/// A refused request as a 4xx (a 5xx when the server failed) with the reason.
+fn refusal(e: &RequestError) -> Response {
+    let status = match e {
         RequestError::Field { .. } | RequestError::Malformed(_) => StatusCode::BAD_REQUEST,
         RequestError::NoUav(_) => StatusCode::NOT_FOUND,
         RequestError::State(_) => StatusCode::CONFLICT,
         RequestError::Server(_) => StatusCode::SERVICE_UNAVAILABLE,
+    };
+    (status, e.to_string()).into_response()
+}
+
+/// Applies a request and does what it asks, as the WebSocket does.
+async fn apply(app: &App, request: Request) -> Result<(), RequestError> {
+    let planned = app.shared.lock().apply(request);
+    match planned {
+        Ok(action) => crate::socket::act(app, action).await.map(|_| ()),
+        Err(e) => Err(e),
     }
 }
 
-/// Applies a request and does what it asks, as the WebSocket does; the refusal as a 4xx.
-async fn apply(app: &App, request: Request) -> Result<(), Response> {
-    let planned = app.shared.lock().apply(request);
-    let done = match planned {
-        Ok(action) => crate::socket::act(app, action).await,
-        Err(e) => Err(e),
-    };
-    done.map(|_| ())
-        .map_err(|e| (refused(&e), e.to_string()).into_response())
-}
-
 /// A field of a JSON body as text: a string as it is, a number as written, absent as empty.
-fn text_of(body: &Value, key: &'static str) -> Result<String, Response> {
+fn text_of(body: &Value, key: &'static str) -> Result<String, RequestError> {
     match body.get(key) {
         None | Some(Value::Null) => Ok(String::new()),
         Some(Value::String(s)) => Ok(s.clone()),
         Some(Value::Number(n)) => Ok(n.to_string()),
-        Some(other) => Err((
-            StatusCode::BAD_REQUEST,
-            format!("{key}: {other} is neither a string nor a number"),
-        )
-            .into_response()),
+        Some(other) => Err(RequestError::Malformed(format!(
+            "{key}: {other} is neither a string nor a number"
+        ))),
     }
 }
 
@@ -207,12 +204,11 @@ pub(crate) async fn scenario_start(
             speed: text_of(&body, "speed")?,
         })
     })();
-    let request = match request {
-        Ok(r) => r,
-        Err(e) => return e,
-    };
-    if let Err(e) = apply(&app, request).await {
-        return e;
+    if let Err(e) = match request {
+        Ok(request) => apply(&app, request).await,
+        Err(e) => Err(e),
+    } {
+        return refusal(&e);
     }
     let hub = app.shared.lock();
     let Some(s) = &hub.scenario else {
@@ -228,7 +224,7 @@ pub(crate) async fn scenario_stop(
 ) -> Response {
     match apply(&app, Request::ScenarioStop).await {
         Ok(()) => (StatusCode::OK, "stopping").into_response(),
-        Err(e) => e,
+        Err(e) => refusal(&e),
     }
 }
 

@@ -292,7 +292,10 @@ pub async fn serve(
             "/api/scenario",
             get(api::scenario_state).post(api::scenario_start),
         )
-        .route("/api/scenario/stop", axum::routing::post(api::scenario_stop))
+        .route(
+            "/api/scenario/stop",
+            axum::routing::post(api::scenario_stop),
+        )
         .route("/api/scenario/results.csv", get(api::scenario_csv))
         .layer(middleware::from_fn_with_state(app.clone(), guard::guard))
         .with_state(app.clone());

@@ -43,10 +43,9 @@ pub fn spawn(shared: Arc<Shared>, plan: ScenarioPlan) -> Result<(), RequestError
             hub.scenario_finished(status, error);
         });
     if let Err(e) = spawned {
-        shared.lock().scenario_finished(
-            Status::Failed,
-            Some(format!("cannot start a thread: {e}")),
-        );
+        shared
+            .lock()
+            .scenario_finished(Status::Failed, Some(format!("cannot start a thread: {e}")));
         return Err(RequestError::State(format!(
             "cannot start a thread for the scenario: {e}"
         )));
@@ -67,9 +66,7 @@ fn fly(shared: &Shared, plan: &ScenarioPlan) -> Result<bool, String> {
         let seed = plan.seed.wrapping_add(i as u64);
         let mut episode = Episode::new(Arc::clone(&plan.prepared), seed, 1)
             .map_err(|e| format!("iteration {iteration}: {e}"))?;
-        shared
-            .lock()
-            .scenario_iteration(iteration, seed, &episode);
+        shared.lock().scenario_iteration(iteration, seed, &episode);
         let mut logged = 0;
         // The pace: simulated time `sim0` was reached at wall time `wall0`.
         let (mut wall0, mut sim0) = (Instant::now(), episode.time());

@@ -1223,24 +1223,42 @@ async fn screenshots_of_every_scenario_kind() -> Result<()> {
         eprintln!("screenshots skipped: set UCC_GUI_SCREENSHOTS=1");
         return Ok(());
     }
-    with_page(local(TimeScale::Max), (1400, 900), 1.0, |c, url, _| async move {
-        open(&c, &url).await?;
-        for (name, seconds) in [("relay", 8), ("perimeter", 6), ("tracking", 4), ("delivery", 6), ("search", 3)] {
-            js(&c, &format!("U.send({{op: 'scenario_start', name: '{name}', speed: '10'}})")).await?;
-            tokio::time::sleep(Duration::from_secs(seconds)).await;
-            js(&c, "U.fit()").await?;
-            tokio::time::sleep(Duration::from_millis(300)).await;
-            let dir = artifacts();
-            std::fs::create_dir_all(&dir)?;
-            std::fs::write(dir.join(format!("scenario-{name}.png")), c.screenshot().await?)?;
-            js(&c, "U.send({op: 'scenario_stop'})").await?;
-            until("the scenario stopped", 20, || async {
-                Ok(text(&c, "scenario-status").await?.starts_with("stopped"))
-            })
-            .await?;
-        }
-        assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
-        Ok(())
-    })
+    with_page(
+        local(TimeScale::Max),
+        (1400, 900),
+        1.0,
+        |c, url, _| async move {
+            open(&c, &url).await?;
+            for (name, seconds) in [
+                ("relay", 8),
+                ("perimeter", 6),
+                ("tracking", 4),
+                ("delivery", 6),
+                ("search", 3),
+            ] {
+                js(
+                    &c,
+                    &format!("U.send({{op: 'scenario_start', name: '{name}', speed: '10'}})"),
+                )
+                .await?;
+                tokio::time::sleep(Duration::from_secs(seconds)).await;
+                js(&c, "U.fit()").await?;
+                tokio::time::sleep(Duration::from_millis(300)).await;
+                let dir = artifacts();
+                std::fs::create_dir_all(&dir)?;
+                std::fs::write(
+                    dir.join(format!("scenario-{name}.png")),
+                    c.screenshot().await?,
+                )?;
+                js(&c, "U.send({op: 'scenario_stop'})").await?;
+                until("the scenario stopped", 20, || async {
+                    Ok(text(&c, "scenario-status").await?.starts_with("stopped"))
+                })
+                .await?;
+            }
+            assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
+            Ok(())
+        },
+    )
     .await
 }

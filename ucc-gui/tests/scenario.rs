@@ -78,7 +78,10 @@ async fn a_scenario_started_through_the_api_flies_and_scores() {
         .iter()
         .map(|s| s["name"].as_str().unwrap())
         .collect();
-    assert!(names.contains(&"search") && names.contains(&"relay"), "{names:?}");
+    assert!(
+        names.contains(&"search") && names.contains(&"relay"),
+        "{names:?}"
+    );
 
     let (status, body) = http(
         addr,
@@ -135,7 +138,11 @@ async fn a_scenario_started_through_the_api_flies_and_scores() {
         }
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
-    assert_eq!(ended["scenario"]["status"], "stopped", "{}", ended["scenario"]);
+    assert_eq!(
+        ended["scenario"]["status"], "stopped",
+        "{}",
+        ended["scenario"]
+    );
     assert!(
         ended["uavs"]
             .as_array()
@@ -163,7 +170,11 @@ async fn a_scenario_started_through_the_api_flies_and_scores() {
     }
     let sc = &s["scenario"];
     assert_eq!(sc["status"], "done", "{sc}");
-    assert_eq!(s["uavs"].as_array().unwrap().len(), 1, "the last scenario's UAVs went");
+    assert_eq!(
+        s["uavs"].as_array().unwrap().len(),
+        1,
+        "the last scenario's UAVs went"
+    );
     let rows = sc["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 2, "{sc}");
     assert_eq!(rows[0]["seed"], "5");
@@ -179,16 +190,48 @@ async fn a_scenario_started_through_the_api_flies_and_scores() {
 async fn bad_scenario_requests_are_refused_with_the_reason() {
     let (addr, stop) = start().await;
     for (body, code, says) in [
-        (r#"{"name": "nosuch"}"#, 400, "scenario: \"nosuch\" is not an embedded scenario"),
-        (r#"{"name": "/etc/passwd"}"#, 400, "is not an embedded scenario"),
-        (r#"{"name": "search", "iterations": 0}"#, 400, "scenario iterations: \"0\" is not a whole number from 1 to 1000"),
-        (r#"{"name": "search", "iterations": "1e9"}"#, 400, "scenario iterations"),
-        (r#"{"name": "search", "iterations": 99999999999999999999999}"#, 400, "scenario iterations"),
-        (r#"{"name": "search", "seed": -1}"#, 400, "scenario seed: \"-1\" is not a whole number"),
+        (
+            r#"{"name": "nosuch"}"#,
+            400,
+            "scenario: \"nosuch\" is not an embedded scenario",
+        ),
+        (
+            r#"{"name": "/etc/passwd"}"#,
+            400,
+            "is not an embedded scenario",
+        ),
+        (
+            r#"{"name": "search", "iterations": 0}"#,
+            400,
+            "scenario iterations: \"0\" is not a whole number from 1 to 1000",
+        ),
+        (
+            r#"{"name": "search", "iterations": "1e9"}"#,
+            400,
+            "scenario iterations",
+        ),
+        (
+            r#"{"name": "search", "iterations": 99999999999999999999999}"#,
+            400,
+            "scenario iterations",
+        ),
+        (
+            r#"{"name": "search", "seed": -1}"#,
+            400,
+            "scenario seed: \"-1\" is not a whole number",
+        ),
         (r#"{"name": "search", "seed": "x"}"#, 400, "scenario seed"),
-        (r#"{"name": "search", "speed": "warp"}"#, 400, "scenario speed"),
+        (
+            r#"{"name": "search", "speed": "warp"}"#,
+            400,
+            "scenario speed",
+        ),
         (r#"{"name": "search", "speed": 0}"#, 400, "scenario speed"),
-        (r#"{"name": "search", "colour": 1}"#, 400, "unknown field \"colour\""),
+        (
+            r#"{"name": "search", "colour": 1}"#,
+            400,
+            "unknown field \"colour\"",
+        ),
         (r#"{"name": ["search"]}"#, 400, "name:"),
         ("not json", 400, ""),
     ] {
@@ -200,7 +243,11 @@ async fn bad_scenario_requests_are_refused_with_the_reason() {
     assert_eq!(status, 409, "{text}");
     let (status, _) = http(addr, "GET", "/api/scenario", "").await;
     assert_eq!(status, 404);
-    assert_eq!(state(addr).await["uavs"], Value::Array(vec![]), "nothing was created");
+    assert_eq!(
+        state(addr).await["uavs"],
+        Value::Array(vec![]),
+        "nothing was created"
+    );
     stop.cancel();
 }
 
@@ -237,11 +284,21 @@ fn the_grid_is_sent_whole_once_then_as_changes() {
         assert!(s.get("fixed").is_none() && s.get("grid_full").is_none());
         sent += s["grid"].as_array().map_or(0, Vec::len) / 2;
     }
-    let seen = hub.scenario.as_ref().unwrap().levels.iter().filter(|&&l| l > 0).count();
+    let seen = hub
+        .scenario
+        .as_ref()
+        .unwrap()
+        .levels
+        .iter()
+        .filter(|&&l| l > 0)
+        .count();
     assert!(seen > 50, "{seen} cells seen");
     assert!(
         sent <= seen * ucc_gui::hub::scenario::LEVELS as usize,
         "{sent} changes for {seen} cells"
     );
-    assert!(hub.update(&mut cursor).get("scenario").is_none(), "nothing new: nothing sent");
+    assert!(
+        hub.update(&mut cursor).get("scenario").is_none(),
+        "nothing new: nothing sent"
+    );
 }

@@ -19,8 +19,8 @@ use ucc_client::scenario::{Outcome, Prepared, Scenario};
 use ucc_client::{Coordinates, Start};
 use usar_server::TimeScale;
 
-use super::request::{field, shown};
 use super::request::MAX_UAVS;
+use super::request::{field, shown};
 use super::{Action, Hub, Live, RequestError, Status, Uav};
 
 /// The most iterations one scenario start may ask for (each row of results is kept).
@@ -199,11 +199,7 @@ fn fixed_json(prepared: &Prepared) -> Value {
     let s = &prepared.scenario;
     // The victims are drawn from the scenario's state (found or not), not as the map's.
     let mut geometry = ucc_client::picture::MapGeometry::from(&prepared.map);
-    let victims: Vec<_> = geometry
-        .victims
-        .drain(..)
-        .map(|v| v.footprint)
-        .collect();
+    let victims: Vec<_> = geometry.victims.drain(..).map(|v| v.footprint).collect();
     geometry.footprints.retain(|f| !victims.contains(f));
     let grid = s.search.as_ref().map(|search| {
         let [[x0, y0], [x1, y1]] = search.area;
@@ -293,7 +289,8 @@ impl Hub {
         };
         // The UAVs of the last scenario go (they have ended).
         if let Some(old) = self.scenario.take() {
-            self.uavs.retain(|u| !old.uavs.contains(&u.id) || u.flying());
+            self.uavs
+                .retain(|u| !old.uavs.contains(&u.id) || u.flying());
         }
         let count = scenario.uav_count();
         if self.uavs.len() + count > MAX_UAVS {
