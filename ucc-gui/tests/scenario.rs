@@ -302,3 +302,77 @@ fn the_grid_is_sent_whole_once_then_as_changes() {
         "nothing new: nothing sent"
     );
 }
+
+/// The scenario's thread keeps the page's pace: at real time it does not race ahead, a pause
+/// holds its world, Resume goes on, and a new speed is taken while it runs.
+#[test]
+fn the_scenario_keeps_the_pace_and_the_pause() {
+    use std::sync::Arc;
+    use ucc_gui::hub::Shared;
+    let shared = Arc::new(Shared::new(Hub::new(
+        "127.0.0.1:1".into(),
+        false,
+        std::env::temp_dir().join("ucc-gui-scenario-test"),
+    )));
+    let Ok(Action::Scenario(plan)) = shared.lock().apply(Request::ScenarioStart {
+        name: "tracking".into(),
+        iterations: "1".into(),
+        seed: String::new(),
+        speed: "1".into(),
+    }) else {
+        panic!("not started");
+    };
+    ucc_gui::scenario::spawn(shared.clone(), *plan).unwrap();
+    let time = || shared.lock().scenario.as_ref().unwrap().time;
+    std::thread::sleep(Duration::from_millis(1500));
+    let t = time();
+    assert!(
+        t > 0.2 && t < 5.0,
+        "real time: {t} simulated s after 1.5 wall s"
+    );
+    shared
+        .lock()
+        .apply(Request::Pause { paused: true })
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let held = time();
+    std::thread::sleep(Duration::from_millis(700));
+    assert_eq!(time(), held, "paused: the world waits");
+    shared
+        .lock()
+        .apply(Request::Pause { paused: false })
+        .unwrap();
+    shared.resumed.notify_all();
+    shared
+        .lock()
+        .apply(Request::ScenarioSpeed {
+            value: "max".into(),
+        })
+        .unwrap();
+    let mut done = false;
+    for _ in 0..300 {
+        if shared.lock().scenario.as_ref().unwrap().status == ucc_gui::hub::Status::Done {
+            done = true;
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(done, "at max speed the 90 s iteration ends: {}", time());
+    let hub = shared.lock();
+    let s = hub.scenario.as_ref().unwrap();
+    assert_eq!(s.rows.len(), 1);
+    assert!(
+        s.metrics
+            .iter()
+            .any(|(n, v)| *n == "target_seen_pct" && v.is_some_and(|v| v > 50.0)),
+        "{:?}",
+        s.metrics
+    );
+    assert!(
+        hub.uavs
+            .iter()
+            .all(|u| u.status == ucc_gui::hub::Status::Done)
+    );
+    let csv = hub.scenario_csv().expect("the results");
+    assert_eq!(csv.lines().count(), 2, "a header and one row: {csv}");
+}
