@@ -4,7 +4,8 @@
 //! from the internet) and a WebSocket at `/ws`. The Rust side owns the state ([`hub::Hub`]):
 //! the page sends requests (`{"op": "create", ...}`) and renders the updates it gets 20
 //! times a second (only what changed: each UAV's state, new trail points, new log lines).
-//! Runs go through ucc-client's runner, in [`runs`] (the only module that uses it). The
+//! Runs go through ucc-client's runner, in [`runs`] (the only module that uses it);
+//! scenarios fly in this process through its `Episode`, in [`scenario`]. The
 //! guard (`guard.rs`), the WebSocket session (`socket.rs`) and the HTTP API (`api.rs`)
 //! each have a module; the state and its requests live in [`hub`].
 //!

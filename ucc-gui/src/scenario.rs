@@ -28,10 +28,17 @@ pub fn spawn(shared: Arc<Shared>, plan: ScenarioPlan) -> Result<(), RequestError
         .name(format!("ucc-gui-scenario-{}", plan.prepared.scenario.name))
         .spawn(move || {
             let shared = thread_shared;
-            let (status, error) = match fly(&shared, &plan) {
-                Ok(true) => (Status::Stopped, None),
-                Ok(false) => (Status::Done, None),
-                Err(e) => (Status::Failed, Some(e)),
+            // A defect in an agent or the world ends this run, not the control center.
+            let flown =
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fly(&shared, &plan)));
+            let (status, error) = match flown {
+                Ok(Ok(true)) => (Status::Stopped, None),
+                Ok(Ok(false)) => (Status::Done, None),
+                Ok(Err(e)) => (Status::Failed, Some(e)),
+                Err(_) => (
+                    Status::Failed,
+                    Some("the scenario's thread panicked (a defect: see the terminal)".into()),
+                ),
             };
             let mut hub = shared.lock();
             let line = match (&status, &error) {

@@ -1151,6 +1151,18 @@ async fn a_scenario_runs_from_the_list_with_live_metrics() -> Result<()> {
             "the description of the chosen scenario"
         );
         by_id(&c, "scenario-speed").await?.select_by_value("10").await?;
+        // Absurd numbers get the reason, and nothing is created.
+        for (field, value, says) in [
+            ("scenario-iterations", "0", "scenario iterations: \"0\" is not a whole number from 1 to 1000"),
+            ("scenario-iterations", "1e9", "scenario iterations: \"1e9\""),
+            ("scenario-seed", "-4", "scenario seed: \"-4\" is not a whole number"),
+        ] {
+            type_into(&c, field, value).await?;
+            by_id(&c, "scenario-start").await?.click().await?;
+            until("the message", 10, || async { Ok(text(&c, "error").await?.contains(says)) }).await?;
+            by_id(&c, field).await?.clear().await?;
+        }
+        assert_eq!(count(&c, "#uav-list li").await?, 0);
         type_into(&c, "scenario-seed", "3").await?;
         by_id(&c, "scenario-start").await?.click().await?;
         // Its three UAVs, named, in the list and on the map.
