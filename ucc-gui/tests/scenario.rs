@@ -376,3 +376,62 @@ fn the_scenario_keeps_the_pace_and_the_pause() {
     let csv = hub.scenario_csv().expect("the results");
     assert_eq!(csv.lines().count(), 2, "a header and one row: {csv}");
 }
+
+/// Each kind's things reach the page: the relay's link changes, the fire's radius growing,
+/// the target's position, the delivery's pads.
+#[test]
+fn every_kind_sends_its_things() {
+    let state = |name: &str, steps: usize| {
+        let mut hub = Hub::new(
+            "127.0.0.1:1".into(),
+            false,
+            std::env::temp_dir().join("ucc-gui-scenario-test"),
+        );
+        let Ok(Action::Scenario(plan)) = hub.apply(Request::ScenarioStart {
+            name: name.into(),
+            iterations: String::new(),
+            seed: String::new(),
+            speed: String::new(),
+        }) else {
+            panic!("{name} not started");
+        };
+        let mut episode =
+            ucc_client::scenario::engine::Episode::new(plan.prepared.clone(), plan.seed, 1)
+                .unwrap();
+        hub.scenario_iteration(1, plan.seed, &episode);
+        for _ in 0..steps {
+            episode.step(&[]);
+        }
+        hub.scenario_sample(&episode, true);
+        hub.update(&mut Cursor::default())["scenario"].clone()
+    };
+    let relay = state("relay", 100);
+    assert_eq!(
+        relay["fixed"]["endpoints"],
+        serde_json::json!([[-50.0, 0.0], [50.0, 0.0]])
+    );
+    assert_eq!(
+        relay["link"][0][1], false,
+        "down while the chain forms: {}",
+        relay["link"]
+    );
+    assert_eq!(relay["link_up"], false);
+    let fire = state("perimeter", 100);
+    let r0 = fire["fixed"]["fire"]["radius"].as_f64().unwrap();
+    assert!(fire["fire_radius"].as_f64().unwrap() > r0, "{fire}");
+    let tracking = state("tracking", 50);
+    assert_eq!(
+        tracking["targets"].as_array().unwrap().len(),
+        1,
+        "{tracking}"
+    );
+    assert_eq!(tracking["fixed"]["targets"].as_array().unwrap().len(), 1);
+    let delivery = state("delivery", 1);
+    let pads: Vec<&str> = delivery["fixed"]["pads"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(pads, ["base", "pickup", "drop-off"]);
+}
