@@ -287,19 +287,22 @@ impl Hub {
                 .parse::<TimeScale>()
                 .map_err(|e| field("scenario speed", e))?,
         };
-        // The UAVs of the last scenario go (they have ended).
-        if let Some(old) = self.scenario.take() {
-            self.uavs
-                .retain(|u| !old.uavs.contains(&u.id) || u.flying());
-        }
+        // The UAVs of the last scenario go (they have ended), once this one can start.
         let count = scenario.uav_count();
-        if self.uavs.len() + count > MAX_UAVS {
+        let old: Vec<u32> = self
+            .scenario
+            .as_ref()
+            .map_or_else(Vec::new, |s| s.uavs.clone());
+        let gone = |u: &Uav| old.contains(&u.id) && !u.flying();
+        let kept = self.uavs.iter().filter(|u| !gone(u)).count();
+        if kept + count > MAX_UAVS {
             return Err(RequestError::State(format!(
                 "scenario {known} has {count} UAVs: at most {MAX_UAVS} in all, remove some first"
             )));
         }
         let prepared = Prepared::new(scenario, self.catalog.clone())
             .map_err(|e| RequestError::State(e.to_string()))?;
+        self.uavs.retain(|u| !gone(u));
         let cancel = CancellationToken::new();
         let mut ids = Vec::with_capacity(count);
         let mut index = 0;
