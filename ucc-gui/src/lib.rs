@@ -4,7 +4,8 @@
 //! from the internet) and a WebSocket at `/ws`. The Rust side owns the state ([`hub::Hub`]):
 //! the page sends requests (`{"op": "create", ...}`) and renders the updates it gets 20
 //! times a second (only what changed: each UAV's state, new trail points, new log lines).
-//! Runs go through ucc-client's runner, in [`runs`] (the only module that uses it). The
+//! Runs go through ucc-client's runner, in [`runs`] (the only module that uses it);
+//! scenarios fly in this process through its `Episode`, in [`scenario`]. The
 //! guard (`guard.rs`), the WebSocket session (`socket.rs`) and the HTTP API (`api.rs`)
 //! each have a module; the state and its requests live in [`hub`].
 //!
@@ -16,6 +17,7 @@ mod api;
 mod guard;
 pub mod hub;
 pub mod runs;
+pub mod scenario;
 mod socket;
 
 use std::net::SocketAddr;
@@ -61,6 +63,11 @@ const ASSETS: &[(&str, &str, &str)] = &[
         "camera.js",
         "text/javascript",
         include_str!("assets/camera.js"),
+    ),
+    (
+        "scenario.js",
+        "text/javascript",
+        include_str!("assets/scenario.js"),
     ),
     (
         "plots.js",
@@ -253,6 +260,7 @@ pub async fn serve(
         hub.geometry = Some(l.geometry.clone());
         hub.map = l.config.map.level().to_owned();
         hub.time_scale = l.config.time_scale;
+        hub.catalog = l.config.robots.clone();
         hub.robot_classes = Some(
             l.config
                 .robots
@@ -280,6 +288,16 @@ pub async fn serve(
         .route("/api/log", get(api::log_file))
         .route("/api/files/{uav}/{index}", get(api::file))
         .route("/api/camera/{uav}", get(api::camera))
+        .route("/api/scenarios", get(api::scenarios))
+        .route(
+            "/api/scenario",
+            get(api::scenario_state).post(api::scenario_start),
+        )
+        .route(
+            "/api/scenario/stop",
+            axum::routing::post(api::scenario_stop),
+        )
+        .route("/api/scenario/results.csv", get(api::scenario_csv))
         .layer(middleware::from_fn_with_state(app.clone(), guard::guard))
         .with_state(app.clone());
     let stop = shutdown.clone();

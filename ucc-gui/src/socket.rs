@@ -59,6 +59,7 @@ async fn page(app: App, mut socket: WebSocket) {
         json!({
             "type": "hello",
             "agents": runs::agent_names(),
+            "scenarios": crate::hub::scenario::list(),
             "robots": app.robots,
             "geometry": hub.geometry_json(),
             "map": hub.map,
@@ -145,7 +146,7 @@ fn malformed(e: &serde_json::Error) -> String {
 }
 
 /// Does what a request asks outside the hub's lock.
-async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
+pub(crate) async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
     match action {
         Action::None => Ok(None),
         Action::Created(id) => Ok(Some(id)),
@@ -201,6 +202,10 @@ async fn act(app: &App, action: Action) -> Result<Option<u32>, RequestError> {
         Action::Start(id, settings, agent) => {
             app.shared.resumed.notify_all();
             runs::spawn_run(app.shared.clone(), id, *settings, agent)?;
+            Ok(None)
+        }
+        Action::Scenario(plan) => {
+            crate::scenario::spawn(app.shared.clone(), *plan)?;
             Ok(None)
         }
     }

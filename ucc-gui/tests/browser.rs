@@ -1120,3 +1120,157 @@ async fn the_camera_panel_shows_the_selected_uavs_view_while_open() -> Result<()
     })
     .await
 }
+
+/// The coverage shown in the scenario panel, percent (`None`: not shown yet).
+async fn shown_coverage(c: &Client) -> Result<Option<f64>> {
+    let v = js(
+        c,
+        "const td = document.querySelector('#scenario-metrics tr[data-metric=coverage_pct] td');\
+         return td ? td.textContent : null;",
+    )
+    .await?;
+    Ok(v.as_str()
+        .and_then(|t| t.trim_end_matches(" %").parse::<f64>().ok()))
+}
+
+/// Issue 22: a scenario is picked from the list and started in one action; its UAVs fly on
+/// the map with their names, the heat map grows, the metrics panel updates, a second start
+/// is refused on the page, Stop ends it. Writes `scenario.png` (and, with
+/// `UCC_GUI_SCREENSHOTS=1`, docs/img/ucc-gui-scenario.png).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_scenario_runs_from_the_list_with_live_metrics() -> Result<()> {
+    with_page(local(TimeScale::Factor(1.0)), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        until("the scenario list", 10, || async {
+            Ok(count(&c, "[data-testid=scenario-name] option").await? >= 7)
+        })
+        .await?;
+        by_id(&c, "scenario-name").await?.select_by_value("search-team").await?;
+        assert!(
+            c.find(Locator::Id("scenario-about")).await?.text().await?.contains("three UAVs"),
+            "the description of the chosen scenario"
+        );
+        by_id(&c, "scenario-speed").await?.select_by_value("10").await?;
+        // Absurd numbers get the reason, and nothing is created.
+        for (field, value, says) in [
+            ("scenario-iterations", "0", "scenario iterations: \"0\" is not a whole number from 1 to 1000"),
+            ("scenario-iterations", "1e9", "scenario iterations: \"1e9\""),
+            ("scenario-seed", "-4", "scenario seed: \"-4\" is not a whole number"),
+        ] {
+            type_into(&c, field, value).await?;
+            by_id(&c, "scenario-start").await?.click().await?;
+            until("the message", 10, || async { Ok(text(&c, "error").await?.contains(says)) }).await?;
+            by_id(&c, field).await?.clear().await?;
+        }
+        assert_eq!(count(&c, "#uav-list li").await?, 0);
+        type_into(&c, "scenario-seed", "3").await?;
+        by_id(&c, "scenario-start").await?.click().await?;
+        // Its three UAVs, named, in the list and on the map.
+        until("the scenario's UAVs", 20, || async {
+            Ok(count(&c, "#uav-list li").await? == 3)
+        })
+        .await?;
+        let names = js(&c, "return [...U.uavs.values()].map((u) => u.info.name + ' ' + u.info.agent)").await?;
+        assert_eq!(names, json!(["UAV1 partition-search", "UAV2 partition-search", "UAV3 partition-search"]));
+        until("the UAVs flying over the block", 60, || async {
+            Ok(js(&c, "return [...U.uavs.values()].every((u) => u.live && u.live.position && -u.live.position[2] > 10 && u.trail.length > 3)").await? == json!(true))
+        })
+        .await?;
+        // The metrics panel updates live: coverage rises above 0, then further.
+        until("coverage above 0", 60, || async { Ok(shown_coverage(&c).await?.is_some_and(|v| v > 0.0)) }).await?;
+        let first = shown_coverage(&c).await?.unwrap_or(0.0);
+        until("coverage rising", 60, || async { Ok(shown_coverage(&c).await?.is_some_and(|v| v > first + 2.0)) }).await?;
+        let status = text(&c, "scenario-status").await?;
+        assert!(status.starts_with("running · iteration 1/1 · seed 3"), "{status}");
+        assert!(count(&c, "#scenario-metrics tr[data-metric=victims_total]").await? == 1);
+        // The heat map is drawn under the UAVs: seen cells greenish, unseen pale red.
+        let colours = js(&c, "
+            const s = U.scenario.state, g = s.fixed.grid, [nx, ny] = g.shape, ctx = document.getElementById('map').getContext('2d');
+            U.drawMap();
+            const out = {seen: 0, seenGreen: 0, unseen: 0, unseenRed: 0};
+            for (let k = 0; k < s.levels.length; k += 97) {
+              const i = Math.floor(k / ny), j = k % ny;
+              const [sx, sy] = U.toScreen(g.origin[0] + (i + 0.5) * g.cell, g.origin[1] + (j + 0.5) * g.cell);
+              const [r, gr] = ctx.getImageData(Math.round(sx), Math.round(sy), 1, 1).data;
+              if (s.levels[k] > 0) { out.seen++; if (gr > r) out.seenGreen++; } else { out.unseen++; if (r > gr) out.unseenRed++; }
+            }
+            return out;").await?;
+        let n = |k: &str| colours[k].as_f64().unwrap_or(0.0);
+        assert!(n("seen") > 5.0 && n("seenGreen") >= 0.7 * n("seen"), "{colours}");
+        assert!(n("unseen") > 5.0 && n("unseenRed") >= 0.7 * n("unseen"), "{colours}");
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        let dir = artifacts();
+        std::fs::create_dir_all(&dir)?;
+        let shot = c.screenshot().await?;
+        std::fs::write(dir.join("scenario.png"), &shot)?;
+        if std::env::var("UCC_GUI_SCREENSHOTS").as_deref() == Ok("1") {
+            let docs = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/img");
+            std::fs::write(docs.join("ucc-gui-scenario.png"), &shot)?;
+        }
+        // A second start is refused with the reason (the page's button is disabled while
+        // it runs; the request is sent as another page would).
+        assert!(!by_id(&c, "scenario-start").await?.is_enabled().await?);
+        js(&c, "U.send({op: 'scenario_start', name: 'relay'})").await?;
+        until("the refusal", 10, || async {
+            Ok(text(&c, "error").await?.contains("scenario search-team is running"))
+        })
+        .await?;
+        by_id(&c, "scenario-stop").await?.click().await?;
+        until("the scenario stopped", 20, || async {
+            Ok(text(&c, "scenario-status").await?.starts_with("stopped"))
+        })
+        .await?;
+        assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
+        Ok(())
+    })
+    .await
+}
+
+/// Issue 22: every embedded scenario on the page, mid-run at ×10 (the relay's link strip,
+/// the fire, the target, the pads): `scenario-NAME.png` in the artifacts. Runs only with
+/// `UCC_GUI_SCREENSHOTS=1`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn screenshots_of_every_scenario_kind() -> Result<()> {
+    if std::env::var("UCC_GUI_SCREENSHOTS").as_deref() != Ok("1") {
+        eprintln!("screenshots skipped: set UCC_GUI_SCREENSHOTS=1");
+        return Ok(());
+    }
+    with_page(
+        local(TimeScale::Max),
+        (1400, 900),
+        1.0,
+        |c, url, _| async move {
+            open(&c, &url).await?;
+            for (name, seconds) in [
+                ("relay", 8),
+                ("perimeter", 6),
+                ("tracking", 4),
+                ("delivery", 6),
+                ("search", 3),
+            ] {
+                js(
+                    &c,
+                    &format!("U.send({{op: 'scenario_start', name: '{name}', speed: '10'}})"),
+                )
+                .await?;
+                tokio::time::sleep(Duration::from_secs(seconds)).await;
+                js(&c, "U.fit()").await?;
+                tokio::time::sleep(Duration::from_millis(300)).await;
+                let dir = artifacts();
+                std::fs::create_dir_all(&dir)?;
+                std::fs::write(
+                    dir.join(format!("scenario-{name}.png")),
+                    c.screenshot().await?,
+                )?;
+                js(&c, "U.send({op: 'scenario_stop'})").await?;
+                until("the scenario stopped", 20, || async {
+                    Ok(text(&c, "scenario-status").await?.starts_with("stopped"))
+                })
+                .await?;
+            }
+            assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
+            Ok(())
+        },
+    )
+    .await
+}

@@ -60,6 +60,13 @@ async fn the_page_carries_every_hook() {
         "uav-battery",
         "log",
         "map",
+        "scenario-name",
+        "scenario-iterations",
+        "scenario-seed",
+        "scenario-speed",
+        "scenario-start",
+        "scenario-stop",
+        "scenario-metrics",
     ] {
         assert!(
             page.contains(&format!("data-testid=\"{id}\"")),

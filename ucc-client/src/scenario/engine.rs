@@ -763,6 +763,45 @@ impl Episode {
         &self.log
     }
 
+    /// UAV `i`'s name in the world and the log (`UAV1`, …).
+    pub fn name(&self, i: usize) -> Option<&str> {
+        self.flyers.get(i).map(|f| f.name.as_str())
+    }
+
+    /// The victims (the map's and the drawn ones) and when each was found (`None`: not yet),
+    /// for a live view.
+    pub fn victims(&self) -> &[(Placed, Option<f64>)] {
+        &self.tracker.victims
+    }
+
+    /// The coverage grid so far (search scenarios), for a live heat map.
+    pub fn coverage(&self) -> Option<&super::metrics::Grid> {
+        self.tracker.grid.as_ref()
+    }
+
+    /// The fire's radius now (`None`: no fire).
+    pub fn fire_radius(&self) -> Option<f64> {
+        self.prepared
+            .scenario
+            .fire
+            .map(|f| f.radius + f.rate * self.world.time())
+    }
+
+    /// The moving targets' true positions now, in the scenario's order.
+    pub fn targets(&self) -> Vec<[f64; 3]> {
+        self.world
+            .robots_truth()
+            .iter()
+            .skip(self.total)
+            .map(|r| r.location)
+            .collect()
+    }
+
+    /// The relay link's changes so far: (time, connected), one entry per change.
+    pub fn link_changes(&self) -> &[(f64, bool)] {
+        &self.tracker.link_changes
+    }
+
     /// Ends the iteration (at the time limit if it has not ended yet) and gives its result.
     pub fn finish(self) -> Outcome {
         let scenario = &self.prepared.scenario;

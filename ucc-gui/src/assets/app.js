@@ -8,6 +8,7 @@ import { SideView } from "./side.js";
 import { Plots } from "./plots.js";
 import { View3d } from "./view3d.js";
 import { CameraFeed } from "./camera.js";
+import { ScenarioPanel } from "./scenario.js";
 
 const $ = (id) => document.getElementById(id);
 const token = new URLSearchParams(location.search).get("token");
@@ -18,6 +19,12 @@ const map = new Map2d($("map"), store);
 const sides = { north: new SideView($("side-north"), 0), east: new SideView($("side-east"), 1) };
 let plots = null, view3d = null, last3d = -1e9, pending3d = false;
 const camera = new CameraFeed($("camera"), (t) => { $("camera-status").textContent = t; }, { q });
+let serverGeometry = null;
+const scenario = new ScenarioPanel({
+  $, el, send, q,
+  onGeometry: (g) => { map.geometry = g || serverGeometry; map.fitted = false; if (view3d) view3d.setGeometry(map.geometry); dirty = true; },
+});
+map.layer = scenario.layer;
 const showCamera = () => camera.show(selected, $("camera-panel").open);
 $("camera-panel").addEventListener("toggle", showCamera);
 window.uccFrameTimes = []; // draw time of each frame, ms (the benchmark reads it)
@@ -61,7 +68,9 @@ function showAddr(addr) {
 }
 
 function hello(m) {
-  map.geometry = m.geometry;
+  serverGeometry = m.geometry;
+  map.geometry = scenario.geometry() || m.geometry;
+  scenario.hello(m.scenarios || []);
   $("agent-type").replaceChildren(...m.agents.map((a) => el("option", a)));
   $("robots").replaceChildren(...m.robots.map((r) => el("option", null, { value: r })));
   $("time-scale-row").hidden = !m.local;
@@ -85,13 +94,15 @@ function merge(m) {
     if (!before || before.addr !== s.addr) showAddr(s.addr);
     if (document.activeElement !== $("time-scale")) $("time-scale").value = s.time_scale;
     $("time-scale-row").hidden = !s.local;
-    if (!s.local && map.geometry) { map.geometry = null; map.fitted = false; if (view3d) view3d.setGeometry(null); }
+    if (!s.local) serverGeometry = null;
+    if (!s.local && map.geometry && !scenario.geometry()) { map.geometry = null; map.fitted = false; if (view3d) view3d.setGeometry(null); }
     $("pause").textContent = s.paused ? "Resume" : "Pause";
     $("pause").dataset.paused = s.paused;
   }
   if (selected !== null && !store.uavs.has(selected)) { selected = null; showCamera(); }
   if (selected === null && store.uavs.size) select(store.uavs.keys().next().value);
   if (changed.log) logDirty = true;
+  if (m.scenario) scenario.update(m.scenario);
   panels(changed);
   dirty = true;
 }
@@ -285,7 +296,7 @@ window.addEventListener("resize", () => { dirty = true; });
 window.ucc = {
   get view() { return map.view; }, uavs: store.uavs, store, send, receive, select,
   fit: () => { map.fit(); dirty = true; }, toScreen: (x, y) => map.toScreen(x, y), drawMap,
-  side: sides, WALL_COLOR, MAX_LOG, get view3d() { return view3d; }, camera,
+  side: sides, WALL_COLOR, MAX_LOG, get view3d() { return view3d; }, camera, scenario,
 };
 
 function start() {

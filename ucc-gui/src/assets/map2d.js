@@ -19,6 +19,7 @@ export class Map2d {
   constructor(canvas, store) {
     this.canvas = canvas; this.ctx = canvas.getContext("2d"); this.store = store;
     this.view = { cx: 0, cy: 0, scale: 20 }; this.fitted = false; this.geometry = null;
+    this.layer = null; // a scenario's things: under(ctx, map), over(ctx, map), points() (scenario.js)
     this.w = 1; this.h = 1;
   }
 
@@ -34,6 +35,7 @@ export class Map2d {
       lists.push(c.info.missions.filter((m) => m.kind === "GotoXyz").map((m) => [m.x, m.y]));
       if (c.live && c.live.position) lists.push([c.live.position]);
     }
+    if (this.layer && this.layer.show) lists.push(this.layer.state.points());
     Object.assign(this.view, fitView(bounds(eachOf(lists)), this.w, this.h));
     this.fitted = true;
   }
@@ -127,6 +129,7 @@ export class Map2d {
     for (let x = Math.ceil(wx0 / step) * step; x <= wx1; x += step) { const [, sy] = this.toScreen(x, 0); ctx.moveTo(0, sy); ctx.lineTo(W, sy); }
     for (let y = Math.ceil(wy0 / step) * step; y <= wy1; y += step) { const [sx] = this.toScreen(0, y); ctx.moveTo(sx, 0); ctx.lineTo(sx, H); }
     ctx.stroke();
+    if (this.layer) this.layer.under(ctx, this);
     if (this.geometry) {
       // What stands at the flown heights (not the floor, not the ceiling), labelled with its height.
       let low = Infinity, high = -Infinity;
@@ -136,14 +139,19 @@ export class Map2d {
         if (c.live && c.live.position) seen(c.live.position[2]);
       }
       if (low > high) { low = -3; high = -0.5; }
+      // A scenario is seen from above: everything standing on the ground, half see-through
+      // over its heat map.
+      const scene = this.layer && this.layer.show && this.layer.state.fixed;
+      if (scene) high = Math.max(high, -0.05);
       const { solids, victims } = splitGeometry(this.geometry);
       const polygon = (f) => {
         ctx.beginPath();
         f.outline.forEach((p, i) => { const [sx, sy] = this.toScreen(p[0], p[1]); i ? ctx.lineTo(sx, sy) : ctx.moveTo(sx, sy); });
         ctx.closePath(); ctx.fill();
       };
-      ctx.fillStyle = WALL_COLOR;
+      ctx.fillStyle = WALL_COLOR; if (scene) ctx.globalAlpha = 0.6;
       for (const f of solids) if (f.z_min <= high && f.z_max >= low) polygon(f);
+      ctx.globalAlpha = 1;
       // Victims lie on the floor: drawn at any height, with their names.
       ctx.fillStyle = VICTIM_COLOR; ctx.font = "11px sans-serif";
       for (const v of victims) {
@@ -155,6 +163,7 @@ export class Map2d {
       ctx.fillStyle = "#444";
       for (const c of uavs.values()) for (const h of c.hits) { const [sx, sy] = this.toScreen(h[0], h[1]); ctx.fillRect(sx - 1, sy - 1, 2, 2); }
     }
+    if (this.layer) this.layer.over(ctx, this);
     const many = uavs.size > 50;
     ctx.font = "11px sans-serif";
     // Trails and UAVs are batched per colour: one path each, whatever the number of UAVs.

@@ -13,6 +13,7 @@
 
 mod live;
 pub mod request;
+pub mod scenario;
 pub mod update;
 
 use std::collections::HashSet;
@@ -27,6 +28,7 @@ use usar_server::TimeScale;
 
 pub use live::Live;
 pub use request::{Action, Request, RequestError};
+pub use scenario::{ScenarioCursor, ScenarioView};
 pub use update::Cursor;
 
 /// Points kept of one iteration's trail (older points are thinned out beyond this).
@@ -243,6 +245,11 @@ pub struct Hub {
     pub robot_classes: Option<Vec<String>>,
     /// The log, all UAVs, in order.
     pub log: std::collections::VecDeque<LogLine>,
+    /// The scenario shown (the last one started), with its UAVs among `uavs`.
+    pub scenario: Option<ScenarioView>,
+    /// The robot classes scenarios fly (the local server's, else the embedded ones).
+    pub catalog: usar_server::sim::RobotCatalog,
+    scenario_epoch: u64,
     next_id: u32,
     next_seq: u64,
 }
@@ -288,6 +295,9 @@ impl Hub {
             log_dir,
             robot_classes: None,
             log: Default::default(),
+            scenario: None,
+            catalog: usar_server::sim::RobotCatalog::embedded(),
+            scenario_epoch: 0,
             next_id: 1,
             next_seq: 1,
         }

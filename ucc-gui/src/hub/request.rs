@@ -119,6 +119,27 @@ pub enum Request {
         /// The UAV.
         uav: u32,
     },
+    /// Start an embedded scenario: its UAVs are created and fly with their team agents.
+    ScenarioStart {
+        /// An embedded scenario's name.
+        name: String,
+        /// As typed (empty: 1).
+        #[serde(default)]
+        iterations: String,
+        /// The first iteration's seed, as typed (empty: the scenario's).
+        #[serde(default)]
+        seed: String,
+        /// `1`, `2`, … (× real time) or `max`, as typed (empty: real time).
+        #[serde(default)]
+        speed: String,
+    },
+    /// Stop the scenario's run.
+    ScenarioStop,
+    /// How fast the scenario flies: `1`, `2`, … (× real time) or `max`.
+    ScenarioSpeed {
+        /// As typed.
+        value: String,
+    },
 }
 
 /// Why a request was refused; the text is what the page shows.
@@ -146,7 +167,7 @@ pub enum RequestError {
     Malformed(String),
 }
 
-fn field(field: &'static str, problem: impl Into<String>) -> RequestError {
+pub(super) fn field(field: &'static str, problem: impl Into<String>) -> RequestError {
     RequestError::Field {
         field,
         problem: problem.into(),
@@ -168,6 +189,8 @@ pub enum Action {
     Quit,
     /// Start this UAV's run with these settings and this agent.
     Start(u32, Box<RunSettings>, String),
+    /// Start this scenario's run.
+    Scenario(Box<super::scenario::ScenarioPlan>),
 }
 
 impl Hub {
@@ -206,6 +229,14 @@ impl Hub {
             Request::Stop { uav } => self.stop(uav),
             Request::Quit => Ok(Action::Quit),
             Request::Select { uav } => self.uav(uav).map(|_| Action::None),
+            Request::ScenarioStart {
+                name,
+                iterations,
+                seed,
+                speed,
+            } => self.scenario_start(&name, &iterations, &seed, &speed),
+            Request::ScenarioStop => self.scenario_stop(),
+            Request::ScenarioSpeed { value } => self.scenario_speed(&value),
         }
     }
 
@@ -589,7 +620,7 @@ fn plain<'a>(name: &'static str, text: &'a str, max: usize) -> Result<&'a str, R
 }
 
 /// The user's text in a message: quoted, and cut when long.
-fn shown(text: &str) -> String {
+pub(super) fn shown(text: &str) -> String {
     const MAX: usize = 40;
     if text.chars().count() <= MAX {
         format!("{text:?}")

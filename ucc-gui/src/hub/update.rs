@@ -22,6 +22,8 @@ pub struct Cursor {
     pub selected: Option<u32>,
     /// The detail sent was for this UAV (a new selection sends its live state again).
     detail_sent: Option<u32>,
+    /// What the page has of the scenario.
+    scenario: super::ScenarioCursor,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
@@ -74,23 +76,7 @@ impl Hub {
     /// The map's solids for the page: `[{outline: [[x, y], ...], z_min, z_max}]`, the
     /// victims after them with `victim` (the name) and `class`.
     pub fn geometry_json(&self) -> Value {
-        let solid = |f: &ucc_client::picture::Footprint| json!({"outline": f.outline.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(), "z_min": f.z_min, "z_max": f.z_max});
-        self.geometry.as_ref().map_or(Value::Null, |g| {
-            // Victims are among the footprints too: drawn once, as victims.
-            let victim_outlines: Vec<_> = g.victims.iter().map(|v| &v.footprint).collect();
-            let solids = g
-                .footprints
-                .iter()
-                .filter(|f| !victim_outlines.contains(f))
-                .map(solid);
-            let victims = g.victims.iter().map(|v| {
-                let mut j = solid(&v.footprint);
-                j["victim"] = v.name.clone().into();
-                j["class"] = v.class.clone().into();
-                j
-            });
-            solids.chain(victims).collect()
-        })
+        geometry_json(self.geometry.as_ref())
     }
 
     /// The JSON update for a page: everything it has not seen yet (per `cursor`).
@@ -196,7 +182,8 @@ impl Hub {
         if let Some(last) = log.last() {
             cursor.log_seq = last.seq;
         }
-        json!({
+        let scenario = self.scenario_json(&mut cursor.scenario);
+        let mut update = json!({
             "type": "state",
             "server": {
                 "addr": self.addr,
@@ -208,6 +195,32 @@ impl Hub {
             "uavs": uavs,
             "removed": removed,
             "log": log,
-        })
+        });
+        if let Some(s) = scenario {
+            update["scenario"] = s;
+        }
+        update
     }
+}
+
+/// A map's solids for the page: `[{outline: [[x, y], ...], z_min, z_max}]`, the victims
+/// after them with `victim` (the name) and `class`.
+pub fn geometry_json(geometry: Option<&ucc_client::picture::MapGeometry>) -> Value {
+    let solid = |f: &ucc_client::picture::Footprint| json!({"outline": f.outline.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(), "z_min": f.z_min, "z_max": f.z_max});
+    geometry.map_or(Value::Null, |g| {
+        // Victims are among the footprints too: drawn once, as victims.
+        let victim_outlines: Vec<_> = g.victims.iter().map(|v| &v.footprint).collect();
+        let solids = g
+            .footprints
+            .iter()
+            .filter(|f| !victim_outlines.contains(f))
+            .map(solid);
+        let victims = g.victims.iter().map(|v| {
+            let mut j = solid(&v.footprint);
+            j["victim"] = v.name.clone().into();
+            j["class"] = v.class.clone().into();
+            j
+        });
+        solids.chain(victims).collect()
+    })
 }
