@@ -278,6 +278,20 @@ pub(crate) trait Dynamics: std::fmt::Debug + Send {
     fn drive(&mut self, set: &SetPoints);
     /// A `QUAD` command.
     fn low_level(&mut self, command: LowLevel);
+    /// The part of the next tick that only reads the scene (the integration before
+    /// contacts), from `start` at velocity `v0`, done ahead on a sensor thread for every
+    /// robot before the moves; [`Dynamics::step`] then uses it (or does it itself when it
+    /// was not done, or was done from elsewhere). The default does nothing.
+    fn integrate(
+        &mut self,
+        scene: &super::scene::Scene,
+        body: rapier3d::prelude::ColliderHandle,
+        start: V3,
+        v0: V3,
+        dt: f64,
+    ) {
+        let _ = (scene, body, start, v0, dt);
+    }
     /// One tick; `Some` when the robot crashed during it.
     fn step(&mut self, flight: Flight<'_>) -> Option<Crash>;
     /// The IMU's truth of the last tick.

@@ -324,6 +324,15 @@ enum Mode {
 }
 
 /// The quadrotor's state.
+/// A tick's integration before contacts: from where, and to where it would go.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Planned {
+    start: V3,
+    v0: V3,
+    p: V3,
+    v: V3,
+}
+
 #[derive(Debug)]
 pub(crate) struct Quadrotor {
     config: QuadrotorConfig,
@@ -359,6 +368,8 @@ pub(crate) struct Quadrotor {
     surface: Option<V3>,
     /// The integration blew up once (logged once).
     diverged: bool,
+    /// This tick's integration, done ahead on a sensor thread ([`Dynamics::integrate`]).
+    planned: Option<Planned>,
     /// The energy model (`None`: unlimited energy).
     battery: Option<Battery>,
     /// rad/s, the rotors' top speed at the battery's voltage.
@@ -493,6 +504,7 @@ impl Quadrotor {
             contact: false,
             surface: None,
             diverged: false,
+            planned: None,
             battery: limits.battery.then(|| Battery::new(config.battery.clone())),
             top_speed: config.rotor_speed_max,
             payload: 0.0,
@@ -793,6 +805,75 @@ impl Quadrotor {
         }
     }
 
+    /// The tick's integration without contacts: the ground effect's rays, then the
+    /// substeps. It only reads the scene, so every robot's runs on the sensor threads
+    /// before the moves ([`Dynamics::integrate`]).
+    fn plan(
+        &mut self,
+        scene: &super::scene::Scene,
+        body: rapier3d::prelude::ColliderHandle,
+        start: V3,
+        v0: V3,
+        dt: f64,
+    ) -> Planned {
+        let h = dt / self.substeps as f64;
+        let (mut p, mut v) = (start, v0);
+        let c = self.config.clone();
+        let mean = self.gusts.mean();
+        let wind = self.gusts.step(dt, norm(sub(v, mean)));
+        self.ground = if c.ground_effect {
+            self.ground_effect(scene, body, start)
+        } else {
+            [1.0; 4]
+        };
+        for _ in 0..self.substeps {
+            let r = quat_matrix(self.q);
+            let command = self.control(p, v, &r, h);
+            for (speed, target) in self.speeds.iter_mut().zip(command) {
+                let alpha = if target > *speed {
+                    self.motor_alpha.0
+                } else {
+                    self.motor_alpha.1
+                };
+                *speed += (target - *speed) * alpha;
+            }
+            let (thrust, mut torque) = self.wrench();
+            // Air through the rotors along the thrust (+ = climbing).
+            let climb = -dot([r[0][2], r[1][2], r[2][2]], sub(v, wind));
+            self.use_energy(climb, h);
+            let air = sub(v, wind);
+            let spin = self.speeds.iter().sum::<f64>() / (4.0 * c.hover_speed());
+            let drag = c.drag_linear * spin + c.drag_quadratic * norm(air);
+            let mass = c.mass + self.payload;
+            let mut force: V3 = std::array::from_fn(|i| {
+                -r[i][2] * thrust - drag * air[i] + if i == 2 { mass * GRAVITY } else { 0.0 }
+            });
+            if let Some(n) = self.surface {
+                self.hold(n, &r, h, &mut v, &mut force, &mut torque);
+            }
+            for i in 0..3 {
+                v[i] += force[i] / mass * h;
+                p[i] += v[i] * h;
+            }
+            let w = self.rates;
+            let iw: V3 = std::array::from_fn(|i| c.inertia[i] * w[i]);
+            let gyro = cross(w, iw);
+            for i in 0..3 {
+                self.rates[i] += (torque[i] - gyro[i]) / c.inertia[i] * h;
+            }
+            let w = self.rates;
+            let angle = norm(w) * h;
+            if angle > 0.0 {
+                let (s, co) = (angle / 2.0).sin_cos();
+                let k = s / norm(w);
+                self.q = quat_mul(self.q, [co, w[0] * k, w[1] * k, w[2] * k]);
+                let n = self.q.iter().map(|x| x * x).sum::<f64>().sqrt();
+                self.q = self.q.map(|x| x / n);
+            }
+        }
+        Planned { start, v0, p, v }
+    }
+
     /// Each rotor's thrust factor near the ground (Cheeseman & Bennett, *The effect of the
     /// ground on a helicopter rotor in forward flight*, ARC R&M 3021, 1955):
     /// `T/T∞ = 1 / (1 − (R/4z)²)` at the height `z` of the rotor above the surface below
@@ -889,65 +970,26 @@ impl Dynamics for Quadrotor {
         };
     }
 
+    fn integrate(
+        &mut self,
+        scene: &super::scene::Scene,
+        body: rapier3d::prelude::ColliderHandle,
+        start: V3,
+        v0: V3,
+        dt: f64,
+    ) {
+        self.planned = Some(self.plan(scene, body, start, v0, dt));
+    }
+
     fn step(&mut self, f: Flight<'_>) -> Option<Crash> {
         let dt = f.dt;
-        let h = dt / self.substeps as f64;
         let start = *f.position;
         let v0 = *f.velocity;
-        let (mut p, mut v) = (start, v0);
-        let c = self.config.clone();
-        let mean = self.gusts.mean();
-        let wind = self.gusts.step(dt, norm(sub(v, mean)));
-        self.ground = if c.ground_effect {
-            self.ground_effect(f.scene, f.body, start)
-        } else {
-            [1.0; 4]
+        let planned = match self.planned.take() {
+            Some(plan) if plan.start == start && plan.v0 == v0 => plan,
+            _ => self.plan(f.scene, f.body, start, v0, dt),
         };
-        for _ in 0..self.substeps {
-            let r = quat_matrix(self.q);
-            let command = self.control(p, v, &r, h);
-            for (speed, target) in self.speeds.iter_mut().zip(command) {
-                let alpha = if target > *speed {
-                    self.motor_alpha.0
-                } else {
-                    self.motor_alpha.1
-                };
-                *speed += (target - *speed) * alpha;
-            }
-            let (thrust, mut torque) = self.wrench();
-            // Air through the rotors along the thrust (+ = climbing).
-            let climb = -dot([r[0][2], r[1][2], r[2][2]], sub(v, wind));
-            self.use_energy(climb, h);
-            let air = sub(v, wind);
-            let spin = self.speeds.iter().sum::<f64>() / (4.0 * c.hover_speed());
-            let drag = c.drag_linear * spin + c.drag_quadratic * norm(air);
-            let mass = c.mass + self.payload;
-            let mut force: V3 = std::array::from_fn(|i| {
-                -r[i][2] * thrust - drag * air[i] + if i == 2 { mass * GRAVITY } else { 0.0 }
-            });
-            if let Some(n) = self.surface {
-                self.hold(n, &r, h, &mut v, &mut force, &mut torque);
-            }
-            for i in 0..3 {
-                v[i] += force[i] / mass * h;
-                p[i] += v[i] * h;
-            }
-            let w = self.rates;
-            let iw: V3 = std::array::from_fn(|i| c.inertia[i] * w[i]);
-            let gyro = cross(w, iw);
-            for i in 0..3 {
-                self.rates[i] += (torque[i] - gyro[i]) / c.inertia[i] * h;
-            }
-            let w = self.rates;
-            let angle = norm(w) * h;
-            if angle > 0.0 {
-                let (s, co) = (angle / 2.0).sin_cos();
-                let k = s / norm(w);
-                self.q = quat_mul(self.q, [co, w[0] * k, w[1] * k, w[2] * k]);
-                let n = self.q.iter().map(|x| x * x).sum::<f64>().sqrt();
-                self.q = self.q.map(|x| x / n);
-            }
-        }
+        let (p, mut v) = (planned.p, planned.v);
         let finite = p.iter().chain(&v).chain(&self.rates).all(|x| x.is_finite())
             && self.q.iter().all(|x| x.is_finite());
         if !finite {

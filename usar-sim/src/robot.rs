@@ -670,6 +670,24 @@ impl Robot {
         }
     }
 
+    /// Whether a physics model flies it (else the kinematic flight).
+    pub(crate) fn has_dynamics(&self) -> bool {
+        self.dynamics.is_some()
+    }
+
+    /// The part of the next tick's flight that only reads the scene (the physics model's
+    /// integration, [`Dynamics::integrate`]); [`World`](super::World) runs it for every
+    /// robot on the sensor threads before the moves.
+    pub(crate) fn prepare(&mut self, scene: &Scene, tick: u64, dt: f64) {
+        let dead = self.is_dead(tick, dt);
+        if let Some(dynamics) = &mut self.dynamics {
+            if dead && self.crashed.is_none() && dynamics.gauge().is_none() {
+                dynamics.crash(); // an empty timer stops the motors
+            }
+            dynamics.integrate(scene, self.body, self.position, self.velocity, dt);
+        }
+    }
+
     /// One tick of flight: the physics model's step, or the kinematic flight.
     pub(crate) fn fly(&mut self, scene: &mut Scene, tick: u64, dt: f64) {
         let dead = self.is_dead(tick, dt);

@@ -259,6 +259,15 @@ impl World {
             }
         }
         self.scene.refresh();
+        // The physics models' integration reads the scene only: on the sensor threads, each
+        // robot from where every robot was at the start of the tick (so at any thread count
+        // the same); then the moves, which change the scene, one after the other.
+        if self.robots.iter().any(Robot::has_dynamics) {
+            let scene = &self.scene;
+            for_chunks(&mut self.robots, self.threads, |robot| {
+                robot.prepare(scene, tick, dt);
+            });
+        }
         for robot in &mut self.robots {
             robot.fly(&mut self.scene, tick, dt);
         }
@@ -749,6 +758,26 @@ impl<'a> Speakers<'a> {
         }
         out
     }
+}
+
+/// `work` on each of `items`, on up to `threads` threads (at least [`ROBOTS_PER_THREAD`]
+/// items each, contiguous runs).
+fn for_chunks<T: Send>(items: &mut [T], threads: usize, work: impl Fn(&mut T) + Sync) {
+    let threads = threads.min(items.len() / ROBOTS_PER_THREAD).max(1);
+    if threads == 1 {
+        items.iter_mut().for_each(work);
+        return;
+    }
+    let size = items.len().div_ceil(threads);
+    let work = &work;
+    std::thread::scope(|scope| {
+        let mut chunks = items.chunks_mut(size);
+        let mine = chunks.next();
+        for chunk in chunks {
+            scope.spawn(move || chunk.iter_mut().for_each(work));
+        }
+        mine.into_iter().flatten().for_each(work);
+    });
 }
 
 /// `work` on each robot with output due, on up to `threads` threads (at least
