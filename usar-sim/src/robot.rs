@@ -1085,6 +1085,10 @@ impl Robot {
     }
 
     /// Its cameras, in part order: part index and camera.
+    pub(crate) fn cameras(&self) -> impl Iterator<Item = &Camera> {
+        self.parts.iter().filter_map(|p| p.sensor.camera())
+    }
+
     pub(crate) fn cameras_mut(&mut self) -> impl Iterator<Item = &mut Camera> {
         self.parts.iter_mut().filter_map(|p| p.sensor.camera_mut())
     }

@@ -395,10 +395,15 @@ impl World {
 
     /// Gives each camera of a new robot the lowest tile no other camera holds.
     fn assign_tiles(&self, robot: &mut Robot) {
+        // Most robots have no camera: then nothing to look at (a spawn of the 5000th robot
+        // went through every part of the 4999 before it).
+        if robot.cameras_mut().next().is_none() {
+            return;
+        }
         let mut taken: Vec<usize> = self
             .robots
             .iter()
-            .flat_map(|r| r.camera_views().map(|(_, c, _)| c.tile))
+            .flat_map(|r| r.cameras().map(|c| c.tile))
             .collect();
         taken.sort_unstable();
         let tiles = self.tiles;
