@@ -290,7 +290,8 @@ async fn session(delays: Delays) -> Outcome {
         s.set_nonblocking(false).unwrap();
         s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
         let mut rest = Vec::new();
-        s.read_to_end(&mut rest).expect("the relayed connection ends");
+        s.read_to_end(&mut rest)
+            .expect("the relayed connection ends");
         received.extend_from_slice(&rest);
     }
     drop((control1, control2));
@@ -331,16 +332,11 @@ async fn a_byte_sent_just_before_a_break_is_delivered_by_the_rule() {
     let run = session(Delays::AfterWrite(30)).await;
     let breaks = run.times("closed");
     let resumes = run.times("connected");
-    assert!(
-        !breaks.is_empty() && resumes.len() >= 2,
-        "{:#?}",
-        run.log
-    );
+    assert!(!breaks.is_empty() && resumes.len() >= 2, "{:#?}", run.log);
     let break_at: f64 = breaks[0].parse().unwrap();
     let resume_at: f64 = resumes[1].parse().unwrap();
     assert!(
-        (break_at - break_at.round()).abs() < 1e-9
-            && (resume_at - resume_at.round()).abs() < 1e-9,
+        (break_at - break_at.round()).abs() < 1e-9 && (resume_at - resume_at.round()).abs() < 1e-9,
         "links change at evaluations, whole seconds of simulated time: {:#?}",
         run.log
     );

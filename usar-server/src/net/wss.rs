@@ -885,7 +885,14 @@ impl Wss {
         let (names, stale) = self.observe(&found);
         let counted = stale
             .into_iter()
-            .map(|(key, pa, pb)| (key, Some(f64::from(world.obstacles_between(pa, pb))), pa, pb))
+            .map(|(key, pa, pb)| {
+                (
+                    key,
+                    Some(f64::from(world.obstacles_between(pa, pb))),
+                    pa,
+                    pb,
+                )
+            })
             .collect();
         for (from, to, port, _) in self.judge(&names, counted) {
             // Listening again on the same port.
@@ -1155,6 +1162,9 @@ type Found = (String, [f64; 3], bool, bool);
 /// A pair whose wall count is to be refreshed, and the two positions.
 type Stale = ((String, String), [f64; 3], [f64; 3]);
 
+/// A pair's wall count (`None` or negative: unknown) and the two positions it was counted at.
+type Counted = ((String, String), Option<f64>, [f64; 3], [f64; 3]);
+
 impl Wss {
     /// Takes the simulator's robots: kicks registered robots it does not have (or whose
     /// battery is empty); returns the registered robots it has and the pairs whose wall
@@ -1200,11 +1210,7 @@ impl Wss {
     /// Stores the wall counts (`None`, or negative: unknown) and breaks the links that no
     /// longer hold; returns the broken links that hold again (from, to, port, target), for
     /// the caller to listen on their ports again.
-    fn judge(
-        &self,
-        names: &[String],
-        counted: Vec<((String, String), Option<f64>, [f64; 3], [f64; 3])>,
-    ) -> Vec<(String, String, u16, u16)> {
+    fn judge(&self, names: &[String], counted: Vec<Counted>) -> Vec<(String, String, u16, u16)> {
         let mut state = self.lock();
         for (key, count, pa, pb) in counted {
             match count {
