@@ -101,11 +101,14 @@ impl Delays {
 }
 
 /// What a run shows: Robot1's view at each barrier after it asked for the relay port
-/// (`"<time> <signal> <what happened>"`), and every byte the BaseStation received.
+/// (`"<time> <signal> <what happened>"`), every byte the BaseStation received, and what
+/// Robot1 is told of a registration no robot has (`"<time> <GETSS reply>"`, barriers 3 to
+/// 11).
 #[derive(Debug, PartialEq)]
 struct Outcome {
     log: Vec<String>,
     received: String,
+    ghost: Vec<String>,
 }
 
 impl Outcome {
@@ -179,6 +182,8 @@ async fn session(delays: Delays) -> Outcome {
     let mut relay_port = None;
     let mut link: Option<std::net::TcpStream> = None;
     let mut log = Vec::new();
+    let mut ghost = Vec::new();
+    let mut ghost_control = None;
     for barrier in 1..=90u32 {
         let time = f64::from(barrier) / 10.0;
         // The BaseStation's flight: down behind the walls at 2 s, back up at 5 s.
@@ -215,6 +220,17 @@ async fn session(delays: Delays) -> Outcome {
                 "INITREPLY {Status OK}"
             );
             (control1, control2) = (Some(a), Some(b));
+            // A name the simulation does not have: kicked at the next evaluation.
+            let mut g = Lines::connect(wss_at).await;
+            assert_eq!(
+                g.ask("INIT {Robot Ghost} {Port 1}").await,
+                "INITREPLY {Status OK}"
+            );
+            ghost_control = Some(g);
+        }
+        if (3..=11).contains(&barrier) {
+            let reply = control1.as_mut().unwrap().ask("GETSS {Robot Ghost}").await;
+            ghost.push(format!("{time:.1} {reply}"));
         }
         if barrier == 12 {
             let reply = control1
@@ -294,12 +310,18 @@ async fn session(delays: Delays) -> Outcome {
             .expect("the relayed connection ends");
         received.extend_from_slice(&rest);
     }
+    // The ghost's control connection was closed by the kick.
+    let mut g = ghost_control.unwrap();
+    let mut rest = String::new();
+    let closed = tokio::time::timeout(Duration::from_secs(10), g.read.read_line(&mut rest)).await;
+    assert!(matches!(closed, Ok(Ok(0))), "the ghost is kicked");
     drop((control1, control2));
     shutdown.cancel();
     let _ = server.await;
     Outcome {
         log,
         received: String::from_utf8(received).unwrap(),
+        ghost,
     }
 }
 
@@ -353,6 +375,14 @@ async fn a_byte_sent_just_before_a_break_is_delivered_by_the_rule() {
             run.log
         );
     }
+    // The ghost is kicked at the first evaluation after it registered (1 s).
+    assert_eq!(
+        run.ghost[6..8],
+        [
+            "0.9 SS {Robot Ghost} {Strength NaN} {Error Model.Returned.NaN}",
+            "1.0 SS {Robot Ghost} {Strength NaN} {Error Robot.Does.Not.Exist}"
+        ]
+    );
     let before = format!("t={:.1};", break_at - 0.1);
     assert!(run.received.contains(&before), "{before} is delivered");
     let at = format!("t={break_at:.1};");

@@ -480,7 +480,10 @@ async fn control(
             break;
         }
     }
-    if let Some((name, _)) = me {
+    // A kicked robot was unregistered when it was kicked (its name may be someone else's now).
+    if let Some((name, kick)) = me
+        && !kick.is_cancelled()
+    {
         unregister(&wss, &name);
     }
 }
@@ -1177,19 +1180,22 @@ impl Wss {
             .map(|f| (f.0.clone(), f.1))
             .collect();
         state.radio_off = found.iter().filter(|f| f.3).map(|f| f.0.clone()).collect();
-        let names: Vec<String> = state.robots.keys().cloned().collect();
-        for name in &names {
-            if !state.positions.contains_key(name)
-                && let Some(r) = state.robots.get(name)
-            {
-                warn!(robot = %name, "WSS: no such robot in the simulation (or its battery is empty); kicked");
+        let (names, kicked): (Vec<String>, Vec<String>) = state
+            .robots
+            .keys()
+            .cloned()
+            .partition(|name| state.positions.contains_key(name));
+        drop(state);
+        for name in &kicked {
+            warn!(robot = %name, "WSS: no such robot in the simulation (or its battery is empty); kicked");
+            // Unregistered now (its links break, others are told it does not exist); its
+            // control connection closes when its task sees the cancel.
+            if let Some(r) = self.lock().robots.get(name) {
                 r.kick.cancel();
             }
+            unregister(self, name);
         }
-        let names: Vec<String> = names
-            .into_iter()
-            .filter(|n| state.positions.contains_key(n))
-            .collect();
+        let state = self.lock();
         let mut stale = Vec::new();
         for (i, a) in names.iter().enumerate() {
             for b in &names[i + 1..] {
