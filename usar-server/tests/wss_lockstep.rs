@@ -397,3 +397,82 @@ async fn a_byte_sent_just_before_a_break_is_delivered_by_the_rule() {
     // The same as without delays.
     assert_eq!(run, session(Delays::None).await);
 }
+
+/// A robot that floods its link while the other side never reads (bad input): the WSS on the
+/// simulated clock holds at most 64 KiB of it, so the flooder's writes stop, and the world
+/// keeps stepping for both robots.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_flood_over_a_lockstep_link_is_bounded_and_does_not_hold_the_world() {
+    let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let (main, monitor, wss) = (bind().await, bind().await, bind().await);
+    let (gamebots, wss_at) = (main.local_addr().unwrap(), wss.local_addr().unwrap());
+    let shutdown = CancellationToken::new();
+    let config = ServerConfig {
+        map: walls_map(),
+        lockstep: true,
+        time_scale: TimeScale::Max,
+        ..ServerConfig::default()
+    };
+    let side = SideListeners {
+        image: None,
+        truth: None,
+        monitor: Some(monitor),
+        wss: Some(wss),
+    };
+    tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
+    let mut robot1 = Lines::connect(gamebots).await;
+    robot1.line().await;
+    robot1.sync(0.0).await;
+    robot1.answered().await;
+    robot1
+        .send("INIT {ClassName USARBot.AirRobot} {Name Robot1} {Location 0,0,-1}")
+        .await;
+    let mut base = Lines::connect(gamebots).await;
+    base.line().await;
+    base.send("INIT {ClassName USARBot.AirRobot} {Name BaseStation} {Location 0,-3,-1}")
+        .await;
+    // A listener that accepts but never reads.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let base_port = listener.local_addr().unwrap().port();
+    let (mut a, mut b) = (Lines::connect(wss_at).await, Lines::connect(wss_at).await);
+    let mut time = 0.0;
+    let mut barrier = async |robot1: &mut Lines, time: &mut f64| {
+        *time += 0.1;
+        robot1.sync(*time).await;
+        robot1.answered().await;
+    };
+    barrier(&mut robot1, &mut time).await;
+    a.ask("INIT {Robot Robot1} {Port 1}").await;
+    b.ask(&format!("INIT {{Robot BaseStation}} {{Port {base_port}}}"))
+        .await;
+    while time < 1.05 {
+        barrier(&mut robot1, &mut time).await;
+    }
+    let reply = a.ask("DNS {Robot BaseStation}").await;
+    let port: u16 = reply
+        .strip_prefix("DNSREPLY {Robot BaseStation} {Port ")
+        .and_then(|r| r.strip_suffix('}'))
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("{reply}"));
+    let mut link = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    let flood = std::thread::spawn(move || {
+        let chunk = vec![0u8; 1 << 20];
+        let mut sent = 0usize;
+        while sent < 64 << 20 && link.write_all(&chunk).is_ok() {
+            sent += chunk.len();
+        }
+        sent
+    });
+    // The world steps on while the flood waits: 3 s of simulated time.
+    while time < 4.05 {
+        barrier(&mut robot1, &mut time).await;
+    }
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    assert!(
+        !flood.is_finished(),
+        "the WSS took a 64 MiB flood that nobody reads"
+    );
+    let _accepted = listener.accept().unwrap();
+    shutdown.cancel();
+    drop((a, b, base));
+}
