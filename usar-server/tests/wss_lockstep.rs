@@ -436,7 +436,7 @@ async fn a_flood_over_a_lockstep_link_is_bounded_and_does_not_hold_the_world() {
     let base_port = listener.local_addr().unwrap().port();
     let (mut a, mut b) = (Lines::connect(wss_at).await, Lines::connect(wss_at).await);
     let mut time = 0.0;
-    let mut barrier = async |robot1: &mut Lines, time: &mut f64| {
+    let barrier = async |robot1: &mut Lines, time: &mut f64| {
         *time += 0.1;
         robot1.sync(*time).await;
         robot1.answered().await;
