@@ -52,8 +52,8 @@ struct Args {
     #[arg(long, value_name = "PORT|off", value_parser = side_port)]
     monitor_port: Option<SidePort>,
     /// The Wireless Simulation Server's port (robot-to-robot radio, docs/wss.md; it asks the
-    /// robot monitor): a number (0 picks a free one) or `off`. Default 50000, or a free port
-    /// with `--port 0`.
+    /// robot monitor every second, or with `--lockstep` follows simulated time): a number
+    /// (0 picks a free one) or `off`. Default 50000, or a free port with `--port 0`.
     #[arg(long, value_name = "PORT|off", value_parser = side_port)]
     wss_port: Option<SidePort>,
     #[command(flatten)]
@@ -133,7 +133,7 @@ enum Sub {
         /// TCP port (0 picks a free one).
         #[arg(long, default_value_t = 50000)]
         port: u16,
-        /// Seconds between polls of the positions (links break and resume then).
+        /// Seconds (wall clock) between polls of the positions (links break and resume then).
         #[arg(long, default_value_t = 1.0, value_parser = seconds)]
         poll: f64,
         /// Weakest usable signal, dBm.

@@ -107,3 +107,51 @@ def test_the_vector_env_batches_images(mode):
     many = usarsim.UsarsimVectorEnv(2, camera="depth", camera_size=(16, 8), start=(0.0, 0.0, -1.0, 0.0))
     both, _ = many.reset(seed=0)
     assert np.array_equal(both["depth"][0], one["depth"]), "the same picture from the same world"
+
+
+@pytest.mark.parametrize("flat", [False, True])
+def test_images_and_rotor_speeds_together(flat):
+    """Both opt-in extensions of the observation at once (camera=... and
+    configure(rotor_speeds=True)): the images and the rotor speeds are in the space and in
+    every observation, dict or flat (then the speeds lengthen the state entry), and turning
+    the speeds off gives the camera env's space back."""
+    env = usarsim.UsarsimEnv("hover", robot="stsQuadrotor", camera="rgbd", camera_size=(16, 12),
+                             flat=flat, max_steps=10)
+    before = env.observation_space
+    env.configure(rotor_speeds=True)
+    space = env.observation_space
+    assert space["rgb"].shape == (12, 16, 3) and space["depth"].shape == (12, 16, 1)
+    if flat:
+        assert set(space.spaces) == {"state", "rgb", "depth"}
+        assert space["state"].shape == (before["state"].shape[0] + 4,)
+    else:
+        assert space["rotor_speeds"].shape == (4,)
+    obs, _ = env.reset(seed=2)
+    assert space.contains(obs)
+    for _ in range(5):
+        obs, *_ = env.step(np.zeros(4, dtype=np.float32))
+    assert space.contains(obs)
+    speeds = obs["state"][-4:] if flat else obs["rotor_speeds"]
+    assert (speeds > 100).all(), "a hovering quadrotor's rotors turn"
+    check_env(env, skip_render_check=True)
+    env.configure(rotor_speeds=False)
+    assert env.observation_space == before
+    obs, _ = env.reset(seed=2)
+    assert before.contains(obs)
+
+
+@pytest.mark.parametrize("flat", [False, True])
+def test_the_vector_env_with_images_and_rotor_speeds(flat):
+    venv = usarsim.UsarsimVectorEnv(2, "hover", robot="stsQuadrotor", camera="depth", camera_size=(8, 8),
+                                    flat=flat)
+    venv.configure(rotor_speeds=True)
+    single = venv.single_observation_space
+    obs, _ = venv.reset(seed=5)
+    assert venv.observation_space.contains(obs)
+    assert obs["depth"].shape == (2, 8, 8, 1)
+    if flat:
+        assert obs["state"].shape == (2, single["state"].shape[0])
+    else:
+        assert obs["rotor_speeds"].shape == (2, 4)
+    obs, *_ = venv.step(np.zeros((2, 4), dtype=np.float32))
+    assert venv.observation_space.contains(obs)

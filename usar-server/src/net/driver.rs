@@ -104,6 +104,9 @@ pub(super) enum Request {
     /// A question of a side server (USARTruth, the robot monitor): run at once, between
     /// ticks, with the world as it is.
     Ask(Ask),
+    /// A relay socket of the WSS on the simulated clock has news: its connections and bytes
+    /// are taken at the world's current time.
+    Radio,
 }
 
 /// A side server's question: a function of the world that sends its own answer.
@@ -318,6 +321,11 @@ pub(super) struct Driver {
     window: (Instant, Duration),
     /// The image server's captures (`None`: no image server).
     capture: Option<super::image::Capture>,
+    /// The WSS on the simulated clock (`None`: none, or on the wall clock).
+    radio: Option<super::wss::Clock>,
+    /// A lockstep client was answered at the current time: the radio takes what it wrote
+    /// before its next `SYNC` before the world steps on.
+    radio_due: bool,
 }
 
 impl Driver {
@@ -326,6 +334,7 @@ impl Driver {
         settings: Settings,
         wants_room: Arc<AtomicBool>,
         capture: Option<super::image::Capture>,
+        radio: Option<super::wss::Clock>,
     ) -> Self {
         Self {
             world,
@@ -340,6 +349,8 @@ impl Driver {
             parked: 0,
             window: (Instant::now(), Duration::ZERO),
             capture,
+            radio,
+            radio_due: false,
         }
     }
 
@@ -426,9 +437,18 @@ impl Driver {
                 ticks_since_anchor = 0;
             };
 
+            if let Some(radio) = &self.radio
+                && std::mem::take(&mut self.radio_due)
+            {
+                // What the lockstep clients wrote before their SYNC: taken at this time.
+                radio.take();
+            }
             self.world.step_printed(&mut out);
             if let Some(capture) = &mut self.capture {
                 capture.poll(&self.world, true);
+            }
+            if let Some(radio) = &mut self.radio {
+                radio.stepped(&self.world);
             }
             let time = self.world.time();
             let printed = !out.is_empty();
@@ -738,6 +758,7 @@ impl Driver {
                 c.answered = true;
                 c.answered_at = Some(Instant::now());
                 c.push(&sync_reply(time), time);
+                self.radio_due = true;
             }
         }
     }
@@ -820,6 +841,7 @@ impl Driver {
                         c.answered = true;
                         c.answered_at = Some(Instant::now());
                         c.push(&sync_reply(now), now);
+                        self.radio_due = true;
                     }
                 }
             }
@@ -878,6 +900,11 @@ impl Driver {
             }
             Request::Wake => {}
             Request::Ask(ask) => (ask.0)(&self.world),
+            Request::Radio => {
+                if let Some(radio) = &self.radio {
+                    radio.take();
+                }
+            }
         }
     }
 }

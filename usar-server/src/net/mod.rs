@@ -257,6 +257,20 @@ pub async fn run_with(
     let feed = side.image.as_ref().map(|_| image::Feed::new());
     let game_info = driver::game_info(&world);
     let (requests, inbox) = std::sync::mpsc::channel();
+    // With lockstep the WSS runs on the simulated clock (docs/wss.md), called by the
+    // simulation thread; without, on the wall clock, asking the robot monitor.
+    let radio = match wss_monitor {
+        Some(monitor) if config.lockstep => Some(wss::Clock::new(
+            wss::WssConfig::new(monitor),
+            requests.clone(),
+            shutdown.child_token(),
+        )?),
+        _ => None,
+    };
+    let (radio_serve, wall_wss) = match &radio {
+        Some(clock) => (side.wss.map(|listener| clock.serve(listener)), None),
+        None => (None, side.wss),
+    };
     let wants_room = Arc::new(AtomicBool::new(false));
     let sim_shutdown = shutdown.child_token();
     // Cancelled by the simulation thread if it unwinds (a bug): the server then stops.
@@ -279,6 +293,7 @@ pub async fn run_with(
             wants_room.clone(),
             feed.as_ref()
                 .map(|feed| image::Capture::new(feed.clone(), config.image, tiles)),
+            radio,
         );
         std::thread::Builder::new()
             .name("usar-sim".into())
@@ -307,7 +322,10 @@ pub async fn run_with(
             shutdown.child_token(),
         ));
     }
-    if let (Some(listener), Some(monitor)) = (side.wss, wss_monitor) {
+    if let Some(serve) = radio_serve {
+        tracker.spawn(serve);
+    }
+    if let (Some(listener), Some(monitor)) = (wall_wss, wss_monitor) {
         tracker.spawn(wss::serve(
             listener,
             wss::WssConfig::new(monitor),

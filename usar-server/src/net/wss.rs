@@ -1,24 +1,39 @@
 //! The Wireless Simulation Server (WSS, TCP 50000; docs/wss.md; the wire reference is
 //! side-servers.md §3.1): robots register with `INIT`, ask the signal strength to another
 //! robot (`GETSS`), a port that relays to it (`DNS`) and who is behind a relayed connection
-//! (`REVERSEDNS`). Positions and wall counts come from a USARSim robot monitor (TCP 7435,
-//! ours or a real one): the obstacle propagation model
-//! `S = Pd0 − 10·N·log10(d/d0) − n·A`, connectable while `S ≥ cutoff`. Every `poll` the WSS
-//! asks for the positions, kicks registered robots the simulator does not have (or whose
-//! battery is empty), and breaks (stops the relay ports, closes relayed connections) or
-//! resumes each pair's links.
+//! (`REVERSEDNS`). The obstacle propagation model `S = Pd0 − 10·N·log10(d/d0) − n·A`,
+//! connectable while `S ≥ cutoff`. At each evaluation the WSS takes the robots' positions,
+//! kicks registered robots the simulator does not have (or whose battery is empty), and
+//! breaks (stops the relay ports, closes relayed connections) or resumes each pair's links.
+//!
+//! Two clocks:
+//! * **Wall clock** ([`serve`]: `usar-server wss`, and in-process without lockstep): every
+//!   `poll` of wall time the WSS asks a USARSim robot monitor (TCP 7435, ours or a real one)
+//!   for positions and wall counts; relayed connections copy bytes as they come, as the
+//!   original does.
+//! * **Simulated clock** (in-process with lockstep, [`Clock`]): the simulation thread calls
+//!   the WSS. After the step that reaches each multiple of `poll` of simulated time it
+//!   evaluates the links against the world itself; relayed bytes move only at the world's
+//!   current time — when the world is about to step on from a lockstep barrier, or when a
+//!   relay socket has news — so bytes a client writes before its `SYNC` are taken at that
+//!   barrier's time and delivered if and only if the link held at the last evaluation.
 
 use std::collections::{BTreeMap, HashMap};
+use std::io::{Read, Write};
 use std::net::{IpAddr, SocketAddr};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Sender;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::Semaphore;
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
+
+use super::driver::Request;
+use crate::sim::World;
 
 /// The obstacle propagation model and the WSS's settings (defaults as the original's).
 #[derive(Debug, Clone)]
@@ -35,7 +50,8 @@ pub struct WssConfig {
     pub attenuation: f64,
     /// Weakest usable signal, dBm.
     pub cutoff: f64,
-    /// How often positions are polled and links broken or resumed (wall clock).
+    /// How often positions are polled and links broken or resumed: wall time for
+    /// [`serve`], simulated time for a [`Clock`].
     pub poll: Duration,
 }
 
@@ -112,9 +128,52 @@ struct Link {
     to: String,
     target: u16,
     port: u16,
-    /// Cancelled when the link breaks (stops listening, closes the relayed connections).
-    up: Option<CancellationToken>,
+    /// Listening (the link holds), or `None` (broken, or not in range yet).
+    up: Option<Up>,
 }
+
+/// A relay port that listens.
+#[derive(Debug)]
+enum Up {
+    /// Wall clock: cancelled when the link breaks (stops listening, closes the relayed
+    /// connections).
+    Wall(CancellationToken),
+    /// Simulated clock: the listener, accepted from when the WSS takes bytes; dropped when
+    /// the link breaks.
+    Sim(mio::net::TcpListener),
+}
+
+/// A relayed connection on the simulated clock: `a` connected to the relay port of the
+/// link on `port`, `b` is the WSS's connection to the target robot.
+#[derive(Debug)]
+struct Relay {
+    port: u16,
+    a: mio::net::TcpStream,
+    b: mio::net::TcpStream,
+    /// `b`'s local port (what `REVERSEDNS` asks about).
+    local: u16,
+    /// Bytes taken from one side and not yet written to the other (at most [`PENDING`]).
+    to_a: Half,
+    to_b: Half,
+    _permit: OwnedSemaphorePermit,
+}
+
+/// One direction of a [`Relay`].
+#[derive(Debug, Default)]
+struct Half {
+    pending: Vec<u8>,
+    /// The source has ended its side.
+    ended: bool,
+    /// The end has been passed on (the destination's writing side shut down).
+    shut: bool,
+}
+
+/// Bytes waiting in the WSS per direction of a relayed connection; past it the WSS stops
+/// reading that side (TCP back-pressure: a flood fills socket buffers, not memory).
+const PENDING: usize = 64 * 1024;
+
+/// How long the WSS on the simulated clock waits for a target robot's listener to accept.
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// A pair's wall count and the two positions it was counted at.
 type Walls = (f64, [f64; 3], [f64; 3]);
@@ -131,6 +190,32 @@ struct State {
     walls: HashMap<(String, String), Walls>,
     /// Relayed connections: the WSS's outgoing local port → (from, to).
     outgoing: HashMap<u16, (String, String)>,
+    /// Relayed connections on the simulated clock.
+    relays: Vec<Relay>,
+}
+
+impl State {
+    /// Breaks link `i`: stops its relay port and closes its relayed connections.
+    fn down(&mut self, i: usize) {
+        let link = &mut self.links[i];
+        if let Some(Up::Wall(up)) = link.up.take() {
+            up.cancel();
+        }
+        let port = link.port;
+        self.close_relays(|r| r.port == port);
+    }
+
+    /// Closes the relayed connections (simulated clock) that `which` picks.
+    fn close_relays(&mut self, which: impl Fn(&Relay) -> bool) {
+        let outgoing = &mut self.outgoing;
+        self.relays.retain(|r| {
+            let close = which(r);
+            if close {
+                outgoing.remove(&r.local);
+            }
+            !close
+        });
+    }
 }
 
 fn pair(a: &str, b: &str) -> (String, String) {
@@ -147,21 +232,52 @@ struct Wss {
     state: Mutex<State>,
     relayed: Arc<Semaphore>,
     shutdown: CancellationToken,
+    /// The simulated clock's watch over the relay sockets (`None`: wall clock).
+    gate: Option<Gate>,
 }
 
-/// Serves the WSS on `listener` until `shutdown`.
+/// What the WSS on the simulated clock needs to hear from its relay sockets.
+struct Gate {
+    /// Where relay sockets are registered; the watcher thread wakes the simulation thread
+    /// when one has news.
+    registry: mio::Registry,
+    /// Set by the watcher when it has asked for a take, cleared by each take.
+    woken: Arc<AtomicBool>,
+}
+
+/// The token of every watched relay socket (the watcher only needs to know that one has
+/// news).
+const NEWS: mio::Token = mio::Token(0);
+/// The token of the watcher's stop signal.
+const STOP: mio::Token = mio::Token(1);
+
+impl Wss {
+    fn new(config: WssConfig, shutdown: CancellationToken, gate: Option<Gate>) -> Self {
+        Self {
+            config,
+            state: Mutex::new(State::default()),
+            relayed: Arc::new(Semaphore::new(MAX_RELAYED)),
+            shutdown,
+            gate,
+        }
+    }
+}
+
+/// Serves the WSS on the wall clock on `listener` until `shutdown`, asking the robot
+/// monitor `config.monitor` every `config.poll` of wall time.
 pub async fn serve(listener: TcpListener, config: WssConfig, shutdown: CancellationToken) {
-    let wss = Arc::new(Wss {
-        config,
-        state: Mutex::new(State::default()),
-        relayed: Arc::new(Semaphore::new(MAX_RELAYED)),
-        shutdown: shutdown.clone(),
-    });
+    let wss = Arc::new(Wss::new(config, shutdown, None));
     tokio::spawn(poll(wss.clone()));
+    serve_control(listener, wss).await;
+}
+
+/// Serves the control connections of `wss` on `listener` until its shutdown.
+async fn serve_control(listener: TcpListener, wss: Arc<Wss>) {
     // The side servers' accept loop: at most 64 control connections, the oldest that has
     // not completed a request closed to make room.
     let tracker = tokio_util::task::TaskTracker::new();
     let max = super::side::MAX_CONNECTIONS;
+    let shutdown = wss.shutdown.clone();
     super::side::accept(
         "WSS",
         listener,
@@ -171,6 +287,98 @@ pub async fn serve(listener: TcpListener, config: WssConfig, shutdown: Cancellat
         move |stream, stop, spoke| control(wss.clone(), stream, stop, spoke),
     )
     .await;
+}
+
+/// The WSS on the simulated clock (in-process with lockstep): the simulation thread owns
+/// it and calls [`Clock::take`] and [`Clock::stepped`]; its control port is served by
+/// [`Clock::serve`].
+pub(super) struct Clock {
+    wss: Arc<Wss>,
+    /// `poll`, simulated seconds.
+    poll: f64,
+    /// When the next evaluation is due, simulated seconds.
+    next: f64,
+    stop: mio::Waker,
+}
+
+impl Clock {
+    /// A WSS with `config`'s model whose evaluations come every `config.poll` of simulated
+    /// time; a watcher thread sends `Request::Radio` on `requests` when a relay socket has
+    /// news.
+    pub(super) fn new(
+        config: WssConfig,
+        requests: Sender<Request>,
+        shutdown: CancellationToken,
+    ) -> std::io::Result<Self> {
+        let poll = mio::Poll::new()?;
+        let registry = poll.registry().try_clone()?;
+        let stop = mio::Waker::new(poll.registry(), STOP)?;
+        let woken = Arc::new(AtomicBool::new(false));
+        let watched = woken.clone();
+        std::thread::Builder::new()
+            .name("usar-wss".into())
+            .spawn(move || watch(poll, watched, requests))?;
+        let seconds = config.poll.as_secs_f64();
+        let gate = Gate { registry, woken };
+        Ok(Self {
+            wss: Arc::new(Wss::new(config, shutdown, Some(gate))),
+            poll: seconds,
+            next: 0.0,
+            stop,
+        })
+    }
+
+    /// Serves the control port on `listener` (until the shutdown given to [`Clock::new`]).
+    pub(super) fn serve(&self, listener: TcpListener) -> impl Future<Output = ()> + use<> {
+        serve_control(listener, self.wss.clone())
+    }
+
+    /// Takes the connections and bytes waiting at the world's current time.
+    pub(super) fn take(&self) {
+        self.wss.take();
+    }
+
+    /// After each step: evaluates the links if one is due at the world's new time.
+    pub(super) fn stepped(&mut self, world: &World) {
+        const EPSILON: f64 = 1e-6;
+        let time = world.time();
+        if time + EPSILON < self.next {
+            return;
+        }
+        self.wss.evaluate(world);
+        self.next = if self.poll > 0.0 {
+            (((time + EPSILON) / self.poll).floor() + 1.0) * self.poll
+        } else {
+            time
+        };
+    }
+}
+
+impl Drop for Clock {
+    fn drop(&mut self) {
+        let _ = self.stop.wake();
+    }
+}
+
+/// The watcher thread: asks the simulation thread for a take whenever a relay socket has
+/// news (at most one request waiting at a time), until stopped.
+fn watch(mut poll: mio::Poll, woken: Arc<AtomicBool>, requests: Sender<Request>) {
+    let mut events = mio::Events::with_capacity(64);
+    loop {
+        if let Err(error) = poll.poll(&mut events, None) {
+            if error.kind() == std::io::ErrorKind::Interrupted {
+                continue;
+            }
+            warn!(%error, "WSS: cannot watch the relay sockets");
+            return;
+        }
+        if events.iter().any(|e| e.token() == STOP) {
+            return;
+        }
+        if !woken.swap(true, Ordering::SeqCst) && requests.send(Request::Radio).is_err() {
+            return;
+        }
+    }
 }
 
 impl Wss {
@@ -272,7 +480,10 @@ async fn control(
             break;
         }
     }
-    if let Some((name, _)) = me {
+    // A kicked robot was unregistered when it was kicked (its name may be someone else's now).
+    if let Some((name, kick)) = me
+        && !kick.is_cancelled()
+    {
         unregister(&wss, &name);
     }
 }
@@ -482,6 +693,9 @@ fn dns(wss: &Wss, me: &str, other: &str, port: Option<u16>) -> Answer {
 
 /// Opens a relay port from `me` to `other`'s port `target` and answers the `DNS`.
 async fn relay(wss: &Arc<Wss>, me: &str, other: &str, target: u16, reachable: bool) -> String {
+    if wss.gate.is_some() {
+        return wss.relay_now(me, other, target);
+    }
     // A port of our own for this pair: bound now (and kept for the pair), listening only
     // while the pair is in range.
     let listener = match TcpListener::bind((wss.bind_ip(), 0)).await {
@@ -502,7 +716,7 @@ async fn relay(wss: &Arc<Wss>, me: &str, other: &str, target: u16, reachable: bo
         up: None,
     };
     if reachable {
-        link.up = Some(start_relay(wss, listener, me, other, target));
+        link.up = Some(Up::Wall(start_relay(wss, listener, me, other, target)));
     } else {
         drop(listener);
     }
@@ -519,6 +733,226 @@ impl Wss {
             IpAddr::from([0u8; 4])
         }
     }
+
+    /// [`relay`] on the simulated clock: the port listens at once if the pair is in range
+    /// by the last evaluation.
+    fn relay_now(&self, me: &str, other: &str, target: u16) -> String {
+        let listener = match std::net::TcpListener::bind((self.bind_ip(), 0)) {
+            Ok(l) => l,
+            Err(error) => {
+                warn!(%error, "WSS: cannot open a relay port");
+                return "ERROR {Reason Could.Not.Allocate.Port}".into();
+            }
+        };
+        let Ok(port) = listener.local_addr().map(|a| a.port()) else {
+            return "ERROR {Reason Could.Not.Allocate.Port}".into();
+        };
+        let mut state = self.lock();
+        let up = if self.in_range(&state, me, other) {
+            match self.listen(listener) {
+                Ok(up) => Some(up),
+                Err(error) => {
+                    warn!(%error, "WSS: cannot open a relay port");
+                    return "ERROR {Reason Could.Not.Allocate.Port}".into();
+                }
+            }
+        } else {
+            None
+        };
+        state.links.push(Link {
+            from: me.to_owned(),
+            to: other.to_owned(),
+            target,
+            port,
+            up,
+        });
+        format!("DNSREPLY {{Robot {other}}} {{Port {port}}}")
+    }
+
+    /// A relay port on the simulated clock, watched.
+    fn listen(&self, listener: std::net::TcpListener) -> std::io::Result<Up> {
+        listener.set_nonblocking(true)?;
+        let mut listener = mio::net::TcpListener::from_std(listener);
+        if let Some(gate) = &self.gate {
+            gate.registry
+                .register(&mut listener, NEWS, mio::Interest::READABLE)?;
+        }
+        Ok(Up::Sim(listener))
+    }
+
+    /// Simulated clock: accepts the connections waiting on the relay ports of the links
+    /// that hold and moves the bytes waiting on relayed connections, at the world's current
+    /// time.
+    fn take(&self) {
+        let Some(gate) = &self.gate else {
+            return;
+        };
+        // Cleared first: news that comes after this point asks for another take.
+        gate.woken.store(false, Ordering::SeqCst);
+        let mut guard = self.lock();
+        let state = &mut *guard;
+        let mut accepted = Vec::new();
+        for link in &state.links {
+            let Some(Up::Sim(listener)) = &link.up else {
+                continue;
+            };
+            loop {
+                match listener.accept() {
+                    Ok((client, _)) => accepted.push((link.port, client)),
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    // Nothing more waits (or a transient error: the next take tries again).
+                    Err(_) => break,
+                }
+            }
+        }
+        for (port, client) in accepted {
+            self.bridge(state, port, client);
+        }
+        let mut closed = Vec::new();
+        for (i, relay) in state.relays.iter_mut().enumerate() {
+            let alive = pump(&relay.a, &relay.b, &mut relay.to_b)
+                && pump(&relay.b, &relay.a, &mut relay.to_a);
+            let done = relay.to_a.shut && relay.to_b.shut;
+            if !alive || done {
+                closed.push(i);
+            }
+        }
+        for i in closed.into_iter().rev() {
+            let relay = state.relays.remove(i);
+            state.outgoing.remove(&relay.local);
+        }
+    }
+
+    /// Bridges a connection accepted on the relay port `port` to the link's target robot
+    /// (the link holds: its port listens only then).
+    fn bridge(&self, state: &mut State, port: u16, client: mio::net::TcpStream) {
+        let Some(link) = state.links.iter().find(|l| l.port == port) else {
+            return;
+        };
+        let Some(robot) = state.robots.get(&link.to) else {
+            return;
+        };
+        let Ok(permit) = self.relayed.clone().try_acquire_owned() else {
+            warn!(
+                max = MAX_RELAYED,
+                "WSS: too many relayed connections; dropped"
+            );
+            return;
+        };
+        let target = SocketAddr::new(robot.ip, link.target);
+        // The target's listener accepts at once on its own machine; waiting for it here
+        // makes the connection part of this moment of the simulation.
+        let out = match std::net::TcpStream::connect_timeout(&target, CONNECT_TIMEOUT) {
+            Ok(out) => out,
+            Err(error) => {
+                debug!(%target, %error, "WSS: cannot reach the target robot");
+                return;
+            }
+        };
+        let local = out.local_addr().map(|a| a.port()).unwrap_or(0);
+        if out.set_nonblocking(true).is_err() {
+            return;
+        }
+        let (mut a, mut b) = (client, mio::net::TcpStream::from_std(out));
+        let _ = (a.set_nodelay(true), b.set_nodelay(true));
+        if let Some(gate) = &self.gate {
+            let both = mio::Interest::READABLE | mio::Interest::WRITABLE;
+            if gate.registry.register(&mut a, NEWS, both).is_err()
+                || gate.registry.register(&mut b, NEWS, both).is_err()
+            {
+                return;
+            }
+        }
+        state
+            .outgoing
+            .insert(local, (link.from.clone(), link.to.clone()));
+        state.relays.push(Relay {
+            port,
+            a,
+            b,
+            local,
+            to_a: Half::default(),
+            to_b: Half::default(),
+            _permit: permit,
+        });
+    }
+
+    /// Simulated clock: positions and wall counts from the world; kicks; breaks and
+    /// resumes.
+    fn evaluate(&self, world: &World) {
+        let found: Vec<Found> = world
+            .robots_truth()
+            .into_iter()
+            .map(|r| (r.name, r.location, r.battery_empty, r.radio_off))
+            .collect();
+        let (names, stale) = self.observe(&found);
+        let counted = stale
+            .into_iter()
+            .map(|(key, pa, pb)| {
+                (
+                    key,
+                    Some(f64::from(world.obstacles_between(pa, pb))),
+                    pa,
+                    pb,
+                )
+            })
+            .collect();
+        for (from, to, port, _) in self.judge(&names, counted) {
+            // Listening again on the same port.
+            let up = std::net::TcpListener::bind((self.bind_ip(), port))
+                .and_then(|listener| self.listen(listener));
+            match up {
+                Ok(up) => {
+                    let mut state = self.lock();
+                    if let Some(link) = state
+                        .links
+                        .iter_mut()
+                        .find(|l| l.port == port && l.up.is_none())
+                    {
+                        info!(%from, %to, port, "WSS: link resumed");
+                        link.up = Some(up);
+                    }
+                }
+                Err(error) => {
+                    warn!(%from, %to, port, %error, "WSS: cannot listen again on the relay port")
+                }
+            }
+        }
+    }
+}
+
+/// One direction of a relayed connection: reads what `from` has (while fewer than
+/// [`PENDING`] bytes wait) and writes what `to` takes; once `from` has ended and all is
+/// written, shuts `to`'s writing side. `false` on an error (the connection is closed).
+fn pump(from: &mio::net::TcpStream, to: &mio::net::TcpStream, half: &mut Half) -> bool {
+    use std::io::ErrorKind::{Interrupted, WouldBlock};
+    let mut chunk = [0u8; 16 * 1024];
+    while !half.ended && half.pending.len() < PENDING {
+        let room = (PENDING - half.pending.len()).min(chunk.len());
+        match (&mut &*from).read(&mut chunk[..room]) {
+            Ok(0) => half.ended = true,
+            Ok(n) => half.pending.extend_from_slice(&chunk[..n]),
+            Err(e) if e.kind() == WouldBlock => break,
+            Err(e) if e.kind() == Interrupted => {}
+            Err(_) => return false,
+        }
+    }
+    while !half.pending.is_empty() {
+        match (&mut &*to).write(&half.pending) {
+            Ok(0) => return false,
+            Ok(n) => {
+                half.pending.drain(..n);
+            }
+            Err(e) if e.kind() == WouldBlock => break,
+            Err(e) if e.kind() == Interrupted => {}
+            Err(_) => return false,
+        }
+    }
+    if half.ended && half.pending.is_empty() && !half.shut {
+        let _ = to.shutdown(std::net::Shutdown::Write);
+        half.shut = true;
+    }
+    true
 }
 
 /// Accepts on a relay port until the returned token is cancelled (the link broke): each
@@ -585,13 +1019,14 @@ fn start_relay(
 fn unregister(wss: &Wss, name: &str) {
     let mut state = wss.lock();
     state.robots.remove(name);
-    state.links.retain(|l| {
-        let keep = l.from != name && l.to != name;
-        if !keep && let Some(up) = &l.up {
-            up.cancel();
-        }
-        keep
-    });
+    while let Some(i) = state
+        .links
+        .iter()
+        .position(|l| l.from == name || l.to == name)
+    {
+        state.down(i);
+        state.links.remove(i);
+    }
     state.walls.retain(|(a, b), _| a != name && b != name);
     info!(robot = name, "WSS: robot unregistered");
 }
@@ -645,7 +1080,7 @@ async fn ask(m: &mut BufReader<TcpStream>, request: &str) -> Result<String, ()> 
 
 /// `POSITIONS {Robots n} {Name R Location x,y,z BatteryEmpty False [Radio Off]} ...` → name,
 /// place, battery empty, radio off (our monitor's extension for a radio fault).
-fn positions(line: &str) -> Vec<(String, [f64; 3], bool, bool)> {
+fn positions(line: &str) -> Vec<Found> {
     let mut out = Vec::new();
     for block in line.split('{').skip(1) {
         let tokens: Vec<&str> = block
@@ -683,12 +1118,11 @@ fn obstacle_count(line: &str) -> Option<f64> {
 /// element; a `DNS` that would open a relay port answers port 0. Returns the replies.
 #[doc(hidden)]
 pub fn answer_offline(positions_reply: &str, walls: &str, lines: &[(usize, &str)]) -> Vec<String> {
-    let wss = Wss {
-        config: WssConfig::new(SocketAddr::from(([127, 0, 0, 1], 7435))),
-        state: Mutex::default(),
-        relayed: Arc::new(Semaphore::new(MAX_RELAYED)),
-        shutdown: CancellationToken::new(),
-    };
+    let wss = Wss::new(
+        WssConfig::new(SocketAddr::from(([127, 0, 0, 1], 7435))),
+        CancellationToken::new(),
+        None,
+    );
     {
         let mut state = wss.lock();
         state.positions = positions(positions_reply)
@@ -725,32 +1159,43 @@ pub fn answer_offline(positions_reply: &str, walls: &str, lines: &[(usize, &str)
         .collect()
 }
 
-async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> {
-    let reply = ask(m, "GETPOS").await?;
-    let found = positions(&reply);
-    // Kick registered robots the simulator does not have, or whose battery is empty.
-    let (names, stale) = {
-        let mut state = wss.lock();
+/// A robot as the simulator reports it: name, place, battery empty, radio off.
+type Found = (String, [f64; 3], bool, bool);
+
+/// A pair whose wall count is to be refreshed, and the two positions.
+type Stale = ((String, String), [f64; 3], [f64; 3]);
+
+/// A pair's wall count (`None` or negative: unknown) and the two positions it was counted at.
+type Counted = ((String, String), Option<f64>, [f64; 3], [f64; 3]);
+
+impl Wss {
+    /// Takes the simulator's robots: kicks registered robots it does not have (or whose
+    /// battery is empty); returns the registered robots it has and the pairs whose wall
+    /// count is missing or was counted more than 1 m (squared) away.
+    fn observe(&self, found: &[Found]) -> (Vec<String>, Vec<Stale>) {
+        let mut state = self.lock();
         state.positions = found
             .iter()
             .filter(|f| !f.2)
             .map(|f| (f.0.clone(), f.1))
             .collect();
         state.radio_off = found.iter().filter(|f| f.3).map(|f| f.0.clone()).collect();
-        let names: Vec<String> = state.robots.keys().cloned().collect();
-        for name in &names {
-            if !state.positions.contains_key(name)
-                && let Some(r) = state.robots.get(name)
-            {
-                warn!(robot = %name, "WSS: no such robot in the simulation (or its battery is empty); kicked");
+        let (names, kicked): (Vec<String>, Vec<String>) = state
+            .robots
+            .keys()
+            .cloned()
+            .partition(|name| state.positions.contains_key(name));
+        drop(state);
+        for name in &kicked {
+            warn!(robot = %name, "WSS: no such robot in the simulation (or its battery is empty); kicked");
+            // Unregistered now (its links break, others are told it does not exist); its
+            // control connection closes when its task sees the cancel.
+            if let Some(r) = self.lock().robots.get(name) {
                 r.kick.cancel();
             }
+            unregister(self, name);
         }
-        let names: Vec<String> = names
-            .into_iter()
-            .filter(|n| state.positions.contains_key(n))
-            .collect();
-        // Pairs whose wall count is missing or was counted more than 1 m (squared) away.
+        let state = self.lock();
         let mut stale = Vec::new();
         for (i, a) in names.iter().enumerate() {
             for b in &names[i + 1..] {
@@ -766,48 +1211,60 @@ async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> 
             }
         }
         (names, stale)
-    };
-    for ((a, b), pa, pb) in stale {
-        let reply = ask(m, &format!("GETOBS {{From {a}}} {{To {b}}}")).await?;
-        let count = obstacle_count(&reply);
-        let mut state = wss.lock();
-        match count {
-            Some(n) if n >= 0.0 => {
-                state.walls.insert((a, b), (n, pa, pb));
-            }
-            _ => {
-                state.walls.remove(&(a, b));
+    }
+
+    /// Stores the wall counts (`None`, or negative: unknown) and breaks the links that no
+    /// longer hold; returns the broken links that hold again (from, to, port, target), for
+    /// the caller to listen on their ports again.
+    fn judge(&self, names: &[String], counted: Vec<Counted>) -> Vec<(String, String, u16, u16)> {
+        let mut state = self.lock();
+        for (key, count, pa, pb) in counted {
+            match count {
+                Some(n) if n >= 0.0 => {
+                    state.walls.insert(key, (n, pa, pb));
+                }
+                _ => {
+                    state.walls.remove(&key);
+                }
             }
         }
-    }
-    // Break or resume every link.
-    let mut resume = Vec::new();
-    {
-        let mut state = wss.lock();
         let verdicts: Vec<bool> = state
             .links
             .iter()
             .map(|l| {
                 names.contains(&l.from)
                     && names.contains(&l.to)
-                    && wss.in_range(&state, &l.from, &l.to)
+                    && self.in_range(&state, &l.from, &l.to)
             })
             .collect();
-        for (link, ok) in state.links.iter_mut().zip(verdicts) {
-            match (&link.up, ok) {
-                (Some(up), false) => {
+        let mut resume = Vec::new();
+        for (i, ok) in verdicts.into_iter().enumerate() {
+            let link = &state.links[i];
+            match (link.up.is_some(), ok) {
+                (true, false) => {
                     info!(from = %link.from, to = %link.to, "WSS: link broken");
-                    up.cancel();
-                    link.up = None;
+                    state.down(i);
                 }
-                (None, true) => {
+                (false, true) => {
                     resume.push((link.from.clone(), link.to.clone(), link.port, link.target))
                 }
                 _ => {}
             }
         }
+        resume
     }
-    for (from, to, port, target) in resume {
+}
+
+/// Wall clock: one evaluation, asking the robot monitor `m`.
+async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> {
+    let reply = ask(m, "GETPOS").await?;
+    let (names, stale) = wss.observe(&positions(&reply));
+    let mut counted = Vec::new();
+    for ((a, b), pa, pb) in stale {
+        let reply = ask(m, &format!("GETOBS {{From {a}}} {{To {b}}}")).await?;
+        counted.push(((a, b), obstacle_count(&reply), pa, pb));
+    }
+    for (from, to, port, target) in wss.judge(&names, counted) {
         // Listening again on the same port.
         match TcpListener::bind((wss.bind_ip(), port)).await {
             Ok(listener) => {
@@ -820,7 +1277,7 @@ async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> 
                 {
                     Some(link) => {
                         info!(%from, %to, port, "WSS: link resumed");
-                        link.up = Some(up);
+                        link.up = Some(Up::Wall(up));
                     }
                     None => up.cancel(),
                 }

@@ -42,8 +42,10 @@ BOUNDS["rotor_speeds"] = (0.0, 1e4, 4)
 
 def with_rotor_speeds(space: spaces.Space, flat: bool) -> spaces.Space:
     """`space` with the four rotor speeds appended (a ``rotor_speeds`` key, or the flat Box
-    four values longer)."""
+    four values longer — with images or the radio signal, the Dict's ``state`` entry)."""
     lo, hi, width = BOUNDS["rotor_speeds"]
+    if flat and isinstance(space, spaces.Dict):
+        return spaces.Dict({**space.spaces, "state": with_rotor_speeds(space["state"], True)})
     if flat:
         return spaces.Box(np.concatenate([space.low, np.full(width, lo, np.float32)]),
                           np.concatenate([space.high, np.full(width, hi, np.float32)]), dtype=np.float32)
