@@ -291,6 +291,7 @@ $("save-log").onclick = () => {
   const a = document.createElement("a"); a.href = "/api/log?" + p; a.download = "ucc-gui.log"; a.click();
 };
 window.addEventListener("resize", () => { dirty = true; });
+window.addEventListener("ucc-resize", () => { dirty = true; if (view3d) view3d.dirty = true; });
 
 // For tests and the benchmark: the page's objects.
 window.ucc = {

@@ -1,4 +1,5 @@
 // Plots over time with axes and values (uPlot, vendored: vendor/uPlot.iife.min.js).
+import { boxSize } from "./map2d.js";
 const SERIES = [["altitude", "m", 1, "#d62839"], ["speed", "m/s", 2, "#2f6690"], ["battery", "level", 3, "#1b7a6e"]];
 
 export class Plots {
@@ -16,7 +17,7 @@ export class Plots {
     }
   }
 
-  width() { return Math.max(200, this.box.clientWidth - 16); }
+  width() { return Math.max(200, boxSize(this.box)[0] - 16); }
 
   /** Shows the history of `c` (`[t, altitude, speed, battery]` rows); cheap when unchanged. */
   draw(c) {

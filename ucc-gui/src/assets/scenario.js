@@ -5,6 +5,7 @@
 // applyGridChanges, linkSegments, formatMetric) is unit-tested with
 // `node --test ucc-gui/tests/js/`; the drawing takes the map's canvas context.
 import { VICTIM_COLOR } from "./logic.js";
+import { boxSize } from "./map2d.js";
 
 /** The highest heat level of a coverage cell (the hub's LEVELS): level k ≥ 1 means seen
  * for at least 2^(k-1) periods; 0 never. */
@@ -296,7 +297,7 @@ export class ScenarioPanel {
       $("scenario-link").textContent = s.link_up === null ? "–" : s.link_up ? "up" : "down";
       $("scenario-link").style.color = s.link_up ? LINK_UP : LINK_DOWN;
       const strip = $("scenario-strip");
-      this.layer.strip(strip, Math.max(100, strip.parentElement.clientWidth - 4));
+      this.layer.strip(strip, Math.max(100, boxSize(strip.parentElement)[0] - 4));
     }
     if (changed.rows) {
       const head = el("tr", null);

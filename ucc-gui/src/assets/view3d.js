@@ -5,6 +5,7 @@
 // and sonar cones; orbit (drag), pan (shift+drag or right drag), zoom (wheel), follow.
 import * as THREE from "./vendor/three.module.min.js";
 import { COLORS, WALL_COLOR, clamp, wheelFactor } from "./logic.js";
+import { boxSize } from "./map2d.js";
 
 const toThree = (x, y, z) => new THREE.Vector3(y, -z, -x);
 /** Trail points drawn per UAV at most (all UAVs' trails are one line-segment geometry). */
@@ -102,7 +103,7 @@ export class View3d {
 
   draw(selected, follow, now) {
     if (!this.ok) return;
-    const el = this.renderer.domElement, w = this.box.clientWidth, h = this.box.clientHeight;
+    const el = this.renderer.domElement, [w, h] = boxSize(this.box);
     if (w < 2 || h < 2) return;
     const size = this.renderer.getSize(new THREE.Vector2());
     if (size.x !== w || size.y !== h) { this.renderer.setSize(w, h, false); this.camera.aspect = w / h; this.camera.updateProjectionMatrix(); }
