@@ -103,6 +103,7 @@ pub(crate) fn upright_pose(centre: V3) -> Pose {
 }
 
 /// The world geometry and the robots' bodies.
+#[derive(Clone)]
 pub(crate) struct Scene {
     colliders: ColliderSet,
     bodies: RigidBodySet,

@@ -1130,3 +1130,50 @@ fn camera_tiles_go_to_the_lowest_free_slot_and_pictures_do_not_depend_on_threads
         assert_eq!(a.image, b.image);
     }
 }
+
+/// A world reset in place with a seed flies as a new world with that seed, bit for bit,
+/// whatever flew in it before (the Python package's resets).
+#[test]
+fn a_reset_world_flies_as_a_new_one() {
+    let episode = |w: &mut World| {
+        let mut text = String::new();
+        for (i, class) in [STS, "USARBot.stsQuadrotor", STS].into_iter().enumerate() {
+            let c = spawn(w, class, [i as f64 * 2.0 - 2.0, 0.0, -1.5], 0.3 * i as f64);
+            drive(
+                w,
+                c,
+                Drive {
+                    linear_velocity: Some(1.0),
+                    altitude_velocity: Some(-0.5 + i as f64 * 0.5),
+                    rotational_velocity: Some(20.0),
+                    ..Drive::default()
+                },
+            );
+        }
+        for (c, m) in run(w, 1.0) {
+            text.push_str(&format!("{} {m}\n", c.0));
+        }
+        text
+    };
+    let config = |seed| SimConfig {
+        seed,
+        ..SimConfig::default()
+    };
+    let map = || Map::embedded("city").expect("city");
+    let mut fresh = World::new(map(), RobotCatalog::embedded(), config(9));
+    let expected = episode(&mut fresh);
+    let mut reused = World::new(map(), RobotCatalog::embedded(), config(1));
+    for i in 0..5 {
+        spawn(&mut reused, STS, [i as f64 * 1.5, 4.0, -1.0], 0.0);
+    }
+    run(&mut reused, 0.5);
+    reused.reset(9);
+    assert_eq!(reused.robot_count(), 0);
+    assert_eq!(reused.time(), 0.0);
+    let got = episode(&mut reused);
+    assert!(got.len() > 10_000, "{} bytes", got.len());
+    assert!(
+        got == expected,
+        "a reset world's output differs from a new world's"
+    );
+}

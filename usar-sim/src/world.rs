@@ -56,6 +56,10 @@ pub struct World {
     complaints: BTreeMap<ClientId, Repeats>,
     /// Faults still to come, in time order.
     faults: std::collections::VecDeque<super::faults::PlannedFault>,
+    /// The faults to plan from the seed ([`SimConfig::faults`]).
+    fault_plan: super::faults::FaultPlan,
+    /// The map's scene as first built, for [`World::reset`].
+    template: Scene,
     /// Parameter ranges each robot draws from at its spawn.
     randomize: Option<super::randomize::Randomization>,
 }
@@ -105,6 +109,7 @@ impl World {
         let mut scene = Scene::new();
         map.build(&mut scene);
         scene.refit();
+        let template = scene.clone();
         Self {
             tick: 0,
             dt,
@@ -125,8 +130,29 @@ impl World {
             tiles: config.tiles,
             complaints: BTreeMap::new(),
             faults: config.faults.schedule(config.seed).into(),
+            fault_plan: config.faults,
+            template,
             randomize: config.randomize,
         }
+    }
+
+    /// Starts over with `seed`: afterwards the world is what [`World::new`] with the same
+    /// map, classes and configuration and this seed gives (no robots, no connections, time
+    /// 0, the faults planned from the seed), and the same calls give the same output, bit
+    /// for bit — without building the map's scene again (its first build is kept and
+    /// copied). The Python package resets its worlds this way.
+    pub fn reset(&mut self, seed: u64) {
+        self.scene = self.template.clone();
+        self.tick = 0;
+        self.seed = seed;
+        self.robots.clear();
+        self.due.clear();
+        self.speaking.clear();
+        self.clients.clear();
+        self.next_client = 0;
+        self.next_serial = 0;
+        self.complaints.clear();
+        self.faults = self.fault_plan.schedule(seed).into();
     }
 
     /// The map's level name for the NFO line.

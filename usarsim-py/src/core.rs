@@ -85,6 +85,9 @@ pub(crate) struct Settings {
     pub(crate) rotors: bool,
     /// The observation camera's width and height ([`Settings::camera`]).
     pub(crate) camera: Option<(u32, u32)>,
+    /// Counts [`Settings::configure`] calls: a world made under another count is made
+    /// again at its reset instead of being reset in place ([`WorldSim::reset`]).
+    pub(crate) version: u64,
 }
 
 /// The largest side of an observation image, pixels.
@@ -165,6 +168,7 @@ impl Settings {
             randomize: None,
             rotors: false,
             camera: None,
+            version: 0,
         })
     }
 
@@ -177,6 +181,7 @@ impl Settings {
         randomize: Option<&str>,
         rotors: Option<bool>,
     ) -> Result<(), SimError> {
+        self.version += 1;
         if let Some(text) = faults {
             self.faults = usar_sim::faults::FaultPlan::from_toml(text)
                 .map_err(|e| invalid(format!("faults: {e}")))?;
@@ -371,6 +376,8 @@ pub(crate) struct WorldSim {
     out: Vec<(ClientId, ServerMessage)>,
     /// The cameras' latest pictures (reused).
     frames: Vec<CameraFrame>,
+    /// The [`Settings::version`] it was made under.
+    version: u64,
 }
 
 impl WorldSim {
@@ -385,8 +392,44 @@ impl WorldSim {
             randomize: settings.randomize.clone(),
             ..SimConfig::default()
         };
-        let mut world = World::new(settings.map.clone(), settings.catalog.clone(), config);
-        let mut uavs = Vec::with_capacity(poses.len());
+        let world = World::new(settings.map.clone(), settings.catalog.clone(), config);
+        let mut sim = Self {
+            world,
+            uavs: Vec::with_capacity(poses.len()),
+            first: 0,
+            out: Vec::new(),
+            frames: Vec::new(),
+            version: settings.version,
+        };
+        sim.populate(settings, poses)?;
+        Ok(sim)
+    }
+
+    /// Starts the next episode with `seed` and `poses`: in place (the map's scene is not
+    /// built again: [`World::reset`]) when the settings are those the world was made
+    /// under, else in a new world. Bit for bit what a new world would fly. After an error
+    /// (a start inside a wall) the world must be reset again before it steps.
+    pub(crate) fn reset(
+        &mut self,
+        settings: &Settings,
+        seed: u64,
+        poses: &[Pose],
+    ) -> Result<(), SimError> {
+        if self.version != settings.version {
+            *self = Self::new(settings, seed, poses)?;
+            return Ok(());
+        }
+        self.world.reset(seed);
+        self.uavs.clear();
+        self.out.clear();
+        self.populate(settings, poses)
+    }
+
+    /// Spawns one UAV per pose in the (empty) world, then hovers until every sensor has
+    /// read once.
+    fn populate(&mut self, settings: &Settings, poses: &[Pose]) -> Result<(), SimError> {
+        let world = &mut self.world;
+        let uavs = &mut self.uavs;
         let mut first = 0;
         for (i, pose) in poses.iter().enumerate() {
             if !pose.iter().all(|v| v.is_finite()) {
@@ -412,20 +455,14 @@ impl WorldSim {
                 poses.len()
             )));
         }
-        let mut sim = Self {
-            world,
-            uavs,
-            first,
-            out: Vec::new(),
-            frames: Vec::new(),
-        };
+        self.first = first;
         let first = settings
             .catalog
             .get(&settings.robot)
             .map_or(0.0, RobotClass::first_readings);
         let periods = ((first / settings.period - 1e-9).ceil() as usize).max(1);
-        sim.advance(periods * settings.ticks());
-        Ok(sim)
+        self.advance(periods * settings.ticks());
+        Ok(())
     }
 
     /// Sends each UAV its normalized command (forward, right, up, yaw in -1..=1), then steps
@@ -700,8 +737,8 @@ impl Batch {
         let failed = Mutex::new(None::<(usize, SimError)>);
         par_worlds(&mut self.worlds, |i, w| {
             match (resets.get(i).and_then(Option::as_ref), actions) {
-                (Some((seed, poses)), _) => match WorldSim::new(settings, *seed, poses) {
-                    Ok(fresh) => *w = fresh,
+                (Some((seed, poses)), _) => match w.reset(settings, *seed, poses) {
+                    Ok(()) => {}
                     Err(e) => {
                         let mut failed = failed.lock().unwrap_or_else(PoisonError::into_inner);
                         if failed.as_ref().is_none_or(|(j, _)| i < *j) {
