@@ -267,3 +267,28 @@ fn only_robots_with_a_camera_get_the_camera_setting() {
     assert_eq!(camera.server, "127.0.0.1:5003");
     assert!(!camera.is_active(), "no frames until a page asks");
 }
+
+/// Issue #26 (the browser soak): a long loop's log costs the hub little memory. Five lines an
+/// iteration for 10,000 iterations keep only the newest few thousand (well under 1 MiB of
+/// text), the newest last; the complete log of a run is its log files (`PREFIX-NN.log`).
+#[test]
+fn a_long_loop_keeps_a_small_log() {
+    let mut hub = hub();
+    for iteration in 1..=10_000 {
+        for k in 0..5 {
+            hub.log(
+                1,
+                "info",
+                format!("[{iteration}] mission 1 GotoXyz reached at t={k}.25 s, 0.031 m away"),
+            );
+        }
+    }
+    assert!(hub.log.len() <= 5_000, "{} lines kept", hub.log.len());
+    let text = hub.log_text(None, "");
+    assert!(text.len() < 512 * 1024, "{} bytes of log kept", text.len());
+    assert!(
+        text.ends_with("[10000] mission 1 GotoXyz reached at t=4.25 s, 0.031 m away\n"),
+        "the newest line is kept: {:?}",
+        text.lines().last()
+    );
+}

@@ -10,6 +10,8 @@
 //! cargo test -p ucc-gui --test soak -- --ignored --nocapture
 //! UCC_SOAK_ITERATIONS=2000 cargo test -p ucc-gui --test soak -- --ignored --nocapture
 //! ```
+//!
+//! At most 10,000 iterations (the most one start may ask for).
 
 use std::path::PathBuf;
 use std::process::Stdio;
@@ -164,10 +166,18 @@ async fn soak_10000_iterations_with_the_page_open() -> Result<()> {
             "iteration", "heap MiB", "vs ref", "DOM", "log lines", "RSS MiB", "vs ref"
         );
         let (start, mut next) = (Instant::now(), every);
+        // A refused start (more than the hub's 10,000 iterations) or a stuck run fails here
+        // instead of waiting for ever.
+        let (mut last_iteration, mut moved) = (0, Instant::now());
         let (mut reference, mut worst): (Option<(f64, f64)>, (f64, f64)) = (None, (0.0, 0.0));
         loop {
             let s = c.execute(sample, vec![]).await?;
             let iteration = s["iteration"].as_u64().unwrap_or(0);
+            if iteration != last_iteration {
+                (last_iteration, moved) = (iteration, Instant::now());
+            } else if moved.elapsed() > Duration::from_secs(60) {
+                bail!("no progress for 60 s at iteration {iteration} (status {:?})", s["status"]);
+            }
             let status = s["status"].as_str().unwrap_or("").to_owned();
             let finished = status != "running" && iteration > 0;
             if iteration >= next || finished {

@@ -196,7 +196,7 @@ function drawLog() {
   const rank = { info: 0, warn: 1, error: 2 };
   const names = new Map([...store.uavs.values()].map((c) => [c.info.id, c.info.name]));
   const lines = [];
-  for (let i = store.log.length - 1; i >= 0 && lines.length < 2000; i--) {
+  for (let i = store.log.length - 1; i >= 0 && lines.length < MAX_LOG; i--) {
     const l = store.log[i];
     if ((!uf || String(l.uav) === uf) && (!lf || rank[l.level] >= rank[lf])) lines.push(l);
   }

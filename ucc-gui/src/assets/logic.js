@@ -12,8 +12,9 @@ export const MAX_PAST = 100;
 export const MAX_HISTORY = 5000;
 /** Laser hits kept per UAV (the map of a server without geometry). */
 export const MAX_HITS = 20000;
-/** Log lines kept. */
-export const MAX_LOG = 20000;
+/** Log lines kept (and shown at most): the newest; "Save log" downloads the server's (it
+ * keeps more), and the complete log of a run is its log files. */
+export const MAX_LOG = 2000;
 
 /** Colours, chosen for ≥ 4.5:1 contrast on white (WCAG AA). */
 export const WALL_COLOR = "#5c677d";

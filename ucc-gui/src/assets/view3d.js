@@ -165,11 +165,18 @@ export class View3d {
     for (const o of this.detail.children) { o.geometry.dispose(); }
     this.detail.clear();
     if (!c) return;
+    // Materials made once (they were made every frame and never disposed, as three.js asks).
+    const mats = this.detailMaterials ??= {
+      waypoints: new THREE.PointsMaterial({ color: 0x1a1a1a, size: 8, sizeAttenuation: false }),
+      route: new THREE.LineDashedMaterial({ color: 0x555555 }),
+      laser: new THREE.LineBasicMaterial({ color: 0xd62839, transparent: true, opacity: 0.35 }),
+      sonar: new THREE.MeshBasicMaterial({ color: 0x1b7a6e, transparent: true, opacity: 0.18, depthWrite: false }),
+    };
     const wp = c.info.missions.filter((m) => m.kind === "GotoXyz");
     if (wp.length) {
       const g = new THREE.BufferGeometry().setFromPoints(wp.map((m) => toThree(m.x, m.y, m.z)));
-      this.detail.add(new THREE.Points(g, new THREE.PointsMaterial({ color: 0x1a1a1a, size: 8, sizeAttenuation: false })));
-      this.detail.add(new THREE.Line(g.clone(), new THREE.LineDashedMaterial({ color: 0x555555 })));
+      this.detail.add(new THREE.Points(g, mats.waypoints));
+      this.detail.add(new THREE.Line(g.clone(), mats.route));
     }
     const l = c.live;
     if (!l || !l.position) return;
@@ -181,16 +188,15 @@ export class View3d {
         const a = yaw + l.laser.fov / 2 - i * l.laser.resolution;
         pts.push(p, toThree(l.position[0] + r * Math.cos(a), l.position[1] + r * Math.sin(a), l.position[2]));
       });
-      this.detail.add(new THREE.LineSegments(new THREE.BufferGeometry().setFromPoints(pts), new THREE.LineBasicMaterial({ color: 0xd62839, transparent: true, opacity: 0.35 })));
+      this.detail.add(new THREE.LineSegments(new THREE.BufferGeometry().setFromPoints(pts), mats.laser));
     }
     if (l.sonars) {
-      const mat = new THREE.MeshBasicMaterial({ color: 0x1b7a6e, transparent: true, opacity: 0.18, depthWrite: false });
       l.sonars.forEach((r, i) => {
         if (r === null || !(r > 0)) return;
         const a = yaw + i * Math.PI / 4, half = 0.26;
         const g = new THREE.ConeGeometry(Math.tan(half) * r, r, 16, 1, true);
         g.translate(0, -r / 2, 0); // apex at the origin, opening along -Y
-        const cone = new THREE.Mesh(g, mat);
+        const cone = new THREE.Mesh(g, mats.sonar);
         cone.position.copy(p);
         const dir = toThree(Math.cos(a), Math.sin(a), 0).sub(toThree(0, 0, 0)).normalize();
         cone.quaternion.setFromUnitVectors(new THREE.Vector3(0, -1, 0), dir);

@@ -41,8 +41,9 @@ const MAX_PAST_POINTS: usize = 1_000;
 const MAX_PAST: usize = 100;
 /// Samples kept for the plots of one iteration.
 const MAX_HISTORY: usize = 5_000;
-/// Log lines kept, all UAVs.
-const MAX_LOG: usize = 80_000;
+/// Log lines kept, all UAVs: the newest, for new pages and "Save log" (about 0.7 MiB). The
+/// complete log of a run is its log files (`PREFIX-NN.log`, with "write files" on).
+const MAX_LOG: usize = 5_000;
 /// Laser hits kept per UAV (the map of a real USARSim).
 const MAX_HITS: usize = 20_000;
 
