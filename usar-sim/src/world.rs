@@ -804,10 +804,18 @@ fn for_chunks<T: Send>(items: &mut [T], threads: usize, work: impl Fn(&mut T) + 
     std::thread::scope(|scope| {
         let mut chunks = items.chunks_mut(size);
         let mine = chunks.next();
-        for chunk in chunks {
-            scope.spawn(move || chunk.iter_mut().for_each(work));
-        }
+        let others: Vec<_> = chunks
+            .map(|chunk| scope.spawn(move || chunk.iter_mut().for_each(work)))
+            .collect();
         mine.into_iter().flatten().for_each(work);
+        // Joined, not left to the scope: a thread the scope lets go may not have exited
+        // (and given its malloc arena back) before the next tick's threads start, and
+        // glibc then makes new arenas (the Python soak's creep, issue 26).
+        for other in others {
+            if let Err(panic) = other.join() {
+                std::panic::resume_unwind(panic);
+            }
+        }
     });
 }
 
