@@ -689,12 +689,10 @@ impl Robot {
     }
 
     /// One tick of flight: the physics model's step, or the kinematic flight.
+    /// A physics model's robot must have been [prepared](Robot::prepare) this tick (which
+    /// also stops the motors of an empty timer).
     pub(crate) fn fly(&mut self, scene: &mut Scene, tick: u64, dt: f64) {
-        let dead = self.is_dead(tick, dt);
         if let Some(dynamics) = &mut self.dynamics {
-            if dead && self.crashed.is_none() && dynamics.gauge().is_none() {
-                dynamics.crash(); // an empty timer stops the motors
-            }
             let crash = dynamics.step(Flight {
                 scene,
                 body: self.body,
@@ -711,7 +709,7 @@ impl Robot {
             }
             return;
         }
-        if dead || self.crashed.is_some() {
+        if self.is_dead(tick, dt) || self.crashed.is_some() {
             self.set = SetPoints::default();
         }
         let s = self.set;
