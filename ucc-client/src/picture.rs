@@ -405,17 +405,20 @@ impl MapPicture {
                 .label("start")
                 .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 6, green.filled()));
         }
-        // Waypoints on top of the start: hollow squares, so both stay visible.
-        chart
-            .draw_series(self.waypoints.iter().map(|p| {
-                EmptyElement::at(top_view(p))
-                    + Rectangle::new([(-6, -6), (6, 6)], RED.stroke_width(3))
-            }))
-            .map_err(err)?
-            .label("waypoint")
-            .legend(|(x, y)| {
-                Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], RED.stroke_width(2))
-            });
+        // Waypoints on top of the start: hollow squares, so both stay visible (and in the
+        // legend only when there are some).
+        if !self.waypoints.is_empty() {
+            chart
+                .draw_series(self.waypoints.iter().map(|p| {
+                    EmptyElement::at(top_view(p))
+                        + Rectangle::new([(-6, -6), (6, 6)], RED.stroke_width(3))
+                }))
+                .map_err(err)?
+                .label("waypoint")
+                .legend(|(x, y)| {
+                    Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], RED.stroke_width(2))
+                });
+        }
         // Their numbers, in the order flown (waypoints at one place share a label: "1, 5").
         let font = ("sans-serif", 15).into_font().color(&RED);
         chart
@@ -854,6 +857,10 @@ mod tests {
         assert!(svg.contains("paths of 237 iterations"), "one entry for all");
         assert!(!svg.contains("iteration 2<"), "no entry per iteration");
         assert!(svg.contains("laser hits"));
+        assert!(
+            !svg.contains("waypoint\n</text>"),
+            "no waypoint in the legend of a picture without waypoints"
+        );
         // The scale bar's label sits above the plot's top edge (the caption row).
         let label = svg.find(" m\n</text>").expect("a scale bar label");
         let tag = &svg[svg[..label].rfind("<text").unwrap()..label];
