@@ -1082,11 +1082,12 @@ impl Robot {
             .filter(move |a| matches("Actuator", &a.config.name, kind, name))
     }
 
-    /// Its cameras, in part order: part index and camera.
+    /// Its cameras, in part order.
     pub(crate) fn cameras(&self) -> impl Iterator<Item = &Camera> {
         self.parts.iter().filter_map(|p| p.sensor.camera())
     }
 
+    /// Its cameras, in part order, to change.
     pub(crate) fn cameras_mut(&mut self) -> impl Iterator<Item = &mut Camera> {
         self.parts.iter_mut().filter_map(|p| p.sensor.camera_mut())
     }

@@ -722,12 +722,9 @@ impl Scene {
     /// the shape cast cannot hit anything and is skipped (most robots, most ticks).
     fn clear_path(&self, handle: ColliderHandle, shape: BodyShape, centre: V3, motion: V3) -> bool {
         let half = [shape.radius, shape.radius, shape.half_height];
-        let pad = f64::from(SWEEP_PAD);
-        let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i] - pad);
-        let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i] + pad);
-        let swept = Aabb::new(to_vector(lo), to_vector(hi));
-        let me = handle.into_raw_parts().0;
-        self.bvh.intersect_aabb(&swept).all(|leaf| leaf == me)
+        let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i]);
+        let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i]);
+        self.alone_in(handle, lo, hi)
     }
 
     /// The contact normal of `leaf`'s last sweep if it is a [`Rest`] that this sweep repeats:
