@@ -67,6 +67,11 @@ struct Args {
     /// compare runs at different --threads or with --reference.
     #[arg(long)]
     digest: bool,
+    /// With --sim-only: write every tick's wall time, the stepping thread's CPU time (both
+    /// µs) and bytes printed to this CSV file (`tick,wall_us,cpu_us,bytes`), to see where the
+    /// tail comes from.
+    #[arg(long, value_name = "FILE")]
+    tick_log: Option<std::path::PathBuf>,
     /// With --sim-only: the scaling curve. Runs the world alone at each of these robot
     /// counts (comma-separated; `--uavs` is ignored), three times each, prints min/median/max
     /// of the cost per tick and draws it into --plot.
@@ -712,6 +717,19 @@ fn sim_only_in(
         bytes as f64 / 1e6
     );
     say!("memory: {per_robot:.2} KiB allocated per idle robot (spawned, before the first tick)");
+    if let Some(path) = &args.tick_log {
+        let mut csv = String::from("tick,wall_us,cpu_us,bytes\n");
+        for (i, ((w, c), b)) in tick_times
+            .iter()
+            .zip(&tick_cpu)
+            .zip(&tick_bytes)
+            .enumerate()
+        {
+            csv.push_str(&format!("{},{w:.0},{c:.0},{b:.0}\n", i + 1));
+        }
+        std::fs::write(path, csv)
+            .with_context(|| format!("cannot write the tick log {}", path.display()))?;
+    }
     let slowest = (0..tick_times.len()).max_by(|&a, &b| tick_times[a].total_cmp(&tick_times[b]));
     tick_times.sort_by(f64::total_cmp);
     tick_cpu.sort_by(f64::total_cmp);

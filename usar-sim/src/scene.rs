@@ -34,8 +34,17 @@ pub(crate) type V3 = [f64; 3];
 /// distance.
 pub const LIMIT: f64 = 100_000.0;
 
-/// Extra room (m) around each BVH leaf so small moves do not touch the tree.
+/// Least extra room (m) around a robot's BVH leaf so small moves do not touch the tree.
 const LEAF_MARGIN: f32 = 0.05;
+
+/// The room around `leaf`'s box: between [`LEAF_MARGIN`] and twice that, spread evenly over
+/// the leaves (a golden-ratio sequence of the leaf's number). Robots that move together
+/// (a swarm on one command, a benchmark's grid) then leave their boxes on different ticks
+/// instead of all on one, which was the long tick of a crowd (issue 27's tail).
+fn leaf_margin(leaf: u32) -> f32 {
+    let spread = (u64::from(leaf).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as f32;
+    LEAF_MARGIN * (1.0 + spread / (1u64 << 24) as f32)
+}
 /// Gap (m) kept between a swept robot and what it hits.
 const SKIN: f32 = 0.01;
 /// Beyond this distance (m) between tree boxes a sweep cannot touch: the gap `SKIN`,
@@ -415,6 +424,10 @@ impl Scene {
                 None => collider.compute_aabb(),
             };
             let leaf = handle.into_raw_parts().0;
+            let fat = || {
+                let margin = Vector::splat(leaf_margin(leaf));
+                Aabb::new(aabb.mins - margin, aabb.maxs + margin)
+            };
             match self.bvh.leaf_node(leaf) {
                 Some(node) if node.contains_aabb(&aabb) => {}
                 Some(_) => {
@@ -422,14 +435,16 @@ impl Scene {
                     // (parry's `insert_with_change_detection` with a margin widens the
                     // ancestors only to the bare box: the robot could then drift out of
                     // them, within its leaf, and tree walks missed it until a refit.)
-                    let fat = Aabb::new(
-                        aabb.mins - Vector::splat(LEAF_MARGIN),
-                        aabb.maxs + Vector::splat(LEAF_MARGIN),
-                    );
+                    let fat = fat();
                     let _ = self.bvh.insert_with_change_detection(fat, leaf, 0.0);
                     self.unclear_near(leaf, &fat);
                 }
                 None => {
+                    // A robot's body starts with its margin (with the bare box, every robot
+                    // spawned together left it on the first tick it moved, all at once);
+                    // map solids never move and keep the bare box.
+                    let body = collider.user_data == BODY;
+                    let aabb = if body { fat() } else { aabb };
                     self.bvh.insert(aabb, leaf);
                     self.unclear_near(leaf, &aabb);
                     self.stale = true;
@@ -1247,6 +1262,50 @@ mod tests {
             scene
                 .cast_ray([0.0; 3], [-1.0, 0.0, 0.0], 10.0, Some(me))
                 .is_none()
+        );
+    }
+
+    /// A crowd flying on one command (a swarm, the benchmark's grid) must not leave its tree
+    /// boxes all on one tick: each box regrown is a tree update, and 10,000 on one tick made
+    /// the longest tick twice the median (issue 27's tail). Before the spread margins every
+    /// robot left its box on the first tick it moved and then every 50 ticks, all together.
+    #[test]
+    fn a_crowd_moving_together_regrows_its_tree_boxes_on_different_ticks() {
+        let shape = BodyShape {
+            radius: 0.45,
+            half_height: 0.1,
+        };
+        let mut scene = Scene::new();
+        let mut bodies: Vec<(ColliderHandle, V3)> = (0..400)
+            .map(|i| {
+                let centre = [f64::from(i % 20) * 1.5, f64::from(i / 20) * 1.5, -2.0];
+                (scene.insert_body(shape, centre), centre)
+            })
+            .collect();
+        scene.refresh();
+        let boxes = |scene: &Scene, bodies: &[(ColliderHandle, V3)]| -> Vec<Aabb> {
+            bodies
+                .iter()
+                .map(|(h, _)| scene.bvh.leaf_node(h.into_raw_parts().0).unwrap().aabb())
+                .collect()
+        };
+        let mut most = 0;
+        // 0.2 m/s at 200 Hz for 2 s: four times through the least margin.
+        for _ in 0..400 {
+            let before = boxes(&scene, &bodies);
+            for (handle, centre) in &mut bodies {
+                *centre = scene
+                    .sweep_contact(*handle, shape, *centre, [0.001, 0.0, 0.0])
+                    .0;
+            }
+            let after = boxes(&scene, &bodies);
+            let regrown = before.iter().zip(&after).filter(|(a, b)| a != b).count();
+            most = most.max(regrown);
+        }
+        assert!(
+            most <= bodies.len() / 10,
+            "{most} of {} robots regrew their tree boxes on one tick",
+            bodies.len()
         );
     }
 
