@@ -37,14 +37,20 @@ pub const LIMIT: f64 = 100_000.0;
 /// Least extra room (m) around a robot's BVH leaf so small moves do not touch the tree.
 const LEAF_MARGIN: f32 = 0.05;
 
-/// The room around `leaf`'s box: between [`LEAF_MARGIN`] and twice that, spread evenly over
-/// the leaves (a golden-ratio sequence of the leaf's number). Robots that move together
-/// (a swarm on one command, a benchmark's grid) then leave their boxes on different ticks
-/// instead of all on one, which was the long tick of a crowd (issue 27's tail).
-fn leaf_margin(leaf: u32) -> f32 {
-    let spread = (u64::from(leaf).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as f32;
+/// The room around `leaf`'s new box `aabb`: between [`LEAF_MARGIN`] and twice that, drawn
+/// from the leaf and where its box is (a hash, so the same at any thread count). Robots that
+/// move together (a swarm on one command, a benchmark's grid) then leave their boxes on
+/// different ticks instead of all on one, which made a crowd's longest tick twice its median
+/// (issue 27's tail). A room the same for every box (or the same for each leaf) puts the
+/// places where a robot leaves its box on a grid from its start, so robots flying out and
+/// back all left their boxes together when home again.
+fn leaf_margin(leaf: u32, aabb: &Aabb) -> f32 {
+    let [x, y, z] = [aabb.mins.x, aabb.mins.y, aabb.mins.z].map(|c| u64::from(c.to_bits()));
+    let mut seed = u64::from(leaf) ^ (x << 32) ^ (y << 16) ^ z;
+    let spread = (crate::noise::splitmix(&mut seed) >> 40) as f32;
     LEAF_MARGIN * (1.0 + spread / (1u64 << 24) as f32)
 }
+
 /// Gap (m) kept between a swept robot and what it hits.
 const SKIN: f32 = 0.01;
 /// Beyond this distance (m) between tree boxes a sweep cannot touch: the gap `SKIN`,
@@ -425,7 +431,7 @@ impl Scene {
             };
             let leaf = handle.into_raw_parts().0;
             let fat = || {
-                let margin = Vector::splat(leaf_margin(leaf));
+                let margin = Vector::splat(leaf_margin(leaf, &aabb));
                 Aabb::new(aabb.mins - margin, aabb.maxs + margin)
             };
             match self.bvh.leaf_node(leaf) {
@@ -1268,7 +1274,8 @@ mod tests {
     /// A crowd flying on one command (a swarm, the benchmark's grid) must not leave its tree
     /// boxes all on one tick: each box regrown is a tree update, and 10,000 on one tick made
     /// the longest tick twice the median (issue 27's tail). Before the spread margins every
-    /// robot left its box on the first tick it moved and then every 50 ticks, all together.
+    /// robot left its box on the first tick it moved and then every 50 ticks, all together;
+    /// with a margin by leaf, all together again when they came back to where they started.
     #[test]
     fn a_crowd_moving_together_regrows_its_tree_boxes_on_different_ticks() {
         let shape = BodyShape {
@@ -1290,12 +1297,14 @@ mod tests {
                 .collect()
         };
         let mut most = 0;
-        // 0.2 m/s at 200 Hz for 2 s: four times through the least margin.
-        for _ in 0..400 {
+        // 0.2 m/s at 200 Hz, out for 1 s and back, twice (the benchmark's flight): each leg
+        // four times through the least margin.
+        for tick in 0..800 {
             let before = boxes(&scene, &bodies);
+            let dx = if (tick / 200) % 2 == 0 { 0.001 } else { -0.001 };
             for (handle, centre) in &mut bodies {
                 *centre = scene
-                    .sweep_contact(*handle, shape, *centre, [0.001, 0.0, 0.0])
+                    .sweep_contact(*handle, shape, *centre, [dx, 0.0, 0.0])
                     .0;
             }
             let after = boxes(&scene, &bodies);
