@@ -825,8 +825,9 @@ fn plan_layout(args: &mut Args) -> anyhow::Result<()> {
     }
     bail!(
         "{} UAVs do not fit on map {} at --spacing {}: at most {} fit (with --layers {}). \
-         Pass fewer --uavs, a smaller --spacing, or a bigger map, e.g. \
-         `--map city --spacing 1.5 --layers 6` for 1000",
+         Pass fewer --uavs, a smaller --spacing, a bigger map or more --layers \
+         (on its own the layout tries at most 16; `--map city --spacing 1.3 --layers 32` \
+         holds 20,000)",
         args.uavs,
         map.level(),
         args.spacing,
