@@ -137,7 +137,7 @@ def add_extras(obs, images: dict, i: int, signal=None):
 def action_space() -> spaces.Box:
     """The action space of one UAV: four values in -1..1, read as the action mode says
     (velocity: forward, right, up, yaw rate; attitude: roll, pitch, yaw rate, thrust;
-    rotors: the four rotor speeds; docs/python.md)."""
+    rates: roll, pitch and yaw rates, thrust; rotors: the four rotor speeds; docs/python.md)."""
     return spaces.Box(-1.0, 1.0, (4,), np.float32)
 
 
