@@ -486,9 +486,11 @@ mod tests {
             })
         );
         assert!(parse("QUAD {Rates 0,0,0}").unwrap_err().contains("Thrust"));
-        assert!(parse("QUAD {Rates 0,0} {Thrust 1}")
-            .unwrap_err()
-            .contains("3 numbers"));
+        assert!(
+            parse("QUAD {Rates 0,0} {Thrust 1}")
+                .unwrap_err()
+                .contains("3 numbers")
+        );
         assert!(parse("QUAD {Rotors 1,2,NaN,4}").is_err());
         assert!(parse("QUAD {Foo 1}").unwrap_err().contains("Rotors"));
     }

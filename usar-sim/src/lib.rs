@@ -144,7 +144,6 @@ impl Default for SimConfig {
 /// the cgroup files on every call (a syscall-heavy 2 % of a Python batch reset).
 pub fn default_threads() -> usize {
     static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-    *CORES.get_or_init(|| {
-        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
-    })
+    *CORES
+        .get_or_init(|| std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get))
 }
