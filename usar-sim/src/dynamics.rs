@@ -49,12 +49,21 @@ pub(crate) enum LowLevel {
         /// N, the sum of the four rotors' thrusts.
         thrust: f64,
     },
+    /// Body rates (rad/s: roll, pitch, yaw, about the body's axes) and collective thrust
+    /// (N): the controller's rate loop and mixer, no attitude loop.
+    Rates {
+        /// rad/s, [roll (+ = right side down), pitch (+ = nose up), yaw (+ = clockwise
+        /// from above)].
+        rates: [f64; 3],
+        /// N, the sum of the four rotors' thrusts.
+        thrust: f64,
+    },
     /// The four rotor speeds, rad/s, in rotor order (docs/quadrotor.md).
     Rotors([f64; 4]),
 }
 
-/// Parses `QUAD {Attitude r,p,y} {Thrust t}` or `QUAD {Rotors w1,w2,w3,w4}`; the error says
-/// what is wrong.
+/// Parses `QUAD {Attitude r,p,y} {Thrust t}`, `QUAD {Rates p,q,r} {Thrust t}` or
+/// `QUAD {Rotors w1,w2,w3,w4}`; the error says what is wrong.
 pub(crate) fn parse_quad(message: &Message) -> Result<LowLevel, String> {
     let numbers = |key: &str, n: usize| -> Result<Vec<f64>, String> {
         let text = message.get(key).unwrap_or_default();
@@ -77,23 +86,36 @@ pub(crate) fn parse_quad(message: &Message) -> Result<LowLevel, String> {
         let w = numbers("Rotors", 4)?;
         return Ok(LowLevel::Rotors([w[0], w[1], w[2], w[3]]));
     }
-    if message.get("Attitude").is_some() {
-        let a = numbers("Attitude", 3)?;
-        let t = numbers("Thrust", 1).map_err(|e| {
+    let thrust = |key: &str| {
+        numbers("Thrust", 1).map(|t| t[0]).map_err(|e| {
             if message.get("Thrust").is_none() {
-                "{Attitude ..} needs {Thrust <newtons>}".to_string()
+                format!("{{{key} ..}} needs {{Thrust <newtons>}}")
             } else {
                 e
             }
-        })?;
+        })
+    };
+    if message.get("Attitude").is_some() {
+        let a = numbers("Attitude", 3)?;
         return Ok(LowLevel::Attitude {
             roll: a[0],
             pitch: a[1],
             yaw_rate: a[2],
-            thrust: t[0],
+            thrust: thrust("Attitude")?,
         });
     }
-    Err("QUAD needs {Attitude roll,pitch,yawrate} {Thrust t} or {Rotors w1,w2,w3,w4}".into())
+    if message.get("Rates").is_some() {
+        let r = numbers("Rates", 3)?;
+        return Ok(LowLevel::Rates {
+            rates: [r[0], r[1], r[2]],
+            thrust: thrust("Rates")?,
+        });
+    }
+    Err(
+        "QUAD needs {Attitude roll,pitch,yawrate} {Thrust t}, {Rates p,q,r} {Thrust t} or \
+         {Rotors w1,w2,w3,w4}"
+            .into(),
+    )
 }
 
 /// A fault of the `FAULT` protocol extension (docs/quadrotor.md#faults).
@@ -455,6 +477,19 @@ mod tests {
             parse("QUAD {Attitude 0,0,0}")
                 .unwrap_err()
                 .contains("Thrust")
+        );
+        assert_eq!(
+            parse("QUAD {Rates 0.1 -0.2 0.3} {Thrust 12}"),
+            Ok(LowLevel::Rates {
+                rates: [0.1, -0.2, 0.3],
+                thrust: 12.0
+            })
+        );
+        assert!(parse("QUAD {Rates 0,0,0}").unwrap_err().contains("Thrust"));
+        assert!(
+            parse("QUAD {Rates 0,0} {Thrust 1}")
+                .unwrap_err()
+                .contains("3 numbers")
         );
         assert!(parse("QUAD {Rotors 1,2,NaN,4}").is_err());
         assert!(parse("QUAD {Foo 1}").unwrap_err().contains("Rotors"));

@@ -140,7 +140,10 @@ impl Default for SimConfig {
     }
 }
 
-/// The machine's cores (1 when unknown).
+/// The machine's cores (1 when unknown), asked once a process: the standard library reads
+/// the cgroup files on every call (a syscall-heavy 2 % of a Python batch reset).
 pub fn default_threads() -> usize {
-    std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CORES
+        .get_or_init(|| std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get))
 }

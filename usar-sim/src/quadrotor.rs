@@ -314,6 +314,8 @@ enum Mode {
         yaw_rate: f64,
         thrust: f64,
     },
+    /// QUAD {Rates}: body rates (rad/s) and collective thrust (N).
+    Rates { rates: V3, thrust: f64 },
     /// QUAD {Rotors}.
     Rotors([f64; 4]),
     /// The battery reached its reserve: the autopilot descends at [`LAND_SPEED`] and
@@ -540,6 +542,12 @@ impl Quadrotor {
                 let desired = super::dynamics::euler_to_matrix([roll, pitch, self.yaw_ref]);
                 (desired, thrust, yaw_rate)
             }
+            // The rate loop alone (below); the held heading follows the actual one, so that
+            // a later mode holds the heading the rates left.
+            Mode::Rates { thrust, .. } => {
+                self.yaw_ref = yaw;
+                (*r, thrust, 0.0)
+            }
             Mode::Level | Mode::Velocity(_) | Mode::Land => {
                 let set = match self.mode {
                     Mode::Velocity(s) => Some(s),
@@ -632,19 +640,23 @@ impl Quadrotor {
                 (desired, thrust, set.map_or(0.0, |s| s.yaw_rate))
             }
         };
-        // Attitude error (Lee et al. 2010): e = ½ vee(R_dᵀR − RᵀR_d).
-        let a = super::dynamics::mat_mul(&transpose(&desired), r);
-        let e = [
-            0.5 * (a[2][1] - a[1][2]),
-            0.5 * (a[0][2] - a[2][0]),
-            0.5 * (a[1][0] - a[0][1]),
-        ];
         let tilt_rate = c.max_tilt_rate;
-        let want = [
-            (-c.attitude_gain * e[0]).clamp(-tilt_rate, tilt_rate),
-            (-c.attitude_gain * e[1]).clamp(-tilt_rate, tilt_rate),
-            (-c.attitude_gain * e[2] + yaw_ff).clamp(-tilt_rate, tilt_rate),
-        ];
+        let want = if let Mode::Rates { rates, .. } = self.mode {
+            rates.map(|w| w.clamp(-tilt_rate, tilt_rate))
+        } else {
+            // Attitude error (Lee et al. 2010): e = ½ vee(R_dᵀR − RᵀR_d).
+            let a = super::dynamics::mat_mul(&transpose(&desired), r);
+            let e = [
+                0.5 * (a[2][1] - a[1][2]),
+                0.5 * (a[0][2] - a[2][0]),
+                0.5 * (a[1][0] - a[0][1]),
+            ];
+            [
+                (-c.attitude_gain * e[0]).clamp(-tilt_rate, tilt_rate),
+                (-c.attitude_gain * e[1]).clamp(-tilt_rate, tilt_rate),
+                (-c.attitude_gain * e[2] + yaw_ff).clamp(-tilt_rate, tilt_rate),
+            ]
+        };
         let w = self.rates;
         let inertia = c.inertia;
         let iw = std::array::from_fn(|i| inertia[i] * w[i]);
@@ -966,6 +978,7 @@ impl Dynamics for Quadrotor {
                 yaw_rate,
                 thrust,
             },
+            LowLevel::Rates { rates, thrust } => Mode::Rates { rates, thrust },
             LowLevel::Rotors(w) => Mode::Rotors(w),
         };
     }

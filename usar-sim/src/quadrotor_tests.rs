@@ -877,6 +877,60 @@ fn the_attitude_keeps_turning_after_a_crash() {
     );
 }
 
+/// QUAD {Rates}: the rate loop alone follows the commanded body rates (IMU truth), the
+/// attitude is the integral of them (no attitude loop pulls it back to level), and zero rates
+/// hold whatever attitude the vehicle has.
+#[test]
+fn body_rates_and_thrust_fly_the_rate_loop() {
+    let mut w = world_with(exact_imu(RobotCatalog::embedded()), None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -3.0], 0.0);
+    let weight = 1.3 * GRAVITY;
+    // Yaw at 0.5 rad/s, level, thrust = weight: the heading turns at the commanded rate.
+    command(
+        &mut w,
+        c,
+        &format!("QUAD {{Rates 0,0,0.5}} {{Thrust {weight}}}"),
+    );
+    run(&mut w, 0.5);
+    let (_, _, r0) = state(&w, c);
+    let out = run(&mut w, 1.0);
+    let (_, _, r1) = state(&w, c);
+    let yaw_rate = imu_lines(&out).last().expect("IMU").1;
+    assert!((yaw_rate.z - 0.5).abs() < 0.02, "yaw rate {yaw_rate:?}");
+    assert!(
+        (r1[2] - r0[2] - 0.5).abs() < 0.02,
+        "turned {} rad in 1 s",
+        r1[2] - r0[2]
+    );
+    assert!(r1[0].abs() < 0.02 && r1[1].abs() < 0.02, "level: {r1:?}");
+    // Roll right at 0.4 rad/s for 0.5 s, then zero rates: the roll (≈ 0.2 rad less the
+    // rise time) stays, where an attitude command of zero would level the vehicle.
+    command(
+        &mut w,
+        c,
+        &format!("QUAD {{Rates 0.4,0,0}} {{Thrust {weight}}}"),
+    );
+    let out = run(&mut w, 0.5);
+    let roll_rate = imu_lines(&out).last().expect("IMU").1;
+    assert!((roll_rate.x - 0.4).abs() < 0.02, "roll rate {roll_rate:?}");
+    command(
+        &mut w,
+        c,
+        &format!("QUAD {{Rates 0,0,0}} {{Thrust {weight}}}"),
+    );
+    run(&mut w, 0.2);
+    let (_, _, a) = state(&w, c);
+    run(&mut w, 0.3);
+    let (_, v, b) = state(&w, c);
+    assert!(a[0] > 0.15 && a[0] < 0.21, "rolled: {a:?}");
+    assert!(
+        (b[0] - a[0]).abs() < 0.01,
+        "the roll holds: {a:?} then {b:?}"
+    );
+    // Rolled right, the thrust pushes it right (+y).
+    assert!(v[1] > 0.3, "sliding right: {v:?}");
+}
+
 fn command_rotors(rig: &mut Rig, w: [f64; 4]) {
     dynamics::Dynamics::low_level(&mut rig.quad, dynamics::LowLevel::Rotors(w));
 }

@@ -8,7 +8,9 @@ is one UAV advanced one control period (0.1 s simulated, 20 physics ticks). "ful
 stsAirRobot with every sensor (228-beam laser, 10 sonars) and the Dict observation; "state":
 ``state_only=True, flat=True`` (no range sensors; one float32 Box). Random actions; episodes
 end and autoreset (NEXT_STEP) as they come. "autoreset step": one step in which every
-sub-environment resets (episodes of 1 step), against a normal step.
+sub-environment resets (episodes of 1 step), against a normal step, full and state-only (a
+reset flies the world until every sensor has read once: two control periods with the 0.2 s
+sonars and laser, one without them).
 
 Per CPU-second is the process's CPU time (user + system, all threads): on a machine shared
 with other work it is the fairer figure; wall-clock UAV-steps/s depends on the free cores.
@@ -26,8 +28,9 @@ import usarsim
 
 
 def clocks():
-    t = os.times()
-    return time.perf_counter(), t.user + t.system
+    # process_time: user + system of every thread, at nanosecond resolution (os.times() counts
+    # in 10 ms ticks, too coarse for one step).
+    return time.perf_counter(), time.process_time()
 
 
 def single(seconds):
@@ -57,20 +60,21 @@ def vector(num, seconds, **options):
     return n * num / (w1 - w0), n * num / max(c1 - c0, 1e-9)
 
 
-def autoreset(num, repeats=5):
-    """Seconds of a normal step and of a step where all `num` sub-envs reset (median)."""
-    venv = usarsim.vector_env(num, "hover", max_steps=1)
+def autoreset(num, repeats=5, **options):
+    """(wall, CPU) seconds of a normal step and of a step where all `num` sub-envs reset
+    (medians)."""
+    venv = usarsim.vector_env(num, "hover", max_steps=1, **options)
     venv.reset(seed=0)
     a = np.zeros((num, 4))
     normal, resetting = [], []
     for _ in range(repeats):
-        t = time.perf_counter()
-        venv.step(a)  # ends every episode (max_steps=1): a normal step
-        normal.append(time.perf_counter() - t)
-        t = time.perf_counter()
-        venv.step(a)  # NEXT_STEP: every sub-env resets
-        resetting.append(time.perf_counter() - t)
-    return statistics.median(normal), statistics.median(resetting)
+        for record in (normal, resetting):  # max_steps=1 ends every episode: a normal step,
+            w0, c0 = clocks()  # then (NEXT_STEP) a step where every sub-env resets
+            venv.step(a)
+            w1, c1 = clocks()
+            record.append((w1 - w0, c1 - c0))
+    med = lambda xs, i: statistics.median(x[i] for x in xs)  # noqa: E731
+    return (med(normal, 0), med(normal, 1)), (med(resetting, 0), med(resetting, 1))
 
 
 if __name__ == "__main__":
@@ -84,6 +88,7 @@ if __name__ == "__main__":
         wall, cpu = fn()
         print(f"{name:34s} {wall:10.0f} UAV-steps/s   {cpu:10.0f} per CPU-second")
     for n in (256, 1024):
-        normal, resetting = autoreset(n)
-        print(f"autoreset, {n} UAVs: normal step {normal * 1e3:6.1f} ms, step resetting all "
-              f"{resetting * 1e3:6.1f} ms ({resetting / normal:.2f}x)")
+        for kind, options in (("full", {}), ("state", {"state_only": True, "flat": True})):
+            (nw, nc), (rw, rc) = autoreset(n, **options)
+            print(f"autoreset, {n:4d} UAVs, {kind}: normal step {nw * 1e3:6.1f} ms ({nc * 1e3:5.1f} CPU), "
+                  f"resetting all {rw * 1e3:6.1f} ms ({rc * 1e3:5.1f} CPU): {rw / nw:.2f}x wall, {rc / nc:.2f}x CPU")

@@ -56,6 +56,14 @@ pub(crate) enum ActionMode {
         /// The vehicle's weight, N.
         weight: f64,
     },
+    /// Body rates (roll, pitch, yaw; × `max_rate`) and collective thrust `weight × (1 + a)`:
+    /// `QUAD {Rates} {Thrust}`.
+    Rates {
+        /// The class's largest commanded body rate, rad/s (`max_tilt_rate`).
+        max_rate: f64,
+        /// The vehicle's weight, N.
+        weight: f64,
+    },
     /// Four rotor speeds, -1..=1 mapped onto the class's rotor speed range: `QUAD {Rotors}`.
     Rotors {
         /// Rotor speed limits, rad/s.
@@ -224,8 +232,8 @@ impl Settings {
         Ok(())
     }
 
-    /// With the action mode `mode`: `"velocity"`, or for a robot with physics `"attitude"`
-    /// or `"rotors"` (the `QUAD` extension, docs/quadrotor.md).
+    /// With the action mode `mode`: `"velocity"`, or for a robot with physics `"attitude"`,
+    /// `"rates"` or `"rotors"` (the `QUAD` extension, docs/quadrotor.md).
     pub(crate) fn action_mode(mut self, mode: &str) -> Result<Self, SimError> {
         let class = self
             .catalog
@@ -234,7 +242,7 @@ impl Settings {
         let q = &class.quadrotor;
         self.action = match mode {
             "velocity" => ActionMode::Velocity,
-            "attitude" | "rotors" if class.dynamics != DynamicsKind::Quadrotor => {
+            "attitude" | "rates" | "rotors" if class.dynamics != DynamicsKind::Quadrotor => {
                 return Err(invalid(format!(
                     "action_mode: {mode:?} needs a robot with physics (such as stsQuadrotor); \
                      {} is kinematic",
@@ -244,13 +252,18 @@ impl Settings {
             "attitude" => ActionMode::Attitude {
                 weight: q.mass * GRAVITY,
             },
+            "rates" => ActionMode::Rates {
+                max_rate: q.max_tilt_rate,
+                weight: q.mass * GRAVITY,
+            },
             "rotors" => ActionMode::Rotors {
                 min: q.rotor_speed_min,
                 max: q.rotor_speed_max,
             },
             other => {
                 return Err(invalid(format!(
-                    "action_mode: expected \"velocity\", \"attitude\" or \"rotors\", got {other:?}"
+                    "action_mode: expected \"velocity\", \"attitude\", \"rates\" or \"rotors\", \
+                     got {other:?}"
                 )));
             }
         };
@@ -266,6 +279,13 @@ impl Settings {
                 a[0] * MAX_TILT,
                 a[1] * MAX_TILT,
                 a[2] * MAX_YAW_RATE,
+                weight * (1.0 + a[3])
+            ),
+            ActionMode::Rates { max_rate, weight } => format!(
+                "QUAD {{Rates {},{},{}}} {{Thrust {}}}",
+                a[0] * max_rate,
+                a[1] * max_rate,
+                a[2] * max_rate,
                 weight * (1.0 + a[3])
             ),
             ActionMode::Rotors { min, max } => {
@@ -686,7 +706,7 @@ fn par_worlds<F>(worlds: &mut [WorldSim], f: F)
 where
     F: Fn(usize, &mut WorldSim) + Sync,
 {
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = usar_sim::default_threads();
     if threads < 2 || worlds.len() < 4 {
         for (i, w) in worlds.iter_mut().enumerate() {
             f(i, w);

@@ -94,7 +94,8 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
 /// state_only=False)`: one world per seed; `starts` is a float64 array of shape
 /// `(len(seeds) * uavs_per_world, 4)` with x, y, z (metres, z down) and yaw (rad) per UAV,
 /// world-major. `state_only`: the robot without sonars and laser (no `sonar`, `laser` keys).
-/// `action_mode`: `"velocity"` (DRIVE), `"attitude"` or `"rotors"` (QUAD; docs/python.md).
+/// `action_mode`: `"velocity"` (DRIVE), `"attitude"`, `"rates"` or `"rotors"` (QUAD;
+/// docs/python.md).
 #[pyclass(name = "Batch", module = "usarsim._core")]
 struct PyBatch {
     /// A mutex only to make the class `Sync` (Python objects may be shared between threads);

@@ -382,7 +382,7 @@ def test_velocity_mode_flies_a_quadrotor_and_bad_modes_are_named():
     with pytest.raises(ValueError, match="action_mode: .*needs a robot with physics"):
         gymnasium.make("usarsim/Hover-v0", action_mode="rotors")
     with pytest.raises(ValueError, match="action_mode: expected"):
-        gymnasium.make("usarsim/Hover-v0", robot="stsQuadrotor", action_mode="rates")
+        gymnasium.make("usarsim/Hover-v0", robot="stsQuadrotor", action_mode="thrust")
 
 
 # RLlib's MultiAgentEnv adapter.

@@ -27,6 +27,9 @@ class MapInfo:
             for o, zmin, zmax in self.shapes
             if zmin < FLIGHT_BAND[1] + 0.5 and zmax > FLIGHT_BAND[0] - 0.5
         ]
+        #: Their bounding boxes seen from above, (k, 2) corners each.
+        self._box_lo = np.array([lo for _, lo, _ in self.obstacles]).reshape(-1, 2)
+        self._box_hi = np.array([hi for _, _, hi in self.obstacles]).reshape(-1, 2)
 
     def start(self, key: str):
         """The PlayerStart with tag `key` as (x, y, z, yaw)."""
@@ -49,10 +52,13 @@ class MapInfo:
 
     def is_free(self, p, clearance: float) -> bool:
         """Whether (x, y) is at least `clearance` from the bounding box of every obstacle."""
-        for _, lo, hi in self.obstacles:
-            if np.all(p[:2] > lo - clearance) and np.all(p[:2] < hi + clearance):
-                return False
-        return True
+        return bool(self.free(np.asarray(p)[None], clearance)[0])
+
+    def free(self, points, clearance: float) -> np.ndarray:
+        """:meth:`is_free` of each row (x, y[, z]) of `points`, as a boolean array."""
+        xy = np.asarray(points, dtype=np.float64)[:, None, :2]
+        inside = (xy > self._box_lo - clearance) & (xy < self._box_hi + clearance)
+        return ~inside.all(axis=2).any(axis=1)
 
     def sample(self, rng: np.random.Generator, n: int, clearance: float = 1.0, spacing: float = 1.2, near=None, radius=None):
         """`n` free points (x, y, z) in the flight band, `spacing` apart; within `radius` of `near` if given."""

@@ -137,7 +137,7 @@ def add_extras(obs, images: dict, i: int, signal=None):
 def action_space() -> spaces.Box:
     """The action space of one UAV: four values in -1..1, read as the action mode says
     (velocity: forward, right, up, yaw rate; attitude: roll, pitch, yaw rate, thrust;
-    rotors: the four rotor speeds; docs/python.md)."""
+    rates: roll, pitch and yaw rates, thrust; rotors: the four rotor speeds; docs/python.md)."""
     return spaces.Box(-1.0, 1.0, (4,), np.float32)
 
 
@@ -167,6 +167,17 @@ def _waypoints(value, map_info: MapInfo, what: str) -> np.ndarray:
     for i, p in enumerate(w):
         map_info.check_inside(p, f"{what}[{i}]")
     return w
+
+
+#: Hover's spawn offset from the start: low + span × a uniform draw in [0, 1) per axis.
+_OFFSET_LOW = np.array([-1.0, -1.0, -0.5])
+_OFFSET_SPAN = np.array([2.0, 2.0, 1.0])
+
+
+def _doubles(raw, m: int) -> np.ndarray:
+    """Uniform doubles in [0, 1) from raw 64-bit draws, as ``Generator.random`` makes them
+    (the top 53 bits × 2⁻⁵³), shape (m, 3)."""
+    return (np.array(raw, dtype=np.uint64).reshape(m, 3) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
 class Tasks:
@@ -215,10 +226,11 @@ class Tasks:
             return np.array([x, y, z, yaw])
         return np.array([0.0, 0.0, -1.0, 0.0])
 
-    def new_starts(self, rng: np.random.Generator, rows, shared_world: bool, options=None,
-                   poses=None) -> np.ndarray:
+    def new_starts(self, rng, rows, shared_world: bool, options=None, poses=None) -> np.ndarray:
         """Chooses starts and targets for `rows`; returns their spawn poses (len(rows), 4).
-        `poses` (one (x, y, z, yaw) per row) overrides the start option."""
+        `rng` is one generator drawn from row after row, or a list of one generator per row
+        (each row's draws from its own, as if drawn alone). `poses` (one (x, y, z, yaw) per
+        row) overrides the start option."""
         options = options or {}
         start = options.get("start", self.start)
         if "start" in options and start is not None and not (isinstance(start, str) and start == "random"):
@@ -229,35 +241,43 @@ class Tasks:
         if waypoints is not None and self.task == "waypoints" and len(waypoints) > self.targets.shape[1]:
             pad = np.zeros((self.n, len(waypoints) - self.targets.shape[1], 3))
             self.targets = np.concatenate([self.targets, pad], axis=1)
-        rows = list(rows)
+        rows = np.asarray(list(rows), dtype=np.int64)
+        m = len(rows)
+        shared = isinstance(rng, np.random.Generator)
+        gens = [rng] * m if shared else list(rng)
         if poses is not None:
             base = np.asarray(poses, dtype=np.float64)
         elif start is None and not shared_world:
-            base = np.tile(self.default_start(), (len(rows), 1))
+            base = np.tile(self.default_start(), (m, 1))
         elif start is None or (isinstance(start, str) and start == "random"):
-            pts = self.map.sample(rng, len(rows))
-            base = np.column_stack([pts, rng.uniform(-np.pi, np.pi, len(rows))])
-        else:
-            base = np.tile(_pose(start, self.map, "start"), (len(rows), 1))
-        spawns = base.copy()
-        for k, r in enumerate(rows):
-            self.steps[r] = 0
-            self.index[r] = 0
-            if self.task == "hover":
-                # Hold the start pose; spawn up to 1 m away from it (0.5 m vertically).
-                self.targets[r, 0] = base[k, :3]
-                self.hold_yaw[r] = base[k, 3]
-                off = np.append(rng.uniform(-1.0, 1.0, 2), rng.uniform(-0.5, 0.5))
-                cand = base[k, :3] + off
-                if self.map.is_free(cand, 0.8) and cand[2] < -0.5:
-                    spawns[k, :3] = cand
-            elif waypoints is not None:
-                self.targets[r, :len(waypoints)] = waypoints
-                self.count[r] = len(waypoints)
+            if shared:
+                pts = self.map.sample(rng, m)
+                base = np.column_stack([pts, rng.uniform(-np.pi, np.pi, m)])
             else:
-                self.targets[r, :self.n_waypoints] = self.map.sample(rng, self.n_waypoints, spacing=1.5,
+                base = np.array([np.append(self.map.sample(g, 1)[0], g.uniform(-np.pi, np.pi)) for g in gens])
+        else:
+            base = np.tile(_pose(start, self.map, "start"), (m, 1))
+        base = base.reshape(m, 4)
+        spawns = base.copy()
+        self.steps[rows] = 0
+        self.index[rows] = 0
+        if self.task == "hover":
+            # Hold the start pose; spawn up to 1 m away from it (0.5 m vertically): each
+            # row's three uniform draws, as uniform(-1, 1, 2) then uniform(-0.5, 0.5) give.
+            self.targets[rows, 0] = base[:, :3]
+            self.hold_yaw[rows] = base[:, 3]
+            u = rng.random((m, 3)) if shared else _doubles([g.bit_generator.random_raw(3) for g in gens], m)
+            cand = base[:, :3] + (_OFFSET_LOW + _OFFSET_SPAN * u)
+            ok = self.map.free(cand, 0.8) & (cand[:, 2] < -0.5)
+            spawns[ok, :3] = cand[ok]
+        elif waypoints is not None:
+            self.targets[rows, :len(waypoints)] = waypoints
+            self.count[rows] = len(waypoints)
+        else:
+            for k, r in enumerate(rows):
+                self.targets[r, :self.n_waypoints] = self.map.sample(gens[k], self.n_waypoints, spacing=1.5,
                                                                      near=base[k], radius=5.0)
-                self.count[r] = self.n_waypoints
+            self.count[rows] = self.n_waypoints
         return spawns
 
     def _vector(self, raw) -> np.ndarray:
