@@ -162,10 +162,7 @@ impl Remote {
             up: action[2] * 100.0,
             yaw: action[3] * 100.0,
         };
-        *self
-            .action
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner) = Some(command);
+        *self.action.lock().unwrap_or_else(PoisonError::into_inner) = Some(command);
         // The held input ends the period: the core steps the agent on it, which sends the
         // action (and, in lockstep, the next barrier).
         match self.held.take() {
@@ -185,7 +182,9 @@ impl Remote {
     }
 
     fn core(&mut self) -> &mut Flight {
-        self.flight.get_mut().unwrap_or_else(PoisonError::into_inner)
+        self.flight
+            .get_mut()
+            .unwrap_or_else(PoisonError::into_inner)
     }
 
     /// Drives the core until the input that ends the period (held for [`step`]), or fails.
