@@ -11,7 +11,7 @@ use std::net::{TcpStream, ToSocketAddrs};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use ucc_client::flight::{Flight, FlightConfig, Lockstep, Start};
+use ucc_client::flight::{Flight, FlightConfig, FlightError, Lockstep, Start};
 use ucc_client::lines::BlockingLines;
 use ucc_client::uav::UavState;
 use ucc_client::{Agent, Coordinates, Mission, MissionRefused, SpeedCommand, Step};
@@ -193,7 +193,17 @@ impl Remote {
             self.send_queued()?;
             while self.core().poll_progress().is_some() {}
             if let Some(error) = self.core().take_error() {
-                return Err(err(&self.addr, error));
+                let timed_out = matches!(
+                    error,
+                    FlightError::SpawnFailed { .. }
+                        | FlightError::NoPosition { .. }
+                        | FlightError::StreamStopped { .. }
+                );
+                return Err(if timed_out {
+                    err(&self.addr, format_args!("timed out: {error}"))
+                } else {
+                    err(&self.addr, error)
+                });
             }
             let deadline = self.core().poll_timeout();
             let message = self.read(deadline)?;
