@@ -411,6 +411,9 @@ impl Flight {
         if let ServerMessage::Other(m) = message {
             self.notice(&m.kind);
         }
+        if !self.config.ends_on_crash {
+            return;
+        }
         if self.uav.battery_empty() && self.phase == Phase::Flying {
             let time = self.uav.time.unwrap_or(0.0);
             self.fail(FlightError::BatteryEmpty { time });

@@ -214,6 +214,7 @@ impl RunSettings {
             lockstep_step: LOCKSTEP_STEP,
             camera_tile: self.camera.as_ref().map(|c| c.tile),
             radio: self.radio.is_some(),
+            ends_on_crash: true,
         }
     }
 

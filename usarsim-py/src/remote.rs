@@ -119,6 +119,8 @@ impl Remote {
             lockstep_step: period,
             camera_tile: None,
             radio: false,
+            // A crash is the task's to judge (it ends the episode), not an error.
+            ends_on_crash: false,
         };
         let action = Arc::new(Mutex::new(None));
         let flight = Flight::new(1, config, Box::new(Python(Arc::clone(&action))))

@@ -55,3 +55,25 @@ def test_an_endless_line_is_read_in_bounded_memory():
     message, grown_mib = out.stdout.strip().splitlines()
     assert message == f"server {addr}: the server closed the connection"
     assert int(grown_mib) < 64, f"the driver's memory grew by {grown_mib} MiB reading one line"
+
+
+def test_a_remote_quadrotor_flown_into_a_wall_crashes_and_the_episode_ends(server):
+    """A crash is the task's to judge: the remote env reports it as the in-process one does
+    (the flight core must not turn it into an error)."""
+    import gymnasium
+    import numpy as np
+
+    import usarsim  # noqa: F401  (registers the environments)
+
+    env = gymnasium.make("usarsim/Waypoints-v0", robot="stsQuadrotor", start=(7, 0, -1, 0),
+                         waypoints=[[-5, 0, -1]], max_steps=1000, server=server)
+    env.reset(seed=0)
+    for _ in range(200):
+        obs, reward, term, trunc, info = env.step(np.array([1, 0, 0, 0], np.float32))
+        if term:
+            break
+    assert term and not trunc, "the crash ends the episode"
+    assert bool(info["crashed"])
+    assert reward < -50  # the crash penalty
+    assert obs["position"][0] < 10.0  # stopped at the wall
+    env.close()

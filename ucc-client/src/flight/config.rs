@@ -38,6 +38,13 @@ pub struct FlightConfig {
     pub camera_tile: Option<(u32, u32)>,
     /// Whether the agent may send radio messages.
     pub radio: bool,
+    /// Whether a crash or an empty battery ends the flight ([`FlightError::Crashed`],
+    /// [`FlightError::BatteryEmpty`]): yes for a run's iteration; a learning environment
+    /// flies on and lets its task judge the reading.
+    ///
+    /// [`FlightError::Crashed`]: super::FlightError::Crashed
+    /// [`FlightError::BatteryEmpty`]: super::FlightError::BatteryEmpty
+    pub ends_on_crash: bool,
 }
 
 impl Default for FlightConfig {
@@ -54,6 +61,7 @@ impl Default for FlightConfig {
             lockstep_step: 0.1,
             camera_tile: None,
             radio: false,
+            ends_on_crash: true,
         }
     }
 }
