@@ -1,12 +1,12 @@
-//! Why a run or one of its iterations failed: [`RunError`], the error of the flight and
-//! of the runner that drives it.
+//! Why a run or one of its iterations failed: [`RunError`], the runner's error. A flight's
+//! own failures ([`FlightError`]) keep their names and messages here.
 
 use std::path::PathBuf;
 use std::time::Duration;
 
 use crate::agent::MissionRefused;
 use crate::connection::ConnectionError;
-use crate::geometry::Num;
+use crate::flight::FlightError;
 use crate::mission::Mission;
 use crate::picture::PictureError;
 
@@ -23,19 +23,13 @@ pub enum RunError {
     #[error(transparent)]
     Connection(#[from] ConnectionError),
     /// Lockstep was required and the server does not offer it.
-    #[error(
-        "the server at {addr} does not offer lockstep (a stock USARSim never does; start \
-         usar-server with --lockstep)"
-    )]
+    #[error("{}", FlightError::NoLockstep { addr: addr.clone() })]
     NoLockstep {
         /// `host:port`.
         addr: String,
     },
     /// INIT gave no stream.
-    #[error(
-        "spawn failed: no data from the server within {timeout:?} after INIT {class} \
-         (unknown robot class, bad start pose or tag, or no room there?)"
-    )]
+    #[error("{}", FlightError::SpawnFailed { class: class.clone(), timeout: *timeout })]
     SpawnFailed {
         /// The class asked for.
         class: String,
@@ -43,28 +37,25 @@ pub enum RunError {
         timeout: Duration,
     },
     /// The robot streams data but nothing tells where it is.
-    #[error(
-        "the robot reports no position within {timeout:?}: it needs a Position, GroundTruth \
-         or INS sensor, or a known start for dead reckoning"
-    )]
+    #[error("{}", FlightError::NoPosition { timeout: *timeout })]
     NoPosition {
         /// The limit.
         timeout: Duration,
     },
     /// The stream stopped.
-    #[error("the server sent nothing for {timeout:?}")]
+    #[error("{}", FlightError::StreamStopped { timeout: *timeout })]
     StreamStopped {
         /// The limit.
         timeout: Duration,
     },
     /// The battery ran out.
-    #[error("battery empty at t={}s", Num(*time, 2))]
+    #[error("{}", FlightError::BatteryEmpty { time: *time })]
     BatteryEmpty {
         /// Simulated seconds.
         time: f64,
     },
     /// The UAV crashed (its crash sensor fired, docs/quadrotor.md).
-    #[error("crashed at t={}s: {reason}", Num(*time, 2))]
+    #[error("{}", FlightError::Crashed { time: *time, reason: reason.clone() })]
     Crashed {
         /// Simulated seconds.
         time: f64,
@@ -72,7 +63,9 @@ pub enum RunError {
         reason: String,
     },
     /// A mission took too long.
-    #[error("mission {number} ({mission}) not done after {} simulated seconds{hint}", Num(*seconds, 1))]
+    #[error("{}", FlightError::MissionTimeout {
+        number: *number, mission: mission.clone(), seconds: *seconds, hint: hint.clone()
+    })]
     MissionTimeout {
         /// 1-based.
         number: usize,
@@ -116,6 +109,31 @@ pub enum RunError {
         /// Why.
         error: String,
     },
+}
+
+impl From<FlightError> for RunError {
+    fn from(error: FlightError) -> Self {
+        match error {
+            FlightError::Refused(e) => Self::Refused(e),
+            FlightError::NoLockstep { addr } => Self::NoLockstep { addr },
+            FlightError::SpawnFailed { class, timeout } => Self::SpawnFailed { class, timeout },
+            FlightError::NoPosition { timeout } => Self::NoPosition { timeout },
+            FlightError::StreamStopped { timeout } => Self::StreamStopped { timeout },
+            FlightError::BatteryEmpty { time } => Self::BatteryEmpty { time },
+            FlightError::Crashed { time, reason } => Self::Crashed { time, reason },
+            FlightError::MissionTimeout {
+                number,
+                mission,
+                seconds,
+                hint,
+            } => Self::MissionTimeout {
+                number,
+                mission,
+                seconds,
+                hint,
+            },
+        }
+    }
 }
 
 impl RunError {

@@ -21,16 +21,16 @@
 //! the rule is exact and the same at any speed.
 //!
 //! ```
-//! use ucc_client::flight::Flight;
-//! use ucc_client::{Coordinates, Mission, RunSettings, Start, agents};
+//! use ucc_client::flight::{Flight, FlightConfig};
+//! use ucc_client::{Coordinates, Mission, Start, agents};
 //! use usar_proto::{Command, ServerMessage};
 //!
-//! let settings = RunSettings {
+//! let config = FlightConfig {
 //!     start: Start::at(Coordinates::new(0.0, 0.0, -1.0)),
 //!     missions: vec![Mission::goto(Coordinates::new(3.0, 0.0, -1.0))],
-//!     ..RunSettings::default()
+//!     ..FlightConfig::default()
 //! };
-//! let mut flight = Flight::new(1, &settings, agents::create("base").unwrap()).unwrap();
+//! let mut flight = Flight::new(1, config, agents::create("base").unwrap()).unwrap();
 //! flight.spawn();
 //! assert!(matches!(flight.poll_command(), Some(Command::Init(_))));
 //! let line = |l: &str| ServerMessage::parse(l).unwrap().message;
@@ -42,26 +42,42 @@
 
 use std::collections::VecDeque;
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use usar_proto::image::ImageRequest;
 use usar_proto::{Barrier, Command, Conf, ConfItem, ItemQuery, Nfo, ServerMessage};
 
 use crate::agent::{Agent, AgentEvent, SpeedCommand};
 use crate::camera::CameraImage;
-use crate::error::RunError;
 use crate::geometry::{Coordinates, Num};
 use crate::mission::Mission;
 use crate::progress::Progress;
 use crate::radio::{Message, Outgoing, Undelivered};
 use crate::record::{FlightRecord, TrajectoryPoint};
-use crate::settings::{RunSettings, Start};
 use crate::uav::{Reading, UavState};
+
+mod config;
+mod error;
+
+pub use config::{FlightConfig, Lockstep, Start};
+pub use error::FlightError;
+
+/// Without lockstep, the readings of one time stamp are taken as complete when nothing more
+/// arrives for this long (a server writes a time stamp's lines together).
+pub const QUIET: Duration = Duration::from_millis(3);
 
 /// Where a flight is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phase {
-    /// Connected, INIT not sent yet.
+    /// Not started: a driver that handles the handshake itself calls
+    /// [`Flight::spawn`] directly.
     Connected,
+    /// Connected ([`Flight::start`]): waiting for the server's greeting (NFO, for the map
+    /// name), at most the handshake time.
+    Greeting,
+    /// `SYNC {Time 0}` sent: waiting for the server's lockstep answer, at most the
+    /// handshake time (a stock USARSim never answers).
+    Negotiating,
     /// INIT sent, waiting for the first complete frame with a position.
     Spawning,
     /// The agent flies.
@@ -74,7 +90,7 @@ pub enum Phase {
 
 /// Lockstep bookkeeping: the barrier the server last reported.
 #[derive(Debug, Clone, Copy)]
-struct Lockstep {
+struct Barriers {
     step: f64,
     reached: f64,
 }
@@ -82,19 +98,21 @@ struct Lockstep {
 /// One iteration's flight.
 pub struct Flight {
     iteration: usize,
-    init: Command,
-    start: Start,
-    missions: Vec<Mission>,
-    mission_timeout: f64,
+    config: FlightConfig,
     agent: Box<dyn Agent>,
     uav: UavState,
     phase: Phase,
-    error: Option<RunError>,
+    error: Option<FlightError>,
+    /// When the handshake phase or the spawn times out.
+    deadline: Option<Instant>,
+    /// When the driver last handed in a message or a time-out (the stream's silence and the
+    /// quiet end of a frame count from here).
+    heard: Option<Instant>,
     /// The time stamp of the readings gathered and not yet stepped on.
     frame: Option<f64>,
     /// The time stamp the agent last stepped on.
     stepped: Option<f64>,
-    lockstep: Option<Lockstep>,
+    lockstep: Option<Barriers>,
     /// Whether any STA or SEN has come since INIT.
     streaming: bool,
     sent: Option<SpeedCommand>,
@@ -106,8 +124,6 @@ pub struct Flight {
     /// The camera: the tile size asked for (`None`: no frames wanted), and once the
     /// camera's CONF came, the rectangle of the image server's frame that is this UAV's.
     camera: Option<CameraWanted>,
-    /// Whether the agent may send radio messages.
-    radio: bool,
     /// Radio messages the agent sent, for the driver.
     outbox: VecDeque<Outgoing>,
     /// Agent steps so far.
@@ -139,25 +155,29 @@ impl std::fmt::Debug for Flight {
 }
 
 impl Flight {
-    /// A flight of `settings`' missions with `agent`; a mission the agent refuses is an error.
+    /// A flight of `config`'s missions with `agent`; a mission the agent refuses is an error.
     pub fn new(
         iteration: usize,
-        settings: &RunSettings,
+        config: FlightConfig,
         mut agent: Box<dyn Agent>,
-    ) -> Result<Self, RunError> {
-        for mission in &settings.missions {
+    ) -> Result<Self, FlightError> {
+        for mission in &config.missions {
             agent.add_mission(mission.clone())?;
         }
         Ok(Self {
             iteration,
-            init: settings.init(),
-            start: settings.start.clone(),
-            missions: settings.missions.clone(),
-            mission_timeout: settings.mission_timeout,
+            camera: config.camera_tile.map(|tile| CameraWanted {
+                tile,
+                rect: None,
+                waited: 0,
+            }),
+            config,
             agent,
             uav: UavState::new(),
             phase: Phase::Connected,
             error: None,
+            deadline: None,
+            heard: None,
             frame: None,
             stepped: None,
             lockstep: None,
@@ -170,12 +190,6 @@ impl Flight {
             },
             commands: VecDeque::new(),
             progress: VecDeque::new(),
-            camera: settings.camera.as_ref().map(|c| CameraWanted {
-                tile: c.tile,
-                rect: None,
-                waited: 0,
-            }),
-            radio: settings.radio.is_some(),
             outbox: VecDeque::new(),
             steps: 0,
         })
@@ -185,12 +199,144 @@ impl Flight {
     /// ends at a barrier and the next one, `step` simulated seconds later, is asked for once
     /// the agent has answered.
     pub fn set_lockstep(&mut self, step: f64, reached: f64) {
-        self.lockstep = Some(Lockstep { step, reached });
+        self.lockstep = Some(Barriers { step, reached });
     }
 
     /// Whether the flight runs in lockstep.
     pub fn is_lockstep(&self) -> bool {
         self.lockstep.is_some()
+    }
+
+    /// The driver connected at `now`: the flight waits for the server's greeting, asks for
+    /// lockstep when its configuration says so, then spawns — each step with its deadline
+    /// ([`poll_timeout`](Self::poll_timeout)).
+    pub fn start(&mut self, now: Instant) {
+        self.phase = Phase::Greeting;
+        self.heard = Some(now);
+        self.deadline = Some(now + self.handshake());
+    }
+
+    /// Takes one server message that arrived at `now`.
+    pub fn handle_message(&mut self, message: &ServerMessage, now: Instant) {
+        self.heard = Some(now);
+        match (self.phase, message) {
+            (Phase::Greeting, _) => {
+                self.on_message(message);
+                self.greeted(now);
+            }
+            (Phase::Negotiating, ServerMessage::Sync(barrier)) => {
+                self.set_lockstep(self.config.lockstep_step, barrier.time.seconds);
+                self.begin_spawn(now);
+            }
+            _ => self.on_message(message),
+        }
+    }
+
+    /// When the driver must call [`handle_timeout`](Self::handle_timeout) if nothing comes
+    /// before: the end of the handshake step, the spawn's or the stream's limit, or (without
+    /// lockstep, a frame open) the quiet time that ends the frame. `None`: no limit (not
+    /// started, or over).
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        match self.phase {
+            Phase::Connected | Phase::Done | Phase::Failed => None,
+            Phase::Greeting | Phase::Negotiating => self.deadline,
+            Phase::Spawning | Phase::Flying => {
+                let stream = self.stream_deadline()?;
+                match self.heard {
+                    Some(heard) if self.quiet() => Some(stream.min(heard + QUIET)),
+                    _ => Some(stream),
+                }
+            }
+        }
+    }
+
+    /// Nothing came until `now`: ends the handshake step, closes the quiet frame, or fails
+    /// the flight with the time-out ([`FlightError::SpawnFailed`],
+    /// [`FlightError::NoPosition`], [`FlightError::StreamStopped`],
+    /// [`FlightError::NoLockstep`]). Does nothing before [`poll_timeout`](Self::poll_timeout).
+    pub fn handle_timeout(&mut self, now: Instant) {
+        if self.poll_timeout().is_none_or(|due| now < due) {
+            return;
+        }
+        match self.phase {
+            Phase::Greeting => self.greeted(now),
+            Phase::Negotiating if self.config.lockstep == Lockstep::Required => {
+                let addr = self.config.addr.clone();
+                self.fail(FlightError::NoLockstep { addr });
+            }
+            Phase::Negotiating => {
+                let message =
+                    "the server does not offer lockstep; running on sensor time".to_owned();
+                self.log(format!("warning: {message}"));
+                self.progress.push_back(Progress::Warning {
+                    iteration: self.iteration,
+                    message,
+                });
+                self.begin_spawn(now);
+            }
+            Phase::Spawning | Phase::Flying => {
+                if self.quiet() && self.stream_deadline().is_some_and(|d| now < d) {
+                    self.heard = Some(now);
+                    self.end_of_frame();
+                    return;
+                }
+                let timeout = self.config.stream_timeout;
+                let error = match self.phase {
+                    Phase::Spawning if self.streaming => FlightError::NoPosition { timeout },
+                    Phase::Spawning => FlightError::SpawnFailed {
+                        class: self.config.class_name(),
+                        timeout,
+                    },
+                    _ => FlightError::StreamStopped { timeout },
+                };
+                self.fail(error);
+            }
+            Phase::Connected | Phase::Done | Phase::Failed => {}
+        }
+    }
+
+    /// The greeting came or its time is up: ask for lockstep, or spawn.
+    fn greeted(&mut self, now: Instant) {
+        if self.config.lockstep == Lockstep::Off {
+            self.begin_spawn(now);
+            return;
+        }
+        self.commands.push_back(Command::Sync(Barrier::at(0.0)));
+        self.phase = Phase::Negotiating;
+        self.deadline = Some(now + self.handshake());
+    }
+
+    /// The handshake is over: report the connection and spawn, with the stream's limit.
+    fn begin_spawn(&mut self, now: Instant) {
+        let addr = self.config.addr.clone();
+        self.connected(&addr);
+        self.spawn();
+        self.deadline = Some(now + self.config.stream_timeout);
+    }
+
+    /// The limit of each handshake step.
+    fn handshake(&self) -> Duration {
+        self.config
+            .handshake_timeout
+            .min(self.config.stream_timeout)
+    }
+
+    /// When the spawn (fixed at INIT) or the stream (from the last input) times out.
+    fn stream_deadline(&self) -> Option<Instant> {
+        match self.phase {
+            Phase::Spawning => self.deadline,
+            _ => self.heard.map(|h| h + self.config.stream_timeout),
+        }
+    }
+
+    /// Whether an open frame is closed by a quiet input (without lockstep).
+    fn quiet(&self) -> bool {
+        self.frame_open() && !self.is_lockstep()
+    }
+
+    /// The time stamp of the readings gathered and not yet stepped on.
+    pub fn frame_time(&self) -> Option<f64> {
+        self.frame
     }
 
     /// Reports the connection (the map name comes from the server's NFO, if it came).
@@ -215,12 +361,12 @@ impl Flight {
     /// dead reckoning for robots without a position sensor), then `INIT`, then the first
     /// barrier in lockstep.
     pub fn spawn(&mut self) {
-        match &self.start {
+        match &self.config.start {
             Start::Tag(_) => self.commands.push_back(Command::GetStartPoses),
             Start::Pose { location, .. } => self.record.start = Some(*location),
         }
-        self.commands.push_back(self.init.clone());
-        self.log(format!("sent {}", self.init));
+        self.commands.push_back(self.config.init.clone());
+        self.log(format!("sent {}", self.config.init));
         self.phase = Phase::Spawning;
         self.request_barrier();
     }
@@ -240,7 +386,7 @@ impl Flight {
                 self.record.map = Some(level.clone())
             }
             ServerMessage::Nfo(Nfo::StartPoses { poses, .. }) => {
-                if let Start::Tag(tag) = &self.start
+                if let Start::Tag(tag) = &self.config.start
                     && let Some(pose) = poses.iter().find(|p| p.name.eq_ignore_ascii_case(tag))
                 {
                     let l = pose.location;
@@ -259,20 +405,23 @@ impl Flight {
             _ => {}
         }
         self.streaming |= matches!(message, ServerMessage::Sta(_) | ServerMessage::Sen(_));
-        if self.uav.apply(message) && self.phase != Phase::Connected {
+        if self.uav.apply(message) && matches!(self.phase, Phase::Spawning | Phase::Flying) {
             self.frame = Some(self.uav.time.unwrap_or(0.0));
         }
         if let ServerMessage::Other(m) = message {
             self.notice(&m.kind);
         }
+        if !self.config.ends_on_crash {
+            return;
+        }
         if self.uav.battery_empty() && self.phase == Phase::Flying {
             let time = self.uav.time.unwrap_or(0.0);
-            self.fail(RunError::BatteryEmpty { time });
+            self.fail(FlightError::BatteryEmpty { time });
         }
         if let Some(crash) = &self.uav.crash
             && self.phase == Phase::Flying
         {
-            let error = RunError::Crashed {
+            let error = FlightError::Crashed {
                 time: crash.time,
                 reason: crash.value.clone(),
             };
@@ -317,17 +466,19 @@ impl Flight {
     }
 
     /// The failure, once (the flight stays [`Phase::Failed`]).
-    pub fn take_error(&mut self) -> Option<RunError> {
+    pub fn take_error(&mut self) -> Option<FlightError> {
         self.error.take()
     }
 
-    /// Ends the flight with `error` (a time-out seen by the driver, a lost connection). The
-    /// driver reports it ([`run`](crate::run) as the log's last line).
-    pub fn fail(&mut self, error: RunError) {
+    /// Ends the flight with `error`. The driver reports it ([`run`](crate::run) as the
+    /// log's last line).
+    pub fn fail(&mut self, error: FlightError) {
         if self.is_over() {
             return;
         }
-        self.agent.stop();
+        if self.phase == Phase::Flying {
+            self.agent.stop();
+        }
         self.phase = Phase::Failed;
         self.error = Some(error);
     }
@@ -516,7 +667,7 @@ impl Flight {
         self.uav.undelivered.clear();
         self.camera_waited();
         if !step.send.is_empty() {
-            if self.radio {
+            if self.config.radio {
                 for message in &step.send {
                     self.uav
                         .signal
@@ -569,17 +720,18 @@ impl Flight {
             return;
         }
         let (index, since) = self.mission_start;
-        if time - since > self.mission_timeout {
+        if time - since > self.config.mission_timeout {
             let mission = self
+                .config
                 .missions
                 .get(index)
                 .cloned()
                 .unwrap_or(Mission::Hover { seconds: 0.0 });
             let hint = below_hint(&mission, self.uav.position.as_ref().map(|p| p.value));
-            self.fail(RunError::MissionTimeout {
+            self.fail(FlightError::MissionTimeout {
                 number: index + 1,
                 mission,
-                seconds: self.mission_timeout,
+                seconds: self.config.mission_timeout,
                 hint,
             });
         }
@@ -638,7 +790,7 @@ impl Flight {
     /// counts the missions itself (the statistics would say 0 missions in 0 s otherwise) and
     /// warns, naming the events the agent should send.
     fn count_unreported(&mut self, time: f64) {
-        let (reported, total) = (self.record.missions_done, self.missions.len());
+        let (reported, total) = (self.record.missions_done, self.config.missions.len());
         if reported >= total {
             return;
         }
@@ -697,6 +849,7 @@ mod tests {
     use super::*;
     use crate::agent::Step;
     use crate::agents;
+    use crate::settings::RunSettings;
 
     fn line(text: &str) -> ServerMessage {
         ServerMessage::parse(text).unwrap().message
@@ -745,7 +898,7 @@ mod tests {
             missions: vec![Mission::goto(Coordinates::new(5.0, 0.0, -1.0))],
             ..RunSettings::default()
         };
-        let mut f = Flight::new(1, &settings, agent).unwrap();
+        let mut f = Flight::new(1, settings.flight(), agent).unwrap();
         f.spawn();
         f
     }
@@ -827,7 +980,7 @@ mod tests {
             missions: vec![Mission::goto(Coordinates::new(9.0, 2.0, -1.0))],
             ..RunSettings::default()
         };
-        let mut f = Flight::new(1, &settings, agents::create("base").unwrap()).unwrap();
+        let mut f = Flight::new(1, settings.flight(), agents::create("base").unwrap()).unwrap();
         f.spawn();
         let imu = |t: f64| {
             line(&format!(
@@ -851,6 +1004,130 @@ mod tests {
         assert!((p.value.y - 2.0).abs() < 1e-9 && p.value.z == -1.0, "{p:?}");
         assert!(p.value.x > 2.0, "moved north by dead reckoning: {p:?}");
         assert!(f.record().log.iter().any(|l| l.contains("dead reckoning")));
+    }
+
+    fn commands(f: &mut Flight) -> Vec<String> {
+        std::iter::from_fn(|| f.poll_command())
+            .map(|c| c.to_string())
+            .collect()
+    }
+
+    fn handshake_config(lockstep: Lockstep) -> FlightConfig {
+        RunSettings {
+            missions: vec![Mission::Hover { seconds: 1.0 }],
+            lockstep,
+            ..RunSettings::default()
+        }
+        .flight()
+    }
+
+    /// The greeting and the lockstep handshake are phases of the core, each with its
+    /// deadline: a driver sleeps until `poll_timeout` and hands in the time-out.
+    #[test]
+    fn the_handshake_runs_on_poll_timeout_and_handle_timeout() {
+        let t0 = Instant::now();
+        let config = handshake_config(Lockstep::IfOffered);
+        let mut f = Flight::new(1, config, agents::create("base").unwrap()).unwrap();
+        assert_eq!(f.poll_timeout(), None, "not started");
+        f.start(t0);
+        assert_eq!(f.phase(), Phase::Greeting);
+        assert_eq!(f.poll_timeout(), Some(t0 + Duration::from_secs(2)));
+        f.handle_timeout(t0 + Duration::from_secs(1)); // early: nothing happens
+        assert_eq!(f.phase(), Phase::Greeting);
+        let t1 = t0 + Duration::from_millis(5);
+        f.handle_message(
+            &line("NFO {Gametype BotDeathMatch} {Level UAVmap} {TimeLimit 0}"),
+            t1,
+        );
+        assert_eq!(f.record().map.as_deref(), Some("UAVmap"));
+        assert_eq!(f.phase(), Phase::Negotiating);
+        assert_eq!(commands(&mut f), ["SYNC {Time 0.0000}"]);
+        // A server that never answers (a stock USARSim): sensor time, with a warning.
+        let t2 = t1 + Duration::from_secs(2);
+        assert_eq!(f.poll_timeout(), Some(t2));
+        f.handle_timeout(t2);
+        assert_eq!(f.phase(), Phase::Spawning);
+        assert!(!f.is_lockstep());
+        assert!(commands(&mut f)[0].starts_with("INIT {ClassName USARBot.stsAirRobot}"));
+        let events: Vec<String> = std::iter::from_fn(|| f.poll_progress())
+            .map(|p| p.to_string())
+            .collect();
+        assert!(
+            events.iter().any(|e| e.contains("does not offer lockstep")),
+            "{events:?}"
+        );
+        // No data within the stream limit after INIT: the spawn failed.
+        let t3 = t2 + Duration::from_secs(10);
+        assert_eq!(f.poll_timeout(), Some(t3));
+        f.handle_timeout(t3);
+        assert_eq!(f.phase(), Phase::Failed);
+        assert!(matches!(
+            f.take_error(),
+            Some(FlightError::SpawnFailed { .. })
+        ));
+        assert_eq!(f.poll_timeout(), None);
+    }
+
+    #[test]
+    fn a_lockstep_answer_ends_the_handshake_and_the_first_barrier_follows_init() {
+        let t0 = Instant::now();
+        let mut f = Flight::new(
+            1,
+            handshake_config(Lockstep::Required),
+            agents::create("base").unwrap(),
+        )
+        .unwrap();
+        f.start(t0);
+        f.handle_timeout(t0 + Duration::from_secs(2)); // no greeting
+        assert_eq!(commands(&mut f), ["SYNC {Time 0.0000}"]);
+        f.handle_message(&line("SYNC {Time 4.2000}"), t0 + Duration::from_secs(3));
+        assert!(f.is_lockstep());
+        let sent = commands(&mut f);
+        assert!(sent[0].starts_with("INIT "), "{sent:?}");
+        assert_eq!(sent.last().unwrap(), "SYNC {Time 4.3000}");
+        // In lockstep no quiet time ends a frame: only the stream's limit.
+        f.handle_message(&position(4.3, 0.0), t0 + Duration::from_secs(4));
+        assert_eq!(
+            f.poll_timeout(),
+            Some(t0 + Duration::from_secs(3) + Duration::from_secs(10))
+        );
+    }
+
+    #[test]
+    fn required_lockstep_without_an_answer_fails_and_without_lockstep_a_quiet_frame_closes() {
+        let t0 = Instant::now();
+        let mut f = Flight::new(
+            1,
+            handshake_config(Lockstep::Required),
+            agents::create("base").unwrap(),
+        )
+        .unwrap();
+        f.start(t0);
+        f.handle_timeout(t0 + Duration::from_secs(2));
+        f.handle_timeout(t0 + Duration::from_secs(4));
+        assert!(matches!(
+            f.take_error(),
+            Some(FlightError::NoLockstep { .. })
+        ));
+        assert!(!f.record().connected);
+
+        let mut f = Flight::new(
+            1,
+            handshake_config(Lockstep::Off),
+            agents::create("base").unwrap(),
+        )
+        .unwrap();
+        f.start(t0);
+        f.handle_message(
+            &line("NFO {Gametype BotDeathMatch} {Level UAVmap} {TimeLimit 0}"),
+            t0,
+        );
+        assert_eq!(f.phase(), Phase::Spawning, "no lockstep asked");
+        let t1 = t0 + Duration::from_millis(1);
+        f.handle_message(&position(0.1, 0.0), t1);
+        assert_eq!(f.poll_timeout(), Some(t1 + QUIET));
+        f.handle_timeout(t1 + QUIET);
+        assert_eq!(f.phase(), Phase::Flying, "the quiet frame closed: spawned");
     }
 
     /// Says hello to `Robot2` at every step and notes what it is shown.
@@ -886,7 +1163,7 @@ mod tests {
             radio: Some(crate::RadioSettings::default()),
             ..RunSettings::default()
         };
-        let mut f = Flight::new(1, &settings, Box::new(Sender(seen.clone()))).unwrap();
+        let mut f = Flight::new(1, settings.flight(), Box::new(Sender(seen.clone()))).unwrap();
         f.spawn();
         f.on_message(&position(0.1, 0.0));
         f.end_of_frame();

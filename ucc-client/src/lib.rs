@@ -5,7 +5,9 @@
 //!
 //! * [`agent`] — the [`Agent`] trait and [`AgentFactory`]; [`agents`] — the built-in agents
 //!   (`base`, `avoid`) and the registry of names the `ucc` program accepts;
-//! * [`flight`] — one flight, sans I/O: server messages in, commands and progress out;
+//! * [`flight`] — one flight, sans I/O: server messages and time-outs in, commands and
+//!   progress out; the greeting, the lockstep handshake and the spawn are its phases, its
+//!   deadlines come from [`Flight::poll_timeout`] ([`FlightConfig`], [`FlightError`]);
 //! * [`runner`] — [`run`]: connect, spawn, fly, repeat, over a [`Connection`];
 //! * [`backend`] — [`Backend`]: a remote server, or one inside this process (`local`);
 //! * [`settings`] — [`RunSettings`]; [`progress`] — [`Progress`] events and the
@@ -87,7 +89,7 @@ pub use agent::{Agent, AgentEvent, AgentFactory, MissionRefused, SpeedCommand, S
 pub use backend::Backend;
 pub use connection::{Connection, ConnectionError};
 pub use error::RunError;
-pub use flight::Flight;
+pub use flight::{Flight, FlightConfig, FlightError};
 pub use geometry::Coordinates;
 pub use mission::{Mission, MissionError};
 pub use progress::{Observer, Progress};

@@ -4,8 +4,11 @@
 //! [`Observer`], and a cancellation token stops it with every file written.
 //!
 //! Each iteration uses a fresh connection (a second INIT on the same connection would leave
-//! the old robot in the world). Time limits: `stream_timeout` (wall clock) for the stream to
-//! start and keep flowing, `mission_timeout` (simulated seconds) for each mission.
+//! the old robot in the world). The flight decides everything said on it — the greeting,
+//! the lockstep handshake, the spawn, the time limits (`stream_timeout`, wall clock, for the
+//! stream to start and keep flowing; `mission_timeout`, simulated seconds, for each mission):
+//! the runner is its I/O loop — it sends what the flight queued, hands it what comes, and
+//! sleeps until [`Flight::poll_timeout`].
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -14,26 +17,19 @@ use std::time::Duration;
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
-use usar_proto::{Barrier, Command, Nfo, ServerMessage, StartPose};
+use usar_proto::{Command, Nfo, ServerMessage, StartPose};
 
 use crate::agent::AgentFactory;
 use crate::camera::ImageClient;
 use crate::connection::{Connection, ConnectionError};
 pub use crate::error::RunError;
-use crate::flight::{Flight, Phase};
+use crate::flight::{Flight, FlightConfig, Phase};
 use crate::output::{iteration_files, write_iteration};
 use crate::picture::MapPicture;
 use crate::progress::{Observer, Progress};
 use crate::radio::{Radio, RadioError, Undelivered};
-use crate::settings::{CameraSettings, LOCKSTEP_STEP, Lockstep, Pictures, RunSettings};
+use crate::settings::{CameraSettings, Lockstep, Pictures, RunSettings};
 use crate::stats::{IterationStatus, IterationSummary, ResultsTable, Summary};
-
-/// Without lockstep, the readings of one time stamp are taken as complete when nothing more
-/// arrives for this long (a server writes a time stamp's lines together).
-const QUIET: Duration = Duration::from_millis(3);
-
-/// How long to wait for the server's greeting and for a lockstep answer.
-const HANDSHAKE: Duration = Duration::from_secs(2);
 
 /// Flies `settings.missions` `settings.iterations` times, each time with a new agent from
 /// `agents`; reports progress to `observer`.
@@ -56,7 +52,7 @@ pub async fn run(
     if settings.missions.is_empty() {
         return Err(RunError::NoMissions);
     }
-    Flight::new(0, settings, agents.create())?; // refuse a mission before connecting
+    Flight::new(0, settings.flight(), agents.create())?; // refuse a mission before connecting
     settings.init().check().map_err(ConnectionError::from)?; // and a name that breaks a line
     if let Some(dir) = &settings.log_dir {
         std::fs::create_dir_all(dir).map_err(|error| RunError::Output {
@@ -76,9 +72,13 @@ pub async fn run(
             summary.interrupted = true;
             break;
         }
-        let mut flight = Flight::new(iteration, settings, agents.create())?;
+        let config = FlightConfig {
+            lockstep,
+            ..settings.flight()
+        };
+        let mut flight = Flight::new(iteration, config, agents.create())?;
         let result = tokio::select! {
-            r = fly(&mut flight, settings, lockstep, observer) => Some(r),
+            r = fly(&mut flight, settings, observer) => Some(r),
             () = cancel.cancelled() => None,
         };
         let (status, last_line) = match result {
@@ -250,11 +250,10 @@ async fn send_all(flight: &mut Flight, conn: &mut Connection) -> Result<(), Conn
 async fn fly(
     flight: &mut Flight,
     settings: &RunSettings,
-    lockstep: Lockstep,
     observer: &mut dyn Observer,
 ) -> Result<(), RunError> {
     // A failure ends up in the log once, as its last line (`run` writes it).
-    let result = fly_inner(flight, settings, lockstep, observer).await;
+    let result = fly_inner(flight, settings, observer).await;
     drain(flight, observer);
     result
 }
@@ -262,7 +261,6 @@ async fn fly(
 async fn fly_inner(
     flight: &mut Flight,
     settings: &RunSettings,
-    lockstep: Lockstep,
     observer: &mut dyn Observer,
 ) -> Result<(), RunError> {
     let iteration = flight.record().iteration;
@@ -273,30 +271,7 @@ async fn fly_inner(
         }
         None => Connection::connect(&settings.addr, settings.connect_timeout).await?,
     };
-    // The server greets with NFO: take the map name from it if it comes quickly.
-    let greeting = HANDSHAKE.min(settings.stream_timeout);
-    if let Ok(message) = tokio::time::timeout(greeting, conn.next_message()).await {
-        flight.on_message(&message?);
-    }
-    if lockstep != Lockstep::Off {
-        match negotiate_lockstep(&mut conn, flight, HANDSHAKE.min(settings.stream_timeout)).await? {
-            Some(reached) => flight.set_lockstep(LOCKSTEP_STEP, reached),
-            None if lockstep == Lockstep::Required => {
-                return Err(RunError::NoLockstep {
-                    addr: settings.addr.clone(),
-                });
-            }
-            None => {
-                let message = "the server does not offer lockstep; running on sensor time".into();
-                flight.log(format!("warning: {message}"));
-                observer.progress(&Progress::Warning { iteration, message });
-            }
-        }
-    }
-    flight.connected(&settings.addr);
-    flight.spawn();
-    drain(flight, observer);
-
+    flight.start(Instant::now().into_std());
     let mut side = Side::default();
     let result = fly_loop(flight, settings, &mut conn, &mut side, observer).await;
     let frames = side.finish(flight, settings).await;
@@ -480,6 +455,8 @@ async fn resolve(addr: &str) -> Result<std::net::SocketAddr, String> {
         .ok_or_else(|| "no address".to_owned())
 }
 
+/// The I/O loop: send what the flight queued, serve the camera and the radio, wait for a
+/// message until the flight's next deadline, hand it the message or the time-out.
 async fn fly_loop(
     flight: &mut Flight,
     settings: &RunSettings,
@@ -487,7 +464,6 @@ async fn fly_loop(
     side: &mut Side,
     observer: &mut dyn Observer,
 ) -> Result<(), RunError> {
-    let spawned_by = Instant::now() + settings.stream_timeout;
     loop {
         send_all(flight, conn).await?;
         side.serve(flight, settings).await?;
@@ -495,68 +471,30 @@ async fn fly_loop(
         match flight.phase() {
             Phase::Done => break,
             Phase::Failed => {
-                return Err(flight.take_error().unwrap_or(RunError::StreamStopped {
-                    timeout: settings.stream_timeout,
-                }));
+                return Err(flight.take_error().map_or(
+                    RunError::StreamStopped {
+                        timeout: settings.stream_timeout,
+                    },
+                    RunError::from,
+                ));
             }
             _ => {}
         }
-        let quiet = flight.frame_open() && !flight.is_lockstep();
-        let deadline = if flight.phase() == Phase::Spawning {
-            spawned_by
-        } else {
-            Instant::now() + settings.stream_timeout
+        let message = match flight.poll_timeout() {
+            Some(due) => tokio::time::timeout_at(Instant::from_std(due), conn.next_message())
+                .await
+                .ok(),
+            None => Some(conn.next_message().await),
         };
-        let wait = if quiet {
-            deadline.min(Instant::now() + QUIET)
-        } else {
-            deadline
-        };
-        let message = tokio::time::timeout_at(wait, conn.next_message()).await;
         // The frames and messages that came meanwhile, before the agent may step.
         side.serve(flight, settings).await?;
+        let now = Instant::now().into_std();
         match message {
-            Ok(message) => flight.on_message(&message?),
-            Err(_) if quiet && Instant::now() < deadline => flight.end_of_frame(),
-            Err(_) if flight.phase() == Phase::Spawning && flight.is_streaming() => {
-                return Err(RunError::NoPosition {
-                    timeout: settings.stream_timeout,
-                });
-            }
-            Err(_) if flight.phase() == Phase::Spawning => {
-                return Err(RunError::SpawnFailed {
-                    class: settings.class_name(),
-                    timeout: settings.stream_timeout,
-                });
-            }
-            Err(_) => {
-                return Err(RunError::StreamStopped {
-                    timeout: settings.stream_timeout,
-                });
-            }
+            Some(message) => flight.handle_message(&message?, now),
+            None => flight.handle_timeout(now),
         }
     }
     Ok(())
-}
-
-/// Asks for lockstep (`SYNC {Time 0}`) and waits up to `wait` for the answer; what comes
-/// before it goes to the flight. `None`: not offered (a stock USARSim never answers).
-async fn negotiate_lockstep(
-    conn: &mut Connection,
-    flight: &mut Flight,
-    wait: Duration,
-) -> Result<Option<f64>, RunError> {
-    conn.send(&Command::Sync(Barrier::at(0.0))).await?;
-    let deadline = Instant::now() + wait;
-    loop {
-        match tokio::time::timeout_at(deadline, conn.next_message()).await {
-            Err(_) => return Ok(None),
-            Ok(message) => match message? {
-                ServerMessage::Sync(barrier) => return Ok(Some(barrier.time.seconds)),
-                other => flight.on_message(&other),
-            },
-        }
-    }
 }
 
 /// The recording file of iteration `n`: `path` for the first, `NAME-n.EXT` for the next.

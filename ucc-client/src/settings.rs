@@ -2,7 +2,6 @@
 //! time limits, lockstep, outputs). The agent is not a setting: the runner takes an
 //! [`AgentFactory`](crate::AgentFactory).
 
-use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
 use std::sync::Arc;
@@ -11,84 +10,17 @@ use std::time::Duration;
 
 use usar_proto::{Command, Init};
 
-use crate::geometry::{Coordinates, Num, to_wire};
-use crate::mission::{Mission, parse_numbers};
+use crate::flight::FlightConfig;
+pub use crate::flight::{Lockstep, Start};
+use crate::geometry::{Coordinates, to_wire};
+use crate::mission::Mission;
 use crate::picture::MapGeometry;
 
 /// Simulated seconds per lockstep barrier: the rate of the Position and STA streams.
 pub const LOCKSTEP_STEP: f64 = 0.1;
 
-/// Where the UAV is spawned.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Start {
-    /// A pose: world frame, metres, z down; rotation roll, pitch, yaw in radians.
-    Pose {
-        /// x, y, z.
-        location: Coordinates,
-        /// roll, pitch, yaw.
-        rotation: Coordinates,
-    },
-    /// A PlayerStart of the map, by tag or name.
-    Tag(String),
-}
-
-impl Start {
-    /// A pose at `location`, level, heading north.
-    pub fn at(location: Coordinates) -> Self {
-        Self::Pose {
-            location,
-            rotation: Coordinates::zeros(),
-        }
-    }
-}
-
-impl FromStr for Start {
-    type Err = String;
-
-    /// `x,y,z`, `x,y,z,roll,pitch,yaw` (metres, radians) or a PlayerStart tag.
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let s = s.trim();
-        // A comma makes it a pose (`nan,0,-1` is a bad pose, not a tag).
-        let looks_numeric =
-            s.contains(',') || s.starts_with(|c: char| c.is_ascii_digit() || "+-.".contains(c));
-        if !looks_numeric {
-            if s.is_empty() || s.contains(['{', '}']) {
-                return Err(format!("invalid start tag {s:?}"));
-            }
-            return Ok(Self::Tag(s.to_owned()));
-        }
-        let n = parse_numbers(s).map_err(|e| format!("invalid start pose {s:?}: {e}"))?;
-        let v = |i: usize| n.get(i).copied().unwrap_or(0.0);
-        match n.len() {
-            3 | 6 => Ok(Self::Pose {
-                location: Coordinates::new(v(0), v(1), v(2)),
-                rotation: Coordinates::new(v(3), v(4), v(5)),
-            }),
-            k => Err(format!(
-                "invalid start pose {s:?}: {k} numbers, expected x,y,z or x,y,z,roll,pitch,yaw"
-            )),
-        }
-    }
-}
-
-impl fmt::Display for Start {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Pose {
-                location: l,
-                rotation: r,
-            } => write!(
-                f,
-                "{} (roll {}, pitch {}, yaw {})",
-                crate::geometry::triple(l, 2),
-                Num(r.x, 2),
-                Num(r.y, 2),
-                Num(r.z, 2)
-            ),
-            Self::Tag(tag) => write!(f, "start tag {tag}"),
-        }
-    }
-}
+/// How long to wait for the server's greeting and for a lockstep answer.
+const HANDSHAKE: Duration = Duration::from_secs(2);
 
 /// Which map pictures a run draws (in the log directory).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -113,21 +45,6 @@ impl FromStr for Pictures {
             _ => Err(format!("expected all, overlay or none, not {s:?}")),
         }
     }
-}
-
-/// Whether to fly in lockstep with the server (docs/lockstep.md).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Lockstep {
-    /// Run on sensor time: the agent answers whatever arrives, as against a stock USARSim.
-    /// Results then depend on timing (the machine's load, the network); the run says so in
-    /// its log.
-    #[default]
-    Off,
-    /// Lockstep when the server offers it, else sensor time (with a warning in the log).
-    IfOffered,
-    /// Lockstep or nothing: a server that does not offer it is an error. The same settings
-    /// then give the same flight every time.
-    Required,
 }
 
 /// Camera frames for the agent (docs/camera.md): where the image server is and what to do
@@ -281,6 +198,24 @@ impl RunSettings {
             Start::Tag(tag) => init.start = Some(tag.clone()),
         }
         Command::Init(init)
+    }
+
+    /// What one iteration's flight needs to know.
+    pub fn flight(&self) -> FlightConfig {
+        FlightConfig {
+            addr: self.addr.clone(),
+            init: self.init(),
+            start: self.start.clone(),
+            missions: self.missions.clone(),
+            mission_timeout: self.mission_timeout,
+            stream_timeout: self.stream_timeout,
+            handshake_timeout: HANDSHAKE,
+            lockstep: self.lockstep,
+            lockstep_step: LOCKSTEP_STEP,
+            camera_tile: self.camera.as_ref().map(|c| c.tile),
+            radio: self.radio.is_some(),
+            ends_on_crash: true,
+        }
     }
 
     /// The path of an output file `PREFIX-name` in the log directory.

@@ -35,7 +35,7 @@
 //! All formatters append to a [`WireBuf`] (a `String`, a `Vec<u8>` or a `bytes::BytesMut`)
 //! without allocating.
 
-use crate::messages::Vec3;
+use crate::primitive::Vec3;
 
 /// Something protocol text can be appended to: `String`, `Vec<u8>`, `bytes::BytesMut`.
 pub trait WireBuf {

@@ -7,6 +7,7 @@
 //!   line parser of protocol.md §1.3/§10, with [`Deviation`]s for logging;
 //! * [`messages`]: typed client commands ([`Command`]) and server messages
 //!   ([`ServerMessage`]), each read from and printed to its exact wire form;
+//! * [`primitive`]: the value types every layer shares ([`Vec3`], [`Time`]);
 //! * [`format`]: the engine's number formatters (implicit float, implicit vector,
 //!   `FloatString`) writing into any [`format::WireBuf`];
 //! * [`codec`] (feature `codec`): the tokio-util line codecs shared by server and client;
@@ -35,6 +36,7 @@ pub mod format;
 pub mod image;
 pub mod message;
 pub mod messages;
+pub mod primitive;
 pub mod record;
 pub mod shown;
 mod value;
@@ -42,3 +44,4 @@ mod value;
 pub use error::{ParseError, ParseErrorKind, TextError};
 pub use message::{Deviation, Group, Message, Pair, Parsed};
 pub use messages::*;
+pub use primitive::{Time, Vec3};

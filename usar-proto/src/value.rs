@@ -24,7 +24,7 @@
 
 use crate::error::{ParseError, ParseErrorKind};
 use crate::message::{Deviation, RawPair, find};
-use crate::messages::Vec3;
+use crate::primitive::{Time, Vec3};
 
 fn is_ws(c: char) -> bool {
     matches!(c, ' ' | '\t' | '\r' | '\n')
@@ -473,6 +473,26 @@ pub(crate) fn decimals_of(v: &str) -> u8 {
         .split_once('.')
         .map_or(0, |(_, f)| f.bytes().take_while(u8::is_ascii_digit).count())
         .min(9) as u8
+}
+
+/// Reads `{Time t}` keeping its decimals.
+pub(crate) fn read_time(r: &Reader<'_, '_>) -> Result<Option<Time>, ParseError> {
+    r.opt_text("Time")
+        .map(|v| {
+            if let Some((seconds, decimals)) = plain_decimal_places(v) {
+                return Ok(Time { seconds, decimals });
+            }
+            Ok(Time {
+                seconds: r.number_in("Time", v)?,
+                decimals: decimals_of(v),
+            })
+        })
+        .transpose()
+}
+
+/// Reads a required `{Time t}`.
+pub(crate) fn time(r: &Reader<'_, '_>) -> Result<Time, ParseError> {
+    read_time(r)?.ok_or_else(|| r.missing("Time"))
 }
 
 #[cfg(test)]

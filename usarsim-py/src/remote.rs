@@ -1,37 +1,83 @@
 //! One UAV flown over the protocol: a running usar-server (lockstep via `SYNC`) or a real
-//! USARSim (no lockstep: sensor time). Blocking I/O on a std `TcpStream`; the caller
-//! releases the GIL around it.
+//! USARSim (no lockstep: sensor time). A blocking driver of ucc-client's flight core — the
+//! same [`Flight`] that `ucc`, the browser control center and the tests drive: the core
+//! holds the greeting, the lockstep handshake, the spawn, the barriers and the time limits;
+//! this file reads lines (bounded, with a read time-out up to the core's next deadline),
+//! writes what the core queued, and pauses at each period for Python's action. Blocking I/O
+//! on a std `TcpStream`; the caller releases the GIL around it.
 
-use std::io::{BufRead, BufReader, ErrorKind, Write};
+use std::io::{ErrorKind, Write};
 use std::net::{TcpStream, ToSocketAddrs};
-use std::time::Duration;
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
+use ucc_client::flight::{Flight, FlightConfig, FlightError, Lockstep, Start};
+use ucc_client::lines::BlockingLines;
 use ucc_client::uav::UavState;
-use usar_proto::{Barrier, Command, ServerMessage};
+use ucc_client::{Agent, Coordinates, Mission, MissionRefused, SpeedCommand, Step};
+use usar_proto::ServerMessage;
 
-use crate::core::{Observations, Pose, SimError, drive, spawn};
+use crate::core::{Observations, Pose, SimError, spawn};
 
-/// How long a connection attempt and each read may take.
+/// How long a connection attempt may take, and the server may stay silent.
 const TIMEOUT: Duration = Duration::from_secs(10);
-/// How long to wait for the answer to `SYNC {Time 0}` (a real USARSim never answers).
+/// How long to wait for the greeting and for the answer to `SYNC {Time 0}` (a real USARSim
+/// never answers).
 const SYNC_PROBE: Duration = Duration::from_secs(2);
+/// The shortest read time-out: a deadline already past still reads what is waiting.
+const MIN_READ: Duration = Duration::from_millis(1);
 
 fn err(addr: &str, what: impl std::fmt::Display) -> SimError {
     SimError::Invalid(format!("server {addr}: {what}"))
+}
+
+/// The agent of the flight: Python's latest action.
+struct Python(Arc<Mutex<Option<SpeedCommand>>>);
+
+impl Agent for Python {
+    fn name(&self) -> &str {
+        "python"
+    }
+    fn add_mission(&mut self, _: Mission) -> Result<(), MissionRefused> {
+        Ok(())
+    }
+    fn start(&mut self, _: f64) {}
+    fn stop(&mut self) {}
+    fn step(&mut self, _: &UavState, _: f64) -> Step {
+        Step {
+            command: *self.0.lock().unwrap_or_else(PoisonError::into_inner),
+            ..Step::default()
+        }
+    }
+}
+
+/// The input that ends a period, kept until Python acts: the core steps the agent on it.
+#[derive(Debug)]
+enum Held {
+    /// The lockstep barrier's answer, or (sensor time) the first line of a later time stamp.
+    Message(ServerMessage),
+    /// Sensor time: the input went quiet after the period's last time stamp.
+    Quiet,
 }
 
 /// A connection with one UAV.
 #[derive(Debug)]
 pub(crate) struct Remote {
     addr: String,
-    reader: BufReader<TcpStream>,
+    lines: BlockingLines<TcpStream>,
     writer: TcpStream,
-    state: UavState,
-    lockstep: bool,
-    /// Simulated time of the last barrier (lockstep) or last reading.
+    /// The core (in a mutex only so that the Python class may be shared between threads:
+    /// `&mut self` reaches it without locking).
+    flight: Mutex<Flight>,
+    action: Arc<Mutex<Option<SpeedCommand>>>,
+    held: Option<Held>,
+    /// Sensor time: the time stamp the period ends at.
+    due: Option<f64>,
+    /// Simulated time of the last barrier (lockstep) or of the last period's readings.
     time: f64,
     period: f64,
-    line: String,
+    /// The read time-out set on the socket.
+    read_timeout: Option<Duration>,
 }
 
 impl Remote {
@@ -50,27 +96,50 @@ impl Remote {
             .map_err(|e| err(addr, format_args!("bad address (want host:port): {e}")))?
             .next()
             .ok_or_else(|| err(addr, "address resolves to nothing"))?;
+        let init = spawn(robot, "UAV", &pose);
+        init.check().map_err(|e| err(addr, e))?;
         let stream = TcpStream::connect_timeout(&target, TIMEOUT)
             .map_err(|e| err(addr, format_args!("cannot connect: {e}")))?;
         let _ = stream.set_nodelay(true);
         let writer = stream
             .try_clone()
             .map_err(|e| err(addr, format_args!("{e}")))?;
+        let config = FlightConfig {
+            addr: addr.to_owned(),
+            init,
+            start: Start::Pose {
+                location: Coordinates::new(pose[0], pose[1], pose[2]),
+                rotation: Coordinates::new(0.0, 0.0, pose[3]),
+            },
+            missions: Vec::new(),
+            mission_timeout: f64::INFINITY,
+            stream_timeout: TIMEOUT,
+            handshake_timeout: SYNC_PROBE,
+            lockstep: Lockstep::IfOffered,
+            lockstep_step: period,
+            camera_tile: None,
+            radio: false,
+            // A crash is the task's to judge (it ends the episode), not an error.
+            ends_on_crash: false,
+        };
+        let action = Arc::new(Mutex::new(None));
+        let flight = Flight::new(1, config, Box::new(Python(Arc::clone(&action))))
+            .map_err(|e| err(addr, e))?;
         let mut remote = Self {
-            addr: addr.to_string(),
-            reader: BufReader::new(stream),
+            addr: addr.to_owned(),
+            lines: BlockingLines::new(stream),
             writer,
-            state: UavState::new(),
-            lockstep: false,
+            flight: Mutex::new(flight),
+            action,
+            held: None,
+            due: None,
             time: 0.0,
             period,
-            line: String::new(),
+            read_timeout: None,
         };
-        remote.send(&Command::Sync(Barrier::at(0.0)))?;
-        remote.lockstep = remote.probe_sync()?;
-        remote.send(&spawn(robot, "UAV", &pose))?;
+        remote.core().start(Instant::now());
         remote.advance()?;
-        if remote.state.position.is_none() {
+        if remote.core().uav().position.is_none() {
             return Err(err(
                 addr,
                 format_args!("the robot did not spawn at {pose:?} (no Position reading)"),
@@ -81,124 +150,166 @@ impl Remote {
 
     /// Whether the server runs in lockstep with us.
     pub(crate) fn is_lockstep(&self) -> bool {
-        self.lockstep
-    }
-
-    fn probe_sync(&mut self) -> Result<bool, SimError> {
-        self.set_timeout(SYNC_PROBE)?;
-        loop {
-            match self.read_message() {
-                Ok(Some(ServerMessage::Sync(barrier))) => {
-                    // The server's clock need not start at 0 (earlier clients ran it).
-                    self.time = barrier.time.seconds;
-                    self.set_timeout(TIMEOUT)?;
-                    return Ok(true);
-                }
-                Ok(Some(m)) => {
-                    self.state.apply(&m);
-                }
-                Ok(None) => return Err(err(&self.addr, "the server closed the connection")),
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
-                    self.set_timeout(TIMEOUT)?;
-                    return Ok(false);
-                }
-                Err(e) => return Err(err(&self.addr, format_args!("read failed: {e}"))),
-            }
-        }
-    }
-
-    fn set_timeout(&self, t: Duration) -> Result<(), SimError> {
-        self.reader
-            .get_ref()
-            .set_read_timeout(Some(t))
-            .map_err(|e| err(&self.addr, format_args!("{e}")))
-    }
-
-    /// One line as a message; `Ok(None)` at end of stream; unreadable lines are skipped.
-    fn read_message(&mut self) -> std::io::Result<Option<ServerMessage>> {
-        loop {
-            self.line.clear();
-            if self.reader.read_line(&mut self.line)? == 0 {
-                return Ok(None);
-            }
-            let line = self.line.trim_end_matches(['\r', '\n']);
-            if let Ok(parsed) = ServerMessage::parse(line) {
-                return Ok(Some(parsed.message));
-            }
-        }
-    }
-
-    fn send(&mut self, command: &Command) -> Result<(), SimError> {
-        let mut line = String::new();
-        command.write_to(&mut line);
-        self.send_line(&line)
-    }
-
-    fn send_line(&mut self, line: &str) -> Result<(), SimError> {
-        let result = self
-            .writer
-            .write_all(line.as_bytes())
-            .and_then(|()| self.writer.write_all(b"\r\n"));
-        result.map_err(|e| {
-            err(
-                &self.addr,
-                format_args!("write failed (server closed?): {e}"),
-            )
-        })
-    }
-
-    /// Lockstep: releases the world for one period and reads up to the barrier's answer.
-    /// Otherwise: reads until a reading stamped one period later than the last arrives.
-    fn advance(&mut self) -> Result<(), SimError> {
-        // Without lockstep the clock is only known from the readings: a fresh connection
-        // waits one period past the first time stamp it sees.
-        let mut target = (self.lockstep || self.time > 0.0).then_some(self.time + self.period);
-        if self.lockstep {
-            self.send(&Command::Sync(Barrier::at(self.time + self.period)))?;
-        }
-        loop {
-            let message = match self.read_message() {
-                Ok(Some(m)) => m,
-                Ok(None) => return Err(err(&self.addr, "the server closed the connection")),
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
-                    return Err(err(
-                        &self.addr,
-                        format_args!("timed out: no answer within {} s", TIMEOUT.as_secs()),
-                    ));
-                }
-                Err(e) => return Err(err(&self.addr, format_args!("read failed: {e}"))),
-            };
-            if let ServerMessage::Sync(barrier) = &message {
-                if self.lockstep {
-                    self.time = barrier.time.seconds;
-                    return Ok(());
-                }
-                continue;
-            }
-            self.state.apply(&message);
-            if self.lockstep {
-                continue;
-            }
-            if let Some(t) = message.time() {
-                let due = *target.get_or_insert(t + self.period);
-                if t >= due - 1e-6 && self.state.position.is_some() {
-                    self.time = t;
-                    return Ok(());
-                }
-            }
-        }
+        self.flight
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .is_lockstep()
     }
 
     /// Sends the normalized command and waits one period.
     pub(crate) fn step(&mut self, action: [f64; 4]) -> Result<(), SimError> {
-        self.send(&drive(&action))?;
+        let command = SpeedCommand {
+            forward: action[0] * 100.0,
+            right: action[1] * 100.0,
+            up: action[2] * 100.0,
+            yaw: action[3] * 100.0,
+        };
+        *self.action.lock().unwrap_or_else(PoisonError::into_inner) = Some(command);
+        // The held input ends the period: the core steps the agent on it, which sends the
+        // action (and, in lockstep, the next barrier).
+        match self.held.take() {
+            Some(Held::Message(message)) => self.core().handle_message(&message, Instant::now()),
+            Some(Held::Quiet) => self.core().end_of_frame(),
+            None => {}
+        }
         self.advance()
     }
 
     /// The UAV's observation (contact is not known remotely: always false).
     pub(crate) fn observe(&self) -> Observations {
         let mut obs = Observations::with_capacity(1);
-        obs.push_state(&self.state, false, self.time);
+        let flight = self.flight.lock().unwrap_or_else(PoisonError::into_inner);
+        obs.push_state(flight.uav(), false, self.time);
         obs
+    }
+
+    fn core(&mut self) -> &mut Flight {
+        self.flight
+            .get_mut()
+            .unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Drives the core until the input that ends the period (held for [`step`]), or fails.
+    fn advance(&mut self) -> Result<(), SimError> {
+        loop {
+            self.send_queued()?;
+            while self.core().poll_progress().is_some() {}
+            if let Some(error) = self.core().take_error() {
+                let timed_out = matches!(
+                    error,
+                    FlightError::SpawnFailed { .. }
+                        | FlightError::NoPosition { .. }
+                        | FlightError::StreamStopped { .. }
+                );
+                return Err(if timed_out {
+                    err(&self.addr, format_args!("timed out: {error}"))
+                } else {
+                    err(&self.addr, error)
+                });
+            }
+            let deadline = self.core().poll_timeout();
+            let message = self.read(deadline)?;
+            let now = Instant::now();
+            match message {
+                Some(message) if self.ends_period(&message) => {
+                    self.held = Some(Held::Message(message));
+                    return Ok(());
+                }
+                Some(message) => self.core().handle_message(&message, now),
+                // Sensor time: the frame went quiet (in the core's own words, its quiet
+                // time-out); at the period's end Python acts before the agent steps.
+                None if self.core().frame_open()
+                    && !self.core().is_lockstep()
+                    && self.period_over() =>
+                {
+                    self.held = Some(Held::Quiet);
+                    return Ok(());
+                }
+                None => self.core().handle_timeout(now),
+            }
+        }
+    }
+
+    /// Whether `message` closes the frame that ends the period.
+    fn ends_period(&mut self, message: &ServerMessage) -> bool {
+        use ucc_client::flight::Phase;
+        if !matches!(self.core().phase(), Phase::Spawning | Phase::Flying) {
+            return false;
+        }
+        if self.core().is_lockstep() {
+            let ServerMessage::Sync(barrier) = message else {
+                return false;
+            };
+            self.time = barrier.time.seconds;
+            return true;
+        }
+        let later = matches!(
+            (message.time(), self.core().frame_time()),
+            (Some(t), Some(open)) if t > open + 1e-9
+        );
+        later && self.period_over()
+    }
+
+    /// Sensor time: whether the open frame is at or past the period's end (a fresh
+    /// connection waits one period past the first time stamp it sees); then it is the
+    /// observation's time.
+    fn period_over(&mut self) -> bool {
+        let Some(open) = self.core().frame_time() else {
+            return false;
+        };
+        let due = *self.due.get_or_insert(open + self.period);
+        if open >= due - 1e-6 && self.core().uav().position.is_some() {
+            self.time = open;
+            self.due = Some(open + self.period);
+            return true;
+        }
+        false
+    }
+
+    /// One message, waiting at most until `deadline` (`None`: the time-out).
+    fn read(&mut self, deadline: Option<Instant>) -> Result<Option<ServerMessage>, SimError> {
+        let wait = deadline.map_or(TIMEOUT, |d| {
+            d.saturating_duration_since(Instant::now()).max(MIN_READ)
+        });
+        if self.read_timeout != Some(wait) {
+            self.lines
+                .get_ref()
+                .set_read_timeout(Some(wait))
+                .map_err(|e| err(&self.addr, e))?;
+            self.read_timeout = Some(wait);
+        }
+        loop {
+            match self.lines.next_line() {
+                Ok(Some(line)) => {
+                    // Unreadable lines are skipped.
+                    if let Ok(parsed) = ServerMessage::parse(&line) {
+                        return Ok(Some(parsed.message));
+                    }
+                }
+                Ok(None) => return Err(err(&self.addr, "the server closed the connection")),
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                    return Ok(None);
+                }
+                Err(e) => return Err(err(&self.addr, format_args!("read failed: {e}"))),
+            }
+        }
+    }
+
+    /// Writes what the core queued, in one write.
+    fn send_queued(&mut self) -> Result<(), SimError> {
+        let mut out = String::new();
+        while let Some(command) = self.core().poll_command() {
+            command.write_to(&mut out);
+            out.push_str("\r\n");
+        }
+        if out.is_empty() {
+            return Ok(());
+        }
+        self.writer.write_all(out.as_bytes()).map_err(|e| {
+            err(
+                &self.addr,
+                format_args!("write failed (server closed?): {e}"),
+            )
+        })
     }
 }

@@ -3,10 +3,10 @@
 use super::command::LinkValue;
 use super::line::Line;
 use super::server::{Asta, Die, Eff};
-use super::sta::time;
 use crate::error::ParseError;
 use crate::format::WireBuf;
 use crate::value::Reader;
+use crate::value::time;
 
 impl Asta {
     pub(crate) fn read(r: Reader<'_, '_>) -> Result<Self, ParseError> {

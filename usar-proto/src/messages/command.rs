@@ -1,7 +1,7 @@
 //! Typed client → server commands (protocol.md §2).
 
-use super::common::Vec3;
 use crate::message::Message;
+use crate::primitive::Vec3;
 
 /// A command a client sends to the server.
 #[derive(Debug, Clone, PartialEq)]

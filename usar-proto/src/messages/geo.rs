@@ -4,11 +4,11 @@
 //! (implicit vectors, `{Mount` glued to the group before it). The UT2004 layout
 //! `{Name F2 Location .. Orientation .. Mount HARD}` is read too (and printed in UDK layout).
 
-use super::common::Vec3;
 use super::line::Line;
 use super::server::{Geo, GeoItem};
 use crate::error::ParseError;
 use crate::format::WireBuf;
+use crate::primitive::Vec3;
 use crate::value::Reader;
 
 impl Geo {

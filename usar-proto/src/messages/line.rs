@@ -1,7 +1,7 @@
 //! The one writer of `{Key value}` groups, used by every typed printer.
 
-use super::common::{Time, Vec3};
 use crate::format::{self, WireBuf};
+use crate::primitive::{Time, Vec3};
 
 /// Writes a line group by group: ` {Key value}`, or `{Key value}` right after [`Line::glue`].
 pub(crate) struct Line<'o, B: WireBuf> {

@@ -15,7 +15,6 @@
 //! [`ConfItem::Other`]. Only an empty line is an error.
 
 pub mod command;
-pub mod common;
 pub mod server;
 
 mod actuator;
@@ -28,7 +27,6 @@ mod sta;
 mod sync;
 
 pub use command::*;
-pub use common::*;
 pub use server::*;
 pub use sync::{Barrier, SYNC_WORD};
 

@@ -2,11 +2,11 @@
 //! `{StartPoses n} {name x,y,z r,p,y name ...}` (4 decimals) or the old one
 //! `{StartPoses n} {Name n Location x,y,z Orientation r,p,y} ...` (2 decimals).
 
-use super::common::Vec3;
 use super::line::Line;
 use super::server::{Nfo, StartPose};
 use crate::error::ParseError;
 use crate::format::{self, WireBuf};
+use crate::primitive::Vec3;
 use crate::value::Reader;
 
 impl Nfo {

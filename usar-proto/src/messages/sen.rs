@@ -7,10 +7,10 @@
 
 use super::line::Line;
 use super::server::{GpsFix, NamedRange, NamedTick, Scan, Sen, SenData, VictimPart};
-use super::sta::read_time;
 use crate::error::ParseError;
 use crate::format::WireBuf;
 use crate::message::groups_of;
+use crate::value::read_time;
 use crate::value::{Reader, decimals_of};
 
 /// Decimals of IMU, sonar, altitude and the stsAirRobot sensors (FloatString default).

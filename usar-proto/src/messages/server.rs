@@ -1,9 +1,9 @@
 //! Typed server → client messages (protocol.md §3, §9, §10).
 
 use super::command::LinkValue;
-use super::common::{Time, Vec3};
 use super::sync::Barrier;
 use crate::message::{Group, Message};
+use crate::primitive::{Time, Vec3};
 
 /// A message the server sends.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,31 +1,10 @@
 //! `STA`: robot status (protocol.md §3.2, §6 for the UT2004 layout).
 
-use super::common::Time;
 use super::line::Line;
 use super::server::{Sta, StaLayout, VehicleStatus};
 use crate::error::ParseError;
 use crate::format::WireBuf;
-use crate::value::{Reader, decimals_of, plain_decimal_places};
-
-/// Reads `{Time t}` keeping its decimals.
-pub(crate) fn read_time(r: &Reader<'_, '_>) -> Result<Option<Time>, ParseError> {
-    r.opt_text("Time")
-        .map(|v| {
-            if let Some((seconds, decimals)) = plain_decimal_places(v) {
-                return Ok(Time { seconds, decimals });
-            }
-            Ok(Time {
-                seconds: r.number_in("Time", v)?,
-                decimals: decimals_of(v),
-            })
-        })
-        .transpose()
-}
-
-/// Reads a required `{Time t}`.
-pub(crate) fn time(r: &Reader<'_, '_>) -> Result<Time, ParseError> {
-    read_time(r)?.ok_or_else(|| r.missing("Time"))
-}
+use crate::value::{Reader, time};
 
 impl Sta {
     pub(crate) fn read(r: Reader<'_, '_>) -> Result<Self, ParseError> {

@@ -5,12 +5,12 @@
 //! * server → client ([`ServerMessage::Sync`](super::ServerMessage::Sync)): "the world has
 //!   reached `t`; every line up to it was sent before this one".
 
-use super::common::Time;
 use super::line::Line;
-use super::sta::time;
 use crate::error::ParseError;
 use crate::format::WireBuf;
+use crate::primitive::Time;
 use crate::value::Reader;
+use crate::value::time;
 
 /// The word of the barrier message in both directions.
 pub const SYNC_WORD: &str = "SYNC";

@@ -1,4 +1,5 @@
-//! Value types shared by several typed messages.
+//! Value types shared by the typed messages, the number formatters and the value reader
+//! (a module of their own, which imports nothing of the crate).
 
 /// A plain triple of numbers: a position (metres), a velocity, a rotation (roll, pitch, yaw in
 /// radians)... `usar-proto` stays free of math libraries; callers convert.
