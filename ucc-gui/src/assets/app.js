@@ -310,7 +310,7 @@ window.addEventListener("ucc-resize", () => { dirty = true; if (view3d) view3d.d
 window.ucc = {
   get view() { return map.view; }, uavs: store.uavs, store, send, receive, select,
   fit: () => { map.fit(); dirty = true; }, toScreen: (x, y) => map.toScreen(x, y), drawMap,
-  side: sides, WALL_COLOR, MAX_LOG, get view3d() { return view3d; }, camera, scenario,
+  side: sides, WALL_COLOR, MAX_LOG, get view3d() { return view3d; }, get plots() { return plots; }, camera, scenario,
 };
 
 function start() {
