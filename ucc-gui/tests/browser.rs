@@ -1097,7 +1097,8 @@ async fn bench_page_with_1000_uavs() -> Result<()> {
 
 /// #23 end to end: 1000 UAVs really flying on the control center's local server (the map
 /// `city`, the spawn grid of `usar-bench --map city --spacing 1.5 --layers 6`), each created,
-/// given a mission and started from the page, which then draws them for 20 s. A benchmark:
+/// given a mission and started from the page, which then draws them for 10 s with all in
+/// the map's view and 10 s zoomed onto one. A benchmark:
 /// runs only with `UCC_GUI_BENCH=1` and prints the page's draw time and what the hub sent
 /// (BENCHMARKS.md).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -1160,26 +1161,39 @@ async fn bench_page_with_1000_uavs_flying() -> Result<()> {
         })
         .await?;
         js(&c, "U.fit()").await?;
+        // 10 s with every UAV in the map's view, then 10 s zoomed onto the selected UAV (the
+        // hub then sends the others' summaries only).
         let figures = c
             .execute_async(
                 "const done = arguments[arguments.length - 1]; const U = window.ucc;
-                 window.uccFrameTimes = []; for (const k in window.uccParts) window.uccParts[k] = 0;
-                 const u0 = window.uccUpdates, b0 = window.uccBytes, t0 = performance.now(), gaps = []; let last = t0;
-                 const received = () => [...U.uavs.values()].reduce((a, u) => a + (u.live && !u.live.summary ? 1 : 0), 0);
-                 function f(t) { gaps.push(t - last); last = t; if (t - t0 < 20000) requestAnimationFrame(f); else {
-                   const q = (a, p) => { const s = [...a].sort((x, y) => x - y); return s[Math.min(s.length - 1, Math.floor(p * s.length))]; };
-                   const d = window.uccFrameTimes;
+                 const q = (a, p) => { const s = [...a].sort((x, y) => x - y); return s[Math.min(s.length - 1, Math.floor(p * s.length))]; };
+                 const detailed = () => [...U.uavs.values()].filter((u) => u.live && !u.live.summary).length;
+                 const measure = (ms) => new Promise((resolve) => {
+                   window.uccFrameTimes = []; for (const k in window.uccParts) window.uccParts[k] = 0;
+                   const u0 = window.uccUpdates, b0 = window.uccBytes, t0 = performance.now(), gaps = []; let last = t0;
+                   function f(t) { gaps.push(t - last); last = t; if (t - t0 < ms) requestAnimationFrame(f); else {
+                     const d = window.uccFrameTimes;
+                     resolve({draw_median_ms: q(d, 0.5), draw_p95_ms: q(d, 0.95), frames: d.length,
+                              gap_median_ms: q(gaps, 0.5), gap_p95_ms: q(gaps, 0.95), updates: window.uccUpdates - u0,
+                              kib_received_per_s: (window.uccBytes - b0) / 1024 / (ms / 1000), uavs_in_detail: detailed(),
+                              parts_ms: Object.assign({}, window.uccParts)});
+                   } }
+                   requestAnimationFrame(f);
+                 });
+                 (async () => {
+                   const all = await measure(10000);
+                   const p = [...U.uavs.values()].find((u) => u.info.id === 1).live.position;
+                   U.select(1); Object.assign(U.view, {cx: p[0], cy: p[1], scale: 200}); window.dispatchEvent(new Event('resize'));
+                   await new Promise((r) => setTimeout(r, 2000));
+                   const zoomed = await measure(10000);
                    done({uavs: U.uavs.size, flying: [...U.uavs.values()].filter((u) => u.info.status === 'running').length,
-                         draw_median_ms: q(d, 0.5), draw_p95_ms: q(d, 0.95), frames: d.length,
-                         gap_median_ms: q(gaps, 0.5), gap_p95_ms: q(gaps, 0.95), updates: window.uccUpdates - u0,
-                         kib_received_per_s: (window.uccBytes - b0) / 1024 / 20, uavs_in_detail: received(), parts_ms: window.uccParts,
+                         all_in_view: all, zoomed_on_one: zoomed,
                          heap_mb: performance.memory ? performance.memory.usedJSHeapSize / 1e6 : null});
-                 } }
-                 requestAnimationFrame(f);",
+                 })();",
                 vec![],
             )
             .await?;
-        println!("ucc-gui page with {n} UAVs flying on the local server, 20 s: {figures}");
+        println!("ucc-gui page with {n} UAVs flying on the local server: {figures}");
         let dir = artifacts();
         std::fs::create_dir_all(&dir)?;
         std::fs::write(dir.join("ucc-gui-1000-flying.png"), c.screenshot().await?)?;

@@ -12,6 +12,11 @@
 //! ```
 //!
 //! At most 10,000 iterations (the most one start may ask for).
+//!
+//! `UCC_SOAK_JS_FLAGS` passes V8 flags to the page, e.g. `--no-opt --no-maglev
+//! --no-sparkplug` (the interpreter only): the heap then holds the page's data without the
+//! code V8's compilers add as the page's functions get hot (most of the heap's rise in the
+//! first minutes, BENCHMARKS.md).
 
 use std::path::PathBuf;
 use std::process::Stdio;
@@ -78,6 +83,14 @@ async fn chromium(
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
     let profile = std::env::temp_dir().join(format!("ucc-gui-soak-{}-{port}", std::process::id()));
+    let js_flags = std::env::var("UCC_SOAK_JS_FLAGS")
+        .map(|f| f.split_whitespace().collect::<Vec<_>>().join(","))
+        .unwrap_or_default();
+    let js_flags = if js_flags.is_empty() {
+        "--js-flags=--expose-gc".to_owned()
+    } else {
+        format!("--js-flags=--expose-gc,{js_flags}")
+    };
     // `--expose-gc`: the heap is sampled after a collection; precise memory info: not
     // rounded to 10 MB steps.
     let caps = json!({
@@ -86,7 +99,7 @@ async fn chromium(
             "args": ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
                      "--disable-background-networking", "--disable-component-update", "--disable-sync",
                      "--disable-dev-shm-usage", "--window-size=1400,900",
-                     "--enable-precise-memory-info", "--js-flags=--expose-gc",
+                     "--enable-precise-memory-info", js_flags,
                      "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
                      format!("--user-data-dir={}", profile.display())]
         }
