@@ -213,7 +213,8 @@ function drawMap() { map.draw(selected, $("overlay").checked); }
 // it the view when it changes, at most every 150 ms (a drag sends a few, not hundreds).
 let viewKey = null, viewSent = -1e9;
 function syncView(now) {
-  if (!map.fitted || !ws || ws.readyState !== 1 || now - viewSent < 150) return;
+  // A map not laid out (no size) shows nothing: say nothing rather than an empty view.
+  if (!map.fitted || map.w < 10 || map.h < 10 || !ws || ws.readyState !== 1 || now - viewSent < 150) return;
   const r = map.viewRect(), key = r.map((v) => v.toPrecision(5)).join();
   if (key === viewKey) return;
   viewKey = key; viewSent = now;
