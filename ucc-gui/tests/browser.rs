@@ -749,6 +749,56 @@ async fn a_long_loops_state_keeps_the_map_alive() -> Result<()> {
     .await
 }
 
+/// #26, the page over a long loop: what the page holds per UAV and what three.js holds on the
+/// GPU (geometries, textures), the 3D scene and the DOM (beside the log panel's lines, capped
+/// at 2,000) stay the same from iteration 50 to iteration 250 of a loop
+/// (fed the hub's update format: a new iteration every 80 ms, with trail, plots, overlay and
+/// log lines, the selected UAV's laser and sonars drawn in 3D every frame).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_long_loop_leaves_the_pages_structures_bounded() -> Result<()> {
+    with_page(local(TimeScale::Max), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        let counts = c
+            .execute_async(
+                "const done = arguments[arguments.length - 1]; const U = window.ucc;
+                 const server = {addr: 'x:1', local: true, time_scale: '1', paused: false, map: ''};
+                 const info = (k) => ({name: 'Soak', robot: 'stsAirRobot', agent: 'base', start: '0,0,-1', status: 'running', error: null,
+                   iteration: k, iterations: 10000, active: 0, prefix: 'S', pictures: 'none', autosave: false,
+                   missions: [{kind: 'GotoXyz', x: 0.5, y: 0, z: -1.2, text: 'GotoXyz 0.50,0.00,-1.20'}]});
+                 let k = 0, at50 = null;
+                 const count = () => { const u = U.uavs.get(1), m = U.view3d && U.view3d.ok ? U.view3d.renderer.info.memory : {geometries: -1, textures: -1};
+                   return {trail: u.trail.length, past: u.past.length, history: u.history.length, log: U.store.log.length,
+                           geometries: m.geometries, textures: m.textures, scene: U.view3d && U.view3d.ok ? U.view3d.scene.children.length : -1,
+                           dom: document.getElementsByTagName('*').length - document.getElementById('log').children.length}; };
+                 const timer = setInterval(() => {
+                   k++;
+                   const trail = []; for (let i = 0; i < 20; i++) trail.push([i * 0.025, 0, -1 - i * 0.01]);
+                   const past = k > 1 ? [trail] : [];
+                   const u = {id: 1, info: info(k), trail_reset: true, trail, history_reset: true,
+                     history: trail.map((p, i) => [k + i * 0.1, -p[2], 0.4, 0.9]), past,
+                     live: {time: k, position: [0.5, 0, -1.2], attitude: [0, 0, 0.1], velocity: [0.1, 0, 0], battery: {level: 0.9, remaining: 900},
+                            laser: {ranges: new Array(181).fill(3), resolution: 0.0174, fov: 3.14}, sonars: [1, 2, 3, 4, 5, 6, 7, 8]}};
+                   if (k % 100 === 0) u.past_reset = true;
+                   U.receive({type: 'state', server, uavs: [u], removed: [],
+                     log: [{seq: k, level: 'info', uav: 1, text: `[${k}] mission 1 done`}]});
+                   if (k === 50) at50 = count();
+                   if (k === 250) { clearInterval(timer); setTimeout(() => done({at50, at250: count()}), 300); }
+                 }, 80);",
+                vec![],
+            )
+            .await?;
+        let (a, b) = (&counts["at50"], &counts["at250"]);
+        for key in ["geometries", "textures", "scene", "dom", "trail", "history"] {
+            assert_eq!(a[key], b[key], "{key} grew from iteration 50 to 250: {counts}");
+        }
+        assert!(b["past"].as_u64().unwrap() <= 100, "{counts}");
+        assert!(b["log"].as_u64().unwrap() <= 2000, "{counts}");
+        assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
+        Ok(())
+    })
+    .await
+}
+
 /// A fault the server applies (`--faults`) shows on the UAV's panel and in the log.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_fault_shows_on_the_uav_panel_and_in_the_log() -> Result<()> {
