@@ -118,6 +118,11 @@ async fn handle(app: &App, cursor: &mut Cursor, text: &str) -> Option<Value> {
             if let Request::Select { uav } = &request {
                 cursor.selected = Some(*uav);
             }
+            if let Request::View { x0, x1, y0, y1 } = request
+                && let Ok(rect) = crate::hub::request::view_rect(x0, x1, y0, y1)
+            {
+                cursor.view = Some(rect);
+            }
             // The lock is released at the end of this statement, before any await.
             let planned = app.shared.lock().apply(request);
             match planned {

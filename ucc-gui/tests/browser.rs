@@ -749,6 +749,56 @@ async fn a_long_loops_state_keeps_the_map_alive() -> Result<()> {
     .await
 }
 
+/// #26, the page over a long loop: what the page holds per UAV and what three.js holds on the
+/// GPU (geometries, textures), the 3D scene and the DOM (beside the log panel's lines, capped
+/// at 2,000) stay the same from iteration 50 to iteration 250 of a loop
+/// (fed the hub's update format: a new iteration every 80 ms, with trail, plots, overlay and
+/// log lines, the selected UAV's laser and sonars drawn in 3D every frame).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_long_loop_leaves_the_pages_structures_bounded() -> Result<()> {
+    with_page(local(TimeScale::Max), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        let counts = c
+            .execute_async(
+                "const done = arguments[arguments.length - 1]; const U = window.ucc;
+                 const server = {addr: 'x:1', local: true, time_scale: '1', paused: false, map: ''};
+                 const info = (k) => ({name: 'Soak', robot: 'stsAirRobot', agent: 'base', start: '0,0,-1', status: 'running', error: null,
+                   iteration: k, iterations: 10000, active: 0, prefix: 'S', pictures: 'none', autosave: false,
+                   missions: [{kind: 'GotoXyz', x: 0.5, y: 0, z: -1.2, text: 'GotoXyz 0.50,0.00,-1.20'}]});
+                 let k = 0, at50 = null;
+                 const count = () => { const u = U.uavs.get(1), m = U.view3d && U.view3d.ok ? U.view3d.renderer.info.memory : {geometries: -1, textures: -1};
+                   return {trail: u.trail.length, past: u.past.length, history: u.history.length, log: U.store.log.length,
+                           geometries: m.geometries, textures: m.textures, scene: U.view3d && U.view3d.ok ? U.view3d.scene.children.length : -1,
+                           dom: document.getElementsByTagName('*').length - document.getElementById('log').children.length}; };
+                 const timer = setInterval(() => {
+                   k++;
+                   const trail = []; for (let i = 0; i < 20; i++) trail.push([i * 0.025, 0, -1 - i * 0.01]);
+                   const past = k > 1 ? [trail] : [];
+                   const u = {id: 1, info: info(k), trail_reset: true, trail, history_reset: true,
+                     history: trail.map((p, i) => [k + i * 0.1, -p[2], 0.4, 0.9]), past,
+                     live: {time: k, position: [0.5, 0, -1.2], attitude: [0, 0, 0.1], velocity: [0.1, 0, 0], battery: {level: 0.9, remaining: 900},
+                            laser: {ranges: new Array(181).fill(3), resolution: 0.0174, fov: 3.14}, sonars: [1, 2, 3, 4, 5, 6, 7, 8]}};
+                   if (k % 100 === 0) u.past_reset = true;
+                   U.receive({type: 'state', server, uavs: [u], removed: [],
+                     log: [{seq: k, level: 'info', uav: 1, text: `[${k}] mission 1 done`}]});
+                   if (k === 50) at50 = count();
+                   if (k === 250) { clearInterval(timer); setTimeout(() => done({at50, at250: count()}), 300); }
+                 }, 80);",
+                vec![],
+            )
+            .await?;
+        let (a, b) = (&counts["at50"], &counts["at250"]);
+        for key in ["geometries", "textures", "scene", "dom", "trail", "history"] {
+            assert_eq!(a[key], b[key], "{key} grew from iteration 50 to 250: {counts}");
+        }
+        assert!(b["past"].as_u64().unwrap() <= 100, "{counts}");
+        assert!(b["log"].as_u64().unwrap() <= 2000, "{counts}");
+        assert_eq!(js(&c, "return window.uccErrors").await?, json!([]));
+        Ok(())
+    })
+    .await
+}
+
 /// A fault the server applies (`--faults`) shows on the UAV's panel and in the log.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_fault_shows_on_the_uav_panel_and_in_the_log() -> Result<()> {
@@ -932,6 +982,35 @@ async fn views_are_sharp_with_axes_and_in_3d() -> Result<()> {
                 "an east–west leg shows its length: {r}"
             );
             assert_eq!(r["three"], json!(true), "{r}");
+            // No label is cut or drawn over another: the plots' y-axis labels fit in their
+            // plots, the side views' captions clear their tick values.
+            let clipped = js(
+                &c,
+                // uPlot draws a y-axis label on its canvas, upwards, centred on the plotting
+                // area: cut when it is longer than the canvas is high around that centre.
+                "const ctx = document.createElement('canvas').getContext('2d');
+                 return U.plots.plots.filter((p) => {
+                   const a = p.axes[1]; ctx.font = a.labelFont[0];
+                   const half = ctx.measureText(a.label).width / 2, mid = p.bbox.top + p.bbox.height / 2;
+                   return mid - half < 0 || mid + half > p.ctx.canvas.height;
+                 }).map((p) => p.axes[1].label);",
+            )
+            .await?;
+            assert_eq!(clipped, json!([]), "plot axis labels cut");
+            let overlaps = js(
+                &c,
+                "const out = [];
+                 for (const v of [U.side.north, U.side.east]) {
+                   const ls = v.labels;
+                   for (let i = 0; i < ls.length; i++) for (let j = i + 1; j < ls.length; j++) {
+                     const a = ls[i], b = ls[j];
+                     if (a.x < b.x + b.w && b.x < a.x + a.w && a.y < b.y + b.h && b.y < a.y + a.h) out.push(a.text + ' / ' + b.text);
+                   }
+                 }
+                 return out;",
+            )
+            .await?;
+            assert_eq!(overlaps, json!([]), "side-view labels drawn over each other");
             let dir = artifacts();
             std::fs::create_dir_all(&dir)?;
             std::fs::write(dir.join("views-hidpi.png"), c.screenshot().await?)?;
@@ -963,6 +1042,50 @@ async fn fifty_uavs_fly_from_the_page() -> Result<()> {
         .await?;
         let s = js(&c, "return [...U.uavs.values()].filter(u => u.info.status !== 'done').map(u => u.info.name + ': ' + u.info.error)").await?;
         assert_eq!(s, json!([]), "UAVs that did not fly");
+        Ok(())
+    })
+    .await
+}
+
+/// #23, "send only what is in view": a UAV outside the map's view gets only a light summary
+/// (its trail stops growing in the page while it flies), and its detail comes when the map is
+/// panned onto it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_uav_out_of_view_gets_its_detail_when_panned_into_view() -> Result<()> {
+    with_page(local(TimeScale::Factor(1.0)), (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        js(&c, "
+            U.send({op: 'create', robot: 'stsAirRobot', agent: 'base', start: '-8,-8,-1', name: 'Here'});
+            U.send({op: 'create', robot: 'stsAirRobot', agent: 'base', start: '8,8,-1', name: 'There'});
+            for (const [id, x, y] of [[1, -8, 0], [2, 8, 0]]) {
+              U.send({op: 'add_mission', uav: id, kind: 'GotoXyz', x: String(x), y: String(y), z: '-1'});
+              U.send({op: 'options', uav: id, prefix: 'V' + id, pictures: 'none', autosave: false});
+              U.send({op: 'start', uav: id, iterations: '1'});
+            }").await?;
+        until("both UAVs flying", 30, || async {
+            Ok(js(&c, "return [1, 2].every((id) => { const u = U.uavs.get(id); return u && u.trail.length > 3; })").await? == json!(true))
+        })
+        .await?;
+        // Zoom onto the first UAV: the second one is far outside the view.
+        js(&c, "U.select(1); Object.assign(U.view, {cx: -8, cy: -6, scale: 200}); window.dispatchEvent(new Event('resize'));").await?;
+        tokio::time::sleep(Duration::from_millis(1500)).await;
+        let probe = "const u = U.uavs.get(2); return {trail: u.trail.length, summary: u.live.summary === true, velocity: Array.isArray(u.live.velocity), y: u.live.position[1]}";
+        let before = js(&c, probe).await?;
+        tokio::time::sleep(Duration::from_millis(1500)).await;
+        let later = js(&c, probe).await?;
+        assert_eq!(later["summary"], true, "a UAV out of view is sent a summary: {later}");
+        assert_eq!(later["velocity"], false, "{later}");
+        assert_eq!(later["trail"], before["trail"], "its trail was sent while out of view: {before} {later}");
+        assert!(later["y"].as_f64() < before["y"].as_f64(), "it flies on (its summary moves): {before} {later}");
+        // Pan onto it: its trail (flown while out of view) and its full live state come.
+        js(&c, "const p = U.uavs.get(2).live.position; Object.assign(U.view, {cx: p[0], cy: p[1], scale: 60}); window.dispatchEvent(new Event('resize'));").await?;
+        until("its detail", 10, || async {
+            let now = js(&c, probe).await?;
+            Ok(now["velocity"] == json!(true) && now["trail"].as_u64() > later["trail"].as_u64())
+        })
+        .await?;
+        let errors = js(&c, "return window.uccErrors").await?;
+        assert_eq!(errors, json!([]));
         Ok(())
     })
     .await
@@ -1017,6 +1140,113 @@ async fn bench_page_with_1000_uavs() -> Result<()> {
             let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/img");
             std::fs::write(dir.join("ucc-gui-1000-uavs.png"), c.screenshot().await?)?;
         }
+        Ok(())
+    })
+    .await
+}
+
+/// #23 end to end: 1000 UAVs really flying on the control center's local server (the map
+/// `city`, the spawn grid of `usar-bench --map city --spacing 1.5 --layers 6`), each created,
+/// given a mission and started from the page, which then draws them for 10 s with all in
+/// the map's view and 10 s zoomed onto one. A benchmark:
+/// runs only with `UCC_GUI_BENCH=1` and prints the page's draw time and what the hub sent
+/// (BENCHMARKS.md).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bench_page_with_1000_uavs_flying() -> Result<()> {
+    if std::env::var("UCC_GUI_BENCH").as_deref() != Ok("1") {
+        eprintln!("1000 flying UAVs benchmark skipped: set UCC_GUI_BENCH=1 to run it");
+        return Ok(());
+    }
+    let n: usize = std::env::var("UCC_GUI_BENCH_UAVS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1000);
+    let map = usar_server::sim::map::Map::lookup("city")?;
+    let start = map.starts().first().context("city has no start")?.location;
+    let (spacing, layers) = (1.5, 6);
+    let per_layer = n.div_ceil(layers);
+    let side = (per_layer as f64).sqrt().ceil() as usize;
+    let offset = (side as f64 - 1.0) / 2.0;
+    let starts: Vec<String> = (0..n)
+        .map(|i| {
+            let (layer, k) = (i / per_layer, i % per_layer);
+            let x = start[0] + ((k / side) as f64 - offset) * spacing;
+            let y = start[1] + ((k % side) as f64 - offset) * spacing;
+            let z = start[2] - layer as f64 * spacing;
+            format!("{x:.2},{y:.2},{z:.2}")
+        })
+        .collect();
+    let server = ServerChoice::Local(Box::new(ServerConfig {
+        map,
+        time_scale: TimeScale::Factor(1.0),
+        lockstep: true,
+        ..ServerConfig::default()
+    }));
+    with_page(server, (1400, 900), 1.0, |c, url, _| async move {
+        open(&c, &url).await?;
+        // Requests are limited per update period: sent in batches.
+        for (b, batch) in starts.chunks(40).enumerate() {
+            let mut script = String::from("const U = window.ucc;");
+            for (j, s) in batch.iter().enumerate() {
+                let id = b * 40 + j + 1;
+                let [x, y, z]: [f64; 3] = {
+                    let v: Vec<f64> = s.split(',').map(|p| p.parse().unwrap()).collect();
+                    [v[0], v[1], v[2]]
+                };
+                script.push_str(&format!(
+                    "U.send({{op: 'create', robot: 'stsAirRobot', agent: 'base', start: '{s}', name: ''}});
+                     U.send({{op: 'add_mission', uav: {id}, kind: 'GotoXyz', x: '{:.2}', y: '{y:.2}', z: '{z:.2}'}});
+                     U.send({{op: 'add_mission', uav: {id}, kind: 'GotoXyz', x: '{x:.2}', y: '{y:.2}', z: '{z:.2}'}});
+                     U.send({{op: 'options', uav: {id}, prefix: 'B{id}', pictures: 'none', autosave: false}});
+                     U.send({{op: 'start', uav: {id}, iterations: '100'}});",
+                    x + 0.7
+                ));
+            }
+            c.execute(&script, vec![]).await?;
+            tokio::time::sleep(Duration::from_millis(120)).await;
+        }
+        until("every UAV flying", 300, || async {
+            let s = js(&c, "return [...U.uavs.values()].filter((u) => u.info.status === 'running' && u.live && u.live.position).length").await?;
+            Ok(s.as_u64().unwrap_or(0) as usize >= n)
+        })
+        .await?;
+        js(&c, "U.fit()").await?;
+        // 10 s with every UAV in the map's view, then 10 s zoomed onto the selected UAV (the
+        // hub then sends the others' summaries only).
+        let figures = c
+            .execute_async(
+                "const done = arguments[arguments.length - 1]; const U = window.ucc;
+                 const q = (a, p) => { const s = [...a].sort((x, y) => x - y); return s[Math.min(s.length - 1, Math.floor(p * s.length))]; };
+                 const detailed = () => [...U.uavs.values()].filter((u) => u.live && !u.live.summary).length;
+                 const measure = (ms) => new Promise((resolve) => {
+                   window.uccFrameTimes = []; for (const k in window.uccParts) window.uccParts[k] = 0;
+                   const u0 = window.uccUpdates, b0 = window.uccBytes, t0 = performance.now(), gaps = []; let last = t0;
+                   function f(t) { gaps.push(t - last); last = t; if (t - t0 < ms) requestAnimationFrame(f); else {
+                     const d = window.uccFrameTimes;
+                     resolve({draw_median_ms: q(d, 0.5), draw_p95_ms: q(d, 0.95), frames: d.length,
+                              gap_median_ms: q(gaps, 0.5), gap_p95_ms: q(gaps, 0.95), updates: window.uccUpdates - u0,
+                              kib_received_per_s: (window.uccBytes - b0) / 1024 / (ms / 1000), uavs_in_detail: detailed(),
+                              parts_ms: Object.assign({}, window.uccParts)});
+                   } }
+                   requestAnimationFrame(f);
+                 });
+                 (async () => {
+                   const all = await measure(10000);
+                   const p = [...U.uavs.values()].find((u) => u.info.id === 1).live.position;
+                   U.select(1); Object.assign(U.view, {cx: p[0], cy: p[1], scale: 200}); window.dispatchEvent(new Event('resize'));
+                   await new Promise((r) => setTimeout(r, 2000));
+                   const zoomed = await measure(10000);
+                   done({uavs: U.uavs.size, flying: [...U.uavs.values()].filter((u) => u.info.status === 'running').length,
+                         all_in_view: all, zoomed_on_one: zoomed,
+                         heap_mb: performance.memory ? performance.memory.usedJSHeapSize / 1e6 : null});
+                 })();",
+                vec![],
+            )
+            .await?;
+        println!("ucc-gui page with {n} UAVs flying on the local server: {figures}");
+        let dir = artifacts();
+        std::fs::create_dir_all(&dir)?;
+        std::fs::write(dir.join("ucc-gui-1000-flying.png"), c.screenshot().await?)?;
         Ok(())
     })
     .await

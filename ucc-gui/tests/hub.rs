@@ -292,3 +292,133 @@ fn a_long_loop_keeps_a_small_log() {
         text.lines().last()
     );
 }
+
+fn at(x: f64, y: f64) -> ucc_gui::hub::Live {
+    ucc_gui::hub::Live {
+        time: 1.0,
+        position: Some([x, y, -1.0]),
+        attitude: Some([0.0, 0.0, 0.5]),
+        velocity: Some([1.0, 0.0, 0.0]),
+        ..Default::default()
+    }
+}
+
+fn entry(update: &serde_json::Value, id: u32) -> Option<serde_json::Value> {
+    update["uavs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|u| u["id"] == id)
+        .cloned()
+}
+
+/// #23, "send only what is in view": a UAV outside the page's map is sent a light summary (no
+/// trail, no plots, no velocity), and its detail comes when the map is panned onto it.
+#[test]
+fn a_uav_out_of_view_gets_a_summary_and_its_detail_when_panned_into_view() {
+    let mut hub = hub();
+    let near = create(&mut hub, "Near").unwrap();
+    let far = create(&mut hub, "Far").unwrap();
+    let mut cursor = Cursor::default();
+    cursor.selected = Some(near);
+    hub.apply(Request::View {
+        x0: -10.0,
+        x1: 10.0,
+        y0: -10.0,
+        y1: 10.0,
+    })
+    .unwrap();
+    cursor.view = Some([-10.0, 10.0, -10.0, 10.0]);
+    for i in 0..20 {
+        hub.sample(near, 1, at(f64::from(i) * 0.1, 0.0));
+        hub.sample(far, 1, at(100.0 + f64::from(i) * 0.1, 100.0));
+    }
+    let first = hub.update(&mut cursor);
+    let n = entry(&first, near).unwrap();
+    assert_eq!(n["trail"].as_array().unwrap().len(), 20, "{n}");
+    assert!(n["live"]["velocity"].is_array(), "{n}");
+    let f = entry(&first, far).unwrap();
+    assert!(
+        f.get("trail").is_none(),
+        "trail of a UAV out of view sent: {f}"
+    );
+    assert!(
+        f.get("history").is_none(),
+        "plots of a UAV out of view sent: {f}"
+    );
+    assert_eq!(f["live"]["summary"], true, "{f}");
+    assert!(f["live"].get("velocity").is_none(), "{f}");
+    assert_eq!(f["live"]["position"][0], 101.9, "{f}");
+    assert!(f["info"]["name"] == "Far", "the list needs its info: {f}");
+    // More samples within the summary period: nothing of it.
+    hub.sample(far, 1, at(102.0, 100.0));
+    let second = hub.update(&mut cursor);
+    assert!(entry(&second, far).is_none(), "{second}");
+    // Panned onto it: its whole trail (20 + 1 points) and full live state.
+    hub.apply(Request::View {
+        x0: 90.0,
+        x1: 110.0,
+        y0: 90.0,
+        y1: 110.0,
+    })
+    .unwrap();
+    cursor.view = Some([90.0, 110.0, 90.0, 110.0]);
+    let third = hub.update(&mut cursor);
+    let f = entry(&third, far).unwrap();
+    assert_eq!(f["trail"].as_array().unwrap().len(), 21, "{f}");
+    assert!(f["live"]["velocity"].is_array(), "{f}");
+    assert!(f["live"].get("summary").is_none(), "{f}");
+    assert!(
+        f.get("history").is_none(),
+        "plots only for the selected UAV: {f}"
+    );
+    // The selected UAV stays in detail wherever the map is.
+    hub.sample(near, 1, at(5.0, 0.0));
+    let fourth = hub.update(&mut cursor);
+    let n = entry(&fourth, near).unwrap();
+    assert_eq!(n["trail"].as_array().unwrap().len(), 1, "{n}");
+    assert!(n["history"].is_array(), "{n}");
+}
+
+/// A view with its edges the wrong way round or not finite is refused with a message.
+#[test]
+fn a_bad_view_is_refused() {
+    let mut hub = hub();
+    let e = hub
+        .apply(Request::View {
+            x0: 1.0,
+            x1: 0.0,
+            y0: 0.0,
+            y1: 1.0,
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("view:"), "{e}");
+    let e = hub
+        .apply(Request::View {
+            x0: f64::NAN,
+            x1: 0.0,
+            y0: 0.0,
+            y1: 1.0,
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("view x0"), "{e}");
+}
+
+/// A long backlog of trail (a new page, a UAV coming into view) is sent thinned.
+#[test]
+fn a_long_trail_backlog_is_thinned() {
+    let mut hub = hub();
+    let id = create(&mut hub, "Long").unwrap();
+    for i in 0..3000 {
+        hub.sample(id, 1, at(f64::from(i) * 0.1, 0.0));
+    }
+    let update = hub.update(&mut Cursor::default());
+    let trail = entry(&update, id).unwrap()["trail"]
+        .as_array()
+        .unwrap()
+        .clone();
+    assert!(trail.len() <= 501, "{}", trail.len());
+    assert!((trail.last().unwrap()[0].as_f64().unwrap() - 299.9).abs() < 0.01);
+}

@@ -12,6 +12,14 @@
 //! ```
 //!
 //! At most 10,000 iterations (the most one start may ask for).
+//!
+//! `UCC_SOAK_WARMUP_LOOPS=N` flies N loops first (not judged; the page's heap printed at
+//! the end of each): the page's memory after V8's warm-up.
+//!
+//! `UCC_SOAK_JS_FLAGS` passes V8 flags to the page, e.g. `--no-opt --no-maglev
+//! --no-sparkplug` (the interpreter only): the heap then holds the page's data without the
+//! code V8's compilers add as the page's functions get hot (most of the heap's rise in the
+//! first minutes, BENCHMARKS.md).
 
 use std::path::PathBuf;
 use std::process::Stdio;
@@ -78,6 +86,14 @@ async fn chromium(
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
     let profile = std::env::temp_dir().join(format!("ucc-gui-soak-{}-{port}", std::process::id()));
+    let js_flags = std::env::var("UCC_SOAK_JS_FLAGS")
+        .map(|f| f.split_whitespace().collect::<Vec<_>>().join(","))
+        .unwrap_or_default();
+    let js_flags = if js_flags.is_empty() {
+        "--js-flags=--expose-gc".to_owned()
+    } else {
+        format!("--js-flags=--expose-gc,{js_flags}")
+    };
     // `--expose-gc`: the heap is sampled after a collection; precise memory info: not
     // rounded to 10 MB steps.
     let caps = json!({
@@ -86,7 +102,7 @@ async fn chromium(
             "args": ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
                      "--disable-background-networking", "--disable-component-update", "--disable-sync",
                      "--disable-dev-shm-usage", "--window-size=1400,900",
-                     "--enable-precise-memory-info", "--js-flags=--expose-gc",
+                     "--enable-precise-memory-info", js_flags,
                      "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
                      format!("--user-data-dir={}", profile.display())]
         }
@@ -108,6 +124,10 @@ async fn soak_10000_iterations_with_the_page_open() -> Result<()> {
         .and_then(|v| v.parse().ok())
         .unwrap_or(10_000);
     let every = (iterations / 20).max(1);
+    let warmup_loops: u32 = std::env::var("UCC_SOAK_WARMUP_LOOPS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0);
     let (Some(binary), Some(chromedriver)) = (
         which("chromium").or_else(|| which("chromium-browser")),
         which("chromedriver"),
@@ -146,13 +166,10 @@ async fn soak_10000_iterations_with_the_page_open() -> Result<()> {
         }
         // One UAV flying half a metre and back up, `iterations` times.
         c.execute(
-            &format!(
-                "const U = window.ucc;
-                 U.send({{op: 'create', robot: 'stsAirRobot', agent: 'base', start: '0,0,-1', name: 'Soak'}});
-                 U.send({{op: 'add_mission', uav: 1, kind: 'GotoXyz', x: '0.5', y: '0', z: '-1.2'}});
-                 U.send({{op: 'options', uav: 1, prefix: 'Soak', pictures: 'none', autosave: false}});
-                 U.send({{op: 'start', uav: 1, iterations: '{iterations}'}});"
-            ),
+            "const U = window.ucc;
+             U.send({op: 'create', robot: 'stsAirRobot', agent: 'base', start: '0,0,-1', name: 'Soak'});
+             U.send({op: 'add_mission', uav: 1, kind: 'GotoXyz', x: '0.5', y: '0', z: '-1.2'});
+             U.send({op: 'options', uav: 1, prefix: 'Soak', pictures: 'none', autosave: false});",
             vec![],
         )
         .await?;
@@ -161,6 +178,31 @@ async fn soak_10000_iterations_with_the_page_open() -> Result<()> {
                     error: u ? u.info.error : null,
                     heap: performance.memory.usedJSHeapSize, dom: document.getElementsByTagName('*').length,
                     log: window.ucc.store.log.length};";
+        let start_loop = format!("window.ucc.send({{op: 'start', uav: 1, iterations: '{iterations}'}});");
+        // Loops flown before the measured one, not judged (V8's compilers warm up).
+        let warm_up = Instant::now();
+        for round in 1..=warmup_loops {
+            c.execute(&start_loop, vec![]).await?;
+            let began = Instant::now();
+            loop {
+                tokio::time::sleep(Duration::from_millis(1000)).await;
+                let s = c.execute(sample, vec![]).await?;
+                if s["status"] != "running" && began.elapsed() > Duration::from_secs(3) {
+                    println!(
+                        "warm-up loop {round} of {warmup_loops} {} at {:.0} s: page heap {:.1} MiB",
+                        s["status"],
+                        warm_up.elapsed().as_secs_f64(),
+                        s["heap"].as_f64().unwrap_or(f64::NAN) / (1024.0 * 1024.0)
+                    );
+                    break;
+                }
+                if began.elapsed() > Duration::from_secs(900) {
+                    bail!("warm-up loop {round} did not end");
+                }
+            }
+        }
+        c.execute(&start_loop, vec![]).await?;
+        tokio::time::sleep(Duration::from_millis(if warmup_loops > 0 { 2000 } else { 0 })).await;
         println!(
             "{:>10} {:>9} {:>9} {:>7} {:>9} {:>10} {:>9}",
             "iteration", "heap MiB", "vs ref", "DOM", "log lines", "RSS MiB", "vs ref"

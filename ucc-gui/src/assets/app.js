@@ -29,6 +29,7 @@ const showCamera = () => camera.show(selected, $("camera-panel").open);
 $("camera-panel").addEventListener("toggle", showCamera);
 window.uccFrameTimes = []; // draw time of each frame, ms (the benchmark reads it)
 window.uccUpdates = 0; // state updates received
+window.uccBytes = 0; // characters received over the WebSocket (the benchmark reads it)
 window.uccParts = { map: 0, side: 0, plots: 0, view3d: 0, update: 0 }; // ms spent per part (the benchmark reads it)
 
 /** An element with text (never HTML). */
@@ -48,9 +49,9 @@ function needSelected() { if (selected === null) { showError("create or select a
 
 function connect() {
   ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws" + q);
-  ws.onopen = () => { $("conn").textContent = "live"; };
+  ws.onopen = () => { $("conn").textContent = "live"; viewKey = null; };
   ws.onclose = () => { $("conn").textContent = "disconnected — reload the page"; };
-  ws.onmessage = (ev) => receive(JSON.parse(ev.data));
+  ws.onmessage = (ev) => { window.uccBytes += ev.data.length; receive(JSON.parse(ev.data)); };
 }
 
 function receive(m) {
@@ -208,6 +209,18 @@ function drawLog() {
 
 function drawMap() { map.draw(selected, $("overlay").checked); }
 
+// The hub sends full detail only for the UAVs in the map's view (and the selected one): tell
+// it the view when it changes, at most every 150 ms (a drag sends a few, not hundreds).
+let viewKey = null, viewSent = -1e9;
+function syncView(now) {
+  // A map not laid out (no size) shows nothing: say nothing rather than an empty view.
+  if (!map.fitted || map.w < 10 || map.h < 10 || !ws || ws.readyState !== 1 || now - viewSent < 150) return;
+  const r = map.viewRect(), key = r.map((v) => v.toPrecision(5)).join();
+  if (key === viewKey) return;
+  viewKey = key; viewSent = now;
+  send({ op: "view", x0: r[0], x1: r[1], y0: r[2], y1: r[3] });
+}
+
 function frame(now) {
   try {
     if (dirty || pending3d || (view3d && view3d.dirty)) {
@@ -230,6 +243,7 @@ function frame(now) {
       dirty = false;
     }
     drawLog();
+    syncView(now);
   } catch (e) {
     console.error(e); showError("drawing failed: " + e.message);
   }
@@ -297,7 +311,7 @@ window.addEventListener("ucc-resize", () => { dirty = true; if (view3d) view3d.d
 window.ucc = {
   get view() { return map.view; }, uavs: store.uavs, store, send, receive, select,
   fit: () => { map.fit(); dirty = true; }, toScreen: (x, y) => map.toScreen(x, y), drawMap,
-  side: sides, WALL_COLOR, MAX_LOG, get view3d() { return view3d; }, camera, scenario,
+  side: sides, WALL_COLOR, MAX_LOG, get view3d() { return view3d; }, get plots() { return plots; }, camera, scenario,
 };
 
 function start() {

@@ -155,7 +155,8 @@ export function contrast(a, b) {
 
 /**
  * The page's copy of the state, merged from the hub's updates, which carry only what
- * changed: a UAV's `info` fields when they change, its `live` state when there is a new
+ * changed (and, for a UAV outside the map's view, a `live` summary with `summary: true`,
+ * docs/gui.md): a UAV's `info` fields when they change, its `live` state when there is a new
  * sample, its `files` when the list changes, new trail/plot/overlay points, and the ids
  * of removed UAVs.
  */

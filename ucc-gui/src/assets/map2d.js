@@ -50,6 +50,14 @@ export class Map2d {
   toScreen(x, y) { const v = this.view; return [this.w / 2 + (y - v.cy) * v.scale, this.h / 2 - (x - v.cx) * v.scale]; }
   toWorld(sx, sy) { const v = this.view; return [v.cx - (sy - this.h / 2) / v.scale, v.cy + (sx - this.w / 2) / v.scale]; }
 
+  /** The part of the world shown, widened by `margin` of its size on each side:
+   * [x0, x1, y0, y1] (the hub sends full detail only for the UAVs in it). */
+  viewRect(margin = 0.25) {
+    const [x0, y0] = this.toWorld(0, this.h), [x1, y1] = this.toWorld(this.w, 0);
+    const mx = (x1 - x0) * margin, my = (y1 - y0) * margin;
+    return [x0 - mx, x1 + mx, y0 - my, y1 + my];
+  }
+
   fit() {
     [this.w, this.h] = sizeCanvas(this.canvas);
     const lists = [];

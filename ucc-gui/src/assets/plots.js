@@ -10,7 +10,9 @@ export class Plots {
       const opts = {
         width: this.width(), height: 95, legend: { show: true }, cursor: { drag: { x: false, y: false } },
         scales: { x: { time: false } },
-        axes: [{ label: "simulated time (s)", labelSize: 14, size: 28 }, { label: `${name} (${unit})`, labelSize: 14, size: 44 }],
+        // The y axis is labelled with the unit only (the legend names the series): a
+        // 95 px plot has no room for "altitude (m)" written upwards.
+        axes: [{ label: "simulated time (s)", labelSize: 14, size: 28 }, { label: unit, labelSize: 14, size: 44 }],
         series: [{ label: "t" }, { label: name, stroke: color, width: 1.5 }],
       };
       this.plots.push(new window.uPlot(opts, [[], []], box));

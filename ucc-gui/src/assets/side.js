@@ -5,14 +5,13 @@ import { sizeCanvas } from "./map2d.js";
 
 /** One side view on `canvas`; `axis` 0 draws x (north), 1 draws y (east). */
 export class SideView {
-  constructor(canvas, axis) { this.canvas = canvas; this.axis = axis; this.range = null; }
+  constructor(canvas, axis) { this.canvas = canvas; this.axis = axis; this.range = null; this.labels = []; }
 
   draw(c, geometry, overlay) {
     const [W, H] = sizeCanvas(this.canvas), ctx = this.canvas.getContext("2d"), k = this.axis;
     ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, W, H);
-    ctx.font = "10px sans-serif"; ctx.fillStyle = "#1a1a1a";
-    ctx.fillText(k === 0 ? "x north (m) →" : "y east (m) →", W - 80, H - 2);
-    if (!c) { this.range = null; return; }
+    ctx.font = "10px sans-serif"; this.labels = [];
+    if (!c) { this.caption(W); this.range = null; return; }
     const segs = overlay ? c.past.concat([c.trail]) : [c.trail];
     const hs = [], vs = [0];
     for (const s of segs) for (const p of s) { hs.push(p[k]); vs.push(-p[2]); }
@@ -39,13 +38,29 @@ export class SideView {
     ctx.strokeStyle = "#999"; ctx.lineWidth = 1; ctx.beginPath();
     ctx.moveTo(L, 4); ctx.lineTo(L, H - B); ctx.lineTo(W - 4, H - B); ctx.stroke();
     ctx.fillStyle = "#1a1a1a";
-    for (const t of ticks(hr[0], hr[1], 6)) { const x = X(t); ctx.fillRect(x, H - B, 1, 3); ctx.fillText(String(+t.toFixed(2)), x - 6, H - 2); }
-    for (const t of ticks(vr[0], vr[1], 3)) { const y = Z(t); ctx.fillRect(L - 3, y, 3, 1); ctx.fillText(String(+t.toFixed(2)), 2, y + 3); }
+    for (const t of ticks(hr[0], hr[1], 6)) { const x = X(t); ctx.fillRect(x, H - B, 1, 3); this.text(String(+t.toFixed(2)), x - 6, H - 2); }
+    for (const t of ticks(vr[0], vr[1], 3)) { const y = Z(t); ctx.fillRect(L - 3, y, 3, 1); this.text(String(+t.toFixed(2)), 2, y + 3); }
     for (const s of segs) {
       if (s.length < 2) continue;
       ctx.strokeStyle = s === c.trail ? "#d62839" : "rgba(47,102,144,0.45)"; ctx.beginPath();
       s.forEach((p, i) => (i ? ctx.lineTo(X(p[k]), Z(-p[2])) : ctx.moveTo(X(p[k]), Z(-p[2]))));
       ctx.stroke();
     }
+    this.caption(W);
+  }
+
+  /** What the horizontal axis is, top right on a white box (clear of the tick labels). */
+  caption(W) {
+    const ctx = this.canvas.getContext("2d"), text = this.axis === 0 ? "x north (m) →" : "y east (m) →";
+    const w = ctx.measureText(text).width + 6;
+    ctx.fillStyle = "rgba(255,255,255,0.85)"; ctx.fillRect(W - w - 4, 1, w, 13);
+    ctx.fillStyle = "#1a1a1a"; this.text(text, W - w - 1, 11);
+  }
+
+  /** Draws a label (10 px) with its baseline at y; keeps its box in `labels` (for tests). */
+  text(t, x, y) {
+    const ctx = this.canvas.getContext("2d");
+    ctx.fillText(t, x, y);
+    this.labels.push({ text: t, x, y: y - 9, w: ctx.measureText(t).width, h: 11 });
   }
 }

@@ -3,6 +3,15 @@
 use serde_json::{Value, json};
 use ucc_client::UavState;
 
+/// A number for the page: `null` when not finite (JSON has no NaN).
+fn finite(v: f64) -> Value {
+    if v.is_finite() {
+        Value::from(v)
+    } else {
+        Value::Null
+    }
+}
+
 /// The latest state of a UAV, as the live panel shows it.
 #[derive(Debug, Clone, Default)]
 pub struct Live {
@@ -80,15 +89,19 @@ impl Live {
         live
     }
 
+    /// The light summary of a UAV out of the page's view: time, position, attitude.
+    pub fn summary_json(&self) -> Value {
+        let arr = |a: &Option<[f64; 3]>| a.map(|a| a.map(finite));
+        json!({
+            "time": finite(self.time),
+            "position": arr(&self.position),
+            "attitude": arr(&self.attitude),
+            "summary": true,
+        })
+    }
+
     /// The JSON of the live panel; the laser and sonars only for the selected UAV.
     pub fn to_json(&self, detail: bool) -> Value {
-        let finite = |v: f64| {
-            if v.is_finite() {
-                Value::from(v)
-            } else {
-                Value::Null
-            }
-        };
         let arr = |a: &Option<[f64; 3]>| a.map(|a| a.map(finite));
         let mut v = json!({
             "time": finite(self.time),

@@ -119,6 +119,19 @@ pub enum Request {
         /// The UAV.
         uav: u32,
     },
+    /// The part of the world this page's map shows, metres (x north, y east): the hub sends
+    /// full detail only for the UAVs in it (and the selected one), a light summary for the
+    /// rest.
+    View {
+        /// South edge (smallest x).
+        x0: f64,
+        /// North edge.
+        x1: f64,
+        /// West edge (smallest y).
+        y0: f64,
+        /// East edge.
+        y1: f64,
+    },
     /// Start an embedded scenario: its UAVs are created and fly with their team agents.
     ScenarioStart {
         /// An embedded scenario's name.
@@ -193,6 +206,28 @@ pub enum Action {
     Scenario(Box<super::scenario::ScenarioPlan>),
 }
 
+/// The map's rectangle of a [`Request::View`], `[x0, x1, y0, y1]`, checked: finite numbers,
+/// each edge before the opposite one.
+pub fn view_rect(x0: f64, x1: f64, y0: f64, y1: f64) -> Result<[f64; 4], RequestError> {
+    for (name, v) in [
+        ("view x0", x0),
+        ("view x1", x1),
+        ("view y0", y0),
+        ("view y1", y1),
+    ] {
+        if !v.is_finite() {
+            return Err(field(name, format!("{v} is not a finite number")));
+        }
+    }
+    if x0 > x1 || y0 > y1 {
+        return Err(field(
+            "view",
+            "the south and west edges (x0, y0) must not be beyond the north and east ones (x1, y1)",
+        ));
+    }
+    Ok([x0, x1, y0, y1])
+}
+
 impl Hub {
     /// Checks a request and applies what can be applied under the lock.
     pub fn apply(&mut self, request: Request) -> Result<Action, RequestError> {
@@ -229,6 +264,7 @@ impl Hub {
             Request::Stop { uav } => self.stop(uav),
             Request::Quit => Ok(Action::Quit),
             Request::Select { uav } => self.uav(uav).map(|_| Action::None),
+            Request::View { x0, x1, y0, y1 } => view_rect(x0, x1, y0, y1).map(|_| Action::None),
             Request::ScenarioStart {
                 name,
                 iterations,

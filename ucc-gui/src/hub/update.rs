@@ -3,8 +3,17 @@
 //! status, missions, options…) when it differs from what the page has, `live` when there is
 //! a new sample, `files` when the list changed, and the new trail, plot, overlay and laser
 //! points. UAVs removed since are listed in `removed`.
+//!
+//! Only what is in view in detail: once the page has said which part of the world its map
+//! shows ([`Cursor::view`]), the UAVs outside it (other than the selected one) get their
+//! `info` and, at most every [`SUMMARY_PERIOD`], a light `live` (time, position, attitude)
+//! for the list and the 3D view; their trails, overlay and plots wait, and come (the trail
+//! thinned to [`MAX_TRAIL_CATCH_UP`] points) when they are in view again. The plots' samples
+//! are sent for the selected UAV only, the overlay for it and, up to [`FEW_UAVS`] UAVs, for
+//! the UAVs in view.
 
 use std::collections::HashMap;
+use std::time::{Duration, Instant};
 
 use serde_json::{Map, Value, json};
 
@@ -12,6 +21,14 @@ use super::{Hub, LogLine, Uav};
 
 /// Files named in an update: the most recent ones (the rest are in the log directory).
 pub const RECENT_FILES: usize = 12;
+/// Trail points sent at most at once: a longer backlog (a UAV that comes into view, a new
+/// page) is thinned to about this many, its last point kept.
+pub const MAX_TRAIL_CATCH_UP: usize = 500;
+/// A UAV out of view is sent its light summary at most this often.
+pub const SUMMARY_PERIOD: Duration = Duration::from_secs(1);
+/// Up to this many UAVs the page draws every UAV's past iterations (`many` in map2d.js), so
+/// the UAVs in view are sent theirs; beyond, only the selected UAV's.
+pub const FEW_UAVS: usize = 50;
 
 /// What a page has already received, so that each update carries only what is new.
 #[derive(Debug, Default, Clone)]
@@ -24,6 +41,9 @@ pub struct Cursor {
     detail_sent: Option<u32>,
     /// What the page has of the scenario.
     scenario: super::ScenarioCursor,
+    /// The part of the world the page's map shows, `[x0, x1, y0, y1]` metres; `None` until
+    /// the page says (every UAV is then in view).
+    pub view: Option<[f64; 4]>,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
@@ -37,6 +57,10 @@ struct UavCursor {
     info: u64,
     samples: u64,
     files: u64,
+    /// The last `live` sent was the full one (not the summary).
+    full: bool,
+    /// When the last summary was sent.
+    summary: Option<Instant>,
 }
 
 fn info_json(u: &Uav) -> Value {
@@ -110,12 +134,31 @@ impl Hub {
                 out.insert("info".into(), info_json(u));
             }
             let selected = cursor.selected == Some(u.id);
-            if u.samples != c.samples || (selected && detail_changed) {
+            let position = u.live.as_ref().and_then(|l| l.position);
+            let in_view = selected
+                || match (cursor.view, position) {
+                    (Some([x0, x1, y0, y1]), Some(p)) => {
+                        (x0..=x1).contains(&p[0]) && (y0..=y1).contains(&p[1])
+                    }
+                    _ => true,
+                };
+            if in_view {
+                if u.samples != c.samples || (selected && detail_changed) || !c.full {
+                    c.samples = u.samples;
+                    c.full = true;
+                    out.insert(
+                        "live".into(),
+                        u.live.as_ref().map_or(Value::Null, |l| l.to_json(selected)),
+                    );
+                }
+            } else if u.samples != c.samples
+                && c.summary.is_none_or(|t| t.elapsed() >= SUMMARY_PERIOD)
+                && let Some(l) = &u.live
+            {
                 c.samples = u.samples;
-                out.insert(
-                    "live".into(),
-                    u.live.as_ref().map_or(Value::Null, |l| l.to_json(selected)),
-                );
+                c.full = false;
+                c.summary = Some(Instant::now());
+                out.insert("live".into(), l.summary_json());
             }
             if u.files_version != c.files {
                 c.files = u.files_version;
@@ -132,11 +175,11 @@ impl Hub {
                 );
             }
             let trail = &u.trail[c.trail.min(u.trail.len())..];
-            if !trail.is_empty() {
-                out.insert("trail".into(), json!(trail));
+            if in_view && !trail.is_empty() {
+                out.insert("trail".into(), json!(thinned(trail, MAX_TRAIL_CATCH_UP)));
             }
             let history = &u.history[c.history.min(u.history.len())..];
-            if !history.is_empty() {
+            if selected && !history.is_empty() {
                 let h: Vec<_> = history
                     .iter()
                     .map(|h| {
@@ -152,16 +195,23 @@ impl Hub {
                 out.insert("history".into(), h.into());
             }
             let past = &u.past[c.past.min(u.past.len())..];
-            if !past.is_empty() {
+            let send_past = selected || (in_view && self.uavs.len() <= FEW_UAVS);
+            if send_past && !past.is_empty() {
                 out.insert("past".into(), json!(past));
             }
             let hits = &u.hits[c.hits.min(u.hits.len())..];
             if !hits.is_empty() {
                 out.insert("hits".into(), json!(hits));
             }
-            c.trail = u.trail.len();
-            c.history = u.history.len();
-            c.past = u.past.len();
+            if in_view {
+                c.trail = u.trail.len();
+            }
+            if selected {
+                c.history = u.history.len();
+            }
+            if send_past {
+                c.past = u.past.len();
+            }
             c.hits = u.hits.len();
             if !out.is_empty() {
                 out.insert("id".into(), u.id.into());
@@ -201,6 +251,21 @@ impl Hub {
         }
         update
     }
+}
+
+/// `points` thinned to about `max` (every k-th point, the last one kept).
+fn thinned(points: &[[f32; 3]], max: usize) -> Vec<[f32; 3]> {
+    if points.len() <= max {
+        return points.to_vec();
+    }
+    let step = points.len().div_ceil(max);
+    let mut out: Vec<_> = points.iter().copied().step_by(step).collect();
+    if let Some(last) = points.last()
+        && out.last() != Some(last)
+    {
+        out.push(*last);
+    }
+    out
 }
 
 /// A map's solids for the page: `[{outline: [[x, y], ...], z_min, z_max}]`, the victims
