@@ -9,6 +9,9 @@ use super::{
 use crate::speed::SpeedCommand;
 use crate::uav::UavState;
 
+/// The route over `strip`, legs `spacing` apart, at height `z`, for the UAV of `brief`.
+pub type Layout = fn(strip: [[f64; 2]; 2], spacing: f64, z: f64, brief: &Brief) -> Vec<[f64; 3]>;
+
 /// How a searcher lays out its route over its strip of the area: one per search agent.
 #[derive(Debug, Clone, Copy)]
 pub struct Pattern {
@@ -18,7 +21,7 @@ pub struct Pattern {
     /// than equal.
     pub weighted: bool,
     /// The route over `strip`, legs `spacing` apart, at height `z`, for this UAV (`brief`).
-    pub route: fn(strip: [[f64; 2]; 2], spacing: f64, z: f64, brief: &Brief) -> Vec<[f64; 3]>,
+    pub route: Layout,
 }
 
 /// The searchers: a route over this UAV's strip of the area by [`Pattern`], flown at cruise
