@@ -681,7 +681,7 @@ impl Map {
             let color = p.color.unwrap_or(default);
             scene.set_look(handle, Look { color, segment });
             if p.victim {
-                scene.add_victim(handle, p);
+                scene.add_victim(handle, p.center, p.size, p.yaw);
             }
         }
     }

@@ -252,16 +252,17 @@ impl Scene {
         }
     }
 
-    /// Marks the collider `handle` (already inserted) as the victim `p`.
-    pub(crate) fn add_victim(&mut self, handle: ColliderHandle, p: &crate::map::Placed) {
+    /// Marks the collider `handle` (already inserted) as a victim's body: a box centred at
+    /// `center`, of full extents `size` before the `yaw` (a map's `Placed` victim).
+    pub(crate) fn add_victim(&mut self, handle: ColliderHandle, center: V3, size: V3, yaw: f64) {
         if let Some(c) = self.colliders.get_mut(handle) {
             c.user_data = VICTIM;
         }
         self.victims.push(VictimBody {
             handle,
-            center: p.center,
-            size: p.size,
-            yaw: p.yaw,
+            center,
+            size,
+            yaw,
         });
     }
 

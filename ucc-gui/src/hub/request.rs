@@ -3,8 +3,11 @@
 //! [`RequestError`] whose text names the field and the problem.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use serde::Deserialize;
+use tokio_util::sync::CancellationToken;
+use ucc_client::scenario::Prepared;
 use ucc_client::{Lockstep, Mission, RunSettings, Start, agents};
 use usar_server::TimeScale;
 
@@ -203,7 +206,23 @@ pub enum Action {
     /// Start this UAV's run with these settings and this agent.
     Start(u32, Box<RunSettings>, String),
     /// Start this scenario's run.
-    Scenario(Box<super::scenario::ScenarioPlan>),
+    Scenario(Box<ScenarioPlan>),
+}
+
+/// What the scenario's thread is given: the scenario loaded, the hub's ids of its UAVs (in
+/// the scenario's order), the iterations and the first seed, and its stop.
+#[derive(Debug)]
+pub struct ScenarioPlan {
+    /// The scenario with its map and classes.
+    pub prepared: Arc<Prepared>,
+    /// The hub's UAV of each scenario UAV.
+    pub uavs: Vec<u32>,
+    /// Iterations to fly.
+    pub iterations: usize,
+    /// The first iteration's seed (iteration i flies seed + i - 1).
+    pub seed: u64,
+    /// Stops the run.
+    pub cancel: CancellationToken,
 }
 
 /// The map's rectangle of a [`Request::View`], `[x0, x1, y0, y1]`, checked: finite numbers,

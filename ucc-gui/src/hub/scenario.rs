@@ -20,6 +20,7 @@ use ucc_client::{Coordinates, Start};
 use usar_server::TimeScale;
 
 use super::request::MAX_UAVS;
+pub use super::request::ScenarioPlan;
 use super::request::{field, shown};
 use super::{Action, Hub, Live, RequestError, Status, Uav};
 
@@ -60,22 +61,6 @@ pub fn list() -> Vec<Value> {
             }))
         })
         .collect()
-}
-
-/// What the scenario's thread is given: the scenario loaded, the hub's ids of its UAVs (in
-/// the scenario's order), the iterations and the first seed, and its stop.
-#[derive(Debug)]
-pub struct ScenarioPlan {
-    /// The scenario with its map and classes.
-    pub prepared: Arc<Prepared>,
-    /// The hub's UAV of each scenario UAV.
-    pub uavs: Vec<u32>,
-    /// Iterations to fly.
-    pub iterations: usize,
-    /// The first iteration's seed (iteration i flies seed + i - 1).
-    pub seed: u64,
-    /// Stops the run.
-    pub cancel: CancellationToken,
 }
 
 /// One iteration's row of results, as in `results.csv`.

@@ -31,7 +31,7 @@ use tracing::{debug, warn};
 use usar_proto::image::{self, ImageRequest, RequestParser};
 use usar_proto::shown::Repeats;
 
-use super::driver::Request;
+use super::request::Request;
 use crate::sim::{CameraFrame, Tiles, World};
 
 /// While the world stands still, the least wall time between two captures.

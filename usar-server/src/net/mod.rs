@@ -12,6 +12,7 @@ mod driver;
 pub mod image;
 pub mod monitor;
 mod recording;
+mod request;
 mod session;
 mod side;
 pub mod truth;
@@ -411,7 +412,7 @@ pub async fn run_with(
     shutdown.cancel();
     tracker.wait().await;
     sim_shutdown.cancel();
-    let _ = requests.send(driver::Request::Wake);
+    let _ = requests.send(request::Request::Wake);
     drop(requests);
     let joined = tokio::task::spawn_blocking(move || sim.join())
         .await

@@ -25,7 +25,7 @@ use usar_proto::codec::LineCodec;
 use usar_proto::{Command, SYNC_WORD};
 
 use super::Registered;
-use super::driver::{Line, Request};
+use super::request::{Line, Request};
 use usar_proto::shown::{Repeats, Shown};
 
 /// Per-connection limits.

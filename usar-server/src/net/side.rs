@@ -15,7 +15,7 @@ use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
 use usar_proto::shown::Repeats;
 
-use super::driver::{Ask, Request};
+use super::request::{Ask, Request};
 use crate::sim::World;
 
 /// Connections each side server serves at once; more are closed on accept.

@@ -18,7 +18,7 @@ use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use usar_proto::format::{push_fixed, push_fixed_list};
 
-use super::driver::Request;
+use super::request::Request;
 use super::side;
 use crate::sim::World;
 

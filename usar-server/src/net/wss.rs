@@ -32,7 +32,7 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
 
-use super::driver::Request;
+use super::request::Request;
 use crate::sim::World;
 
 /// The obstacle propagation model and the WSS's settings (defaults as the original's).

@@ -211,7 +211,7 @@ mod tests {
                 rapier3d::math::Vector::new(0.0, 0.0, std::f32::consts::FRAC_PI_2),
             )),
         );
-        scene.add_victim(handle, &victim);
+        scene.add_victim(handle, victim.center, victim.size, victim.yaw);
         scene.refit();
         let config = part("VictSensor", "noise_factor = 0.0\nvertical_fov = 60.0");
         let mut sensor = build(&config).unwrap();

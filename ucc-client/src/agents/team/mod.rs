@@ -11,6 +11,7 @@ pub mod lanes;
 pub mod perimeter;
 pub mod random;
 pub mod relay;
+pub mod searcher;
 pub mod spiral;
 
 use std::collections::BTreeMap;

@@ -3,13 +3,20 @@
 //! recharge like the lane searcher. The baseline the patterns are measured against.
 
 use super::TeamAgentInfo;
-use super::lanes::{Pattern, Searcher};
+use super::searcher::{Pattern, Searcher};
 
 /// The registry entry.
 pub const INFO: TeamAgentInfo = TeamAgentInfo {
-    name: "random-search",
+    name: PATTERN.name,
     description: "flies to random points of the area (seeded), recharging at the base",
-    create: || Box::new(Searcher::new(Pattern::Random)),
+    create: || Box::new(Searcher::new(PATTERN)),
+};
+
+/// The pattern of `random-search`: points drawn at random in the strip.
+pub const PATTERN: Pattern = Pattern {
+    name: "random-search",
+    weighted: false,
+    route: |strip, _, z, brief| points(strip, brief.seed, brief.index, z),
 };
 
 /// Points drawn per iteration (the route; the time limit usually ends it first).

@@ -3,13 +3,20 @@
 //! spiral has passed every edge; it goes home to recharge like the lane searcher.
 
 use super::TeamAgentInfo;
-use super::lanes::{Pattern, Searcher};
+use super::searcher::{Pattern, Searcher};
 
 /// The registry entry.
 pub const INFO: TeamAgentInfo = TeamAgentInfo {
-    name: "spiral-search",
+    name: PATTERN.name,
     description: "searches in a square spiral outwards from the area's centre, recharging at the base",
-    create: || Box::new(Searcher::new(Pattern::Spiral)),
+    create: || Box::new(Searcher::new(PATTERN)),
+};
+
+/// The pattern of `spiral-search`: a square spiral from the strip's centre.
+pub const PATTERN: Pattern = Pattern {
+    name: "spiral-search",
+    weighted: false,
+    route: |strip, spacing, z, _| spiral(strip, spacing, z),
 };
 
 /// The corners of a square spiral from the centre of `area`, `spacing` between legs, at
