@@ -13,14 +13,13 @@ use usar_server::sim::map::Placed;
 use usar_server::sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 
 use super::metrics::{Metrics, Tracker};
-use super::spec::{Kind, Scenario, ScenarioError, Sharing};
+use super::model::{Kind, Scenario, Sharing, on_pad};
+use super::spec::ScenarioError;
 use crate::agents::team::random::SplitMix;
 use crate::agents::team::{self, Act, Board, Brief, TeamAgent, TeamStep};
 use crate::speed::SpeedCommand;
 use crate::uav::UavState;
 
-/// m/s²: a dropped payload falls at this.
-const GRAVITY: f64 = 9.81;
 /// Seconds between two trajectory samples kept for the picture.
 const TRACK_EVERY: f64 = 0.5;
 
@@ -857,7 +856,7 @@ fn view(board: &Board, i: usize, heard: impl Fn(usize) -> bool) -> Board {
 /// Each UAV's radio network (the same number for UAVs that reach each other): direct links
 /// by the radio model between their true positions (walls counted by the scene's rays), and
 /// what the UAVs in between forward, as a mesh of relays does.
-fn radio_networks(world: &World, radio: &super::spec::Radio, at: &[[f64; 3]]) -> Vec<usize> {
+fn radio_networks(world: &World, radio: &super::model::Radio, at: &[[f64; 3]]) -> Vec<usize> {
     let n = at.len();
     let mut network: Vec<usize> = (0..n).collect();
     fn root(network: &mut [usize], mut a: usize) -> usize {
@@ -882,22 +881,6 @@ fn radio_networks(world: &World, radio: &super::spec::Radio, at: &[[f64; 3]]) ->
     (0..n).map(|a| root(&mut network, a)).collect()
 }
 
-/// Landed on the pad: within its radius, less than half a metre above it, nearly still.
-pub fn on_pad(pad: &super::spec::Pad, p: [f64; 3], speed: f64) -> bool {
-    (p[0] - pad.location[0]).hypot(p[1] - pad.location[1]) <= pad.radius
-        && pad.location[2] - p[2] < 0.5
-        && speed < 0.3
-}
-
-/// Where a payload released at `p` with velocity `v` (world frame, z down) lands on ground
-/// at `ground_z`, and after how many seconds.
-pub fn fall(p: [f64; 3], v: [f64; 3], ground_z: f64) -> ([f64; 3], f64) {
-    let h = (ground_z - p[2]).max(0.0);
-    // z down: h = v_z t + g t² / 2.
-    let t = (-v[2] + (v[2] * v[2] + 2.0 * GRAVITY * h).sqrt()) / GRAVITY;
-    ([p[0] + v[0] * t, p[1] + v[1] * t, ground_z], t)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -919,13 +902,5 @@ mod tests {
         let alone = view(&board, 2, |_| false);
         assert_eq!(alone.positions, vec![None, None, Some([2.0; 3])]);
         assert_eq!(alone.notes.len(), 1, "its own note only");
-    }
-
-    #[test]
-    fn a_dropped_payload_falls_with_the_uavs_velocity() {
-        // 4.905 m above the ground: 1 s of fall; moving north at 2 m/s.
-        let (at, t) = fall([0.0, 0.0, -4.905], [2.0, 0.0, 0.0], 0.0);
-        assert!((t - 1.0).abs() < 1e-9);
-        assert!((at[0] - 2.0).abs() < 1e-9 && at[2] == 0.0);
     }
 }

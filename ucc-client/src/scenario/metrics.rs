@@ -4,8 +4,7 @@
 use usar_server::sim::World;
 use usar_server::sim::map::Placed;
 
-use super::engine::{fall, on_pad};
-use super::spec::{Delivery, Kind, Scenario, Sensor};
+use super::model::{Delivery, Kind, Scenario, Sensor, fall, on_pad};
 use crate::agents::team::{Act, Board, Brief};
 
 /// The figures of one iteration, in the order of the results table's columns (`None`: not

@@ -17,7 +17,7 @@ pub mod spiral;
 use std::collections::BTreeMap;
 
 use crate::geometry::{Coordinates, world_to_heading};
-use crate::scenario::spec::{Delivery, Fire, Pad, Radio, Relay, Search};
+use crate::scenario::model::{Delivery, Fire, Pad, Radio, Relay, Search};
 use crate::speed::SpeedCommand;
 use crate::uav::UavState;
 
