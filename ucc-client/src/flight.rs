@@ -1012,13 +1012,15 @@ mod tests {
             .collect()
     }
 
-    fn handshake_config(lockstep: Lockstep) -> FlightConfig {
-        RunSettings {
+    /// A flight of one hover with the base agent, not started.
+    fn handshake_flight(lockstep: Lockstep) -> Flight {
+        let config = RunSettings {
             missions: vec![Mission::Hover { seconds: 1.0 }],
             lockstep,
             ..RunSettings::default()
         }
-        .flight()
+        .flight();
+        Flight::new(1, config, agents::create("base").unwrap()).unwrap()
     }
 
     /// The greeting and the lockstep handshake are phases of the core, each with its
@@ -1026,8 +1028,7 @@ mod tests {
     #[test]
     fn the_handshake_runs_on_poll_timeout_and_handle_timeout() {
         let t0 = Instant::now();
-        let config = handshake_config(Lockstep::IfOffered);
-        let mut f = Flight::new(1, config, agents::create("base").unwrap()).unwrap();
+        let mut f = handshake_flight(Lockstep::IfOffered);
         assert_eq!(f.poll_timeout(), None, "not started");
         f.start(t0);
         assert_eq!(f.phase(), Phase::Greeting);
@@ -1071,12 +1072,7 @@ mod tests {
     #[test]
     fn a_lockstep_answer_ends_the_handshake_and_the_first_barrier_follows_init() {
         let t0 = Instant::now();
-        let mut f = Flight::new(
-            1,
-            handshake_config(Lockstep::Required),
-            agents::create("base").unwrap(),
-        )
-        .unwrap();
+        let mut f = handshake_flight(Lockstep::Required);
         f.start(t0);
         f.handle_timeout(t0 + Duration::from_secs(2)); // no greeting
         assert_eq!(commands(&mut f), ["SYNC {Time 0.0000}"]);
@@ -1096,12 +1092,7 @@ mod tests {
     #[test]
     fn required_lockstep_without_an_answer_fails_and_without_lockstep_a_quiet_frame_closes() {
         let t0 = Instant::now();
-        let mut f = Flight::new(
-            1,
-            handshake_config(Lockstep::Required),
-            agents::create("base").unwrap(),
-        )
-        .unwrap();
+        let mut f = handshake_flight(Lockstep::Required);
         f.start(t0);
         f.handle_timeout(t0 + Duration::from_secs(2));
         f.handle_timeout(t0 + Duration::from_secs(4));
@@ -1111,12 +1102,7 @@ mod tests {
         ));
         assert!(!f.record().connected);
 
-        let mut f = Flight::new(
-            1,
-            handshake_config(Lockstep::Off),
-            agents::create("base").unwrap(),
-        )
-        .unwrap();
+        let mut f = handshake_flight(Lockstep::Off);
         f.start(t0);
         f.handle_message(
             &line("NFO {Gametype BotDeathMatch} {Level UAVmap} {TimeLimit 0}"),
