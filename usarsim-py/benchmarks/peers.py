@@ -54,18 +54,23 @@ INSTALL = {
 
 @contextlib.contextmanager
 def quiet():
-    """Silence fd 1 (pybullet's C code and the peers print on every world they build)."""
+    """Silence fds 1 and 2 (pybullet's C code and the peers print on every world they build);
+    an exception still propagates and is reported once the fds are back."""
     sys.stdout.flush()
-    LIBC.fflush(None)  # C's stdout buffer too, when stdout is a pipe
-    saved, null = os.dup(1), os.open(os.devnull, os.O_WRONLY)
+    sys.stderr.flush()
+    LIBC.fflush(None)  # C's stdio buffers too, when stdout is a pipe
+    saved, null = [os.dup(1), os.dup(2)], os.open(os.devnull, os.O_WRONLY)
     os.dup2(null, 1)
+    os.dup2(null, 2)
     try:
         yield
     finally:
         sys.stdout.flush()
+        sys.stderr.flush()
         LIBC.fflush(None)
-        os.dup2(saved, 1)
-        os.close(saved)
+        for fd, copy in ((1, saved[0]), (2, saved[1])):
+            os.dup2(copy, fd)
+            os.close(copy)
         os.close(null)
 
 
@@ -361,13 +366,13 @@ def main():
                 continue
             results[id(c)].append((wall, per_cpu, ends, stepping))
             print(f"  {c.sim:20s} {c.name:55s} {wall:10.0f} UAV-steps/s {per_cpu:10.0f} per CPU-s "
-                  f"{wall * c.period:9.1f} sim-s/wall-s")
+                  f"{wall * c.period:9.1f} simulated UAV-s/wall-s")
     print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-    print(f"\nmin / median / max of {args.runs} run(s), {args.seconds:g} s each; sim-s/s = simulated seconds "
-          "per wall second (UAV-steps/s x period); the last column takes out the wall time of the resets\n"
-          "the loop called (- where resets run inside the env's step)\n")
+    print(f"\nmin / median / max of {args.runs} run(s), {args.seconds:g} s each. Simulated UAV-seconds = "
+          "UAV-steps x period (summed over the UAVs). The last column takes the wall time of the resets\n"
+          "the loop called out (- where resets run inside the env's step).\n")
     print("| simulator | case | period (s) | physics (Hz) | UAV-steps/s (wall) | UAV-steps per CPU-s "
-          "| sim-s per wall-s | sim-s per CPU-s | episodes ended per 1000 UAV-steps | UAV-steps/s without resets |")
+          "| simulated UAV-s per wall-s | simulated UAV-s per CPU-s | episodes ended per 1000 UAV-steps | UAV-steps/s without resets |")
     print("|---|---|---|---|---|---|---|---|---|---|")
 
     def mmm(xs, scale=1.0):
