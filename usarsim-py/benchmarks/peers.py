@@ -16,16 +16,19 @@ random body rates and thrust for PyFlyt and usarsim's "rates" mode, random veloc
 set-points for usarsim's default stsAirRobot); episodes end and reset as they come (the
 count is printed: resets are part of the cost). A UAV-step is one UAV advanced one control
 period of its env; the periods differ (usarsim 0.1 s by default, gym-pybullet-drones 1/30 s,
-PyFlyt 1/40 s), so the fair figure is **simulated seconds per wall second** (UAV-steps/s ×
-period), printed beside UAV-steps/s, with the physics rate each uses.
+PyFlyt 1/40 s), so the fair figure is **simulated UAV-seconds per wall second** (UAV-steps/s
+× period, summed over the UAVs), printed beside UAV-steps/s, with the physics rate each uses.
+The like-for-like usarsim cases fly the rigid-body Crazyflie on body rates at 1/40 s,
+state-only; the stsAirRobot cases are usarsim's default kinematic model (velocities imposed),
+not comparable in physics.
 
 Per CPU-second is the CPU time of the process and, for Gymnasium's AsyncVectorEnv, of its
-worker processes (user + system, all threads): on a shared machine it is the fairer figure;
-the wall-clock one depends on the free cores (usarsim's vector env uses every core; a
-pybullet world one, the AsyncVectorEnv cases one per worker).
+worker processes (user + system, all threads): on a shared machine it is steadier than the
+wall clock, which depends on the free cores (usarsim's vector env uses every core; a pybullet
+world one, the AsyncVectorEnv cases one per worker), though contention moves it too.
 
-Published, not run here: QuadSwarm (Huang et al. 2023, arXiv:2306.09537) reports 48,500
-samples/s on 16 CPU cores.
+Published, not run here: QuadSwarm (Huang et al. 2023, arXiv:2306.09537) reports over 48,500
+samples/s with one quadrotor (over 62,000 with eight) on a 16-core CPU.
 """
 
 import argparse
