@@ -253,9 +253,10 @@ def gpd_cases(drones):
         return (step, env.close, ()) + rates(env)
 
     def multi():
-        # A grid 0.25 m apart inside MultiHoverAviary's ±2 m box: its default start line puts
-        # the 13th drone on past x = 2 m, which truncates every episode at its first step.
-        env = MultiHoverAviary(num_drones=drones, initial_xyzs=grid(drones, 0.25, 0.5))
+        # A grid up to 0.25 m apart inside MultiHoverAviary's ±2 m box: its default start line
+        # puts the 13th drone on past x = 2 m, which truncates every episode at its first step.
+        spacing = min(0.25, 3.6 / np.ceil(np.sqrt(drones)))
+        env = MultiHoverAviary(num_drones=drones, initial_xyzs=grid(drones, spacing, 0.5))
         env, step = single(lambda: env)
 
         def all_drones():
