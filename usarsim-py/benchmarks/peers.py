@@ -9,6 +9,8 @@ saying how to install it):
     pip install ./usarsim-py        # or a built wheel: pip install usarsim-*.whl
     pip install PyFlyt              # from PyPI (pulls pybullet)
     pip install git+https://github.com/utiasDSL/gym-pybullet-drones   # not on PyPI
+    # (that pulls stable-baselines3 and torch; the envs need only, with --no-deps:
+    #  pip install pillow transforms3d scipy "setuptools<81")
 
 Every case steps with random actions drawn uniformly from the env's own action space (so a
 "random action" means different things: ±5 % around hover RPM for gym-pybullet-drones,
