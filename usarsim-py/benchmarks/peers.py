@@ -10,7 +10,7 @@ saying how to install it):
     pip install PyFlyt              # from PyPI (pulls pybullet)
     pip install git+https://github.com/utiasDSL/gym-pybullet-drones   # not on PyPI
     # (that pulls stable-baselines3 and torch; the envs need only, with --no-deps:
-    #  pip install pillow transforms3d scipy "setuptools<81")
+    #  pip install pillow transforms3d scipy "setuptools<82")
 
 Every case steps with random actions drawn uniformly from the env's own action space (so a
 "random action" means different things: ±5 % around hover RPM for gym-pybullet-drones,
