@@ -44,6 +44,7 @@ mod robot;
 pub mod robots;
 mod scene;
 pub mod sensors;
+mod upright;
 pub mod wind;
 mod world;
 

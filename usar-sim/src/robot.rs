@@ -330,6 +330,9 @@ pub(crate) struct Robot {
     crashed: Option<Crash>,
     /// Whether the body touched something in the last tick.
     contact: bool,
+    /// Whether it touched something or was crashed in any tick since
+    /// [`Robot::take_touched`] was last called.
+    touched: bool,
     spawn_tick: u64,
     /// The tick the battery timer was last full (spawn, or [`Robot::recharge`]).
     charged_tick: u64,
@@ -439,6 +442,7 @@ impl Robot {
             dynamics,
             crashed: None,
             contact: false,
+            touched: false,
             spawn_tick: spawn.tick,
             charged_tick: spawn.tick,
             spawn_z: spawn.position[2],
@@ -692,6 +696,17 @@ impl Robot {
     /// A physics model's robot must have been [prepared](Robot::prepare) this tick (which
     /// also stops the motors of an empty timer).
     pub(crate) fn fly(&mut self, scene: &mut Scene, tick: u64, dt: f64) {
+        self.move_body(scene, tick, dt);
+        self.touched |= self.contact || self.crashed.is_some();
+    }
+
+    /// What a `Touch` part reading `contact` every tick would have said in any of them since
+    /// the last call (the body touched something, or it has crashed); clears it.
+    pub(crate) fn take_touched(&mut self) -> bool {
+        std::mem::take(&mut self.touched)
+    }
+
+    fn move_body(&mut self, scene: &mut Scene, tick: u64, dt: f64) {
         if let Some(dynamics) = &mut self.dynamics {
             let crash = dynamics.step(Flight {
                 scene,

@@ -11,13 +11,14 @@
 
 use std::collections::HashMap;
 
+use crate::upright::Pair;
 use rapier3d::math::{Pose, Rotation, Vector};
 use rapier3d::parry::bounding_volume::Aabb;
 use rapier3d::parry::math::Real;
 use rapier3d::parry::partitioning::{Bvh, BvhWorkspace};
 use rapier3d::parry::query::{
     ClosestPoints, Contact, DefaultQueryDispatcher, NonlinearRigidMotion, QueryDispatcher,
-    ShapeCastHit, ShapeCastOptions, ShapeDistance, ShapeIntersection, Unsupported,
+    ShapeCastHit, ShapeCastOptions, ShapeCastStatus, ShapeDistance, ShapeIntersection, Unsupported,
 };
 use rapier3d::parry::shape::{Cuboid, Cylinder, Shape};
 use rapier3d::prelude::{
@@ -749,6 +750,55 @@ impl Scene {
         self.alone_in(handle, lo, hi)
     }
 
+    /// [`Scene::sweep_query`]'s shape cast of the body `handle` at `centre` by `motion`
+    /// when every other collider whose tree box meets the swept box is a box: each cast in
+    /// closed form ([`box_cast`]), without the query's tree walk and support-map bounds.
+    /// `None` when one is not a box (the caller casts as usual).
+    fn cast_among_boxes(
+        &self,
+        handle: ColliderHandle,
+        shape: BodyShape,
+        centre: V3,
+        motion: V3,
+        options: ShapeCastOptions,
+    ) -> Option<Option<(ColliderHandle, ShapeCastHit)>> {
+        let half = [shape.radius, shape.radius, shape.half_height];
+        // Padded by the target distance and by far more than f32's rounding.
+        let pad = f64::from(options.target_distance) + f64::from(SWEEP_PAD);
+        let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i] - pad);
+        let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i] + pad);
+        let me = handle.into_raw_parts().0;
+        let body = upright_pose(centre);
+        let cylinder = shape.cylinder();
+        let vel = to_vector(motion);
+        let mut best: Option<(ColliderHandle, ShapeCastHit)> = None;
+        for leaf in self
+            .bvh
+            .intersect_aabb(&Aabb::new(to_vector(lo), to_vector(hi)))
+        {
+            if leaf == me {
+                continue;
+            }
+            let (collider, solid) = self.colliders.get_unknown_gen(leaf)?;
+            let pose = collider.position();
+            let hit = box_cast(
+                &pose.inv_mul(&body),
+                pose.rotation.inverse() * vel,
+                collider.shape(),
+                &cylinder,
+                options,
+            )?;
+            if let Some(hit) = hit
+                && best
+                    .as_ref()
+                    .is_none_or(|(_, b)| hit.time_of_impact < b.time_of_impact)
+            {
+                best = Some((solid, hit.transform1_by(pose)));
+            }
+        }
+        Some(best)
+    }
+
     /// The contact normal of `leaf`'s last sweep if it is a [`Rest`] that this sweep repeats:
     /// the same start and motion, and no collider but the solid within the reach of any
     /// slide (at most the motion's length in every direction, padded as
@@ -818,12 +868,15 @@ impl Scene {
             let hit = if clear {
                 None
             } else {
-                self.sweep_query(Some(handle)).cast_shape(
-                    &upright_pose(pos),
-                    to_vector(rest),
-                    &cylinder,
-                    options,
-                )
+                self.cast_among_boxes(handle, shape, pos, rest, options)
+                    .unwrap_or_else(|| {
+                        self.sweep_query(Some(handle)).cast_shape(
+                            &upright_pose(pos),
+                            to_vector(rest),
+                            &cylinder,
+                            options,
+                        )
+                    })
             };
             let Some((solid, hit)) = hit else {
                 pos = add(pos, rest);
@@ -946,6 +999,9 @@ impl QueryDispatcher for NearBoxes {
         let Some(cuboid) = g1.as_cuboid() else {
             return DefaultQueryDispatcher.cast_shapes(pos12, local_vel12, g1, g2, options);
         };
+        if let Some(hit) = box_cast(pos12, local_vel12, g1, g2, options) {
+            return Ok(hit);
+        }
         // The moving shape's reach in the box's frame, per axis.
         let reach = g2.compute_local_bounding_sphere().radius
             + local_vel12.length() * options.max_time_of_impact
@@ -991,6 +1047,74 @@ impl QueryDispatcher for NearBoxes {
             stop_at_penetration,
         )
     }
+}
+
+/// A shape cast of `g2` (at `pos12` in `g1`'s frame, moving by `vel12`) against `g1` in
+/// closed form when `g1` is a box and `g2` a cylinder upright in the box's frame
+/// ([`upright_cast`]); `None` when they are not.
+fn box_cast(
+    pos12: &Pose,
+    vel12: Vector,
+    g1: &dyn Shape,
+    g2: &dyn Shape,
+    options: ShapeCastOptions,
+) -> Option<Option<ShapeCastHit>> {
+    let cuboid = g1.as_cuboid()?;
+    let cylinder = g2.as_cylinder()?;
+    // parry's cylinders stand along their y axis: upright in the box's frame.
+    let upright = (pos12.rotation * Vector::Y).z.abs() >= 1.0 - 1e-6;
+    (upright && !options.stop_at_penetration)
+        .then(|| upright_cast(pos12, vel12, cuboid, cylinder, options))
+}
+
+/// [`NearBoxes::cast_shapes`] for an upright cylinder against a box: in closed form
+/// ([`crate::upright`]), in the box's frame like parry's.
+fn upright_cast(
+    pos12: &Pose,
+    vel12: Vector,
+    cuboid: &Cuboid,
+    cylinder: &Cylinder,
+    options: ShapeCastOptions,
+) -> Option<ShapeCastHit> {
+    let v3 = |v: Vector| [f64::from(v.x), f64::from(v.y), f64::from(v.z)];
+    let pair = Pair {
+        half: v3(cuboid.half_extents),
+        radius: f64::from(cylinder.radius),
+        half_height: f64::from(cylinder.half_height),
+    };
+    let target = f64::from(options.target_distance);
+    let hit = pair.cast(
+        v3(pos12.translation),
+        v3(vel12),
+        target,
+        f64::from(options.max_time_of_impact),
+    )?;
+    let toi = hit.toi as Real;
+    let normal1 = Vector::new(
+        hit.normal[0] as Real,
+        hit.normal[1] as Real,
+        hit.normal[2] as Real,
+    );
+    let witness1 = Vector::new(
+        hit.point[0] as Real,
+        hit.point[1] as Real,
+        hit.point[2] as Real,
+    );
+    let moved = Pose::from_parts(pos12.translation + vel12 * toi, pos12.rotation);
+    Some(ShapeCastHit {
+        time_of_impact: toi,
+        witness1,
+        witness2: moved.inverse_transform_point(witness1 + normal1 * options.target_distance),
+        normal1,
+        normal2: pos12.rotation.inverse() * -normal1,
+        status: if hit.within {
+            ShapeCastStatus::PenetratingOrWithinTargetDist
+        } else {
+            ShapeCastStatus::Converged
+        },
+        subshape1: 0,
+        subshape2: 0,
+    })
 }
 
 /// Pad (m) of a batch's gathering box.

@@ -189,6 +189,19 @@ impl World {
         self.robots.len()
     }
 
+    /// Calls `f` with each controlled robot's connection and whether the robot touched
+    /// something, or was crashed, in any tick since the last call (what a `Touch` part with
+    /// `event = "contact"` read every tick would have said at least once), in spawn order, and
+    /// clears the flags: contact for in-process users without a sensor line per tick.
+    pub fn take_touched(&mut self, mut f: impl FnMut(ClientId, bool)) {
+        for robot in &mut self.robots {
+            let touched = robot.take_touched();
+            if let Some(owner) = robot.owner {
+                f(owner, touched);
+            }
+        }
+    }
+
     /// Registers a connection (no robot yet).
     pub fn connect(&mut self) -> ClientId {
         self.next_client += 1;

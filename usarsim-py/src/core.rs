@@ -18,9 +18,6 @@ pub(crate) const SONARS: usize = 10;
 pub(crate) const LASER: usize = 228;
 /// Range reported for a sonar or beam that has not read yet (the laser's maximum).
 const NO_RANGE: f64 = 4.0;
-/// The Touch part (`event = "contact"`, read every physics tick) added to the robot class in
-/// process: a UAV "touched" something in a period when any of its readings said so.
-const CONTACT: &str = "PyContact";
 /// The Rotors part added for rotor speeds in the observation.
 const ROTORS: &str = "PyRotors";
 /// The largest sensor noise standard deviation a robot file accepts (docs/robots.md).
@@ -150,19 +147,6 @@ impl Settings {
                 part.noise = noise;
             }
         }
-        class.parts.retain(|p| p.name != CONTACT);
-        class.parts.push(PartConfig {
-            kind: "Touch".to_string(),
-            name: CONTACT.to_string(),
-            position: [0.0; 3],
-            direction: [0.0; 3],
-            interval: Some(dt),
-            noise: 0.0,
-            settings: toml::Table::from_iter([(
-                "event".to_string(),
-                toml::Value::String("contact".to_string()),
-            )]),
-        });
         let robot = class.class.clone();
         Ok(Self {
             map,
@@ -386,6 +370,12 @@ struct Uav {
     rotors: [f64; 4],
 }
 
+/// The UAV of connection `client` (clients are numbered from `first` in the UAVs' order).
+fn uav_of(uavs: &mut [Uav], first: u64, client: ClientId) -> Option<&mut Uav> {
+    let index = client.0.wrapping_sub(first) as usize;
+    uavs.get_mut(index).filter(|u| u.client == client)
+}
+
 /// One world with its UAVs.
 #[derive(Debug)]
 pub(crate) struct WorldSim {
@@ -494,30 +484,23 @@ impl WorldSim {
         self.advance(settings.ticks());
     }
 
-    /// Steps `ticks` physics ticks; a UAV touched something in them when any reading of
-    /// its contact sensor said so (the server's own contact test, any robot).
+    /// Steps `ticks` physics ticks; a UAV touched something in them when its body touched
+    /// something in any tick, or it had crashed (the server's own contact test, any robot:
+    /// [`World::take_touched`]).
     fn advance(&mut self, ticks: usize) {
         for _ in 0..ticks {
             self.world.step(&mut self.out);
         }
-        for uav in &mut self.uavs {
-            uav.touched = false;
-        }
+        let (uavs, first) = (&mut self.uavs, self.first);
+        self.world.take_touched(|client, touched| {
+            if let Some(uav) = uav_of(uavs, first, client) {
+                uav.touched = touched;
+            }
+        });
         for (client, message) in self.out.drain(..) {
-            let index = client.0.wrapping_sub(self.first) as usize;
-            let Some(uav) = self.uavs.get_mut(index) else {
+            let Some(uav) = uav_of(&mut self.uavs, self.first, client) else {
                 continue;
             };
-            if uav.client != client {
-                continue;
-            }
-            if let ServerMessage::Sen(sen) = &message
-                && let SenData::Touch { name, touch } = &sen.data
-                && name == CONTACT
-            {
-                uav.touched |= *touch;
-                continue;
-            }
             if let ServerMessage::Sen(sen) = &message
                 && let SenData::Other { kind, groups } = &sen.data
                 && kind == "Rotors"
