@@ -862,21 +862,21 @@ impl Scene {
                 stop_at_penetration: false,
                 compute_impact_geometry_on_penetration: true,
             };
-            let clear = self.shortcuts
-                && (self.known_clear(handle, shape, pos, rest)
-                    || self.clear_path(handle, shape, pos, rest));
-            let hit = if clear {
+            // Among boxes only, the closed-form casts (one tree query) stand for the clear
+            // path's test too.
+            let hit = if self.shortcuts && self.known_clear(handle, shape, pos, rest) {
+                None
+            } else if let Some(hit) = self.cast_among_boxes(handle, shape, pos, rest, options) {
+                hit
+            } else if self.shortcuts && self.clear_path(handle, shape, pos, rest) {
                 None
             } else {
-                self.cast_among_boxes(handle, shape, pos, rest, options)
-                    .unwrap_or_else(|| {
-                        self.sweep_query(Some(handle)).cast_shape(
-                            &upright_pose(pos),
-                            to_vector(rest),
-                            &cylinder,
-                            options,
-                        )
-                    })
+                self.sweep_query(Some(handle)).cast_shape(
+                    &upright_pose(pos),
+                    to_vector(rest),
+                    &cylinder,
+                    options,
+                )
             };
             let Some((solid, hit)) = hit else {
                 pos = add(pos, rest);

@@ -257,6 +257,46 @@ fn flying_into_a_wall_stops_in_front_of_it_at_any_speed() {
 }
 
 #[test]
+fn take_touched_says_whether_the_body_touched_anything_since_it_was_last_asked() {
+    let mut w = world();
+    let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
+    let touched = |w: &mut World| {
+        let mut said = Vec::new();
+        w.take_touched(|client, touched| said.push((client, touched)));
+        said
+    };
+    run(&mut w, 1.0);
+    assert_eq!(touched(&mut w), [(c, false)], "hovering in open air");
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(5.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 3.0);
+    assert_eq!(
+        touched(&mut w),
+        [(c, true)],
+        "pressed against the north wall"
+    );
+    assert_eq!(touched(&mut w), [(c, false)], "cleared once taken");
+    drive(
+        &mut w,
+        c,
+        Drive {
+            linear_velocity: Some(-1.0),
+            ..Drive::default()
+        },
+    );
+    run(&mut w, 0.5);
+    touched(&mut w);
+    run(&mut w, 0.5);
+    assert_eq!(touched(&mut w), [(c, false)], "backing away from the wall");
+}
+
+#[test]
 fn cannot_leave_through_floor_or_ceiling_and_slides_along_walls() {
     let mut w = world();
     let c = spawn(&mut w, STS, [0.0, 0.0, -1.0], 0.0);
