@@ -121,7 +121,7 @@ struct PythonAgent {
 
 impl PythonAgent {
     fn state(&self, uav: &UavState, time: f64) -> PyState {
-        let mut obs = Observations::with_capacity(1);
+        let mut obs = Observations::default();
         obs.push_state(uav, false, time);
         let v3 = |v: &[f64]| [v[0], v[1], v[2]];
         PyState {

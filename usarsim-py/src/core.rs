@@ -612,23 +612,23 @@ fn xyz(r: Option<&ucc_client::uav::Reading<ucc_client::Coordinates>>) -> [f64; 3
 }
 
 impl Observations {
-    /// Room for `n` UAVs.
-    pub(crate) fn with_capacity(n: usize) -> Self {
-        Self {
-            position: Vec::with_capacity(3 * n),
-            velocity: Vec::with_capacity(3 * n),
-            attitude: Vec::with_capacity(3 * n),
-            angular_velocity: Vec::with_capacity(3 * n),
-            sonar: Vec::with_capacity(SONARS * n),
-            laser: Vec::with_capacity(LASER * n),
-            battery: Vec::with_capacity(n),
-            touched: Vec::with_capacity(n),
-            crashed: Vec::with_capacity(n),
-            time: Vec::with_capacity(n),
-            no_ranges: false,
-            rotor_speeds: Vec::new(),
-            with_rotors: false,
+    /// Empties every buffer, keeping its memory.
+    pub(crate) fn clear(&mut self) {
+        for v in [
+            &mut self.position,
+            &mut self.velocity,
+            &mut self.attitude,
+            &mut self.angular_velocity,
+            &mut self.sonar,
+            &mut self.laser,
+            &mut self.battery,
+            &mut self.time,
+            &mut self.rotor_speeds,
+        ] {
+            v.clear();
         }
+        self.touched.clear();
+        self.crashed.clear();
     }
 
     pub(crate) fn push_state(&mut self, s: &UavState, touched: bool, time: f64) {
@@ -807,18 +807,18 @@ impl Batch {
 
     /// Every UAV's observation, world-major.
     pub(crate) fn observe(&self) -> Observations {
-        let mut obs = if self.settings.state_only {
-            Observations {
-                no_ranges: true,
-                ..Observations::default()
-            }
-        } else {
-            Observations::with_capacity(self.len())
-        };
+        let mut obs = Observations::default();
+        self.observe_into(&mut obs);
+        obs
+    }
+
+    /// [`Batch::observe`] into `obs`, reusing its buffers.
+    pub(crate) fn observe_into(&self, obs: &mut Observations) {
+        obs.clear();
+        obs.no_ranges = self.settings.state_only;
         obs.with_rotors = self.settings.rotors;
         for w in &self.worlds {
-            w.observe(&mut obs);
+            w.observe(obs);
         }
-        obs
     }
 }

@@ -17,7 +17,7 @@ mod remote;
 mod scenario;
 
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyReadonlyArray2};
+use numpy::{IntoPyArray, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use std::sync::{Mutex, PoisonError};
 
@@ -88,6 +88,66 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
     Ok(dict)
 }
 
+/// Copies `data` into the array `out[name]` of shape `(data.len() / width, width)` (or
+/// `(data.len(),)` without a width).
+fn fill<T: numpy::Element + Copy>(
+    out: &Bound<'_, PyDict>,
+    name: &str,
+    data: &[T],
+    width: Option<usize>,
+) -> PyResult<()> {
+    let bad = |why: String| PyValueError::new_err(format!("observe_into: {name}: {why}"));
+    let item = out
+        .get_item(name)?
+        .ok_or_else(|| bad("missing (pass a dict as observe() returns)".to_string()))?;
+    let mut array = item
+        .extract::<numpy::PyReadwriteArrayDyn<'_, T>>()
+        .map_err(|e| {
+            bad(format!(
+                "not a writable {} array: {e}",
+                std::any::type_name::<T>()
+            ))
+        })?;
+    let shape = match width {
+        Some(w) => vec![data.len() / w, w],
+        None => vec![data.len()],
+    };
+    if array.shape() != shape.as_slice() {
+        return Err(bad(format!(
+            "shape {:?}, expected {shape:?}",
+            array.shape()
+        )));
+    }
+    // as_slice_mut() takes Fortran order too, which would scatter the rows.
+    if !array.is_c_contiguous() {
+        return Err(bad("not C-contiguous".to_string()));
+    }
+    array
+        .as_slice_mut()
+        .map_err(|_| bad("not C-contiguous".to_string()))?
+        .copy_from_slice(data);
+    Ok(())
+}
+
+/// [`to_dict`]'s arrays written into those of `out` (see `Batch.observe_into`).
+fn fill_dict(out: &Bound<'_, PyDict>, obs: &Observations) -> PyResult<()> {
+    fill(out, "position", &obs.position, Some(3))?;
+    fill(out, "velocity", &obs.velocity, Some(3))?;
+    fill(out, "attitude", &obs.attitude, Some(3))?;
+    fill(out, "angular_velocity", &obs.angular_velocity, Some(3))?;
+    if !obs.no_ranges {
+        fill(out, "sonar", &obs.sonar, Some(SONARS))?;
+        fill(out, "laser", &obs.laser, Some(LASER))?;
+    }
+    fill(out, "battery", &obs.battery, Some(1))?;
+    fill(out, "time", &obs.time, Some(1))?;
+    if obs.with_rotors {
+        fill(out, "rotor_speeds", &obs.rotor_speeds, Some(4))?;
+    }
+    fill(out, "touched", &obs.touched, None)?;
+    fill(out, "crashed", &obs.crashed, None)
+}
+
 /// N worlds with K UAVs each, stepped together one control period per call.
 ///
 /// `Batch(map, robot, seeds, starts, uavs_per_world=1, period=0.1, noise=None,
@@ -101,6 +161,8 @@ struct PyBatch {
     /// A mutex only to make the class `Sync` (Python objects may be shared between threads);
     /// every method takes `&mut self`, so it is never contended.
     inner: Mutex<Batch>,
+    /// The buffers `observe_into` fills before copying them out (kept between calls).
+    scratch: Observations,
 }
 
 impl PyBatch {
@@ -192,6 +254,7 @@ impl PyBatch {
                 worlds,
                 uavs_per_world,
             }),
+            scratch: Observations::default(),
         })
     }
 
@@ -295,6 +358,19 @@ impl PyBatch {
     fn observe<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let obs = self.get().observe();
         to_dict(py, obs)
+    }
+
+    /// `observe()` written into the arrays of `out` (a dict as `observe()` returns, such as
+    /// its first result kept): every key `observe()` gives must be there, a writable
+    /// C-contiguous array of the same shape and dtype (float64; bool for touched and
+    /// crashed). No array is made: the caller owns the memory and it is overwritten on each
+    /// call. Extra keys are left alone.
+    fn observe_into(&mut self, out: &Bound<'_, PyDict>) -> PyResult<()> {
+        let mut obs = std::mem::take(&mut self.scratch);
+        self.get().observe_into(&mut obs);
+        let result = fill_dict(out, &obs);
+        self.scratch = obs;
+        result
     }
 
     /// Every UAV's camera picture (the batch needs `camera=(width, height)`): a dict with

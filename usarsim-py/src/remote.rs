@@ -177,7 +177,7 @@ impl Remote {
 
     /// The UAV's observation (contact is not known remotely: always false).
     pub(crate) fn observe(&self) -> Observations {
-        let mut obs = Observations::with_capacity(1);
+        let mut obs = Observations::default();
         let flight = self.flight.lock().unwrap_or_else(PoisonError::into_inner);
         obs.push_state(flight.uav(), false, self.time);
         obs

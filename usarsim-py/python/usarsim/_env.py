@@ -310,15 +310,22 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
                  max_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP,
                  state_only: bool = False, flat: bool = False, action_mode: str = "velocity",
-                 camera: str | None = None, camera_size=(64, 64)) -> None:
+                 camera: str | None = None, camera_size=(64, 64), copy: bool = True) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
+        if not isinstance(copy, (bool, np.bool_)):
+            raise ValueError(f"copy: expected True or False, got {copy!r}")
         self._recipe = dict(num_envs=num_envs, task=task, map=map, robot=robot, start=start,
                             waypoints=waypoints, n_waypoints=n_waypoints, waypoint_radius=waypoint_radius,
                             period=period, noise=noise, max_steps=max_steps, autoreset_mode=autoreset_mode,
                             state_only=state_only, flat=flat, action_mode=action_mode, camera=camera,
-                            camera_size=camera_size)
+                            camera_size=camera_size, copy=copy)
         self.metadata = {**type(self).metadata, "autoreset_mode": _autoreset_mode(autoreset_mode)}
+        self.copy = bool(copy)
+        # The env's own arrays: Rust writes the raw observation into `_raw` and the task its
+        # observation into `_obs` each step, in place (made at the first step, again when
+        # configure() changes the spaces).
+        self._raw, self._obs = None, None
         self.num_envs = int(num_envs)
         self._kinds = camera_kinds(camera)
         size = image_size(camera_size)
@@ -349,6 +356,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         return self._restore([r.bit_generator.state for r in rngs], options)
 
     def _set_spaces(self, extend):
+        self._raw, self._obs = None, None
         base = self.__dict__.setdefault("_base_space", self.single_observation_space)
         single = extend(base, self._tasks.flat) if extend else base
         self.single_observation_space = single
@@ -364,14 +372,29 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         rows = np.arange(self.num_envs)
         self._batch.reset(rows.tolist(), *self._new_worlds(rows, options))
         self._autoreset[:] = False
-        raw = self._batch.observe()
+        raw = self._observe_raw()
         self._tasks.begin(raw, rows)
         drawn = self.randomized()
         return self._observe_all(raw), ({"randomized": drawn} if any(drawn) else {})
 
+    def _observe_raw(self):
+        """The batch's observation, written by Rust into the env's own arrays."""
+        if self._raw is None:
+            self._raw = self._batch.observe()
+        else:
+            self._batch.observe_into(self._raw)
+        return self._raw
+
     def _observe_all(self, raw):
-        """Every sub-environment's observation, with the cameras' pictures when asked."""
-        obs = self._tasks.observe(raw)
+        """Every sub-environment's observation, with the cameras' pictures when asked: the
+        env's own arrays, filled in place (copies of them with ``copy=True``)."""
+        if self._obs is None:
+            self._obs = self._tasks.observe(raw)
+        else:
+            self._tasks.observe(raw, out=self._obs)
+        obs = self._obs
+        if self.copy:
+            obs = {k: v.copy() for k, v in obs.items()} if isinstance(obs, dict) else obs.copy()
         if not self._kinds:
             return obs
         out = dict(obs) if isinstance(obs, dict) else {"state": obs}
@@ -412,7 +435,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                 replay["rng"], replay["options"] = None, None
         reset = (done.tolist(), *self._new_worlds(done)) if len(done) else None
         self._batch.step(a, reset)
-        raw = self._batch.observe()
+        raw = self._observe_raw()
         live = np.ones(self.num_envs, dtype=bool)
         live[done] = False
         if len(done):
@@ -440,7 +463,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
 
     def _step_same(self, a):
         self._batch.step(a)
-        raw = self._batch.observe()
+        raw = self._observe_raw()
         reward, term, trunc, info = self._tasks.reward(raw)
         obs = self._observe_all(raw)
         infos = _with_masks(info, np.ones(self.num_envs, dtype=bool))
@@ -448,13 +471,13 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         if len(ended):
             mask = term | trunc
             final_obs = np.full(self.num_envs, None, dtype=object)
-            for i in ended:
-                final_obs[i] = {k: v[i] for k, v in obs.items()} if isinstance(obs, dict) else obs[i]
+            for i in ended:  # copies: the next observation may be written into `obs`
+                final_obs[i] = {k: v[i].copy() for k, v in obs.items()} if isinstance(obs, dict) else obs[i].copy()
             infos["final_obs"], infos["_final_obs"] = final_obs, mask
             infos["final_info"] = _with_masks({k: np.where(mask, v, np.zeros_like(v)) for k, v in info.items()}, mask)
             infos["_final_info"] = mask.copy()
             self._batch.reset(ended.tolist(), *self._new_worlds(ended))
-            raw = self._batch.observe()
+            raw = self._observe_raw()
             self._tasks.begin(raw, ended)
             obs = self._observe_all(raw)
         return obs, reward, term, trunc, infos

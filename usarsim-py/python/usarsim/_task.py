@@ -289,16 +289,28 @@ class Tasks:
         d = np.linalg.norm(self._vector(raw), axis=1)
         self.prev[list(rows)] = d[list(rows)]
 
-    def observe(self, raw) -> dict:
-        """The observation dict (float32 arrays, one row per UAV)."""
+    def observe(self, raw, out=None):
+        """The observation (float32 arrays, one row per UAV): a dict, or with ``flat`` one
+        array. With ``out`` (an earlier result), written into its arrays and returned."""
         values = {k: raw[k] for k in self.keys if k not in ("waypoint", "yaw_error")}
         values["attitude"] = (raw["attitude"] + np.pi) % (2 * np.pi) - np.pi
         values["waypoint"] = self._vector(raw)
         # Hover: the yaw to hold minus the yaw (wrapped); Waypoints: 0.
         yaw_error = (self.hold_yaw - raw["attitude"][:, 2] + np.pi) % (2 * np.pi) - np.pi
         values["yaw_error"] = (yaw_error if self.task == "hover" else np.zeros(self.n))[:, None]
-        out = {k: np.clip(values[k], BOUNDS[k][0], BOUNDS[k][1]).astype(np.float32) for k in self.keys}
-        return np.concatenate(list(out.values()), axis=1) if self.flat else out
+        if out is None:
+            out = {k: np.clip(values[k], BOUNDS[k][0], BOUNDS[k][1]).astype(np.float32) for k in self.keys}
+            return np.concatenate(list(out.values()), axis=1) if self.flat else out
+        column = 0
+        for k in self.keys:
+            if self.flat:
+                width = values[k].shape[1]
+                target, column = out[:, column:column + width], column + width
+            else:
+                target = out[k]
+            # Clipped in float64, then rounded to float32: the values astype() gives.
+            np.clip(values[k], BOUNDS[k][0], BOUNDS[k][1], out=target, casting="same_kind")
+        return out
 
     def row(self, obs, i: int):
         """Row `i` of an observation from :meth:`observe`."""
