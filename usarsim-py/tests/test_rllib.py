@@ -9,7 +9,6 @@ import usarsim
 pytest.importorskip("ray.rllib")
 
 
-
 class _EndsApart(usarsim.MultiUavRLlibEnv):
     """Two UAVs in the empty room and one waypoint: uav_0 starts on it, uav_1 far from it."""
 
