@@ -396,7 +396,7 @@ def test_rllib_multi_agent_env_ends_with_all():
     for step in range(3):
         obs, rew, term, trunc, infos = env.step({a: env.action_spaces[a].sample() for a in env.agents})
         assert term["__all__"] is False and trunc["__all__"] is (step == 2)
-    assert env.agents == [] and set(obs) == {"uav_0", "uav_1"}  # the last observations
+    assert env.agents == ["uav_0", "uav_1"] and set(obs) == {"uav_0", "uav_1"}  # the last step's (tests/test_rllib.py)
     twin = pickle.loads(pickle.dumps(env))
     assert twin.reset(seed=0)[0]["uav_0"]["position"].tolist() == env.reset(seed=0)[0]["uav_0"]["position"].tolist()
 

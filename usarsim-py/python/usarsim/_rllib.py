@@ -17,7 +17,9 @@ class MultiUavRLlibEnv(MultiAgentEnv):
     ``task``, ``map``, ...). Agents ``uav_0`` ... act until their own episode ends (then
     they hover, as in PettingZoo); ``terminateds["__all__"]`` / ``truncateds["__all__"]``
     end the episode once every agent has ended (``terminateds`` when all of them terminated,
-    ``truncateds`` otherwise). Agents without an action in ``step`` hover.
+    ``truncateds`` otherwise). Agents without an action in ``step`` hover. ``agents`` lists
+    the agents the last ``reset`` or ``step`` returned (RLlib's env checker wants every
+    returned agent in it); an agent that has ended leaves it at the next ``step``.
     """
 
     def __init__(self, config: dict | None = None) -> None:
@@ -43,8 +45,8 @@ class MultiUavRLlibEnv(MultiAgentEnv):
         for a in terms:
             if terms[a] or truncs[a]:
                 self._terminated[a] = bool(terms[a])
-        self.agents = list(self.env.agents)
-        over = not self.agents
+        self.agents = list(rewards)
+        over = not self.env.agents
         all_terminated = over and all(self._terminated.values())
         return (obs, rewards, {**terms, "__all__": all_terminated}, {**truncs, "__all__": over and not all_terminated},
                 infos)
