@@ -24,6 +24,9 @@ const TIMEOUT: Duration = Duration::from_secs(10);
 /// How long to wait for the greeting and for the answer to `SYNC {Time 0}` (a real USARSim
 /// never answers).
 const SYNC_PROBE: Duration = Duration::from_secs(2);
+/// Simulated seconds a new connection hovers, at most, for the robot's first Position
+/// reading (the slowest stock sensor interval is 0.3 s).
+const FIRST_READING: f64 = 2.0;
 /// The shortest read time-out: a deadline already past still reads what is waiting.
 const MIN_READ: Duration = Duration::from_millis(1);
 
@@ -139,6 +142,14 @@ impl Remote {
         };
         remote.core().start(Instant::now());
         remote.advance()?;
+        // Sensors first speak one interval after the spawn (0.1 s and more): periods shorter
+        // than that end before the Position sensor has read. Hover until it has, as the
+        // in-process world does, for at most FIRST_READING of simulated time.
+        let mut waited = 0.0;
+        while remote.core().uav().position.is_none() && waited < FIRST_READING {
+            remote.step([0.0; 4])?;
+            waited += period;
+        }
         if remote.core().uav().position.is_none() {
             return Err(err(
                 addr,

@@ -77,3 +77,21 @@ def test_a_remote_quadrotor_flown_into_a_wall_crashes_and_the_episode_ends(serve
     assert reward < -50  # the crash penalty
     assert obs["position"][0] < 10.0  # stopped at the wall
     env.close()
+
+
+def test_a_remote_env_with_a_period_shorter_than_the_sensors_interval_starts(server):
+    """Periods of 0.05 and 0.02 s end before the first Position reading (0.1 s after the
+    spawn): the env hovers until it has read, as the in-process world does, instead of
+    saying the robot did not spawn."""
+    import numpy as np
+
+    import usarsim
+
+    for period in (0.05, 0.02):
+        env = usarsim.UsarsimEnv(server=server, period=period, start=(2, 1, -1, 0))
+        obs, _ = env.reset(seed=0)
+        assert np.allclose(obs["position"], [2, 1, -1], atol=0.05), (period, obs["position"])
+        for _ in range(10):
+            obs, *_ = env.step(np.array([1, 0, 0, 0], np.float32))
+        assert obs["position"][0] > 2.05, f"period {period}: it flew forward ({obs['position']})"
+        env.close()
