@@ -740,20 +740,12 @@ impl Scene {
             .all(|leaf| leaf == me)
     }
 
-    /// Whether nothing but `handle` has its tree box within the gap `SKIN` (doubled, for
-    /// rounding) of the box swept by a body of `shape` moving from `centre` by `motion`: then
-    /// the shape cast cannot hit anything and is skipped (most robots, most ticks).
-    fn clear_path(&self, handle: ColliderHandle, shape: BodyShape, centre: V3, motion: V3) -> bool {
-        let half = [shape.radius, shape.radius, shape.half_height];
-        let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i]);
-        let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i]);
-        self.alone_in(handle, lo, hi)
-    }
-
     /// [`Scene::sweep_query`]'s shape cast of the body `handle` at `centre` by `motion`
-    /// when every other collider whose tree box meets the swept box is a box: each cast in
-    /// closed form ([`box_cast`]), without the query's tree walk and support-map bounds.
-    /// `None` when one is not a box (the caller casts as usual).
+    /// when every other collider whose tree box comes within the gap `SKIN` (doubled, for
+    /// rounding: `SWEEP_PAD`) of the swept box is a box: each cast in closed form
+    /// ([`box_cast`]), without the query's tree walk and support-map bounds. Nothing there
+    /// (most robots, most ticks) is no hit, after one tree query. `None` when one is not a
+    /// box (the caller casts as usual); a collider farther away cannot be hit.
     fn cast_among_boxes(
         &self,
         handle: ColliderHandle,
@@ -763,8 +755,7 @@ impl Scene {
         options: ShapeCastOptions,
     ) -> Option<Option<(ColliderHandle, ShapeCastHit)>> {
         let half = [shape.radius, shape.radius, shape.half_height];
-        // Padded by the target distance and by far more than f32's rounding.
-        let pad = f64::from(options.target_distance) + f64::from(SWEEP_PAD);
+        let pad = f64::from(SWEEP_PAD);
         let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i] - pad);
         let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i] + pad);
         let me = handle.into_raw_parts().0;
@@ -802,7 +793,7 @@ impl Scene {
     /// The contact normal of `leaf`'s last sweep if it is a [`Rest`] that this sweep repeats:
     /// the same start and motion, and no collider but the solid within the reach of any
     /// slide (at most the motion's length in every direction, padded as
-    /// [`Scene::clear_path`] pads).
+    /// [`Scene::cast_among_boxes`] pads).
     fn still_resting(&self, leaf: u32, shape: BodyShape, centre: V3, motion: V3) -> Option<V3> {
         let rest = *self.resting.get(&leaf)?;
         if rest.centre != centre || rest.motion != motion {
@@ -862,14 +853,10 @@ impl Scene {
                 stop_at_penetration: false,
                 compute_impact_geometry_on_penetration: true,
             };
-            // Among boxes only, the closed-form casts (one tree query) stand for the clear
-            // path's test too.
             let hit = if self.shortcuts && self.known_clear(handle, shape, pos, rest) {
                 None
             } else if let Some(hit) = self.cast_among_boxes(handle, shape, pos, rest, options) {
                 hit
-            } else if self.shortcuts && self.clear_path(handle, shape, pos, rest) {
-                None
             } else {
                 self.sweep_query(Some(handle)).cast_shape(
                     &upright_pose(pos),
