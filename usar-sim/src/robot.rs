@@ -318,7 +318,8 @@ pub(crate) struct Robot {
     /// Its name (USARTruth, the robot monitor, the WSS).
     pub(crate) name: String,
     model: Arc<Model>,
-    body: ColliderHandle,
+    /// Its body's collider in the scene.
+    pub(crate) body: ColliderHandle,
     position: V3,
     velocity: V3,
     /// roll, pitch, yaw, rad.

@@ -147,6 +147,9 @@ pub(crate) struct Scene {
     /// By leaf: how cameras draw the solid (colour, segmentation id); [`Look::default`]
     /// for solids without one.
     looks: Vec<Look>,
+    /// A collider was removed since the scene was built or last reset ([`Scene::reset_to`]
+    /// then copies its template whole).
+    removed: bool,
     /// The map's victims: their colliders and boxes (the VictSensor's targets).
     pub(crate) victims: Vec<VictimBody>,
 }
@@ -249,8 +252,43 @@ impl Scene {
             clear: Vec::new(),
             resting: HashMap::new(),
             looks: Vec::new(),
+            removed: false,
             victims: Vec::new(),
         }
+    }
+
+    /// Becomes `template` again — the map as first built, before any robot — when this scene
+    /// is that template plus the robot `bodies` inserted since: their colliders are removed,
+    /// highest index first, so that the next bodies get the indices (the tree leaves) a copy
+    /// of the template would give them, and the tree and the small tables are copied. Every
+    /// query then answers as on a copy, bit for bit, without copying the map's colliders
+    /// (most of a Python reset's cost). Otherwise (a robot left meanwhile) a copy.
+    pub(crate) fn reset_to(&mut self, template: &Scene, bodies: &mut [ColliderHandle]) {
+        if self.removed || self.colliders.len() != template.colliders.len() + bodies.len() {
+            *self = template.clone();
+            return;
+        }
+        bodies.sort_unstable_by_key(|h| std::cmp::Reverse(h.into_raw_parts().0));
+        for &body in bodies.iter() {
+            self.colliders.remove(
+                body,
+                &mut self.islands,
+                &mut self.bodies,
+                &mut self.soft_bodies,
+                false,
+            );
+        }
+        // rapier's change lists, kept for a physics pipeline this scene never runs.
+        drop(self.colliders.take_modified());
+        drop(self.colliders.take_removed());
+        self.bvh.clone_from(&template.bvh);
+        self.shortcuts = template.shortcuts;
+        self.stale = template.stale;
+        self.clear.clone_from(&template.clear);
+        self.resting.clone_from(&template.resting);
+        self.looks.clone_from(&template.looks);
+        self.removed = false;
+        self.victims.clone_from(&template.victims);
     }
 
     /// Marks the collider `handle` (already inserted) as a victim's body: a box centred at
@@ -402,6 +440,7 @@ impl Scene {
 
     /// Removes a collider.
     pub(crate) fn remove(&mut self, handle: ColliderHandle) {
+        self.removed = true;
         let leaf = handle.into_raw_parts().0;
         self.bvh.remove(leaf);
         self.set_clear(leaf, false);

@@ -139,10 +139,12 @@ impl World {
     /// Starts over with `seed`: afterwards the world is what [`World::new`] with the same
     /// map, classes and configuration and this seed gives (no robots, no connections, time
     /// 0, the faults planned from the seed), and the same calls give the same output, bit
-    /// for bit — without building the map's scene again (its first build is kept and
-    /// copied). The Python package resets its worlds this way.
+    /// for bit — without building the map's scene again (its first build is kept; the
+    /// robots' bodies are taken out: [`Scene::reset_to`]). The Python package resets its
+    /// worlds this way.
     pub fn reset(&mut self, seed: u64) {
-        self.scene = self.template.clone();
+        let mut bodies: Vec<_> = self.robots.iter().map(|r| r.body).collect();
+        self.scene.reset_to(&self.template, &mut bodies);
         self.tick = 0;
         self.seed = seed;
         self.robots.clear();
@@ -153,6 +155,15 @@ impl World {
         self.next_serial = 0;
         self.complaints.clear();
         self.faults = self.fault_plan.schedule(seed).into();
+    }
+
+    /// The scene's leaf (collider index) of each robot's body, in spawn order.
+    #[cfg(test)]
+    pub(crate) fn body_leaves(&self) -> Vec<u32> {
+        self.robots
+            .iter()
+            .map(|r| r.body.into_raw_parts().0)
+            .collect()
     }
 
     /// The map's level name for the NFO line.
