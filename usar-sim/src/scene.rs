@@ -263,7 +263,7 @@ impl Scene {
     /// of the template would give them, and the tree and the small tables are copied. Every
     /// query then answers as on a copy, bit for bit, without copying the map's colliders
     /// (most of a Python reset's cost). Otherwise (a robot left meanwhile) a copy.
-    pub(crate) fn reset_to(&mut self, template: &Scene, bodies: &mut [ColliderHandle]) {
+    pub(crate) fn reset_to(&mut self, template: &Self, bodies: &mut [ColliderHandle]) {
         if self.removed || self.colliders.len() != template.colliders.len() + bodies.len() {
             *self = template.clone();
             return;
