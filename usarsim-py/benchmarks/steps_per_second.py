@@ -9,8 +9,8 @@ stsAirRobot with every sensor (228-beam laser, 10 sonars) and the Dict observati
 ``state_only=True, flat=True`` (no range sensors; one float32 Box). Random actions; episodes
 end and autoreset (NEXT_STEP) as they come. "autoreset step": one step in which every
 sub-environment resets (episodes of 1 step), against a normal step, full and state-only (a
-reset flies the world until every sensor has read once: two control periods with the 0.2 s
-sonars and laser, one without them).
+reset flies the world until every sensor has read once: three control periods with the 0.3 s
+laser, one without the range sensors).
 
 Per CPU-second is the process's CPU time (user + system, all threads): on a machine shared
 with other work it is the fairer figure; wall-clock UAV-steps/s depends on the free cores.

@@ -7,6 +7,7 @@ import pytest
 
 import usarsim
 from usarsim._env import _seed
+from usarsim._task import Streams
 
 
 # Resets draw for every sub-environment at once, and draw what one-by-one draws gave.
@@ -25,12 +26,18 @@ def test_batched_starts_draw_what_one_by_one_starts_drew(task, start):
     venv = usarsim.vector_env(8, task, map="arena", start=start)
     tasks = venv._tasks
     rows = np.arange(8)
-    batched = tasks.new_starts([np.random.default_rng([3, i]) for i in rows], rows, False)
+    batched = tasks.new_starts(Streams.seeded(3, 8), rows, False)
     targets = tasks.targets.copy()
-    for i in rows:  # each row alone, from its own generator: the per-env reset
-        one = tasks.new_starts(np.random.default_rng([3, i]), [i], False)
+    for i in rows:  # each row alone, from its own stream: the per-env reset
+        one = tasks.new_starts(Streams.seeded(3, 8), [i], False)
         assert np.array_equal(one[0], batched[i])
     assert np.array_equal(tasks.targets, targets)
+    # Another seed draws other starts and targets.
+    other = tasks.new_starts(Streams.seeded(4, 8), rows, False)
+    if task == "waypoints" and start is None:
+        assert not np.array_equal(tasks.targets, targets)
+    else:
+        assert not np.array_equal(other, batched)
     if task == "hover":  # the spawns are drawn around the starts, not all on them
         assert np.any(batched[:, :3] != tasks.targets[:, 0])
 

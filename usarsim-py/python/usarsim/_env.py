@@ -14,7 +14,7 @@ from gymnasium.vector.utils import batch_space
 from . import _core
 from ._maps import MapInfo
 from ._render import TopView
-from ._task import (Tasks, action_space, add_extras, camera_kinds, image_size, observation_space, with_extras,
+from ._task import (Streams, Tasks, action_space, add_extras, camera_kinds, image_size, observation_space, with_extras,
                     with_rotor_speeds)
 
 
@@ -348,12 +348,12 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
             raise ClosedEnvironmentError("reset: the environment is closed")
         super().reset(seed=seed)
         if seed is not None:
-            rngs = [np.random.default_rng([int(seed), i]) for i in range(self.num_envs)]
+            streams = Streams.seeded(seed, self.num_envs)
         elif self._replay is None:
-            rngs = [np.random.default_rng(_seed(self.np_random) + i) for i in range(self.num_envs)]
+            streams = Streams.seeded(_seed(self.np_random), self.num_envs)
         else:
-            rngs = self._rngs
-        return self._restore([r.bit_generator.state for r in rngs], options)
+            streams = self._streams
+        return self._restore(streams.state(), options)
 
     def _set_spaces(self, extend):
         self._raw, self._obs = None, None
@@ -362,13 +362,11 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         self.single_observation_space = single
         self.observation_space = batch_space(single, self.num_envs)
 
-    def _restore(self, rng_states, options):
+    def _restore(self, rng_state, options):
+        """The reset after the seeding: from the streams' state `rng_state` (keys, draws)."""
         self._options(options)
-        self._rngs = [_rng(s) for s in rng_states]
-        # The actions since the last reset; once every sub-env has autoreset since, only those
-        # since the oldest of their last autoresets (`resets`: step and rng state of each),
-        # so that the record stays as short as an episode however long the run.
-        self._replay = {"rng": rng_states, "options": options, "actions": [], "resets": {}}
+        self._streams = Streams(*rng_state)
+        self._replay = self._record(rng_state, options)
         rows = np.arange(self.num_envs)
         self._batch.reset(rows.tolist(), *self._new_worlds(rows, options))
         self._autoreset[:] = False
@@ -401,11 +399,21 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         out.update(self._batch.images(rgb="rgb" in self._kinds, depth="depth" in self._kinds))
         return out
 
+    def _record(self, rng_state, options):
+        """A fresh record of the run for pickling: the actions since the last reset; once
+        every sub-env has autoreset since, only those since the oldest of their last
+        autoresets (each row's step and draws made then: `reset_step` (-1: not yet),
+        `reset_drawn`), so that the record stays as short as an episode however long the
+        run."""
+        n = self.num_envs
+        return {"rng": rng_state, "options": options, "actions": [],
+                "keys": self._streams.keys.copy(), "reset_step": np.full(n, -1, dtype=np.int64),
+                "reset_drawn": np.zeros(n, dtype=np.uint64)}
+
     def _new_worlds(self, rows, options=None):
         """Seeds and starts of fresh worlds for `rows` (and their new tasks)."""
-        rngs = [self._rngs[i] for i in rows]
-        starts = self._tasks.new_starts(rngs, rows, False, options)
-        return [_seed(rng) for rng in rngs], starts
+        starts = self._tasks.new_starts(self._streams, rows, False, options)
+        return self._streams.seeds(rows), starts
 
     def step(self, actions):
         if self.closed:
@@ -420,18 +428,19 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
 
     def _step_next(self, a, forced=()):
         """A NEXT_STEP step; the rows in `forced` reset in it too (replaying a record)."""
-        done = np.union1d(np.flatnonzero(self._autoreset), np.asarray(forced, dtype=np.int64)).astype(np.int64)
+        done = np.flatnonzero(self._autoreset)
+        if len(forced):
+            done = np.union1d(done, np.asarray(forced, dtype=np.int64)).astype(np.int64)
         replay = self._replay
         if len(done):
-            step = len(replay["actions"]) - 1
-            for i in done:
-                replay["resets"][int(i)] = (step, self._rngs[i].bit_generator.state)
-            if len(replay["resets"]) == self.num_envs:
+            replay["reset_step"][done] = len(replay["actions"]) - 1
+            replay["reset_drawn"][done] = self._streams.drawn[done]
+            oldest = replay["reset_step"].min()
+            if oldest >= 0:
                 # Every sub-env has reset since: forget the steps before the oldest last reset.
-                oldest = min(t for t, _ in replay["resets"].values())
                 if oldest > 0:
                     del replay["actions"][:oldest]
-                    replay["resets"] = {i: (t - oldest, r) for i, (t, r) in replay["resets"].items()}
+                    replay["reset_step"] -= oldest
                 replay["rng"], replay["options"] = None, None
         reset = (done.tolist(), *self._new_worlds(done)) if len(done) else None
         self._batch.step(a, reset)
@@ -448,18 +457,17 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         if replay["rng"] is not None:
             return super()._resume(replay)
         # A shortened record: any worlds, then each sub-env reset at its recorded step from
-        # its recorded rng state, and the steps replayed.
-        resets = replay["resets"]
-        self._restore([resets[i][1] for i in range(self.num_envs)], None)
-        self._replay = {"rng": None, "options": None, "actions": [], "resets": {}}
+        # its recorded draws, and the steps replayed.
+        keys, steps, drawn = replay["keys"], replay["reset_step"], replay["reset_drawn"]
+        self._restore((keys, drawn), None)
+        self._replay = self._record(None, None)
         for k, a in enumerate(replay["actions"]):
-            forced = [i for i, (t, _) in resets.items() if t == k]
-            for i in forced:
-                self._rngs[i] = _rng(resets[i][1])
+            forced = np.flatnonzero(steps == k)
+            self._streams.drawn[forced] = drawn[forced]
             self._replay["actions"].append(np.array(a, copy=True))
             self._step_next(np.asarray(a), forced)
         self._replay = {"rng": None, "options": None, "actions": [np.array(a, copy=True) for a in replay["actions"]],
-                        "resets": dict(resets)}
+                        "keys": keys.copy(), "reset_step": steps.copy(), "reset_drawn": drawn.copy()}
 
     def _step_same(self, a):
         self._batch.step(a)

@@ -1,0 +1,82 @@
+"""Issue 24, fifth round: autoresets that cost little — one random stream per sub-environment
+drawn for all at once (``usarsim._task.Streams``), and worlds reset in place without copying
+the map."""
+
+import pickle
+import warnings
+
+import numpy as np
+import pytest
+
+import usarsim
+from usarsim._task import Streams
+
+
+def test_each_row_draws_its_own_stream_whatever_else_draws():
+    together = Streams.seeded(7, 6)
+    a = together.draw(np.arange(6), 3)
+    assert a.shape == (6, 3) and a.dtype == np.uint64
+    assert len(np.unique(a)) == 18  # no two rows (and no two draws) alike
+    for i in range(6):  # a row alone draws what it drew with the others
+        assert np.array_equal(Streams.seeded(7, 6).draw([i], 3)[0], a[i])
+    # A stream continues: three draws then two are its first five.
+    s = Streams.seeded(7, 6)
+    five = np.concatenate([s.draw([2], 3)[0], s.draw([2], 2)[0]])
+    assert np.array_equal(five, Streams.seeded(7, 6).draw([2], 5)[0])
+    # Set back to a recorded point, it draws the same again.
+    keys, drawn = s.state()
+    again = Streams(keys, drawn).draw([2, 4], 4)
+    assert np.array_equal(again, s.draw([2, 4], 4))
+    # Another seed, other draws; seeds are 63-bit integers; doubles in [0, 1).
+    assert not np.array_equal(Streams.seeded(8, 6).draw(np.arange(6), 3), a)
+    seeds = Streams.seeded(7, 6).seeds(range(6))
+    assert all(isinstance(x, int) and 0 <= x < 2**63 for x in seeds) and len(set(seeds)) == 6
+    u = Streams.seeded(1, 1000).doubles(np.arange(1000), 3)
+    assert u.min() >= 0 and u.max() < 1 and abs(u.mean() - 0.5) < 0.02
+
+
+def test_seeds_of_any_size_draw_without_overflow_warnings():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for seed in (0, 1, 2**63, 2**64 - 1, 2**80 + 3):
+            s = Streams.seeded(seed, 3)
+            s.draw([0, 1, 2], 4)
+            s.seeds([0, 2])
+            s.generator(1).random()
+
+
+@pytest.mark.parametrize("task", ["hover", "waypoints"])
+def test_sub_envs_start_differently_and_repeat_under_the_seed(task):
+    def starts(seed):
+        venv = usarsim.vector_env(6, task, map="arena", max_steps=2)
+        obs, _ = venv.reset(seed=seed)
+        firsts = [obs["position"].copy()]
+        for _ in range(4):  # two autoresets of every sub-env
+            obs, *_ = venv.step(np.zeros((6, 4)))
+            firsts.append(obs["position"].copy())
+        return np.array(firsts), venv._tasks.targets.copy()
+
+    (a, ta), (b, tb), (c, tc) = starts(3), starts(3), starts(4)
+    assert np.array_equal(a, b) and np.array_equal(ta, tb)
+    if task == "hover":  # spawned around the start, each sub-env at its own offset
+        assert not np.array_equal(a, c)
+        assert len({tuple(p) for p in a[0].round(6)}) == 6
+        # Episode after episode, a sub-env starts somewhere new (its stream goes on).
+        assert not np.array_equal(a[0], a[3])
+    else:  # from the map's start to random waypoints, each sub-env its own
+        assert not np.array_equal(ta, tc)
+        assert len({tuple(t.ravel()) for t in ta.round(6)}) == 6
+
+
+def test_a_copy_made_after_many_autoresets_continues_identically():
+    venv = usarsim.vector_env(64, "hover", max_steps=3, state_only=True, flat=True)
+    venv.reset(seed=9)
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        venv.step(rng.uniform(-1, 1, (64, 4)))
+    twin = pickle.loads(pickle.dumps(venv))
+    assert len(pickle.dumps(venv)) < 64 * 4 * 8 * 8 + 20_000  # a few steps of actions, not the run
+    for _ in range(8):
+        a = rng.uniform(-1, 1, (64, 4))
+        x, y = venv.step(a), twin.step(a)
+        assert np.array_equal(x[0], y[0]) and np.array_equal(x[1], y[1]) and np.array_equal(x[3], y[3])
