@@ -690,13 +690,28 @@ impl Scene {
         }
     }
 
-    /// Whether a body of `shape` at `centre` would overlap anything but `exclude`.
+    /// Whether a body of `shape` at `centre` would overlap anything but `exclude`. When no
+    /// other tree box meets the body's box (padded for f32 rounding), nothing can, and the
+    /// shape query is skipped (a spawn in open air: each reset's; with shortcuts off, the
+    /// query always runs).
     pub(crate) fn overlaps(
         &self,
         shape: BodyShape,
         centre: V3,
         exclude: Option<ColliderHandle>,
     ) -> bool {
+        let half = [shape.radius, shape.radius, shape.half_height];
+        let lo: V3 = std::array::from_fn(|i| centre[i] - half[i] - 1e-4);
+        let hi: V3 = std::array::from_fn(|i| centre[i] + half[i] + 1e-4);
+        let me = exclude.map(|h| h.into_raw_parts().0);
+        if self.shortcuts
+            && self
+                .bvh
+                .intersect_aabb(&Aabb::new(to_vector(lo), to_vector(hi)))
+                .all(|leaf| Some(leaf) == me)
+        {
+            return false;
+        }
         let cylinder = shape.cylinder();
         self.query(exclude)
             .intersect_shape(upright_pose(centre), &cylinder)
@@ -720,8 +735,7 @@ impl Scene {
             aabb.mins - Vector::splat(SWEEP_PAD),
             aabb.maxs + Vector::splat(SWEEP_PAD),
         );
-        let hits: Vec<u32> = self.bvh.intersect_aabb(&near).collect();
-        for other in hits {
+        for other in self.bvh.intersect_aabb(&near) {
             if let Some(flag) = self.clear.get_mut(other as usize) {
                 *flag = false;
             }
@@ -1629,6 +1643,34 @@ mod tests {
                 proptest::prop_assert_eq!(fan[k].map(f64::to_bits), walk.map(f64::to_bits),
                     "beam {} dir {:?}: fan {:?} walk {:?}", k, dir, fan[k], walk);
                 proptest::prop_assert_eq!(batch.cast(dir, max), walk);
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// Whether a body overlaps anything is the shape query's answer, with the tree-box
+        /// test in front of it or not: bodies placed at random among random solids, some
+        /// touching them, some inside.
+        #[test]
+        fn the_open_air_test_answers_as_the_shape_query(
+            solids in proptest::collection::vec(
+                (0u8..2, proptest::array::uniform3(-4.0f32..4.0),
+                 proptest::array::uniform3(0.0f32..1.5), -3.2f32..3.2),
+                1..8,
+            ),
+            places in proptest::collection::vec(
+                (-4.5f64..4.5, -4.5f64..4.5, -1.0f64..1.0), 1..40),
+        ) {
+            let shape = BodyShape { radius: 0.45, half_height: 0.1 };
+            let fast = random_scene(&solids);
+            let mut slow = random_scene(&solids);
+            slow.shortcuts = false;
+            for &(x, y, z) in &places {
+                proptest::prop_assert_eq!(
+                    fast.overlaps(shape, [x, y, z], None),
+                    slow.overlaps(shape, [x, y, z], None),
+                    "at {:?}", (x, y, z)
+                );
             }
         }
     }

@@ -11,6 +11,12 @@
 // PyO3's macros expand to `unsafe` blocks, so this crate does not forbid unsafe code the way
 // the rest of the workspace does (see Cargo.toml); it writes none itself.
 
+/// mimalloc instead of the C library's allocator, for the extension's own (Rust) memory: a
+/// reset drops and builds a few dozen small allocations per world on the worker threads,
+/// where glibc's malloc and free took a third of the time (BENCHMARKS.md, issue 24).
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 mod agents;
 mod core;
 mod remote;

@@ -343,8 +343,8 @@ class Tasks:
 
     def begin(self, raw, rows) -> None:
         """Remembers the starting distances of `rows` after a reset."""
-        d = np.linalg.norm(self._vector(raw), axis=1)
-        self.prev[list(rows)] = d[list(rows)]
+        rows = np.asarray(rows, dtype=np.int64)
+        self.prev[rows] = np.linalg.norm(self._vector(raw), axis=1)[rows]
 
     def observe(self, raw, out=None):
         """The observation (float32 arrays, one row per UAV): a dict, or with ``flat`` one
