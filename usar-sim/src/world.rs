@@ -38,6 +38,9 @@ pub struct World {
     scene: Scene,
     /// Ordered by serial (spawn order): the order of movement and of output.
     robots: Vec<Robot>,
+    /// [`World::step`]'s messages of each run of robots, kept between ticks (emptied, not
+    /// dropped: most ticks some robot speaks, and every world allocated them anew).
+    emitted: Vec<Vec<(ClientId, ServerMessage)>>,
     /// Each robot's next due tick ([`Robot::next_due`]), at its index in `robots`: a tick
     /// scans this dense array, not the robots, to find the few that have output.
     due: Vec<u64>,
@@ -133,6 +136,7 @@ impl World {
             fault_plan: config.faults,
             template,
             randomize: config.randomize,
+            emitted: Vec::new(),
         }
     }
 
@@ -258,14 +262,13 @@ impl World {
         self.advance();
         let (tick, dt) = (self.tick, self.dt);
         let scene = &self.scene;
-        let mut parts: Vec<Vec<(ClientId, ServerMessage)>> = Vec::new();
         let used = for_threads(
             Speakers::at(tick, &mut self.robots, &mut self.due, &mut self.speaking),
             self.threads,
-            &mut parts,
+            &mut self.emitted,
             |robot, lines| robot.emit(scene, tick, dt, lines),
         );
-        for part in &mut parts[..used] {
+        for part in &mut self.emitted[..used] {
             out.append(part);
         }
     }
@@ -394,10 +397,12 @@ impl World {
                 init.rotation.map_or([0.0; 3], spawn_rotation),
             ),
         };
-        let model = self
-            .models
-            .entry(class.class.clone())
-            .or_insert_with(|| Arc::new(Model::new(class)));
+        // Looked up before inserting: `entry` would copy the class name at every spawn.
+        if !self.models.contains_key(&class.class) {
+            let model = Arc::new(Model::new(class));
+            self.models.insert(class.class.clone(), model);
+        }
+        let model = &self.models[&class.class];
         let name = match init.name.as_deref().map(str::trim) {
             Some(n) if !n.is_empty() && !n.contains([' ', '{', '}']) => n.to_owned(),
             _ => format!("{}_{}", class.short_name(), self.next_serial),
