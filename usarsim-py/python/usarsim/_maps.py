@@ -56,9 +56,11 @@ class MapInfo:
 
     def free(self, points, clearance: float) -> np.ndarray:
         """:meth:`is_free` of each row (x, y[, z]) of `points`, as a boolean array."""
-        xy = np.asarray(points, dtype=np.float64)[:, None, :2]
-        inside = (xy > self._box_lo - clearance) & (xy < self._box_hi + clearance)
-        return ~inside.all(axis=2).any(axis=1)
+        p = np.asarray(points, dtype=np.float64)
+        lo, hi = self._box_lo - clearance, self._box_hi + clearance
+        x, y = p[:, :1], p[:, 1:2]  # (n, 1) against each box's (k,) bounds
+        inside = (x > lo[:, 0]) & (x < hi[:, 0]) & (y > lo[:, 1]) & (y < hi[:, 1])
+        return ~inside.any(axis=1)
 
     def sample(self, rng: np.random.Generator, n: int, clearance: float = 1.0, spacing: float = 1.2, near=None, radius=None):
         """`n` free points (x, y, z) in the flight band, `spacing` apart; within `radius` of `near` if given."""
