@@ -134,11 +134,8 @@ pub(crate) struct Scene {
     pub(crate) shortcuts: bool,
     /// Leaves were added or removed since the last refit (see [`Scene::refresh`]).
     stale: bool,
-    /// By leaf: no other leaf's tree box comes within `SWEEP_PAD` of this leaf's box (kept
-    /// true only while that holds: any leaf box that grows clears the flags of the leaves
-    /// near it). A robot whose motion stays inside its own leaf box then moves without a
-    /// tree query or a shape cast.
-    clear: Vec<bool>,
+    /// By leaf: what is known of the room around its tree box ([`Room`]).
+    clear: Vec<Room>,
     /// By leaf: the robot's last sweep, when it left the robot where it was, pressed
     /// against one map solid ([`Rest`]). A map, not a vector by leaf: few robots rest, and
     /// a lookup that finds nothing then touches no memory of its own (a vector by leaf cost
@@ -152,6 +149,22 @@ pub(crate) struct Scene {
     removed: bool,
     /// The map's victims: their colliders and boxes (the VictSensor's targets).
     pub(crate) victims: Vec<VictimBody>,
+}
+
+/// What a leaf's entry in [`Scene`]'s `clear` knows of the room around the leaf's tree box.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+enum Room {
+    /// Nothing known: the next sweep that stays inside the box asks the tree.
+    #[default]
+    Unknown,
+    /// No other leaf's box comes within `SWEEP_PAD` of this one (kept only while that holds:
+    /// any leaf box that grows makes the leaves near it `Unknown`). A robot whose motion
+    /// stays inside its own box then moves without a tree query or a shape cast.
+    Clear,
+    /// Another leaf's box came within `SWEEP_PAD` (a robot beside a wall or on the floor):
+    /// its sweeps cast without asking again. Possibly stale when the other leaf moved away
+    /// or left, which costs casts, not results; every refit forgets it.
+    Crowded,
 }
 
 /// A sweep that left its robot where it was, pressed against one map solid: a UAV landed
@@ -443,7 +456,7 @@ impl Scene {
         self.removed = true;
         let leaf = handle.into_raw_parts().0;
         self.bvh.remove(leaf);
-        self.set_clear(leaf, false);
+        self.set_clear(leaf, Room::Unknown);
         self.resting.remove(&leaf);
         if let Some(look) = self.looks.get_mut(leaf as usize) {
             *look = Look::default();
@@ -504,6 +517,11 @@ impl Scene {
     pub(crate) fn refit(&mut self) {
         self.bvh.refit(&mut self.workspace);
         self.stale = false;
+        for room in &mut self.clear {
+            if *room == Room::Crowded {
+                *room = Room::Unknown;
+            }
+        }
     }
 
     /// Refits the tree if leaves were added or removed since the last refit (insertions
@@ -719,32 +737,32 @@ impl Scene {
             .is_some()
     }
 
-    fn set_clear(&mut self, leaf: u32, value: bool) {
+    fn set_clear(&mut self, leaf: u32, value: Room) {
         let i = leaf as usize;
         if i >= self.clear.len() {
-            self.clear.resize(i + 1, false);
+            self.clear.resize(i + 1, Room::Unknown);
         }
         self.clear[i] = value;
     }
 
-    /// `leaf` got the new tree box `aabb`: it and every leaf whose box comes within
-    /// `SWEEP_PAD` of it are no longer known to be clear.
+    /// `leaf` got the new tree box `aabb`: nothing is known any more of the room around it
+    /// and around every leaf whose box comes within `SWEEP_PAD` of it.
     fn unclear_near(&mut self, leaf: u32, aabb: &Aabb) {
-        self.set_clear(leaf, false);
+        self.set_clear(leaf, Room::Unknown);
         let near = Aabb::new(
             aabb.mins - Vector::splat(SWEEP_PAD),
             aabb.maxs + Vector::splat(SWEEP_PAD),
         );
         for other in self.bvh.intersect_aabb(&near) {
-            if let Some(flag) = self.clear.get_mut(other as usize) {
-                *flag = false;
+            if let Some(room) = self.clear.get_mut(other as usize) {
+                *room = Room::Unknown;
             }
         }
     }
 
     /// Whether `handle`'s motion from `centre` by `motion` stays within its own tree box and
     /// no other box comes within `SWEEP_PAD` of that box (then nothing can be hit). Learns
-    /// the second fact with one tree query when it is not known.
+    /// the second fact with one tree query when it is not known ([`Room`]).
     fn known_clear(
         &mut self,
         handle: ColliderHandle,
@@ -753,6 +771,10 @@ impl Scene {
         motion: V3,
     ) -> bool {
         let leaf = handle.into_raw_parts().0;
+        let room = self.clear.get(leaf as usize).copied().unwrap_or_default();
+        if room == Room::Crowded {
+            return false;
+        }
         let Some(own) = self.bvh.leaf_node(leaf).map(|n| n.aabb()) else {
             return false;
         };
@@ -765,7 +787,7 @@ impl Scene {
         if !inside {
             return false;
         }
-        if self.clear.get(leaf as usize).copied().unwrap_or(false) {
+        if room == Room::Clear {
             return true;
         }
         let near = Aabb::new(
@@ -773,7 +795,7 @@ impl Scene {
             own.maxs + Vector::splat(SWEEP_PAD),
         );
         let alone = self.bvh.intersect_aabb(&near).all(|l| l == leaf);
-        self.set_clear(leaf, alone);
+        self.set_clear(leaf, if alone { Room::Clear } else { Room::Crowded });
         alone
     }
 
