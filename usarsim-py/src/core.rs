@@ -559,12 +559,14 @@ impl WorldSim {
         }
     }
 
-    /// Appends each UAV's observation to `obs`.
-    pub(crate) fn observe(&self, obs: &mut Observations) {
-        for uav in &self.uavs {
-            obs.push_state(&uav.state, uav.touched, self.world.time());
-            if obs.with_rotors {
-                obs.rotor_speeds.extend(uav.rotors);
+    /// Writes each UAV's observation into `rows` (this world's rows: UAV `k` of the world is
+    /// row `k`).
+    pub(crate) fn write(&self, rows: &mut Rows<'_>) {
+        let time = self.world.time();
+        for (k, uav) in self.uavs.iter().enumerate() {
+            rows.write(k, &uav.state, uav.touched, time);
+            if let Some(r) = rows.rotor_speeds.get_mut(4 * k..4 * k + 4) {
+                r.copy_from_slice(&uav.rotors);
             }
         }
     }
@@ -612,61 +614,151 @@ fn xyz(r: Option<&ucc_client::uav::Reading<ucc_client::Coordinates>>) -> [f64; 3
 }
 
 impl Observations {
-    /// Empties every buffer, keeping its memory.
-    pub(crate) fn clear(&mut self) {
-        for v in [
-            &mut self.position,
-            &mut self.velocity,
-            &mut self.attitude,
-            &mut self.angular_velocity,
-            &mut self.sonar,
-            &mut self.laser,
-            &mut self.battery,
-            &mut self.time,
-            &mut self.rotor_speeds,
+    /// Every buffer sized for `n` UAVs (keeping its memory; `sonar` and `laser` empty with
+    /// `no_ranges`, `rotor_speeds` without `with_rotors`), to be written through
+    /// [`Observations::rows`].
+    pub(crate) fn resize(&mut self, n: usize) {
+        let ranges = usize::from(!self.no_ranges);
+        let rotors = usize::from(self.with_rotors);
+        for (v, width) in [
+            (&mut self.position, 3),
+            (&mut self.velocity, 3),
+            (&mut self.attitude, 3),
+            (&mut self.angular_velocity, 3),
+            (&mut self.sonar, SONARS * ranges),
+            (&mut self.laser, LASER * ranges),
+            (&mut self.battery, 1),
+            (&mut self.time, 1),
+            (&mut self.rotor_speeds, 4 * rotors),
         ] {
-            v.clear();
+            v.resize(n * width, 0.0);
         }
-        self.touched.clear();
-        self.crashed.clear();
+        self.touched.resize(n, false);
+        self.crashed.resize(n, false);
     }
 
-    pub(crate) fn push_state(&mut self, s: &UavState, touched: bool, time: f64) {
-        self.position.extend(xyz(s.position.as_ref()));
-        self.velocity.extend(xyz(s.velocity.as_ref()));
-        self.attitude.extend(xyz(s.orientation.as_ref()));
-        self.angular_velocity
-            .extend(xyz(s.angular_velocity.as_ref()));
-        self.battery
-            // At most 1: a quadrotor's battery reports the time left at the current draw,
-            // which grows above the first report when the draw falls (docs/quadrotor.md).
-            .push(s.battery.as_ref().map_or(1.0, |b| b.value.level.min(1.0)));
-        self.touched.push(touched || s.crashed());
-        self.crashed.push(s.crashed());
-        self.time.push(time);
-        if self.no_ranges {
-            return;
+    /// The buffers as [`Rows`].
+    pub(crate) fn rows(&mut self) -> Rows<'_> {
+        Rows {
+            position: &mut self.position,
+            velocity: &mut self.velocity,
+            attitude: &mut self.attitude,
+            angular_velocity: &mut self.angular_velocity,
+            sonar: &mut self.sonar,
+            laser: &mut self.laser,
+            battery: &mut self.battery,
+            time: &mut self.time,
+            rotor_speeds: &mut self.rotor_speeds,
+            touched: &mut self.touched,
+            crashed: &mut self.crashed,
         }
-        let range = |r: &Option<ucc_client::uav::Reading<f64>>| {
-            r.as_ref().map_or(NO_RANGE, |r| {
-                if r.value.is_finite() {
-                    r.value
-                } else {
-                    NO_RANGE
-                }
+    }
+
+    /// Appends one UAV's observation (rotor speeds left at 0).
+    pub(crate) fn push_state(&mut self, s: &UavState, touched: bool, time: f64) {
+        let k = self.battery.len();
+        self.resize(k + 1);
+        self.rows().write(k, s, touched, time);
+    }
+}
+
+/// Observations written in place: for each field, the rows of some UAVs, one after the other
+/// (UAV-major, the field's width per UAV: 3 for `position`, [`SONARS`] for `sonar`, ...;
+/// `sonar` and `laser` empty without range sensors, `rotor_speeds` without rotor speeds).
+/// The slices are a NumPy array's memory (`Batch.step(..., out=...)`) or an
+/// [`Observations`]' buffers.
+#[derive(Debug)]
+pub(crate) struct Rows<'a> {
+    pub(crate) position: &'a mut [f64],
+    pub(crate) velocity: &'a mut [f64],
+    pub(crate) attitude: &'a mut [f64],
+    pub(crate) angular_velocity: &'a mut [f64],
+    pub(crate) sonar: &'a mut [f64],
+    pub(crate) laser: &'a mut [f64],
+    pub(crate) battery: &'a mut [f64],
+    pub(crate) time: &'a mut [f64],
+    pub(crate) rotor_speeds: &'a mut [f64],
+    pub(crate) touched: &'a mut [bool],
+    pub(crate) crashed: &'a mut [bool],
+}
+
+/// `s` cut into `n` consecutive pieces of `size` (`n` empty pieces when `s` is empty).
+fn pieces<T>(s: &mut [T], n: usize, size: usize) -> std::vec::IntoIter<&mut [T]> {
+    if s.is_empty() || size == 0 {
+        (0..n).map(|_| <&mut [T]>::default()).collect::<Vec<_>>()
+    } else {
+        s.chunks_mut(size).collect()
+    }
+    .into_iter()
+}
+
+impl<'a> Rows<'a> {
+    /// Cut into the rows of consecutive groups of `per` UAVs (one per world).
+    pub(crate) fn split(self, per: usize) -> Vec<Self> {
+        let n = self.battery.len() / per.max(1);
+        let mut position = pieces(self.position, n, 3 * per);
+        let mut velocity = pieces(self.velocity, n, 3 * per);
+        let mut attitude = pieces(self.attitude, n, 3 * per);
+        let mut angular_velocity = pieces(self.angular_velocity, n, 3 * per);
+        let mut sonar = pieces(self.sonar, n, SONARS * per);
+        let mut laser = pieces(self.laser, n, LASER * per);
+        let mut battery = pieces(self.battery, n, per);
+        let mut time = pieces(self.time, n, per);
+        let mut rotor_speeds = pieces(self.rotor_speeds, n, 4 * per);
+        let mut touched = pieces(self.touched, n, per);
+        let mut crashed = pieces(self.crashed, n, per);
+        (0..n)
+            .map(|_| Rows {
+                position: position.next().unwrap_or_default(),
+                velocity: velocity.next().unwrap_or_default(),
+                attitude: attitude.next().unwrap_or_default(),
+                angular_velocity: angular_velocity.next().unwrap_or_default(),
+                sonar: sonar.next().unwrap_or_default(),
+                laser: laser.next().unwrap_or_default(),
+                battery: battery.next().unwrap_or_default(),
+                time: time.next().unwrap_or_default(),
+                rotor_speeds: rotor_speeds.next().unwrap_or_default(),
+                touched: touched.next().unwrap_or_default(),
+                crashed: crashed.next().unwrap_or_default(),
             })
-        };
-        self.sonar.extend(s.sonars.iter().map(range));
-        self.sonar.push(range(&s.free_above));
-        self.sonar.push(range(&s.free_below));
-        let beams = s.laser.as_ref().map_or(&[][..], |l| &l.value.ranges[..]);
-        self.laser.extend((0..LASER).map(|i| {
-            beams
-                .get(i)
-                .copied()
+            .collect()
+    }
+
+    /// Writes the observation of the UAV in state `s` as row `k` (the range rows only where
+    /// there are range slices).
+    pub(crate) fn write(&mut self, k: usize, s: &UavState, touched: bool, time: f64) {
+        self.position[3 * k..3 * k + 3].copy_from_slice(&xyz(s.position.as_ref()));
+        self.velocity[3 * k..3 * k + 3].copy_from_slice(&xyz(s.velocity.as_ref()));
+        self.attitude[3 * k..3 * k + 3].copy_from_slice(&xyz(s.orientation.as_ref()));
+        self.angular_velocity[3 * k..3 * k + 3].copy_from_slice(&xyz(s.angular_velocity.as_ref()));
+        // At most 1: a quadrotor's battery reports the time left at the current draw, which
+        // grows above the first report when the draw falls (docs/quadrotor.md).
+        self.battery[k] = s.battery.as_ref().map_or(1.0, |b| b.value.level.min(1.0));
+        self.touched[k] = touched || s.crashed();
+        self.crashed[k] = s.crashed();
+        self.time[k] = time;
+        let range = |r: &Option<ucc_client::uav::Reading<f64>>| {
+            r.as_ref()
+                .map(|r| r.value)
                 .filter(|v| v.is_finite())
                 .unwrap_or(NO_RANGE)
-        }));
+        };
+        if let Some(sonar) = self.sonar.get_mut(SONARS * k..SONARS * (k + 1)) {
+            let ranges = s.sonars.iter().chain([&s.free_above, &s.free_below]);
+            for (out, r) in sonar.iter_mut().zip(ranges) {
+                *out = range(r);
+            }
+        }
+        if let Some(laser) = self.laser.get_mut(LASER * k..LASER * (k + 1)) {
+            let beams = s.laser.as_ref().map_or(&[][..], |l| &l.value.ranges[..]);
+            for (i, out) in laser.iter_mut().enumerate() {
+                *out = beams
+                    .get(i)
+                    .copied()
+                    .filter(|v| v.is_finite())
+                    .unwrap_or(NO_RANGE);
+            }
+        }
     }
 }
 
@@ -678,33 +770,34 @@ pub(crate) struct Batch {
     pub(crate) uavs_per_world: usize,
 }
 
-/// Runs `f` on every world with its index, spread over the cores when there are enough: this
-/// thread takes the first share, one thread per other core the rest.
+/// Runs `f` on every item (a world, with what goes with it) with its index, spread over the
+/// cores when there are enough: this thread takes the first share, one thread per other core
+/// the rest.
 ///
 /// The threads are joined, not left to the scope: a scope returns when its threads' closures
 /// have, before the threads have exited and handed their malloc arenas back, so the next
 /// call's threads found none free and glibc made new ones (up to 8 per core), each keeping
 /// memory of worlds freed there: +8 MiB over a million UAV-steps (issue #26's Python soak).
-fn par_worlds<F>(worlds: &mut [WorldSim], f: F)
+fn par_each<T: Send, F>(items: &mut [T], f: F)
 where
-    F: Fn(usize, &mut WorldSim) + Sync,
+    F: Fn(usize, &mut T) + Sync,
 {
     let threads = usar_sim::default_threads();
-    if threads < 2 || worlds.len() < 4 {
-        for (i, w) in worlds.iter_mut().enumerate() {
+    if threads < 2 || items.len() < 4 {
+        for (i, w) in items.iter_mut().enumerate() {
             f(i, w);
         }
         return;
     }
-    let chunk = worlds.len().div_ceil(threads);
+    let chunk = items.len().div_ceil(threads);
     let f = &f;
-    let run = move |c: usize, worlds: &mut [WorldSim]| {
-        for (j, w) in worlds.iter_mut().enumerate() {
+    let run = move |c: usize, items: &mut [T]| {
+        for (j, w) in items.iter_mut().enumerate() {
             f(c * chunk + j, w);
         }
     };
     std::thread::scope(|scope| {
-        let mut shares = worlds.chunks_mut(chunk).enumerate();
+        let mut shares = items.chunks_mut(chunk).enumerate();
         let mine = shares.next();
         let others: Vec<_> = shares
             .map(|(c, worlds)| scope.spawn(move || run(c, worlds)))
@@ -732,13 +825,15 @@ impl Batch {
     /// One pass over the worlds, spread over the cores: a world with a `resets` entry is
     /// replaced by a fresh one (its actions ignored); the others step one control period with
     /// their rows of `actions` (one per UAV, world-major), or stay as they are when `actions`
-    /// is None. `resets` is empty or one entry per world. A reset that cannot spawn leaves its
-    /// world as it was and is the error (the lowest world index if several fail); the other
-    /// worlds have stepped or reset.
+    /// is None. `resets` is empty or one entry per world. With `out` (one row per UAV), each
+    /// world then writes its observations there, in the same pass. A reset that cannot spawn
+    /// leaves its world as it was and is the error (the lowest world index if several fail);
+    /// the other worlds have stepped or reset.
     pub(crate) fn step(
         &mut self,
         actions: Option<&[[f64; 4]]>,
         resets: &[Option<Reset>],
+        out: Option<Rows<'_>>,
     ) -> Result<(), SimError> {
         let per = self.uavs_per_world;
         for (i, (_, poses)) in resets
@@ -755,7 +850,10 @@ impl Batch {
         }
         let settings = &self.settings;
         let failed = Mutex::new(None::<(usize, SimError)>);
-        par_worlds(&mut self.worlds, |i, w| {
+        let mut rows = out.map_or_else(Vec::new, |r| r.split(per)).into_iter();
+        let mut items: Vec<(&mut WorldSim, Option<Rows<'_>>)> =
+            self.worlds.iter_mut().map(|w| (w, rows.next())).collect();
+        par_each(&mut items, |i, (w, rows)| {
             match (resets.get(i).and_then(Option::as_ref), actions) {
                 (Some((seed, poses)), _) => match w.reset(settings, *seed, poses) {
                     Ok(()) => {}
@@ -769,6 +867,9 @@ impl Batch {
                 (None, Some(actions)) => w.step(settings, &actions[i * per..(i + 1) * per]),
                 (None, None) => {}
             }
+            if let Some(rows) = rows {
+                w.write(rows);
+            }
         });
         match failed.into_inner().unwrap_or_else(PoisonError::into_inner) {
             Some((i, e)) => Err(invalid(format!("world {i}: {e}"))),
@@ -781,7 +882,7 @@ impl Batch {
     pub(crate) fn images(&mut self, rgb: bool, depth: bool) -> (Vec<u8>, Vec<f32>) {
         let parts: Vec<Mutex<(Vec<u8>, Vec<f32>)>> =
             self.worlds.iter().map(|_| Mutex::default()).collect();
-        par_worlds(&mut self.worlds, |i, w| {
+        par_each(&mut self.worlds, |i, w| {
             let mut part = parts[i].lock().unwrap_or_else(PoisonError::into_inner);
             let (r, d) = &mut *part;
             w.render(rgb.then_some(r), depth.then_some(d));
@@ -814,11 +915,16 @@ impl Batch {
 
     /// [`Batch::observe`] into `obs`, reusing its buffers.
     pub(crate) fn observe_into(&self, obs: &mut Observations) {
-        obs.clear();
         obs.no_ranges = self.settings.state_only;
         obs.with_rotors = self.settings.rotors;
-        for w in &self.worlds {
-            w.observe(obs);
+        obs.resize(self.len());
+        self.write(obs.rows());
+    }
+
+    /// Every UAV's observation written into `rows` (one row per UAV, world-major).
+    pub(crate) fn write(&self, rows: Rows<'_>) {
+        for (w, mut rows) in self.worlds.iter().zip(rows.split(self.uavs_per_world)) {
+            w.write(&mut rows);
         }
     }
 }

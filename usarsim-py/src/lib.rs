@@ -30,7 +30,9 @@ use std::sync::{Mutex, PoisonError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::core::{Batch, LASER, Observations, Pose, Reset, SONARS, Settings, SimError, WorldSim};
+use crate::core::{
+    Batch, LASER, Observations, Pose, Reset, Rows, SONARS, Settings, SimError, WorldSim,
+};
 use crate::remote::Remote;
 
 impl From<SimError> for PyErr {
@@ -94,20 +96,41 @@ fn to_dict<'py>(py: Python<'py>, obs: Observations) -> PyResult<Bound<'py, PyDic
     Ok(dict)
 }
 
-/// Copies `data` into the array `out[name]` of shape `(data.len() / width, width)` (or
-/// `(data.len(),)` without a width).
-fn fill<T: numpy::Element + Copy>(
-    out: &Bound<'_, PyDict>,
+/// The float64 fields of an observation dict and each one's width per UAV.
+const FIELDS: [(&str, usize); 9] = [
+    ("position", 3),
+    ("velocity", 3),
+    ("attitude", 3),
+    ("angular_velocity", 3),
+    ("sonar", SONARS),
+    ("laser", LASER),
+    ("battery", 1),
+    ("time", 1),
+    ("rotor_speeds", 4),
+];
+
+/// The arrays of an observation dict (as `observe()` returns), borrowed writable for Rust to
+/// write observations into ([`Windows::rows`]).
+struct Windows<'py> {
+    floats: Vec<(&'static str, numpy::PyReadwriteArrayDyn<'py, f64>)>,
+    flags: Vec<(&'static str, numpy::PyReadwriteArrayDyn<'py, bool>)>,
+}
+
+/// `out[name]`, checked: a writable C-contiguous `T` array of shape `(n, width)` (`(n,)`
+/// without a width). `what` names the call in the error.
+fn window<'py, T: numpy::Element>(
+    out: &Bound<'py, PyDict>,
     name: &str,
-    data: &[T],
+    n: usize,
     width: Option<usize>,
-) -> PyResult<()> {
-    let bad = |why: String| PyValueError::new_err(format!("observe_into: {name}: {why}"));
+    what: &str,
+) -> PyResult<numpy::PyReadwriteArrayDyn<'py, T>> {
+    let bad = |why: String| PyValueError::new_err(format!("{what}: {name}: {why}"));
     let item = out
         .get_item(name)?
         .ok_or_else(|| bad("missing (pass a dict as observe() returns)".to_string()))?;
-    let mut array = item
-        .extract::<numpy::PyReadwriteArrayDyn<'_, T>>()
+    let array = item
+        .extract::<numpy::PyReadwriteArrayDyn<'py, T>>()
         .map_err(|e| {
             bad(format!(
                 "not a writable {} array: {e}",
@@ -115,8 +138,8 @@ fn fill<T: numpy::Element + Copy>(
             ))
         })?;
     let shape = match width {
-        Some(w) => vec![data.len() / w, w],
-        None => vec![data.len()],
+        Some(w) => vec![n, w],
+        None => vec![n],
     };
     if array.shape() != shape.as_slice() {
         return Err(bad(format!(
@@ -128,30 +151,65 @@ fn fill<T: numpy::Element + Copy>(
     if !array.is_c_contiguous() {
         return Err(bad("not C-contiguous".to_string()));
     }
-    array
-        .as_slice_mut()
-        .map_err(|_| bad("not C-contiguous".to_string()))?
-        .copy_from_slice(data);
-    Ok(())
+    Ok(array)
 }
 
-/// [`to_dict`]'s arrays written into those of `out` (see `Batch.observe_into`).
-fn fill_dict(out: &Bound<'_, PyDict>, obs: &Observations) -> PyResult<()> {
-    fill(out, "position", &obs.position, Some(3))?;
-    fill(out, "velocity", &obs.velocity, Some(3))?;
-    fill(out, "attitude", &obs.attitude, Some(3))?;
-    fill(out, "angular_velocity", &obs.angular_velocity, Some(3))?;
-    if !obs.no_ranges {
-        fill(out, "sonar", &obs.sonar, Some(SONARS))?;
-        fill(out, "laser", &obs.laser, Some(LASER))?;
+impl<'py> Windows<'py> {
+    /// The arrays of `out` for `n` UAVs: every key `observe()` gives (without `sonar` and
+    /// `laser` when `state_only`, with `rotor_speeds` when `rotors`), checked by [`window`].
+    /// Extra keys are left alone.
+    fn of(
+        out: &Bound<'py, PyDict>,
+        n: usize,
+        state_only: bool,
+        rotors: bool,
+        what: &str,
+    ) -> PyResult<Self> {
+        let mut floats = Vec::with_capacity(FIELDS.len());
+        for (name, width) in FIELDS {
+            let skip = match name {
+                "sonar" | "laser" => state_only,
+                "rotor_speeds" => !rotors,
+                _ => false,
+            };
+            if !skip {
+                floats.push((name, window(out, name, n, Some(width), what)?));
+            }
+        }
+        let mut flags = Vec::with_capacity(2);
+        for name in ["touched", "crashed"] {
+            flags.push((name, window(out, name, n, None, what)?));
+        }
+        Ok(Self { floats, flags })
     }
-    fill(out, "battery", &obs.battery, Some(1))?;
-    fill(out, "time", &obs.time, Some(1))?;
-    if obs.with_rotors {
-        fill(out, "rotor_speeds", &obs.rotor_speeds, Some(4))?;
+
+    /// Their memory as [`Rows`] (the fields left out are empty).
+    fn rows(&mut self) -> Rows<'_> {
+        let mut floats: std::collections::HashMap<&str, &mut [f64]> = self
+            .floats
+            .iter_mut()
+            .filter_map(|(name, a)| Some((*name, a.as_slice_mut().ok()?)))
+            .collect();
+        let mut flags: std::collections::HashMap<&str, &mut [bool]> = self
+            .flags
+            .iter_mut()
+            .filter_map(|(name, a)| Some((*name, a.as_slice_mut().ok()?)))
+            .collect();
+        let mut f = |name| floats.remove(name).unwrap_or_default();
+        Rows {
+            position: f("position"),
+            velocity: f("velocity"),
+            attitude: f("attitude"),
+            angular_velocity: f("angular_velocity"),
+            sonar: f("sonar"),
+            laser: f("laser"),
+            battery: f("battery"),
+            time: f("time"),
+            rotor_speeds: f("rotor_speeds"),
+            touched: flags.remove("touched").unwrap_or_default(),
+            crashed: flags.remove("crashed").unwrap_or_default(),
+        }
     }
-    fill(out, "touched", &obs.touched, None)?;
-    fill(out, "crashed", &obs.crashed, None)
 }
 
 /// N worlds with K UAVs each, stepped together one control period per call.
@@ -167,13 +225,18 @@ struct PyBatch {
     /// A mutex only to make the class `Sync` (Python objects may be shared between threads);
     /// every method takes `&mut self`, so it is never contended.
     inner: Mutex<Batch>,
-    /// The buffers `observe_into` fills before copying them out (kept between calls).
-    scratch: Observations,
 }
 
 impl PyBatch {
     fn get(&mut self) -> &mut Batch {
         self.inner.get_mut().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The arrays of `out` to write this batch's observations into.
+    fn windows<'py>(&mut self, out: &Bound<'py, PyDict>, what: &str) -> PyResult<Windows<'py>> {
+        let batch = self.get();
+        let s = &batch.settings;
+        Windows::of(out, batch.len(), s.state_only, s.rotors, what)
     }
 
     /// One entry per world: `Some((seed, starts))` for the worlds in `indices`.
@@ -260,7 +323,6 @@ impl PyBatch {
                 worlds,
                 uavs_per_world,
             }),
-            scratch: Observations::default(),
         })
     }
 
@@ -330,20 +392,23 @@ impl PyBatch {
     ) -> PyResult<()> {
         let resets = self.resets(indices, seeds, &starts)?;
         let inner = self.get();
-        py.detach(|| inner.step(None, &resets))?;
+        py.detach(|| inner.step(None, &resets, None))?;
         Ok(())
     }
 
     /// Steps every world one control period. `actions`: float64 `(len, 4)`, each row four
     /// values in -1..=1 (clipped) read as the action mode says. `reset`: None, or `(indices, seeds,
     /// starts)` as in `reset`: those worlds are replaced by fresh ones instead of stepping
-    /// (their actions are ignored), in the same parallel pass.
-    #[pyo3(signature = (actions, reset = None))]
+    /// (their actions are ignored), in the same parallel pass. `out`: None, or a dict of
+    /// arrays as for `observe_into`, into which each world then writes its UAVs'
+    /// observations, in the same pass (checked before anything steps).
+    #[pyo3(signature = (actions, reset = None, out = None))]
     fn step(
         &mut self,
         py: Python<'_>,
         actions: PyReadonlyArray2<'_, f64>,
         reset: Option<(Vec<usize>, Vec<u64>, PyReadonlyArray2<'_, f64>)>,
+        out: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<()> {
         let actions: Vec<[f64; 4]> = rows::<4>(&actions, self.get().len(), "action")?
             .into_iter()
@@ -353,8 +418,13 @@ impl PyBatch {
             Some((indices, seeds, starts)) => self.resets(indices, seeds, &starts)?,
             None => Vec::new(),
         };
+        let mut windows = match out {
+            Some(out) => Some(self.windows(out, "step: out")?),
+            None => None,
+        };
+        let rows = windows.as_mut().map(Windows::rows);
         let inner = self.get();
-        py.detach(|| inner.step(Some(&actions), &resets))?;
+        py.detach(|| inner.step(Some(&actions), &resets, rows))?;
         Ok(())
     }
 
@@ -372,11 +442,9 @@ impl PyBatch {
     /// crashed). No array is made: the caller owns the memory and it is overwritten on each
     /// call. Extra keys are left alone.
     fn observe_into(&mut self, out: &Bound<'_, PyDict>) -> PyResult<()> {
-        let mut obs = std::mem::take(&mut self.scratch);
-        self.get().observe_into(&mut obs);
-        let result = fill_dict(out, &obs);
-        self.scratch = obs;
-        result
+        let mut windows = self.windows(out, "observe_into")?;
+        self.get().write(windows.rows());
+        Ok(())
     }
 
     /// Every UAV's camera picture (the batch needs `camera=(width, height)`): a dict with

@@ -80,3 +80,72 @@ def test_a_copy_made_after_many_autoresets_continues_identically():
         a = rng.uniform(-1, 1, (64, 4))
         x, y = venv.step(a), twin.step(a)
         assert np.array_equal(x[0], y[0]) and np.array_equal(x[1], y[1]) and np.array_equal(x[3], y[3])
+
+
+# Observations written by each world into the env's arrays, on the worker threads, in the
+# step's own pass (Batch.step(..., out=...)).
+
+
+def _twins(make):
+    a, b = make(), make()
+    a.reset(seed=4)
+    b.reset(seed=4)
+    return a, b
+
+
+@pytest.mark.parametrize("options", [{}, {"state_only": True}, {"robot": "stsQuadrotor"}])
+def test_observations_written_during_the_step_equal_those_read_after_it(options):
+    a, b = _twins(lambda: usarsim.vector_env(9, max_steps=5, **options))
+    if "robot" in options:  # with the rotor speeds too
+        for env in (a, b):
+            env._batch.configure(rotor_speeds=True)
+            env._batch.reset(list(range(9)), [1] * 9, np.tile([0.0, 0.0, -2.0, 0.0], (9, 1)))
+    out = {k: np.full_like(v, 7) for k, v in b._batch.observe().items()}
+    rng = np.random.default_rng(0)
+    for k in range(12):
+        act = rng.uniform(-1, 1, (9, 4))
+        reset = ([1, 4], [k, k + 1], np.tile([0.0, 0.0, -2.0, 0.0], (2, 1))) if k % 4 == 3 else None
+        a._batch.step(act, reset)
+        expected = a._batch.observe()
+        b._batch.step(act, reset, out=out)
+        assert set(out) == set(expected)
+        for key in expected:
+            assert out[key].dtype == expected[key].dtype
+            assert np.array_equal(out[key], expected[key]), key
+    if "robot" in options:
+        assert np.all(out["rotor_speeds"] > 0)
+
+
+def test_several_uavs_per_world_write_their_own_rows():
+    env = usarsim.multi_uav(3)
+    env.reset(seed=2)
+    batch = env._batch
+    out = {k: np.zeros_like(v) for k, v in batch.observe().items()}
+    batch.step(np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 0.5, 0]]), out=out)
+    assert np.array_equal(out["position"], batch.observe()["position"])
+    assert len({tuple(p) for p in out["position"].round(6)}) == 3
+
+
+def test_a_bad_out_is_named_and_nothing_steps():
+    venv = usarsim.vector_env(4)
+    venv.reset(seed=0)
+    batch = venv._batch
+    good = batch.observe()
+    t = batch.time(0)
+    cases = {
+        "laser": lambda o: o.pop("laser"),
+        "sonar": lambda o: o.__setitem__("sonar", np.zeros((4, 9))),
+        "position": lambda o: o.__setitem__("position", np.zeros((4, 3), np.float32)),
+        "velocity": lambda o: o.__setitem__("velocity", np.asfortranarray(np.zeros((4, 3)))),
+        "touched": lambda o: o.__setitem__("touched", np.zeros(4)),
+    }
+    for key, spoil in cases.items():
+        out = {k: v.copy() for k, v in good.items()}
+        spoil(out)
+        with pytest.raises(ValueError, match=f"step: out: {key}"):
+            batch.step(np.zeros((4, 4)), out=out)
+        assert batch.time(0) == t  # checked before anything stepped
+    frozen = {k: v.copy() for k, v in good.items()}
+    frozen["battery"].flags.writeable = False
+    with pytest.raises(ValueError, match="step: out: battery: not a writable"):
+        batch.step(np.zeros((4, 4)), out=frozen)

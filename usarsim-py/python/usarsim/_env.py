@@ -383,6 +383,15 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
             self._batch.observe_into(self._raw)
         return self._raw
 
+    def _step_raw(self, a, reset=None):
+        """Steps the batch and returns its observation: written by Rust into the env's own
+        arrays by each world, on the worker threads, in the step's own pass."""
+        if self._raw is None:
+            self._batch.step(a, reset)
+            return self._observe_raw()
+        self._batch.step(a, reset, out=self._raw)
+        return self._raw
+
     def _observe_all(self, raw):
         """Every sub-environment's observation, with the cameras' pictures when asked: the
         env's own arrays, filled in place (copies of them with ``copy=True``)."""
@@ -443,8 +452,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                     replay["reset_step"] -= oldest
                 replay["rng"], replay["options"] = None, None
         reset = (done.tolist(), *self._new_worlds(done)) if len(done) else None
-        self._batch.step(a, reset)
-        raw = self._observe_raw()
+        raw = self._step_raw(a, reset)
         live = np.ones(self.num_envs, dtype=bool)
         live[done] = False
         if len(done):
@@ -470,8 +478,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                         "keys": keys.copy(), "reset_step": steps.copy(), "reset_drawn": drawn.copy()}
 
     def _step_same(self, a):
-        self._batch.step(a)
-        raw = self._observe_raw()
+        raw = self._step_raw(a)
         reward, term, trunc, info = self._tasks.reward(raw)
         obs = self._observe_all(raw)
         infos = _with_masks(info, np.ones(self.num_envs, dtype=bool))
