@@ -1546,6 +1546,23 @@ mod tests {
         assert!(checked > 50, "only {checked} hits checked");
     }
 
+    /// Random solids for [`random_scene`]: `count` of them, each of a kind below `kinds`
+    /// (0 box, 1 cylinder, 2 robot body, 3 mesh), centre, size and yaw.
+    fn random_solids(
+        kinds: u8,
+        count: std::ops::Range<usize>,
+    ) -> impl proptest::strategy::Strategy<Value = Vec<(u8, [f32; 3], [f32; 3], f32)>> {
+        proptest::collection::vec(
+            (
+                0u8..kinds,
+                proptest::array::uniform3(-4.0f32..4.0),
+                proptest::array::uniform3(0.0f32..1.5),
+                -3.2f32..3.2,
+            ),
+            count,
+        )
+    }
+
     /// A random scene: yawed boxes, upright cylinders (solids and robot bodies), a small
     /// triangle mesh, all within a few metres of the origin.
     fn random_scene(solids: &[(u8, [f32; 3], [f32; 3], f32)]) -> Scene {
@@ -1596,11 +1613,7 @@ mod tests {
         /// are rounded: a little off the radial line).
         #[test]
         fn batched_fans_equal_per_beam_casts(
-            solids in proptest::collection::vec(
-                (0u8..4, proptest::array::uniform3(-4.0f32..4.0),
-                 proptest::array::uniform3(0.0f32..1.5), -3.2f32..3.2),
-                0..24,
-            ),
+            solids in random_solids(4, 0..24),
             origin in proptest::array::uniform3(-3.0f64..3.0),
             yaw in -20.0f64..20.0,
             pitch in prop_oneof_pitch(),
@@ -1675,11 +1688,7 @@ mod tests {
         /// touching them, some inside.
         #[test]
         fn the_open_air_test_answers_as_the_shape_query(
-            solids in proptest::collection::vec(
-                (0u8..2, proptest::array::uniform3(-4.0f32..4.0),
-                 proptest::array::uniform3(0.0f32..1.5), -3.2f32..3.2),
-                1..8,
-            ),
+            solids in random_solids(2, 1..8),
             places in proptest::collection::vec(
                 (-4.5f64..4.5, -4.5f64..4.5, -1.0f64..1.0), 1..40),
         ) {
@@ -1702,11 +1711,7 @@ mod tests {
         /// move puts them, bit for bit (the skipped sweeps skip only casts that hit nothing).
         #[test]
         fn skipped_sweeps_equal_shape_casts(
-            solids in proptest::collection::vec(
-                (0u8..2, proptest::array::uniform3(-4.0f32..4.0),
-                 proptest::array::uniform3(0.0f32..1.5), -3.2f32..3.2),
-                0..8,
-            ),
+            solids in random_solids(2, 0..8),
             robots in proptest::collection::vec(
                 ((-2.5f64..2.5, -2.5f64..2.5, -0.05f64..0.05),
                  proptest::array::uniform3(-0.03f64..0.03)),
