@@ -912,7 +912,7 @@ impl Quadrotor {
             centre[1] + arm,
             centre[2] + arm + 4.0 * radius,
         ];
-        if scene.alone_in(body, lo, hi) {
+        if scene.alone_in(Some(body), lo, hi) {
             return [1.0; 4];
         }
         let r = quat_matrix(self.q);

@@ -709,9 +709,8 @@ impl Scene {
     }
 
     /// Whether a body of `shape` at `centre` would overlap anything but `exclude`. When no
-    /// other tree box meets the body's box (padded for f32 rounding), nothing can, and the
-    /// shape query is skipped (a spawn in open air: each reset's; with shortcuts off, the
-    /// query always runs).
+    /// other tree box comes near the body's box ([`Scene::alone_in`]), nothing can, and the
+    /// shape query is skipped (a spawn in open air: each reset's).
     pub(crate) fn overlaps(
         &self,
         shape: BodyShape,
@@ -719,15 +718,9 @@ impl Scene {
         exclude: Option<ColliderHandle>,
     ) -> bool {
         let half = [shape.radius, shape.radius, shape.half_height];
-        let lo: V3 = std::array::from_fn(|i| centre[i] - half[i] - 1e-4);
-        let hi: V3 = std::array::from_fn(|i| centre[i] + half[i] + 1e-4);
-        let me = exclude.map(|h| h.into_raw_parts().0);
-        if self.shortcuts
-            && self
-                .bvh
-                .intersect_aabb(&Aabb::new(to_vector(lo), to_vector(hi)))
-                .all(|leaf| Some(leaf) == me)
-        {
+        let lo: V3 = std::array::from_fn(|i| centre[i] - half[i]);
+        let hi: V3 = std::array::from_fn(|i| centre[i] + half[i]);
+        if self.alone_in(exclude, lo, hi) {
             return false;
         }
         let cylinder = shape.cylinder();
@@ -799,20 +792,20 @@ impl Scene {
         alone
     }
 
-    /// Whether no collider but `handle` has its tree box inside the box `lo`..`hi` (padded
-    /// by `SWEEP_PAD`): then no ray within that box can hit anything but `handle`. With
-    /// shortcuts off, `false` (the caller casts).
-    pub(crate) fn alone_in(&self, handle: ColliderHandle, lo: V3, hi: V3) -> bool {
+    /// Whether no collider but `exclude` has its tree box inside the box `lo`..`hi` (padded
+    /// by `SWEEP_PAD`): then no ray or body within that box can meet anything but `exclude`.
+    /// With shortcuts off, `false` (the caller queries).
+    pub(crate) fn alone_in(&self, exclude: Option<ColliderHandle>, lo: V3, hi: V3) -> bool {
         if !self.shortcuts {
             return false;
         }
         let pad = f64::from(SWEEP_PAD);
         let lo: V3 = std::array::from_fn(|i| lo[i] - pad);
         let hi: V3 = std::array::from_fn(|i| hi[i] + pad);
-        let me = handle.into_raw_parts().0;
+        let me = exclude.map(|h| h.into_raw_parts().0);
         self.bvh
             .intersect_aabb(&Aabb::new(to_vector(lo), to_vector(hi)))
-            .all(|leaf| leaf == me)
+            .all(|leaf| Some(leaf) == me)
     }
 
     /// [`Scene::sweep_query`]'s shape cast of the body `handle` at `centre` by `motion`

@@ -110,10 +110,11 @@ const FIELDS: [(&str, usize); 9] = [
 ];
 
 /// The arrays of an observation dict (as `observe()` returns), borrowed writable for Rust to
-/// write observations into ([`Windows::rows`]).
+/// write observations into ([`Windows::rows`]): one per [`FIELDS`] entry (`None` for a field
+/// the batch does not observe), then `touched` and `crashed`.
 struct Windows<'py> {
-    floats: Vec<(&'static str, numpy::PyReadwriteArrayDyn<'py, f64>)>,
-    flags: Vec<(&'static str, numpy::PyReadwriteArrayDyn<'py, bool>)>,
+    floats: [Option<numpy::PyReadwriteArrayDyn<'py, f64>>; FIELDS.len()],
+    flags: [numpy::PyReadwriteArrayDyn<'py, bool>; 2],
 }
 
 /// `out[name]`, checked: a writable C-contiguous `T` array of shape `(n, width)` (`(n,)`
@@ -165,49 +166,58 @@ impl<'py> Windows<'py> {
         rotors: bool,
         what: &str,
     ) -> PyResult<Self> {
-        let mut floats = Vec::with_capacity(FIELDS.len());
-        for (name, width) in FIELDS {
-            let skip = match name {
-                "sonar" | "laser" => state_only,
-                "rotor_speeds" => !rotors,
-                _ => false,
+        let mut floats = [const { None }; FIELDS.len()];
+        for (slot, (name, width)) in floats.iter_mut().zip(FIELDS) {
+            let observed = match name {
+                "sonar" | "laser" => !state_only,
+                "rotor_speeds" => rotors,
+                _ => true,
             };
-            if !skip {
-                floats.push((name, window(out, name, n, Some(width), what)?));
+            if observed {
+                *slot = Some(window(out, name, n, Some(width), what)?);
             }
         }
-        let mut flags = Vec::with_capacity(2);
-        for name in ["touched", "crashed"] {
-            flags.push((name, window(out, name, n, None, what)?));
-        }
+        let flags = [
+            window(out, "touched", n, None, what)?,
+            window(out, "crashed", n, None, what)?,
+        ];
         Ok(Self { floats, flags })
     }
 
-    /// Their memory as [`Rows`] (the fields left out are empty).
+    /// Their memory as [`Rows`] (the fields left out are empty; [`window`] checked that
+    /// every array is C-contiguous).
     fn rows(&mut self) -> Rows<'_> {
-        let mut floats: std::collections::HashMap<&str, &mut [f64]> = self
-            .floats
-            .iter_mut()
-            .filter_map(|(name, a)| Some((*name, a.as_slice_mut().ok()?)))
-            .collect();
-        let mut flags: std::collections::HashMap<&str, &mut [bool]> = self
+        let [
+            position,
+            velocity,
+            attitude,
+            angular_velocity,
+            sonar,
+            laser,
+            battery,
+            time,
+            rotor_speeds,
+        ] = self.floats.each_mut().map(|a| {
+            a.as_mut()
+                .and_then(|a| a.as_slice_mut().ok())
+                .unwrap_or_default()
+        });
+        let [touched, crashed] = self
             .flags
-            .iter_mut()
-            .filter_map(|(name, a)| Some((*name, a.as_slice_mut().ok()?)))
-            .collect();
-        let mut f = |name| floats.remove(name).unwrap_or_default();
+            .each_mut()
+            .map(|a| a.as_slice_mut().unwrap_or_default());
         Rows {
-            position: f("position"),
-            velocity: f("velocity"),
-            attitude: f("attitude"),
-            angular_velocity: f("angular_velocity"),
-            sonar: f("sonar"),
-            laser: f("laser"),
-            battery: f("battery"),
-            time: f("time"),
-            rotor_speeds: f("rotor_speeds"),
-            touched: flags.remove("touched").unwrap_or_default(),
-            crashed: flags.remove("crashed").unwrap_or_default(),
+            position,
+            velocity,
+            attitude,
+            angular_velocity,
+            sonar,
+            laser,
+            battery,
+            time,
+            rotor_speeds,
+            touched,
+            crashed,
         }
     }
 }

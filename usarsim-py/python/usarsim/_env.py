@@ -474,8 +474,8 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
             self._streams.drawn[forced] = drawn[forced]
             self._replay["actions"].append(np.array(a, copy=True))
             self._step_next(np.asarray(a), forced)
-        self._replay = {"rng": None, "options": None, "actions": [np.array(a, copy=True) for a in replay["actions"]],
-                        "keys": keys.copy(), "reset_step": steps.copy(), "reset_drawn": drawn.copy()}
+        self._replay = {**self._record(None, None), "actions": [np.array(a, copy=True) for a in replay["actions"]],
+                        "reset_step": steps.copy(), "reset_drawn": drawn.copy()}
 
     def _step_same(self, a):
         raw = self._step_raw(a)

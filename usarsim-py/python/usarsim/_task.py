@@ -205,10 +205,9 @@ class Streams:
         rows = np.arange(n, dtype=np.uint64)
         return cls(_mix(base ^ _mix(rows + _GOLDEN)), np.zeros(n, dtype=np.uint64))
 
-    def state(self, rows=None):
-        """(keys, draws made) of `rows` (all when None): copies, for a record."""
-        rows = slice(None) if rows is None else rows
-        return self.keys[rows].copy(), self.drawn[rows].copy()
+    def state(self):
+        """(keys, draws made): copies, for a record."""
+        return self.keys.copy(), self.drawn.copy()
 
     def draw(self, rows, k: int) -> np.ndarray:
         """`k` 64-bit draws from each row's stream, shape (len(rows), k)."""
