@@ -108,3 +108,44 @@ def test_the_draws_after_an_autoreset():
         venv.step(np.zeros((2, 4)))
     after = [d["mass"] for d in venv.randomized()]
     assert after != before and all(0.8 <= m <= 1.2 for m in after)
+
+
+def multi(**kw):
+    pytest.importorskip("pettingzoo")
+    return usarsim.multi_uav(n=2, task="hover", robot="stsQuadrotor", state_only=True, **kw)
+
+
+def test_the_multi_uav_env_takes_faults_randomisation_and_rotor_speeds():
+    biased = BIAS.replace("robot = 1", "robot = 2")  # robot 2 is uav_1
+
+    def fly(env, seed, steps=12):
+        obs, infos = env.reset(seed=seed)
+        out = [obs]
+        for _ in range(steps):
+            obs, *_ = env.step({a: np.zeros(4) for a in env.agents})
+            out.append(obs)
+        return out, infos
+
+    healthy, _ = fly(multi(), 3)
+    env = multi()
+    env.configure(faults=biased)
+    faulty, _ = fly(env, 3)
+    assert np.array_equal(faulty[-1]["uav_0"]["position"], healthy[-1]["uav_0"]["position"])
+    assert np.allclose(faulty[-1]["uav_1"]["position"] - healthy[-1]["uav_1"]["position"], 0.5, atol=1e-4)
+
+    env = multi()
+    with pytest.raises(ValueError, match=r"randomize: line 2: key `kf`"):
+        env.configure(randomize="mass = [0.9, 1.1]\nkf = [2, 1]\n")
+    env.configure(randomize="mass = [0.7, 1.4]", rotor_speeds=True)
+    first, infos = fly(env, 1)
+    masses = [infos[a]["randomized"]["mass"] for a in env.possible_agents]
+    assert masses[0] != masses[1], "each UAV draws its own mass"
+    again, infos_again = fly(env, 1)
+    assert infos_again == infos, "the same seed, the same draws"
+    assert np.array_equal(first[-1]["uav_1"]["rotor_speeds"], again[-1]["uav_1"]["rotor_speeds"])
+    assert env.observation_space("uav_0").contains(first[-1]["uav_0"])
+    _, infos = env.reset(seed=2, options={"randomize": "mass = [0.8, 0.9]"})
+    assert all(0.8 <= infos[a]["randomized"]["mass"] <= 0.9 for a in env.agents)
+    env.configure(rotor_speeds=False, randomize="")
+    obs, infos = env.reset(seed=2)
+    assert "rotor_speeds" not in obs["uav_0"] and infos == {"uav_0": {}, "uav_1": {}}

@@ -12,7 +12,8 @@ from gymnasium.error import ClosedEnvironmentError, ResetNeeded
 from ._env import Replay, _actions, _first, _render_mode, _rng, _robot, _seed
 from ._maps import MapInfo
 from ._render import TopView
-from ._task import Tasks, action_space, add_extras, camera_kinds, image_size, observation_space, with_extras
+from ._task import (Tasks, action_space, add_extras, camera_kinds, image_size, observation_space, with_extras,
+                    with_rotor_speeds)
 
 try:
     from pettingzoo import ParallelEnv
@@ -28,7 +29,8 @@ class MultiUavEnv(Replay, ParallelEnv):
     finished is removed from ``agents`` and hovers in place (still an obstacle to the others).
     Opt-in observations: ``camera`` (``"depth"``, ``"rgb"``, ``"rgbd"``) of ``camera_size``,
     and with ``radio`` the signal to every agent (``signal``, dBm, in ``possible_agents``
-    order; 0 for itself; the link breaks below -93).
+    order; 0 for itself; the link breaks below -93). Faults, randomisation and rotor speeds:
+    :meth:`configure`.
     """
 
     metadata = {"render_modes": ["rgb_array"], "name": "usarsim_multi_uav_v0", "render_fps": 10}
@@ -59,7 +61,10 @@ class MultiUavEnv(Replay, ParallelEnv):
         self._radio = bool(radio)
         self._args = (map, _robot(robot), period, noise, bool(state_only), action_mode,
                       size if self._kinds else None)
-        self._space = with_extras(observation_space(state_only, flat), self._kinds, size, self.n if radio else 0)
+        self._space = self._base_space = with_extras(observation_space(state_only, flat), self._kinds, size,
+                                                     self.n if radio else 0)
+        self._probe = probe  # checks configure()'s texts before the first reset
+        self._realism = {}
         self._starts = None if starts is None else np.asarray(starts, dtype=np.float64)
         if self._starts is not None and self._starts.shape != (self.n, 4):
             raise ValueError(f"starts: expected shape ({self.n}, 4), got {self._starts.shape}")
@@ -84,6 +89,29 @@ class MultiUavEnv(Replay, ParallelEnv):
     def action_space(self, agent):
         return action_space()
 
+    def configure(self, *, faults: str | None = None, randomize: str | None = None,
+                  rotor_speeds: bool | None = None) -> None:
+        """As :meth:`UsarsimEnv.configure <usarsim.UsarsimEnv.configure>`, for every UAV of the
+        world, from the next reset on: robot ``k`` of a faults file is ``uav_{k-1}``; each
+        UAV draws its own randomised parameters (the reset's ``infos[agent]["randomized"]``);
+        ``rotor_speeds`` adds the key to every agent's observation. ``None`` leaves a setting
+        as it is; a bad text is a ValueError naming the entry, line or key."""
+        (self._batch or self._probe).configure(faults, randomize, rotor_speeds)
+        given = {"faults": faults, "randomize": randomize, "rotor_speeds": rotor_speeds}
+        self._realism.update({k: v for k, v in given.items() if v is not None})
+        if rotor_speeds is not None:
+            keys = self._tasks.keys
+            if rotor_speeds and "rotor_speeds" not in keys:
+                keys.append("rotor_speeds")
+            elif not rotor_speeds and "rotor_speeds" in keys:
+                keys.remove("rotor_speeds")
+            self._space = with_rotor_speeds(self._base_space, self._tasks.flat) if rotor_speeds else self._base_space
+            MultiUavEnv.observation_space.cache_clear()
+
+    def randomized(self):
+        """The parameters each agent drew at the last reset (empty dicts without)."""
+        return {} if self._batch is None else dict(zip(self.possible_agents, self._batch.randomized()))
+
     def _split(self, arrays):
         images = {}
         if self._kinds:
@@ -101,16 +129,28 @@ class MultiUavEnv(Replay, ParallelEnv):
 
     def _restore(self, rng_state, options):
         self._rng = _rng(rng_state)
+        if options and ("faults" in options or "randomize" in options):
+            self.configure(faults=options.get("faults"), randomize=options.get("randomize"))
         self._replay = {"rng": rng_state, "options": options, "actions": []}
         starts = self._tasks.new_starts(self._rng, range(self.n), True, options, poses=self._starts)
-        map_, robot, period, noise, state_only, action_mode, camera = self._args
-        self._batch = _core.Batch(map_, robot, [_seed(self._rng)], starts, self.n, period, noise, state_only,
-                                  action_mode, camera)
+        seed = _seed(self._rng)
+        if self._batch is None:
+            map_, robot, period, noise, state_only, action_mode, camera = self._args
+            self._batch = _core.Batch(map_, robot, [seed], starts, self.n, period, noise, state_only,
+                                      action_mode, camera)
+            if not self._realism:
+                seed = None  # the new world is the reset
+            else:
+                self._batch.configure(**self._realism)
+        if seed is not None:
+            self._batch.reset([0], [seed], starts)
         self.agents = list(self.possible_agents)
         self._raw = self._batch.observe()
         self._tasks.begin(self._raw, range(self.n))
         self._trails = [[p[:2].copy()] for p in self._raw["position"]]
-        return self._split(self._tasks.observe(self._raw)), {a: {} for a in self.agents}
+        drawn = self.randomized()
+        infos = {a: ({"randomized": drawn[a]} if drawn.get(a) else {}) for a in self.agents}
+        return self._split(self._tasks.observe(self._raw)), infos
 
     def step(self, actions):
         if self._closed:
