@@ -61,3 +61,15 @@ def test_rllibs_env_runner_samples_agents_that_end_apart():
         # some terminated and some truncated.)
         assert (len(second), second.is_truncated) == (5, True)
         assert math.isfinite(episode.get_return())
+
+
+def test_env_config_carries_faults_randomisation_and_rotor_speeds():
+    # RLlib builds envs from env_config alone: the realism settings must travel in it.
+    env = usarsim.MultiUavRLlibEnv({"n": 2, "task": "hover", "robot": "stsQuadrotor", "state_only": True,
+                                    "randomize": "mass = [0.8, 1.2]", "rotor_speeds": True})
+    assert env.observation_spaces["uav_1"]["rotor_speeds"].shape == (4,)
+    obs, infos = env.reset(seed=3)
+    assert env.observation_spaces["uav_0"].contains(obs["uav_0"])
+    assert all(0.8 <= infos[a]["randomized"]["mass"] <= 1.2 for a in env.agents)
+    with pytest.raises(ValueError, match="randomize"):
+        usarsim.MultiUavRLlibEnv({"n": 2, "randomize": "mass = [2, 1]"})

@@ -20,13 +20,19 @@ class MultiUavRLlibEnv(MultiAgentEnv):
     ``truncateds`` otherwise). Agents without an action in ``step`` hover. ``agents`` lists
     the agents the last ``reset`` or ``step`` returned (RLlib's env checker wants every
     returned agent in it); an agent that has ended leaves it at the next ``step``.
+    ``faults``, ``randomize`` and ``rotor_speeds`` in ``config`` go to
+    :meth:`MultiUavEnv.configure <usarsim._multi.MultiUavEnv.configure>` (RLlib makes its
+    envs from ``env_config`` alone).
     """
 
     def __init__(self, config: dict | None = None) -> None:
         if MultiAgentEnv is object:
             raise ImportError("usarsim.MultiUavRLlibEnv needs RLlib: pip install 'ray[rllib]'")
         super().__init__()
-        self.env = MultiUavEnv(**dict(config or {}))
+        options = dict(config or {})
+        realism = {k: options.pop(k) for k in ("faults", "randomize", "rotor_speeds") if k in options}
+        self.env = MultiUavEnv(**options)
+        self.env.configure(**realism)
         self.possible_agents = list(self.env.possible_agents)
         self.agents = list(self.possible_agents)
         self.observation_spaces = {a: self.env.observation_space(a) for a in self.possible_agents}
