@@ -249,6 +249,20 @@ struct RawRobot {
 #[derive(Debug, Clone)]
 pub struct RobotCatalog {
     robots: Vec<RobotClass>,
+    /// Each spawned class's parts, built once for every world sharing this catalog
+    /// ([`crate::robot::Model`]).
+    models: Models,
+}
+
+/// A catalog's built models by class index: filled as worlds spawn, emptied when a class
+/// changes ([`RobotCatalog::get_mut`]); a copy of the catalog starts empty.
+#[derive(Debug, Default)]
+struct Models(std::sync::Mutex<Vec<(usize, std::sync::Arc<crate::robot::Model>)>>);
+
+impl Clone for Models {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
 }
 
 impl RobotCatalog {
@@ -269,7 +283,10 @@ impl RobotCatalog {
         Self::parse(EMBEDDED, Path::new("usar-sim/robots.toml")).unwrap_or_else(|e| {
             // Guarded by a unit test; never happens in a released binary.
             tracing::error!(error = %e, "embedded robot catalog is invalid");
-            Self { robots: Vec::new() }
+            Self {
+                robots: Vec::new(),
+                models: Models::default(),
+            }
         })
     }
 
@@ -280,9 +297,30 @@ impl RobotCatalog {
 
     /// The class INIT names `class` (`Package.Class`, case-insensitive).
     pub fn get(&self, class: &str) -> Option<&RobotClass> {
+        self.index(class).map(|i| &self.robots[i])
+    }
+
+    fn index(&self, class: &str) -> Option<usize> {
         self.robots
             .iter()
-            .find(|r| r.class.eq_ignore_ascii_case(class))
+            .position(|r| r.class.eq_ignore_ascii_case(class))
+    }
+
+    /// The model (parts built from the class) of the class INIT names `class`, built at its
+    /// first spawn in any world that shares this catalog.
+    pub(crate) fn model(&self, class: &str) -> Option<std::sync::Arc<crate::robot::Model>> {
+        let i = self.index(class)?;
+        let mut models = self
+            .models
+            .0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((_, model)) = models.iter().find(|(k, _)| *k == i) {
+            return Some(model.clone());
+        }
+        let model = std::sync::Arc::new(crate::robot::Model::new(&self.robots[i]));
+        models.push((i, model.clone()));
+        Some(model)
     }
 
     /// The class INIT names `class`, or an error naming the classes this catalog has (the
@@ -296,6 +334,7 @@ impl RobotCatalog {
 
     /// The class, for changing it (tests, programs that tune robots).
     pub fn get_mut(&mut self, class: &str) -> Option<&mut RobotClass> {
+        self.models = Models::default();
         self.robots
             .iter_mut()
             .find(|r| r.class.eq_ignore_ascii_case(class))
@@ -360,7 +399,10 @@ impl RobotCatalog {
                 actuators,
             });
         }
-        Ok(Self { robots })
+        Ok(Self {
+            robots,
+            models: Models::default(),
+        })
     }
 }
 

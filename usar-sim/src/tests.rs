@@ -1228,3 +1228,50 @@ fn a_reset_world_flies_as_a_new_one() {
         }
     }
 }
+
+/// Worlds made from one shared catalog (a Python batch's) fly as worlds with their own
+/// copies, share each class's built parts, and a class changed in the catalog afterwards is
+/// what the next world spawns (the shared parts are built again, not reused stale).
+#[test]
+fn worlds_sharing_a_catalog_fly_as_their_own_and_see_its_changes() {
+    let laser = |out: &[(ClientId, ServerMessage)]| {
+        out.iter().any(|(_, m)| {
+                matches!(m, ServerMessage::Sen(s) if matches!(s.data, SenData::RangeScanner(_)))
+            })
+    };
+    let fly = |world: &mut World| {
+        let c = spawn(world, STS, [0.0, 0.0, -1.0], 0.0);
+        drive(
+            world,
+            c,
+            Drive {
+                linear_velocity: Some(0.5),
+                ..Drive::default()
+            },
+        );
+        format!("{:?}", run(world, 1.0))
+    };
+    use std::sync::Arc;
+    let mut shared = Arc::new(RobotCatalog::embedded());
+    let mut a = World::new(Map::default_map(), shared.clone(), SimConfig::default());
+    let mut b = World::new(Map::default_map(), shared.clone(), SimConfig::default());
+    let (out_a, out_b) = (fly(&mut a), fly(&mut b));
+    assert_eq!(
+        out_a,
+        fly(&mut world()),
+        "a world with its own catalog flies the same"
+    );
+    assert_eq!(out_a, out_b);
+    let (ma, mb) = (a.model(STS).unwrap(), b.model(STS).unwrap());
+    assert!(Arc::ptr_eq(ma, mb), "one model");
+    drop((a, b));
+    // The catalog is no longer shared: changed in place, its built models are dropped.
+    let class = Arc::get_mut(&mut shared).unwrap().get_mut(STS).unwrap();
+    class.parts.retain(|p| p.kind != "RangeScanner");
+    let mut c = World::new(Map::default_map(), shared.clone(), SimConfig::default());
+    spawn(&mut c, STS, [0.0, 0.0, -1.0], 0.0);
+    assert!(!laser(&run(&mut c, 1.0)), "the changed class has no laser");
+    let mut d = world();
+    spawn(&mut d, STS, [0.0, 0.0, -1.0], 0.0);
+    assert!(laser(&run(&mut d, 1.0)), "the embedded class has one");
+}

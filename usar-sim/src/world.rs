@@ -31,8 +31,10 @@ pub struct World {
     seed: u64,
     /// The wind robots with physics feel.
     wind: WindConfig,
-    map: Map,
-    catalog: RobotCatalog,
+    /// Read only, so shared by the worlds made from one (a Python batch's thousand worlds
+    /// read one copy, which stays in the caches).
+    map: Arc<Map>,
+    catalog: Arc<RobotCatalog>,
     /// Each spawned class's parts, built once (keyed by the catalog's class name).
     models: HashMap<String, Arc<Model>>,
     scene: Scene,
@@ -91,8 +93,14 @@ fn spawn_rotation(v: usar_proto::Vec3) -> V3 {
 }
 
 impl World {
-    /// A world with `map` and the robot classes of `robots`.
-    pub fn new(map: Map, robots: RobotCatalog, config: SimConfig) -> Self {
+    /// A world with `map` and the robot classes of `robots` (each owned, or shared with other
+    /// worlds in an `Arc`: a world only reads them).
+    pub fn new(
+        map: impl Into<Arc<Map>>,
+        robots: impl Into<Arc<RobotCatalog>>,
+        config: SimConfig,
+    ) -> Self {
+        let (map, robots) = (map.into(), robots.into());
         let dt = if config.dt.is_finite() && config.dt > 0.0 {
             config.dt
         } else {
@@ -168,6 +176,12 @@ impl World {
             .iter()
             .map(|r| r.body.into_raw_parts().0)
             .collect()
+    }
+
+    /// The model this world spawns the class `class` (its catalog name) with, once spawned.
+    #[cfg(test)]
+    pub(crate) fn model(&self, class: &str) -> Option<&Arc<Model>> {
+        self.models.get(class)
     }
 
     /// The map's level name for the NFO line.
@@ -397,9 +411,13 @@ impl World {
                 init.rotation.map_or([0.0; 3], spawn_rotation),
             ),
         };
-        // Looked up before inserting: `entry` would copy the class name at every spawn.
+        // Looked up before inserting: `entry` would copy the class name at every spawn. The
+        // model itself is the catalog's, shared by the worlds that share the catalog.
         if !self.models.contains_key(&class.class) {
-            let model = Arc::new(Model::new(class));
+            let model = self
+                .catalog
+                .model(&class.class)
+                .unwrap_or_else(|| Arc::new(Model::new(class)));
             self.models.insert(class.class.clone(), model);
         }
         let model = &self.models[&class.class];

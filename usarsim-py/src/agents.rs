@@ -276,7 +276,8 @@ pub(crate) fn fly<'py>(
             "reached: must be a positive number of metres, got {reached}"
         )));
     }
-    let map = crate::core::Settings::new(map, robot, 0.1, None)?.map;
+    let map =
+        std::sync::Arc::unwrap_or_clone(crate::core::Settings::new(map, robot, 0.1, None)?.map);
     let failure: Failure = Arc::default();
     let cancel = CancellationToken::new();
     let factory = {

@@ -3,7 +3,7 @@
 //! [`UavState`] per UAV and written out as flat arrays. No Python types here.
 
 use std::path::Path;
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use ucc_client::SpeedCommand;
 use ucc_client::uav::UavState;
@@ -73,8 +73,9 @@ pub(crate) enum ActionMode {
 /// Settings shared by every world of a batch.
 #[derive(Debug, Clone)]
 pub(crate) struct Settings {
-    pub(crate) map: Map,
-    pub(crate) catalog: RobotCatalog,
+    /// Shared by every world of the batch (a world only reads them).
+    pub(crate) map: Arc<Map>,
+    pub(crate) catalog: Arc<RobotCatalog>,
     pub(crate) robot: String,
     pub(crate) period: f64,
     pub(crate) dt: f64,
@@ -149,8 +150,8 @@ impl Settings {
         }
         let robot = class.class.clone();
         Ok(Self {
-            map,
-            catalog,
+            map: Arc::new(map),
+            catalog: Arc::new(catalog),
             robot,
             period,
             dt,
@@ -188,8 +189,7 @@ impl Settings {
             };
         }
         if let Some(on) = rotors {
-            let class = self
-                .catalog
+            let class = Arc::make_mut(&mut self.catalog)
                 .get_mut(&self.robot)
                 .ok_or_else(|| invalid(format!("robot: unknown robot class {:?}", self.robot)))?;
             if on && class.dynamics != DynamicsKind::Quadrotor {
@@ -284,7 +284,7 @@ impl Settings {
     /// The same without the range sensors (every `Sonar` and `RangeScanner` part removed):
     /// the world casts no rays and observations carry no sonar or laser columns.
     pub(crate) fn state_only(mut self) -> Self {
-        if let Some(class) = self.catalog.get_mut(&self.robot) {
+        if let Some(class) = Arc::make_mut(&mut self.catalog).get_mut(&self.robot) {
             class.parts.retain(|p| {
                 !p.kind.eq_ignore_ascii_case("Sonar")
                     && !p.kind.eq_ignore_ascii_case("RangeScanner")
@@ -304,7 +304,7 @@ impl Settings {
                 )));
             }
         }
-        if let Some(class) = self.catalog.get_mut(&self.robot) {
+        if let Some(class) = Arc::make_mut(&mut self.catalog).get_mut(&self.robot) {
             class
                 .parts
                 .retain(|p| !p.kind.eq_ignore_ascii_case("Camera"));
