@@ -189,6 +189,20 @@ pub struct Map {
     colors: Vec<[u8; 3]>,
     placed: Vec<Placed>,
     wind: Option<WindConfig>,
+    /// The scene the map builds ([`Map::scene`]).
+    built: Built,
+}
+
+/// A map's scene, built once for every world that shares the map (worlds copy it and reset
+/// to it); emptied when the map changes ([`Map::add_placed`]); a copy of the map starts
+/// empty.
+#[derive(Debug, Default)]
+struct Built(std::sync::OnceLock<std::sync::Arc<Scene>>);
+
+impl Clone for Built {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
 }
 
 /// Default colours of map solids (`color` unset): the ground (a slab whose top is at
@@ -402,6 +416,7 @@ impl Map {
             colors: Vec::new(),
             placed: Vec::new(),
             wind: None,
+            built: Built::default(),
         })
     }
 
@@ -428,6 +443,7 @@ impl Map {
             ));
         }
         self.placed.push(p);
+        self.built = Built::default();
         Ok(())
     }
 
@@ -662,7 +678,22 @@ impl Map {
             colors,
             placed,
             wind,
+            built: Built::default(),
         })
+    }
+
+    /// The scene of the map's solids, victims and objects, its tree fitted: built at the
+    /// first call, shared after.
+    pub(crate) fn scene(&self) -> std::sync::Arc<Scene> {
+        self.built
+            .0
+            .get_or_init(|| {
+                let mut scene = Scene::new();
+                self.build(&mut scene);
+                scene.refit();
+                std::sync::Arc::new(scene)
+            })
+            .clone()
     }
 
     /// Adds the map's solids to the scene, each with its colour and its segmentation id

@@ -64,7 +64,7 @@ pub struct World {
     /// The faults to plan from the seed ([`SimConfig::faults`]).
     fault_plan: super::faults::FaultPlan,
     /// The map's scene as first built, for [`World::reset`].
-    template: Scene,
+    template: Arc<Scene>,
     /// Parameter ranges each robot draws from at its spawn.
     randomize: Option<super::randomize::Randomization>,
 }
@@ -117,10 +117,8 @@ impl World {
             },
             None => WindConfig::default(),
         };
-        let mut scene = Scene::new();
-        map.build(&mut scene);
-        scene.refit();
-        let template = scene.clone();
+        let template = map.scene();
+        let scene = (*template).clone();
         Self {
             tick: 0,
             dt,
