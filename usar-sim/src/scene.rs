@@ -149,6 +149,10 @@ pub(crate) struct Scene {
     removed: bool,
     /// The map's victims: their colliders and boxes (the VictSensor's targets).
     pub(crate) victims: Vec<VictimBody>,
+    /// The scene this one was copied from (the map's, shared by the worlds of the map):
+    /// its colliders, the map's, are this scene's first ones, and queries read them there —
+    /// one copy in the caches for a thousand worlds ([`Scene::collider_at`]).
+    base: Option<std::sync::Arc<Self>>,
 }
 
 /// What a leaf's entry in [`Scene`]'s `clear` knows of the room around the leaf's tree box.
@@ -267,6 +271,26 @@ impl Scene {
             looks: Vec::new(),
             removed: false,
             victims: Vec::new(),
+            base: None,
+        }
+    }
+
+    /// A copy of the map's scene `base` that reads the map's colliders in `base`.
+    pub(crate) fn copy_of(base: &std::sync::Arc<Self>) -> Self {
+        Self {
+            base: Some(base.clone()),
+            ..(**base).clone()
+        }
+    }
+
+    /// The collider at tree leaf `leaf`: a map solid's in the scene copied from (the same
+    /// collider: map solids never move or leave), any other in this one.
+    fn collider_at(&self, leaf: u32) -> Option<(&Collider, ColliderHandle)> {
+        match &self.base {
+            Some(base) if (leaf as usize) < base.colliders.len() => {
+                base.colliders.get_unknown_gen(leaf)
+            }
+            _ => self.colliders.get_unknown_gen(leaf),
         }
     }
 
@@ -278,7 +302,10 @@ impl Scene {
     /// (most of a Python reset's cost). Otherwise (a robot left meanwhile) a copy.
     pub(crate) fn reset_to(&mut self, template: &Self, bodies: &mut [ColliderHandle]) {
         if self.removed || self.colliders.len() != template.colliders.len() + bodies.len() {
-            *self = template.clone();
+            *self = Self {
+                base: self.base.take(),
+                ..template.clone()
+            };
             return;
         }
         bodies.sort_unstable_by_key(|h| std::cmp::Reverse(h.into_raw_parts().0));
@@ -341,11 +368,11 @@ impl Scene {
                 if Some(leaf) == skip {
                     return None;
                 }
-                let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
+                let (collider, _) = self.collider_at(leaf)?;
                 leaf_toi(collider, &ray, best)
             })
             .and_then(|(leaf, toi)| {
-                let (_, handle) = self.colliders.get_unknown_gen(leaf)?;
+                let (_, handle) = self.collider_at(leaf)?;
                 Some((f64::from(toi), handle))
             })
     }
@@ -406,7 +433,7 @@ impl Scene {
             .intersect_aabb(&Aabb::new(o - r, o + r))
             .filter(|&leaf| Some(leaf) != skip)
             .filter_map(|leaf| {
-                let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
+                let (collider, _) = self.collider_at(leaf)?;
                 let look = self.looks.get(leaf as usize).copied().unwrap_or_default();
                 let pose = collider.position();
                 let shape = if let Some(c) = collider.shape().as_cylinder() {
@@ -577,7 +604,7 @@ impl Scene {
                 if Some(leaf) == skip {
                     return None;
                 }
-                let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
+                let (collider, _) = self.collider_at(leaf)?;
                 leaf_toi(collider, &ray, best)
             })
             .map(|(_, toi)| f64::from(toi))
@@ -609,7 +636,7 @@ impl Scene {
             .intersect_aabb(&reach)
             .filter(|&leaf| Some(leaf) != skip)
             .filter_map(|leaf| {
-                let (collider, _) = self.colliders.get_unknown_gen(leaf)?;
+                let (collider, _) = self.collider_at(leaf)?;
                 let aabb = self.bvh.leaf_node(leaf)?.aabb();
                 let clipped = Aabb::new(aabb.mins.max(reach.mins), aabb.maxs.min(reach.maxs));
                 let cylinder = collider
@@ -838,7 +865,7 @@ impl Scene {
             if leaf == me {
                 continue;
             }
-            let (collider, solid) = self.colliders.get_unknown_gen(leaf)?;
+            let (collider, solid) = self.collider_at(leaf)?;
             let pose = collider.position();
             let hit = box_cast(
                 &pose.inv_mul(&body),

@@ -118,7 +118,7 @@ impl World {
             None => WindConfig::default(),
         };
         let template = map.scene();
-        let scene = (*template).clone();
+        let scene = Scene::copy_of(&template);
         Self {
             tick: 0,
             dt,
