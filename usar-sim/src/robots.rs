@@ -249,15 +249,19 @@ struct RawRobot {
 #[derive(Debug, Clone)]
 pub struct RobotCatalog {
     robots: Vec<RobotClass>,
-    /// Each spawned class's parts, built once for every world sharing this catalog
-    /// ([`crate::robot::Model`]).
+    /// What is built from a class (a world's robot model), once for every world sharing
+    /// this catalog ([`RobotCatalog::built`]).
     models: Models,
 }
 
-/// A catalog's built models by class index: filled as worlds spawn, emptied when a class
-/// changes ([`RobotCatalog::get_mut`]); a copy of the catalog starts empty.
+/// What a catalog has built from its classes, by class index: filled as worlds spawn,
+/// emptied when a class changes ([`RobotCatalog::get_mut`]); a copy of the catalog starts
+/// empty.
 #[derive(Debug, Default)]
-struct Models(std::sync::Mutex<Vec<(usize, std::sync::Arc<crate::robot::Model>)>>);
+struct Models(std::sync::Mutex<Vec<(usize, Built)>>);
+
+/// One thing built from a class, of the type its builder made.
+type Built = std::sync::Arc<dyn std::any::Any + Send + Sync>;
 
 impl Clone for Models {
     fn clone(&self) -> Self {
@@ -306,21 +310,29 @@ impl RobotCatalog {
             .position(|r| r.class.eq_ignore_ascii_case(class))
     }
 
-    /// The model (parts built from the class) of the class INIT names `class`, built at its
-    /// first spawn in any world that shares this catalog.
-    pub(crate) fn model(&self, class: &str) -> Option<std::sync::Arc<crate::robot::Model>> {
+    /// What `build` makes of the class INIT names `class` (a world's robot model), made at
+    /// the first call from any world that shares this catalog and shared after.
+    pub(crate) fn built<T: std::any::Any + Send + Sync>(
+        &self,
+        class: &str,
+        build: impl FnOnce(&RobotClass) -> T,
+    ) -> Option<std::sync::Arc<T>> {
         let i = self.index(class)?;
         let mut models = self
             .models
             .0
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
-        if let Some((_, model)) = models.iter().find(|(k, _)| *k == i) {
-            return Some(model.clone());
+        if let Some(built) = models
+            .iter()
+            .find(|(k, _)| *k == i)
+            .and_then(|(_, b)| b.clone().downcast::<T>().ok())
+        {
+            return Some(built);
         }
-        let model = std::sync::Arc::new(crate::robot::Model::new(&self.robots[i]));
-        models.push((i, model.clone()));
-        Some(model)
+        let built = std::sync::Arc::new(build(&self.robots[i]));
+        models.push((i, built.clone()));
+        Some(built)
     }
 
     /// The class INIT names `class`, or an error naming the classes this catalog has (the

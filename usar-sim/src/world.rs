@@ -414,7 +414,7 @@ impl World {
         if !self.models.contains_key(&class.class) {
             let model = self
                 .catalog
-                .model(&class.class)
+                .built(&class.class, Model::new)
                 .unwrap_or_else(|| Arc::new(Model::new(class)));
             self.models.insert(class.class.clone(), model);
         }
