@@ -144,8 +144,8 @@ pub(crate) struct Scene {
     /// By leaf: how cameras draw the solid (colour, segmentation id); [`Look::default`]
     /// for solids without one.
     looks: Vec<Look>,
-    /// A collider was removed since the scene was built or last reset ([`Scene::reset_to`]
-    /// then copies its template whole).
+    /// A collider was removed since the scene was built or last reset ([`Scene::reset`]
+    /// then copies the scene it was copied from whole).
     removed: bool,
     /// The map's victims: their colliders and boxes (the VictSensor's targets).
     pub(crate) victims: Vec<VictimBody>,
@@ -294,18 +294,19 @@ impl Scene {
         }
     }
 
-    /// Becomes `template` again — the map as first built, before any robot — when this scene
-    /// is that template plus the robot `bodies` inserted since: their colliders are removed,
-    /// highest index first, so that the next bodies get the indices (the tree leaves) a copy
-    /// of the template would give them, and the tree and the small tables are copied. Every
-    /// query then answers as on a copy, bit for bit, without copying the map's colliders
-    /// (most of a Python reset's cost). Otherwise (a robot left meanwhile) a copy.
-    pub(crate) fn reset_to(&mut self, template: &Self, bodies: &mut [ColliderHandle]) {
+    /// Becomes the scene it was copied from again ([`Scene::copy_of`]: the map as first
+    /// built, before any robot) when it is that scene plus the robot `bodies` inserted since:
+    /// their colliders are removed, highest index first, so that the next bodies get the
+    /// indices (the tree leaves) a new copy would give them, and the tree and the small
+    /// tables are copied. Every query then answers as on a new copy, bit for bit, without
+    /// copying the map's colliders (most of a Python reset's cost). Otherwise (a robot left
+    /// meanwhile) a new copy. A scene not copied from another is left as it is.
+    pub(crate) fn reset(&mut self, bodies: &mut [ColliderHandle]) {
+        let Some(template) = self.base.clone() else {
+            return;
+        };
         if self.removed || self.colliders.len() != template.colliders.len() + bodies.len() {
-            *self = Self {
-                base: self.base.take(),
-                ..template.clone()
-            };
+            *self = Self::copy_of(&template);
             return;
         }
         bodies.sort_unstable_by_key(|h| std::cmp::Reverse(h.into_raw_parts().0));

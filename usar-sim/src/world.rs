@@ -63,8 +63,6 @@ pub struct World {
     faults: std::collections::VecDeque<super::faults::PlannedFault>,
     /// The faults to plan from the seed ([`SimConfig::faults`]).
     fault_plan: super::faults::FaultPlan,
-    /// The map's scene as first built, for [`World::reset`].
-    template: Arc<Scene>,
     /// Parameter ranges each robot draws from at its spawn.
     randomize: Option<super::randomize::Randomization>,
 }
@@ -117,8 +115,7 @@ impl World {
             },
             None => WindConfig::default(),
         };
-        let template = map.scene();
-        let scene = Scene::copy_of(&template);
+        let scene = Scene::copy_of(&map.scene());
         Self {
             tick: 0,
             dt,
@@ -140,7 +137,6 @@ impl World {
             complaints: BTreeMap::new(),
             faults: config.faults.schedule(config.seed).into(),
             fault_plan: config.faults,
-            template,
             randomize: config.randomize,
             emitted: Vec::new(),
         }
@@ -150,11 +146,11 @@ impl World {
     /// map, classes and configuration and this seed gives (no robots, no connections, time
     /// 0, the faults planned from the seed), and the same calls give the same output, bit
     /// for bit — without building the map's scene again (its first build is kept; the
-    /// robots' bodies are taken out: [`Scene::reset_to`]). The Python package resets its
+    /// robots' bodies are taken out: [`Scene::reset`]). The Python package resets its
     /// worlds this way.
     pub fn reset(&mut self, seed: u64) {
         let mut bodies: Vec<_> = self.robots.iter().map(|r| r.body).collect();
-        self.scene.reset_to(&self.template, &mut bodies);
+        self.scene.reset(&mut bodies);
         self.tick = 0;
         self.seed = seed;
         self.robots.clear();
