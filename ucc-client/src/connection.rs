@@ -99,6 +99,10 @@ impl Recorder {
     }
 }
 
+/// How long [`Connection::disconnect`] waits for the server to close its end (a server that
+/// never does costs this much per flight, no more).
+pub const CLOSE_WAIT: Duration = Duration::from_secs(1);
+
 impl Connection {
     /// Connects to `addr` (`host:port`) within `timeout`.
     pub async fn connect(addr: &str, timeout: Duration) -> Result<Self, ConnectionError> {
@@ -244,8 +248,12 @@ impl Connection {
         self.send(&Command::Drive(command.to_drive())).await
     }
 
-    /// Closes the connection cleanly (the server then removes the robot). A recording that
-    /// could not be written whole is [`ConnectionError::Record`], naming the file.
+    /// Closes the connection cleanly: ends the stream, then waits (at most [`CLOSE_WAIT`])
+    /// for the server to end its own, which it does once it has removed the robot. So the
+    /// next connection's robot spawns into a world without this one — its place free and its
+    /// sensors on the ticks a lone robot gets, whatever the two connections' timing. A
+    /// recording that could not be written whole is [`ConnectionError::Record`], naming the
+    /// file.
     pub async fn disconnect(mut self) -> Result<(), ConnectionError> {
         use tokio::io::AsyncWriteExt;
         if let Some(r) = &mut self.recorder {
@@ -257,7 +265,14 @@ impl Connection {
                 });
             }
         }
-        self.writer.shutdown().await.map_err(ConnectionError::Write)
+        self.writer
+            .shutdown()
+            .await
+            .map_err(ConnectionError::Write)?;
+        // What the server still sends is dropped unrecorded: the flight is over.
+        let drained = async { while let Ok(Some(_)) = self.lines.next_line().await {} };
+        let _ = tokio::time::timeout(CLOSE_WAIT, drained).await;
+        Ok(())
     }
 }
 
@@ -278,6 +293,41 @@ mod tests {
         let text = err.to_string();
         assert!(text.contains("cannot connect to 127.0.0.1:"), "{text}");
         assert!(text.contains("is the server running?"), "{text}");
+    }
+
+    /// The defect: `disconnect` returned as soon as it had ended its stream, so the next
+    /// flight's INIT could reach the server before the old robot was removed (a sensor phase
+    /// of two robots: lockstep iterations that differed under load).
+    #[tokio::test]
+    async fn disconnect_returns_once_the_server_has_closed_its_end() {
+        use std::sync::atomic::{AtomicBool, Ordering};
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap().to_string();
+        let removed = std::sync::Arc::new(AtomicBool::new(false));
+        let server = tokio::spawn({
+            let removed = removed.clone();
+            async move {
+                let (mut socket, _) = listener.accept().await.unwrap();
+                let mut rest = Vec::new();
+                socket.read_to_end(&mut rest).await.unwrap();
+                // The robot's removal takes a while; the stream goes on until it is done.
+                for _ in 0..20 {
+                    let _ = socket.write_all(b"STA {Time 1.0000}\r\n").await;
+                    tokio::time::sleep(Duration::from_millis(10)).await;
+                }
+                removed.store(true, Ordering::SeqCst);
+            }
+        });
+        let conn = Connection::connect(&addr, Duration::from_secs(5))
+            .await
+            .unwrap();
+        conn.disconnect().await.unwrap();
+        assert!(
+            removed.load(Ordering::SeqCst),
+            "returned before the server closed"
+        );
+        server.await.unwrap();
     }
 
     #[tokio::test]

@@ -133,14 +133,22 @@ pub(super) async fn serve(
             }
         }
     };
-    let writer = write_output(write, output, queued, (wants_room, requests.clone()));
+    // Pinned here rather than moved into the select, so that the socket (its write half is
+    // the writer's) closes only after the driver was told: a client that waits for the
+    // server's end of the stream before connecting again finds its robot gone.
+    let mut writer = std::pin::pin!(write_output(
+        write,
+        output,
+        queued,
+        (wants_room, requests.clone())
+    ));
     tokio::select! {
         _ = shutdown.cancelled() => info!(%peer, "closing: server shutting down"),
         _ = registered.evicted.cancelled() => warn!(%peer,
             "closing: a connection limit was reached and this was the oldest connection \
              that had not sent a line"),
         why = reader => info!(%peer, "{why}"),
-        result = writer => if let Err(error) = result {
+        result = &mut writer => if let Err(error) = result {
             info!(%peer, %error, "disconnected: write failed");
         },
     }

@@ -54,6 +54,9 @@ pub struct Client {
 impl Client {
     pub async fn connect(addr: SocketAddr) -> Self {
         let stream = TcpStream::connect(addr).await.unwrap();
+        // A line and its CR LF go in two writes: without this, Nagle holds the second until
+        // the server's delayed ACK (40 ms a line).
+        stream.set_nodelay(true).unwrap();
         let (r, w) = stream.into_split();
         Self {
             reader: BufReader::new(r),
@@ -67,6 +70,7 @@ impl Client {
         let socket = tokio::net::TcpSocket::new_v4().unwrap();
         socket.bind(SocketAddr::from(([127, 0, 0, n], 0))).unwrap();
         let stream = socket.connect(addr).await.unwrap();
+        stream.set_nodelay(true).unwrap();
         let (r, w) = stream.into_split();
         Self {
             reader: BufReader::new(r),
