@@ -602,9 +602,11 @@ impl PyRemote {
         to_dict(py, obs)
     }
 
-    /// Closes the connection (the server removes the robot).
-    fn close(&mut self) {
-        self.inner = None;
+    /// Closes the connection and waits (at most a second) until the server has removed the
+    /// robot.
+    fn close(&mut self, py: Python<'_>) {
+        let inner = self.inner.take();
+        py.detach(|| drop(inner));
     }
 }
 

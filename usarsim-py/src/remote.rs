@@ -6,11 +6,12 @@
 //! writes what the core queued, and pauses at each period for Python's action. Blocking I/O
 //! on a std `TcpStream`; the caller releases the GIL around it.
 
-use std::io::{ErrorKind, Write};
-use std::net::{TcpStream, ToSocketAddrs};
+use std::io::{ErrorKind, Read, Write};
+use std::net::{Shutdown, TcpStream, ToSocketAddrs};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use ucc_client::connection::CLOSE_WAIT;
 use ucc_client::flight::{Flight, FlightConfig, FlightError, Lockstep, Start};
 use ucc_client::lines::BlockingLines;
 use ucc_client::uav::UavState;
@@ -81,6 +82,29 @@ pub(crate) struct Remote {
     period: f64,
     /// The read time-out set on the socket.
     read_timeout: Option<Duration>,
+}
+
+/// Ends the stream and waits (at most [`CLOSE_WAIT`]) for the server to end its own, once
+/// it has removed the robot, as ucc-client's `Connection::disconnect`: the robot of the next
+/// episode's connection then spawns into a world without this one (its sensors on a lone
+/// robot's ticks), so episodes are reproducible whatever the two connections' timing.
+impl Drop for Remote {
+    fn drop(&mut self) {
+        if self.writer.shutdown(Shutdown::Write).is_err() {
+            return;
+        }
+        let deadline = Instant::now() + CLOSE_WAIT;
+        let mut rest = [0u8; 4096];
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() || self.writer.set_read_timeout(Some(left)).is_err() {
+                return;
+            }
+            if matches!(self.writer.read(&mut rest), Ok(0) | Err(_)) {
+                return;
+            }
+        }
+    }
 }
 
 impl Remote {

@@ -89,6 +89,19 @@ def test_remote_env_in_lockstep_matches_the_in_process_world(server):
     np.testing.assert_allclose(remote1, local, atol=2e-3)
 
 
+def test_remote_episodes_after_reset_repeat_exactly(server):
+    """Each reset reconnects; the next robot must not spawn while the last is still there
+    (its sensors would read on other ticks: the episode differed, under load)."""
+    env = gymnasium.make("usarsim/Waypoints-v0", server=server, start=(0, 0, -1, 0))
+    episodes = []
+    for _ in range(20):
+        env.reset(seed=0)
+        episodes.append([env.step(np.array([1, 0, 0, 0], np.float32))[0]["position"] for _ in range(3)])
+    env.close()
+    for episode in episodes[1:]:
+        np.testing.assert_array_equal(episode, episodes[0])
+
+
 def test_closed_server_is_a_value_error(tmp_path):
     from conftest import _free_port, _server_binary
     import socket
