@@ -349,6 +349,15 @@ pub(crate) fn spawn(class: &str, name: &str, pose: &Pose) -> Command {
     })
 }
 
+/// Control periods of `period` seconds a new robot of `class` hovers before its first
+/// observation: until every one of its sensors has read once (each sensor's timer starts at
+/// the spawn), at least one. The in-process worlds and the remote env both wait this long,
+/// so that their first observations are taken at the same time and are as complete.
+pub(crate) fn first_periods(class: Option<&RobotClass>, period: f64) -> usize {
+    let first = class.map_or(0.0, RobotClass::first_readings);
+    ((first / period - 1e-9).ceil() as usize).max(1)
+}
+
 /// The normalized `DRIVE` of an action: forward, right, up, yaw in -1..=1.
 pub(crate) fn drive(action: &[f64; 4]) -> Command {
     let command = SpeedCommand {
@@ -466,11 +475,7 @@ impl WorldSim {
             )));
         }
         self.first = first;
-        let first = settings
-            .catalog
-            .get(&settings.robot)
-            .map_or(0.0, RobotClass::first_readings);
-        let periods = ((first / settings.period - 1e-9).ceil() as usize).max(1);
+        let periods = first_periods(settings.catalog.get(&settings.robot), settings.period);
         self.advance(periods * settings.ticks());
         Ok(())
     }

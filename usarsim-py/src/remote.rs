@@ -17,8 +17,9 @@ use ucc_client::lines::BlockingLines;
 use ucc_client::uav::UavState;
 use ucc_client::{Agent, Coordinates, Mission, MissionRefused, SpeedCommand, Step};
 use usar_proto::ServerMessage;
+use usar_sim::RobotCatalog;
 
-use crate::core::{Observations, Pose, SimError, spawn};
+use crate::core::{Observations, Pose, SimError, first_periods, spawn};
 
 /// How long a connection attempt may take, and the server may stay silent.
 const TIMEOUT: Duration = Duration::from_secs(10);
@@ -30,6 +31,12 @@ const SYNC_PROBE: Duration = Duration::from_secs(2);
 const FIRST_READING: f64 = 2.0;
 /// The shortest read time-out: a deadline already past still reads what is waiting.
 const MIN_READ: Duration = Duration::from_millis(1);
+
+/// The embedded robot catalog, parsed once.
+fn embedded_catalog() -> &'static RobotCatalog {
+    static CATALOG: std::sync::OnceLock<RobotCatalog> = std::sync::OnceLock::new();
+    CATALOG.get_or_init(RobotCatalog::embedded)
+}
 
 fn err(addr: &str, what: impl std::fmt::Display) -> SimError {
     SimError::Invalid(format!("server {addr}: {what}"))
@@ -166,9 +173,16 @@ impl Remote {
         };
         remote.core().start(Instant::now());
         remote.advance()?;
-        // Sensors first speak one interval after the spawn (0.1 s and more): periods shorter
-        // than that end before the Position sensor has read. Hover until it has, as the
-        // in-process world does, for at most FIRST_READING of simulated time.
+        // Hover until every sensor of the class (as our catalog knows it) has read once, as
+        // the in-process world does: the first observation is then as complete (the sonars
+        // and the laser read 0.2 s and 0.3 s after the spawn) and taken at the same time.
+        let class = embedded_catalog().get(&usar_proto::Init::qualified_class(robot));
+        for _ in 1..first_periods(class, period) {
+            remote.step([0.0; 4])?;
+        }
+        // Sensors first speak one interval after the spawn (0.1 s and more): a class we do
+        // not know, or periods shorter than that, end before the Position sensor has read.
+        // Hover until it has, for at most FIRST_READING of simulated time.
         let mut waited = 0.0;
         while remote.core().uav().position.is_none() && waited < FIRST_READING {
             remote.step([0.0; 4])?;

@@ -89,6 +89,19 @@ def test_remote_env_in_lockstep_matches_the_in_process_world(server):
     np.testing.assert_allclose(remote1, local, atol=2e-3)
 
 
+def test_the_remote_first_observation_is_as_complete_as_the_in_process_one(server):
+    """The remote env hovered only until Position had read (0.1 s): its first observation
+    had placeholder sonars (4 m, not the 5 m they read in the empty room)."""
+    first = []
+    for kw in ({}, {"server": server}):
+        env = gymnasium.make("usarsim/Waypoints-v0", start=(0, 0, -1, 0), **kw)
+        first.append(env.reset(seed=0)[0])
+        env.close()
+    local, remote = first
+    for key in ("position", "velocity", "sonar", "laser"):
+        np.testing.assert_allclose(remote[key], local[key], atol=2e-3, err_msg=key)
+
+
 def test_remote_episodes_after_reset_repeat_exactly(server):
     """Each reset reconnects; the next robot must not spawn while the last is still there
     (its sensors would read on other ticks: the episode differed, under load)."""
