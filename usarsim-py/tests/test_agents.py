@@ -186,13 +186,18 @@ def test_ctrl_c_during_a_run_raises_keyboard_interrupt():
                 os.kill(os.getpid(), signal.SIGINT)
             return usarsim.Command(forward=1.0)
 
+    # Python keeps SIGINT ignored when it starts ignored, as in a background job of a
+    # non-interactive shell (`bash .ci/run &`): Ctrl-C then never interrupts anything, and
+    # this test ran three whole iterations. Python's own handler makes it what a terminal has.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         result = usarsim.fly(Interrupted, [(5.0, 0.0, -1.0)], iterations=3)
     except KeyboardInterrupt:
         pass
     else:
-        # Once in CI (not reproduced since) the run returned: say what it did.
         rows = [(it["status"], it["error"], len(it["trajectory"])) for it in result["iterations"]]
         pytest.fail(f"no KeyboardInterrupt: {len(calls)} agent steps, iterations {rows}")
+    finally:
+        signal.signal(signal.SIGINT, previous)
     # The run stopped at the next step, not after three iterations of 25 steps or more.
     assert len(calls) == 3
