@@ -8,14 +8,19 @@ use common::{Client, TestServer};
 use usar_proto::ServerMessage;
 use usar_server::{ServerConfig, TimeScale};
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_respawn_right_after_closing_always_finds_the_place_free() {
-    let server = TestServer::with(ServerConfig {
+/// A server at full speed that offers lockstep, as `ucc run --local` starts.
+async fn fast_lockstep_server() -> TestServer {
+    TestServer::with(ServerConfig {
         time_scale: TimeScale::Max,
         lockstep: true,
         ..ServerConfig::default()
     })
-    .await;
+    .await
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_respawn_right_after_closing_always_finds_the_place_free() {
+    let server = fast_lockstep_server().await;
     let iterations = 2000;
     let mut failed = 0;
     for _ in 0..iterations {
@@ -54,12 +59,7 @@ async fn a_respawn_right_after_closing_always_finds_the_place_free() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn after_the_server_closed_its_end_the_old_robot_is_gone() {
     use tokio::io::AsyncWriteExt;
-    let server = TestServer::with(ServerConfig {
-        time_scale: TimeScale::Max,
-        lockstep: true,
-        ..ServerConfig::default()
-    })
-    .await;
+    let server = fast_lockstep_server().await;
     let iterations = 300;
     let mut shifted = Vec::new();
     for i in 0..iterations {

@@ -41,12 +41,10 @@ def clocks():
 
 
 def single(seconds):
-    import importlib
-
     import gymnasium
     import numpy as np
 
-    importlib.import_module("usarsim")  # registers the environments
+    import usarsim  # noqa: F401  (registers the environments)
 
     env = gymnasium.make("usarsim/Waypoints-v0")
     env.reset(seed=0)
@@ -101,25 +99,6 @@ def autoreset(num, repeats=5, seconds=None, **options):
     return (med(normal, 0), med(normal, 1)), (med(resetting, 0), med(resetting, 1))
 
 
-def run_default(seconds):
-    """The benchmark without --compare: every case once, in this process."""
-    print(f"cores: {os.cpu_count()}, load average {os.getloadavg()[0]:.1f} at the start")
-    cases = [("1 UAV (gymnasium.make), full", lambda: single(seconds))]
-    for n in (256, 1024):
-        cases.append((f"vector env, {n} UAVs, full", lambda n=n: vector(n, seconds)))
-        cases.append((f"vector env, {n} UAVs, state", lambda n=n: vector(n, seconds, state_only=True, flat=True)))
-    for name, fn in cases:
-        wall, cpu = fn()
-        print(f"{name:34s} {wall:10.0f} UAV-steps/s   {cpu:10.0f} per CPU-second")
-    for n in (256, 1024):
-        for kind, options in (("full", {}), ("state", {"state_only": True, "flat": True})):
-            (nw, nc), (rw, rc) = autoreset(n, **options)
-            print(f"autoreset, {n:4d} UAVs, {kind}: normal step {nw * 1e3:6.1f} ms ({nc * 1e3:5.1f} CPU), "
-                  f"resetting all {rw * 1e3:6.1f} ms ({rc * 1e3:5.1f} CPU): {rw / nw:.2f}x wall, {rc / nc:.2f}x CPU")
-
-
-# --- paired A/B comparison (--compare) ------------------------------------------------------
-
 STATE = {"state_only": True, "flat": True}
 
 
@@ -131,7 +110,7 @@ def _autoreset_rate(num, seconds, **options):
 
 
 CASES = {
-    "single-full": ("1 UAV (gymnasium.make), full", lambda s: single(s)),
+    "single-full": ("1 UAV (gymnasium.make), full", single),
     "full-256": ("vector env, 256 UAVs, full", lambda s: vector(256, s)),
     "state-256": ("vector env, 256 UAVs, state", lambda s: vector(256, s, **STATE)),
     "full-1024": ("vector env, 1024 UAVs, full", lambda s: vector(1024, s)),
@@ -142,6 +121,23 @@ CASES = {
     "autoreset-state-1024": ("resetting steps, 1024 UAVs, state", lambda s: _autoreset_rate(1024, s, **STATE)),
 }
 DEFAULT_CASES = ["full-256", "state-256", "full-1024", "state-1024"]
+
+
+def run_default(seconds):
+    """The benchmark without --compare: every case once, in this process."""
+    print(f"cores: {os.cpu_count()}, load average {os.getloadavg()[0]:.1f} at the start")
+    for case in ["single-full", *DEFAULT_CASES]:
+        name, fn = CASES[case]
+        wall, cpu = fn(seconds)
+        print(f"{name:34s} {wall:10.0f} UAV-steps/s   {cpu:10.0f} per CPU-second")
+    for n in (256, 1024):
+        for kind, options in (("full", {}), ("state", STATE)):
+            (nw, nc), (rw, rc) = autoreset(n, **options)
+            print(f"autoreset, {n:4d} UAVs, {kind}: normal step {nw * 1e3:6.1f} ms ({nc * 1e3:5.1f} CPU), "
+                  f"resetting all {rw * 1e3:6.1f} ms ({rc * 1e3:5.1f} CPU): {rw / nw:.2f}x wall, {rc / nc:.2f}x CPU")
+
+
+# --- paired A/B comparison (--compare) ------------------------------------------------------
 
 
 def run_child(case, seconds):

@@ -115,7 +115,8 @@ impl Drop for Remote {
 }
 
 impl Remote {
-    /// Connects, asks for lockstep, spawns `robot` at `pose` and waits one period.
+    /// Connects, asks for lockstep, spawns `robot` at `pose` and hovers until its sensors
+    /// have read once (as the in-process world: [`first_periods`]).
     pub(crate) fn connect(
         addr: &str,
         robot: &str,
