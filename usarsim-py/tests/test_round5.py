@@ -35,6 +35,17 @@ def test_each_row_draws_its_own_stream_whatever_else_draws():
     assert u.min() >= 0 and u.max() < 1 and abs(u.mean() - 0.5) < 0.02
 
 
+def test_the_streams_draw_in_rust_what_their_numpy_definition_gives():
+    # Streams.draw runs in Rust (usarsim._core.stream_draws); its NumPy definition is kept.
+    a, b = Streams.seeded(11, 50), Streams.seeded(11, 50)
+    for rows, k in (([0, 49, 3], 3), (np.arange(50), 1), ([7, 7, 2], 2), ([], 4), (range(5), 2)):
+        assert np.array_equal(a.draw(rows, k), b._draw_numpy(rows, k))
+        assert np.array_equal(a.drawn, b.drawn)
+    with pytest.raises(ValueError, match="row 50 is not in 0..50"):
+        a.draw([50], 1)
+    assert np.array_equal(a.drawn, b.drawn)  # a bad row draws nothing
+
+
 def test_seeds_of_any_size_draw_without_overflow_warnings():
     with warnings.catch_warnings():
         warnings.simplefilter("error")

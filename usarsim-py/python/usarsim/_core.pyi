@@ -9,6 +9,9 @@ LASER_BEAMS: int
 SONARS: int
 
 def qualified_class(robot: str) -> str: ...
+def stream_draws(keys: np.ndarray, drawn: np.ndarray, rows: np.ndarray, k: int) -> np.ndarray:
+    """`k` uint64 draws from each row's SplitMix64 stream, (len(rows), k); advances `drawn` in
+    place (``usarsim._task.Streams.draw``)."""
 
 class Batch:
     """N worlds with K UAVs each, stepped together one control period per call."""

@@ -455,9 +455,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         raw = self._step_raw(a, reset)
         live = np.ones(self.num_envs, dtype=bool)
         live[done] = False
-        if len(done):
-            self._tasks.begin(raw, done)
-        reward, term, trunc, info = self._tasks.reward(raw, live)
+        reward, term, trunc, info = self._tasks.reward(raw, live)  # the reset rows begin there
         self._autoreset = term | trunc
         return self._observe_all(raw), reward, term, trunc, _with_masks(info, live)
 
