@@ -74,6 +74,8 @@ impl Backend {
 
     /// [`Backend::start`] with the side services `sides` on an in-process server.
     pub async fn start_with(self, sides: Sides) -> Result<Server, BackendError> {
+        #[cfg(not(feature = "local"))]
+        let _ = sides; // only an in-process server has side services
         match self {
             Self::Remote(addr) => Ok(Server {
                 addr,
