@@ -54,7 +54,7 @@ mod quadrotor_tests;
 mod tests;
 
 pub use map::{ConfigError, ConfigFile, Map, Placed, PlayerStart};
-pub use noise::ErrorModel;
+pub use noise::{ErrorModel, splitmix};
 pub use render::Image;
 pub use robots::{RobotCatalog, RobotClass, UnknownClass};
 pub use wind::WindConfig;

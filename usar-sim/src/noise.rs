@@ -195,7 +195,9 @@ impl Noise {
     }
 }
 
-pub(crate) fn splitmix(state: &mut u64) -> u64 {
+/// SplitMix64: advances `state` by the golden-ratio increment and returns its mix (the
+/// Python package's per-sub-environment streams draw with it too).
+pub fn splitmix(state: &mut u64) -> u64 {
     *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
     let mut z = *state;
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);

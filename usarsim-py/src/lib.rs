@@ -620,19 +620,12 @@ fn qualified_class(robot: &str) -> String {
     usar_proto::Init::qualified_class(robot)
 }
 
-/// SplitMix64's output function.
-fn mix(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 /// `usarsim._task.Streams.draw`: `k` 64-bit draws from the stream of each of `rows`, shape
-/// `(len(rows), k)`: draw `j` (from 1) after the `drawn[row]` made so far is
-/// `mix(keys[row] + (drawn[row] + j) * golden)`; then `drawn[row] += k` (once per row, as
-/// NumPy's `drawn[rows] += k` does when a row repeats). What the NumPy expression gives, bit
-/// for bit, without its dozen temporary arrays (a vector env's autoreset draws for every
-/// resetting row).
+/// `(len(rows), k)`: SplitMix64 from `keys[row] + drawn[row] * golden` (the `drawn[row]`
+/// draws made so far), the golden-ratio increment once per draw; then `drawn[row] += k` (once
+/// per row, as NumPy's `drawn[rows] += k` does when a row repeats). What the NumPy expression
+/// gives, bit for bit, without its dozen temporary arrays (a vector env's autoreset draws for
+/// every resetting row).
 #[pyfunction]
 fn stream_draws<'py>(
     py: Python<'py>,
@@ -643,7 +636,6 @@ fn stream_draws<'py>(
 ) -> PyResult<Bound<'py, PyArray2<u64>>> {
     const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
     let keys = keys.as_array();
-    let rows = rows.as_array();
     let mut drawn = drawn.as_array_mut();
     let n = keys.len();
     if drawn.len() != n {
@@ -652,24 +644,23 @@ fn stream_draws<'py>(
             drawn.len()
         )));
     }
-    let index = |r: i64| {
-        usize::try_from(r)
-            .ok()
-            .filter(|&r| r < n)
-            .ok_or_else(|| PyValueError::new_err(format!("stream_draws: row {r} is not in 0..{n}")))
-    };
-    let mut out = Array2::<u64>::zeros((rows.len(), k));
-    for (i, &r) in rows.iter().enumerate() {
-        let r = index(r)?;
-        let (key, base) = (keys[r], drawn[r]);
-        for (j, v) in out.row_mut(i).iter_mut().enumerate() {
-            *v = mix(key.wrapping_add(base.wrapping_add(j as u64 + 1).wrapping_mul(GOLDEN)));
-        }
-    }
-    // After every draw: a repeated row draws from its count before this call each time.
-    let before: Vec<u64> = rows.iter().map(|&r| drawn[r as usize]).collect();
-    for (&r, b) in rows.iter().zip(before) {
-        drawn[r as usize] = b.wrapping_add(k as u64);
+    // Every row checked, and its count read, before any count moves.
+    let starts = rows
+        .as_array()
+        .iter()
+        .map(|&r| match usize::try_from(r) {
+            Ok(r) if r < n => Ok((r, drawn[r])),
+            _ => Err(PyValueError::new_err(format!(
+                "stream_draws: row {r} is not in 0..{n}"
+            ))),
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let mut out = Array2::<u64>::zeros((starts.len(), k));
+    for (mut row, &(r, made)) in out.rows_mut().into_iter().zip(&starts) {
+        let mut state = keys[r].wrapping_add(made.wrapping_mul(GOLDEN));
+        row.iter_mut()
+            .for_each(|v| *v = usar_sim::splitmix(&mut state));
+        drawn[r] = made.wrapping_add(k as u64);
     }
     Ok(out.into_pyarray(py))
 }
