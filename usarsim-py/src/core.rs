@@ -776,8 +776,10 @@ pub(crate) struct Batch {
 }
 
 /// Runs `f` on every item (a world, with what goes with it) with its index, spread over the
-/// cores when there are enough: this thread takes the first share, one thread per other core
-/// the rest.
+/// cores when there are enough: this thread and one thread per other core take small
+/// shares in turn until none is left. Shares taken in turn, not a fixed half each: a thread
+/// the machine holds up (or a half whose UAVs are pressed against walls, each tick's sweep
+/// then casting) no longer keeps the other waiting at the end of the step.
 ///
 /// The threads are joined, not left to the scope: a scope returns when its threads' closures
 /// have, before the threads have exited and handed their malloc arenas back, so the next
@@ -794,22 +796,24 @@ where
         }
         return;
     }
-    let chunk = items.len().div_ceil(threads);
-    let f = &f;
-    let run = move |c: usize, items: &mut [T]| {
-        for (j, w) in items.iter_mut().enumerate() {
-            f(c * chunk + j, w);
+    // About eight shares per thread: few enough that taking one costs nothing next to
+    // stepping it, enough that the last one is short.
+    let chunk = items.len().div_ceil(threads * 8);
+    let shares = Mutex::new(items.chunks_mut(chunk).enumerate());
+    let run = || {
+        loop {
+            let next = shares.lock().unwrap_or_else(PoisonError::into_inner).next();
+            let Some((c, share)) = next else {
+                break;
+            };
+            for (j, w) in share.iter_mut().enumerate() {
+                f(c * chunk + j, w);
+            }
         }
     };
     std::thread::scope(|scope| {
-        let mut shares = items.chunks_mut(chunk).enumerate();
-        let mine = shares.next();
-        let others: Vec<_> = shares
-            .map(|(c, worlds)| scope.spawn(move || run(c, worlds)))
-            .collect();
-        if let Some((c, worlds)) = mine {
-            run(c, worlds);
-        }
+        let others: Vec<_> = (1..threads).map(|_| scope.spawn(run)).collect();
+        run();
         for other in others {
             if let Err(panic) = other.join() {
                 std::panic::resume_unwind(panic);
