@@ -3,6 +3,7 @@
 //! [`UavState`] per UAV and written out as flat arrays. No Python types here.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use ucc_client::SpeedCommand;
@@ -776,10 +777,13 @@ pub(crate) struct Batch {
 }
 
 /// Runs `f` on every item (a world, with what goes with it) with its index, spread over the
-/// cores when there are enough: this thread and one thread per other core take small
-/// shares in turn until none is left. Shares taken in turn, not a fixed half each: a thread
-/// the machine holds up (or a half whose UAVs are pressed against walls, each tick's sweep
-/// then casting) no longer keeps the other waiting at the end of the step.
+/// cores when there are enough: this thread and one thread per other core each step their
+/// own share of the items (the same share at every call), a small piece at a time, and a
+/// thread done with its share takes the pieces left of the others'. Not a fixed share each:
+/// a thread the machine holds up (or a share whose UAVs are pressed against walls, each
+/// tick's sweep then casting) no longer keeps the others waiting at the end of the step. Not
+/// pieces in turn from one queue either: a world then moved between threads from call to
+/// call, and what a reset freed went back to another thread's heap (resets were slower).
 ///
 /// The threads are joined, not left to the scope: a scope returns when its threads' closures
 /// have, before the threads have exited and handed their malloc arenas back, so the next
@@ -796,24 +800,42 @@ where
         }
         return;
     }
-    // About eight shares per thread: few enough that taking one costs nothing next to
+    // About eight pieces per thread: few enough that taking one costs nothing next to
     // stepping it, enough that the last one is short.
     let chunk = items.len().div_ceil(threads * 8);
-    let shares = Mutex::new(items.chunks_mut(chunk).enumerate());
-    let run = || {
-        loop {
-            let next = shares.lock().unwrap_or_else(PoisonError::into_inner).next();
-            let Some((c, share)) = next else {
-                break;
-            };
-            for (j, w) in share.iter_mut().enumerate() {
-                f(c * chunk + j, w);
+    let pieces: Vec<Mutex<Option<&mut [T]>>> = items
+        .chunks_mut(chunk)
+        .map(|p| Mutex::new(Some(p)))
+        .collect();
+    let n = pieces.len();
+    let end = |share: usize| (share + 1) * n / threads;
+    // The next piece of each share.
+    let next: Vec<AtomicUsize> = (0..threads)
+        .map(|share| AtomicUsize::new(share * n / threads))
+        .collect();
+    let run = |me: usize| {
+        for share in (0..threads).map(|k| (me + k) % threads) {
+            loop {
+                let p = next[share].fetch_add(1, Ordering::Relaxed);
+                if p >= end(share) {
+                    break;
+                }
+                let piece = pieces[p]
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .take();
+                for (j, w) in piece.into_iter().flatten().enumerate() {
+                    f(p * chunk + j, w);
+                }
             }
         }
     };
     std::thread::scope(|scope| {
-        let others: Vec<_> = (1..threads).map(|_| scope.spawn(run)).collect();
-        run();
+        let run = &run;
+        let others: Vec<_> = (1..threads)
+            .map(|me| scope.spawn(move || run(me)))
+            .collect();
+        run(0);
         for other in others {
             if let Err(panic) = other.join() {
                 std::panic::resume_unwind(panic);
