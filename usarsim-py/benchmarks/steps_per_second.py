@@ -8,9 +8,11 @@ is one UAV advanced one control period (0.1 s simulated, 20 physics ticks). "ful
 stsAirRobot with every sensor (228-beam laser, 10 sonars) and the Dict observation; "state":
 ``state_only=True, flat=True`` (no range sensors; one float32 Box). Random actions; episodes
 end and autoreset (NEXT_STEP) as they come. "autoreset step": one step in which every
-sub-environment resets (episodes of 1 step), against a normal step, full and state-only (a
-reset flies the world until every sensor has read once: three control periods with the 0.3 s
-laser, one without the range sensors).
+sub-environment resets (episodes of 1 step, zero actions: the cheapest normal step there is),
+against a normal step, full and state-only (a reset flies the world until every sensor has
+read once: three control periods with the 0.3 s laser, one without the range sensors).
+"autoreset in flight": the same in Hover episodes of 50 steps flown with the random actions
+(the normal step the speed cases time; every sub-env ends in the same step).
 
 Per CPU-second is the process's CPU time (user + system, all threads): on a machine shared
 with other work it is the fairer figure; wall-clock UAV-steps/s depends on the free cores.
@@ -99,6 +101,33 @@ def autoreset(num, repeats=5, seconds=None, **options):
     return (med(normal, 0), med(normal, 1)), (med(resetting, 0), med(resetting, 1))
 
 
+def autoreset_flying(num, episode=50, episodes=6, **options):
+    """(wall, CPU) seconds of a normal step and of a step where all `num` sub-envs reset
+    (medians), in Hover episodes of `episode` steps flown with the speed cases' random
+    actions: every sub-env ends in the same step, and the next resets them all."""
+    import numpy as np
+
+    import usarsim
+
+    venv = usarsim.vector_env(num, "hover", max_steps=episode, **options)
+    venv.reset(seed=0)
+    rng = np.random.default_rng(0)
+    actions = [rng.uniform(-1, 1, (num, 4)) for _ in range(8)]
+    normal, resetting = [], []
+    ended = 0
+    for n in range(episode * episodes + 1):
+        w0, c0 = clocks()
+        _, _, terminated, truncated, _ = venv.step(actions[n % 8])
+        w1, c1 = clocks()
+        if ended == 0:
+            normal.append((w1 - w0, c1 - c0))
+        elif ended == num:
+            resetting.append((w1 - w0, c1 - c0))
+        ended = int((terminated | truncated).sum())
+    med = lambda xs, i: statistics.median(x[i] for x in xs)  # noqa: E731
+    return (med(normal, 0), med(normal, 1)), (med(resetting, 0), med(resetting, 1))
+
+
 STATE = {"state_only": True, "flat": True}
 
 
@@ -135,6 +164,10 @@ def run_default(seconds):
             (nw, nc), (rw, rc) = autoreset(n, **options)
             print(f"autoreset, {n:4d} UAVs, {kind}: normal step {nw * 1e3:6.1f} ms ({nc * 1e3:5.1f} CPU), "
                   f"resetting all {rw * 1e3:6.1f} ms ({rc * 1e3:5.1f} CPU): {rw / nw:.2f}x wall, {rc / nc:.2f}x CPU")
+    for kind, options in (("full", {}), ("state", STATE)):
+        (nw, nc), (rw, rc) = autoreset_flying(1024, **options)
+        print(f"autoreset in flight, 1024 UAVs, {kind}: normal step {nw * 1e3:6.1f} ms ({nc * 1e3:5.1f} CPU), "
+              f"resetting all {rw * 1e3:6.1f} ms ({rc * 1e3:5.1f} CPU): {rw / nw:.2f}x wall, {rc / nc:.2f}x CPU")
 
 
 # --- paired A/B comparison (--compare) ------------------------------------------------------
