@@ -160,3 +160,29 @@ def test_a_bad_out_is_named_and_nothing_steps():
     frozen["battery"].flags.writeable = False
     with pytest.raises(ValueError, match="step: out: battery: not a writable"):
         batch.step(np.zeros((4, 4)), out=frozen)
+
+
+def test_every_world_of_a_batch_steps_once_per_step_with_its_own_actions():
+    # The threads share the worlds out in pieces (`par_each` in src/core.rs): a piece skipped
+    # or stepped twice would leave its worlds at another time than the others, and a piece
+    # given another's rows of actions would move other UAVs.
+    n = 37  # pieces of 3 worlds on 2 cores, the last one short
+    venv = usarsim.vector_env(n, "hover", max_steps=3, state_only=True)
+    one = usarsim.vector_env(1, "hover", max_steps=3, state_only=True)
+    venv.reset(seed=5)
+    one.reset(seed=5)
+    rng = np.random.default_rng(0)
+    for _ in range(7):  # with two autoresets of every world
+        a = rng.uniform(-1, 1, (n, 4))
+        obs, *_ = venv.step(a)
+        first, *_ = one.step(a[:1])
+        assert [venv._batch.time(i) for i in range(n)] == [one._batch.time(0)] * n
+        assert all(np.array_equal(obs[k][0], first[k][0]) for k in obs)
+    venv.reset(seed=5)
+    for k in (0, 18, n - 1):
+        a = np.zeros((n, 4))
+        a[k, 0] = 1.0  # full speed forward: only UAV k moves
+        before = venv._batch.observe()["position"]
+        venv.step(a)
+        moved = np.linalg.norm(venv._batch.observe()["position"] - before, axis=1) > 0.05
+        assert np.flatnonzero(moved).tolist() == [k]
