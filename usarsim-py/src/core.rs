@@ -776,30 +776,58 @@ pub(crate) struct Batch {
     pub(crate) uavs_per_world: usize,
 }
 
+/// The threads that step the batches besides the calling thread: one per other core,
+/// started at the first step that needs them and kept (starting a thread at every step
+/// cost about 60 µs: more than stepping a few dozen hovering worlds). A process forked since (Python's `multiprocessing`, a
+/// `SubprocVecEnv`) has none of its parent's threads: it starts its own. `None` when they
+/// cannot be started (then the calling thread steps every world).
+fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
+    static POOL: Mutex<Option<(u32, Arc<rayon_core::ThreadPool>)>> = Mutex::new(None);
+    let mut pool = POOL.lock().unwrap_or_else(PoisonError::into_inner);
+    let pid = std::process::id();
+    match pool.take() {
+        Some((owner, threads)) if owner == pid => *pool = Some((owner, threads)),
+        // The parent's pool: its threads do not exist here, so it is never told to stop.
+        Some(inherited) => std::mem::forget(inherited),
+        None => {}
+    }
+    if pool.is_none() {
+        // The calling thread steps a share too: one thread fewer than cores (none on one
+        // core; rayon would read 0 as "one per core").
+        let others = usar_sim::default_threads()
+            .checked_sub(1)
+            .filter(|&n| n > 0)?;
+        let built = rayon_core::ThreadPoolBuilder::new()
+            .num_threads(others)
+            .thread_name(|i| format!("usarsim-step-{i}"))
+            .build()
+            .ok()?;
+        *pool = Some((pid, Arc::new(built)));
+    }
+    pool.as_ref().map(|(_, threads)| threads.clone())
+}
+
 /// Runs `f` on every item (a world, with what goes with it) with its index, spread over the
-/// cores when there are enough: this thread and one thread per other core each step their
-/// own share of the items (the same share at every call), a small piece at a time, and a
-/// thread done with its share takes the pieces left of the others'. Not a fixed share each:
-/// a thread the machine holds up (or a share whose UAVs are pressed against walls, each
-/// tick's sweep then casting) no longer keeps the others waiting at the end of the step. Not
-/// pieces in turn from one queue either: a world then moved between threads from call to
-/// call, and what a reset freed went back to another thread's heap (resets were slower).
-///
-/// The threads are joined, not left to the scope: a scope returns when its threads' closures
-/// have, before the threads have exited and handed their malloc arenas back, so the next
-/// call's threads found none free and glibc made new ones (up to 8 per core), each keeping
-/// memory of worlds freed there: +8 MiB over a million UAV-steps (issue #26's Python soak).
+/// cores when there are enough (this thread and [`pool`]'s): each thread steps its own
+/// share of the items (the same share at every call), a small piece at a time, and a
+/// thread done with its share takes the pieces left of the others'. Not a fixed
+/// share each: a thread the machine holds up (or a share whose UAVs are pressed against
+/// walls, each tick's sweep then casting) no longer keeps the others waiting at the end of
+/// the step. Not pieces in turn from one queue either: a world then moved between threads
+/// from call to call, and what a reset freed went back to another thread's heap (resets
+/// were slower).
 fn par_each<T: Send, F>(items: &mut [T], f: F)
 where
     F: Fn(usize, &mut T) + Sync,
 {
-    let threads = usar_sim::default_threads();
-    if threads < 2 || items.len() < 4 {
+    let pool = (items.len() >= 4).then(pool).flatten();
+    let Some(pool) = pool else {
         for (i, w) in items.iter_mut().enumerate() {
             f(i, w);
         }
         return;
-    }
+    };
+    let threads = pool.current_num_threads() + 1;
     // About eight pieces per thread: few enough that taking one costs nothing next to
     // stepping it, enough that the last one is short.
     let chunk = items.len().div_ceil(threads * 8);
@@ -830,17 +858,14 @@ where
             }
         }
     };
-    std::thread::scope(|scope| {
+    // This thread steps the first share, the pool's threads the others; a panic in `f`
+    // reaches the caller once every thread is done.
+    pool.in_place_scope(|scope| {
         let run = &run;
-        let others: Vec<_> = (1..threads)
-            .map(|me| scope.spawn(move || run(me)))
-            .collect();
-        run(0);
-        for other in others {
-            if let Err(panic) = other.join() {
-                std::panic::resume_unwind(panic);
-            }
+        for me in 1..threads {
+            scope.spawn(move |_| run(me));
         }
+        run(0);
     });
 }
 

@@ -186,3 +186,36 @@ def test_every_world_of_a_batch_steps_once_per_step_with_its_own_actions():
         venv.step(a)
         moved = np.linalg.norm(venv._batch.observe()["position"] - before, axis=1) > 0.05
         assert np.flatnonzero(moved).tolist() == [k]
+
+
+def _step_in_child(q):
+    venv = usarsim.vector_env(8, state_only=True, flat=True)
+    venv.reset(seed=0)
+    for _ in range(3):
+        venv.step(np.zeros((8, 4)))
+    q.put(venv._batch.time(7))
+
+
+@pytest.mark.skipif("fork" not in __import__("multiprocessing").get_all_start_methods(), reason="no fork here")
+def test_a_process_forked_after_stepping_steps_its_own_worlds():
+    # The batch's worker threads are kept between steps; a forked child (Gymnasium's
+    # AsyncVectorEnv, multiprocessing's default on Linux) has none of them and must start
+    # its own, not wait forever for its parent's.
+    import multiprocessing as mp
+
+    parent = usarsim.vector_env(8, state_only=True, flat=True)
+    parent.reset(seed=0)
+    parent.step(np.zeros((8, 4)))  # the threads exist now
+    ctx = mp.get_context("fork")
+    q = ctx.Queue()
+    child = ctx.Process(target=_step_in_child, args=(q,))
+    child.start()
+    try:
+        assert q.get(timeout=20) == pytest.approx(0.4)  # one period at the reset, three steps
+    finally:
+        child.join(10)
+        if child.is_alive():
+            child.kill()
+    assert child.exitcode == 0
+    parent.step(np.zeros((8, 4)))
+    assert parent._batch.time(7) == pytest.approx(0.3)
