@@ -32,9 +32,8 @@ def _actions(action, n: int) -> np.ndarray:
     if a.shape != want and a.shape != (n, 4):
         raise ValueError(f"action: expected shape {want}, got {a.shape}")
     a = a.reshape(n, 4)
-    bad = np.argwhere(~np.isfinite(a))
-    if len(bad):
-        r, c = bad[0]
+    if not np.isfinite(a).all():
+        r, c = np.argwhere(~np.isfinite(a))[0]
         raise ValueError(f"action: row {r}, component {c} is not finite ({a[r, c]})")
     return a
 

@@ -272,6 +272,7 @@ class Tasks:
         self.index = np.zeros(n, dtype=np.int64)
         self.steps = np.zeros(n, dtype=np.int64)
         self.prev = np.zeros(n)
+        self._columns = None  # observe()'s layout, made at its first call
 
     def default_start(self) -> np.ndarray:
         """The first PlayerStart, or (0, 0, -1)."""
@@ -362,16 +363,32 @@ class Tasks:
         if out is None:
             out = {k: np.clip(values[k], BOUNDS[k][0], BOUNDS[k][1]).astype(np.float32) for k in self.keys}
             return np.concatenate(list(out.values()), axis=1) if self.flat else out
-        column = 0
-        for k in self.keys:
-            if self.flat:
-                width = values[k].shape[1]
-                target, column = out[:, column:column + width], column + width
-            else:
-                target = out[k]
-            # Clipped in float64, then rounded to float32: the values astype() gives.
-            np.clip(values[k], BOUNDS[k][0], BOUNDS[k][1], out=target, casting="same_kind")
+        # Gathered into one float64 row per UAV and clipped in one call (one call per key
+        # cost more than the clipping): in float64, then rounded to float32, the values
+        # astype() gives.
+        lo, hi, columns, scratch = self._layout(values)
+        for k, a, b in columns:
+            scratch[:, a:b] = values[k]
+        if self.flat:
+            np.clip(scratch, lo, hi, out=out, casting="same_kind")
+        else:
+            np.clip(scratch, lo, hi, out=scratch)
+            for k, a, b in columns:
+                out[k][...] = scratch[:, a:b]
         return out
+
+    def _layout(self, values):
+        """Per-column bounds, each key's columns and a float64 scratch array for
+        :meth:`observe`, made again when the keys or the number of rows change."""
+        keys, rows = tuple(self.keys), len(values["position"])
+        if self._columns is None or self._columns[0] != (keys, rows):
+            widths = [values[k].shape[1] for k in keys]
+            ends = np.cumsum(widths).tolist()
+            columns = [(k, e - w, e) for k, w, e in zip(keys, widths, ends)]
+            lo = np.concatenate([np.full(w, BOUNDS[k][0], dtype=np.float64) for k, w in zip(keys, widths)])
+            hi = np.concatenate([np.full(w, BOUNDS[k][1], dtype=np.float64) for k, w in zip(keys, widths)])
+            self._columns = ((keys, rows), (lo, hi, columns, np.empty((rows, sum(widths)))))
+        return self._columns[1]
 
     def row(self, obs, i: int):
         """Row `i` of an observation from :meth:`observe`."""
