@@ -140,6 +140,8 @@ def _autoreset_rate(num, seconds, **options):
 
 CASES = {
     "single-full": ("1 UAV (gymnasium.make), full", single),
+    "full-16": ("vector env, 16 UAVs, full", lambda s: vector(16, s)),
+    "state-16": ("vector env, 16 UAVs, state", lambda s: vector(16, s, **STATE)),
     "full-256": ("vector env, 256 UAVs, full", lambda s: vector(256, s)),
     "state-256": ("vector env, 256 UAVs, state", lambda s: vector(256, s, **STATE)),
     "full-1024": ("vector env, 1024 UAVs, full", lambda s: vector(1024, s)),
@@ -149,7 +151,7 @@ CASES = {
     "autoreset-full-1024": ("resetting steps, 1024 UAVs, full", lambda s: _autoreset_rate(1024, s)),
     "autoreset-state-1024": ("resetting steps, 1024 UAVs, state", lambda s: _autoreset_rate(1024, s, **STATE)),
 }
-DEFAULT_CASES = ["full-256", "state-256", "full-1024", "state-1024"]
+DEFAULT_CASES = ["full-16", "state-16", "full-256", "state-256", "full-1024", "state-1024"]
 
 
 def run_default(seconds):
