@@ -59,6 +59,12 @@ TOUCH_PENALTY = 1.0
 CRASH_PENALTY = 100.0
 
 
+def _lengths(v: np.ndarray) -> np.ndarray:
+    """The length of each row: what ``np.linalg.norm(v, axis=1)`` gives for real rows, bit
+    for bit, without its checks (a third of its time with a few rows)."""
+    return np.sqrt(np.add.reduce(v * v, axis=1))
+
+
 def fields(state_only: bool = False) -> list:
     """The observation keys, in order (without ``sonar`` and ``laser`` when state-only)."""
     return [k for k in FIELDS if not (state_only and k in ("sonar", "laser"))]
@@ -349,7 +355,7 @@ class Tasks:
     def begin(self, raw, rows) -> None:
         """Remembers the starting distances of `rows` after a reset."""
         rows = np.asarray(rows, dtype=np.int64)
-        self.prev[rows] = np.linalg.norm(self._vector(raw), axis=1)[rows]
+        self.prev[rows] = _lengths(self._vector(raw))[rows]
 
     def observe(self, raw, out=None):
         """The observation (float32 arrays, one row per UAV): a dict, or with ``flat`` one
@@ -402,7 +408,7 @@ class Tasks:
         self.steps += live
         touched = np.asarray(raw["touched"], dtype=bool)
         crashed = np.asarray(raw["crashed"], dtype=bool)
-        dist = np.linalg.norm(self._vector(raw), axis=1)
+        dist = _lengths(self._vector(raw))
         if self.task == "hover":
             yaw_err = np.abs((raw["attitude"][:, 2] - self.hold_yaw + np.pi) % (2 * np.pi) - np.pi)
             reward = -dist - 0.2 * yaw_err - TOUCH_PENALTY * touched
@@ -414,7 +420,7 @@ class Tasks:
             reward = reward + WAYPOINT_BONUS * reached
             self.index = self.index + reached
             terminated = self.index >= self.count
-            dist = np.linalg.norm(self._vector(raw), axis=1)
+            dist = _lengths(self._vector(raw))
         # Live rows: the distance after this step; rows reset in it: their starting distance.
         self.prev = dist
         # A crash (robots with physics: docs/quadrotor.md) ends the episode with a penalty.
