@@ -304,7 +304,7 @@ impl Scene {
     pub(crate) fn reset(&mut self, bodies: &mut [ColliderHandle]) {
         // Taken out and put back, not cloned: every world of a batch shares the template,
         // and two threads counting references to it in turn kept taking its cache line
-        // from each other (4 % of an all-resetting step's time).
+        // from each other (2.6 % of the samples of a loop of resetting and normal steps).
         let Some(template) = self.base.take() else {
             return;
         };
