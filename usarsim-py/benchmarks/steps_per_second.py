@@ -78,6 +78,11 @@ def vector(num, seconds, **options):
     return n * num / (w1 - w0), n * num / max(c1 - c0, 1e-9)
 
 
+def _medians(times):
+    """(wall, CPU) medians of (wall, CPU) pairs."""
+    return statistics.median(w for w, _ in times), statistics.median(c for _, c in times)
+
+
 def autoreset(num, repeats=5, seconds=None, **options):
     """(wall, CPU) seconds of a normal step and of a step where all `num` sub-envs reset
     (medians). With `seconds`, repeats at least `repeats` times and until `seconds` have
@@ -97,8 +102,7 @@ def autoreset(num, repeats=5, seconds=None, **options):
             venv.step(a)
             w1, c1 = clocks()
             record.append((w1 - w0, c1 - c0))
-    med = lambda xs, i: statistics.median(x[i] for x in xs)  # noqa: E731
-    return (med(normal, 0), med(normal, 1)), (med(resetting, 0), med(resetting, 1))
+    return _medians(normal), _medians(resetting)
 
 
 def autoreset_flying(num, episode=50, episodes=6, **options):
@@ -124,8 +128,7 @@ def autoreset_flying(num, episode=50, episodes=6, **options):
         elif ended == num:
             resetting.append((w1 - w0, c1 - c0))
         ended = int((terminated | truncated).sum())
-    med = lambda xs, i: statistics.median(x[i] for x in xs)  # noqa: E731
-    return (med(normal, 0), med(normal, 1)), (med(resetting, 0), med(resetting, 1))
+    return _medians(normal), _medians(resetting)
 
 
 STATE = {"state_only": True, "flat": True}

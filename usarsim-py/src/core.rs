@@ -777,19 +777,18 @@ pub(crate) struct Batch {
 }
 
 /// The threads that step the batches besides the calling thread: one per other core,
-/// started at the first step that needs them and kept (starting a thread at every step
-/// cost about 60 µs: more than stepping a few dozen hovering worlds). A process forked since (Python's `multiprocessing`, a
-/// `SubprocVecEnv`) has none of its parent's threads: it starts its own. `None` when they
-/// cannot be started (then the calling thread steps every world).
+/// started at the first step that needs them and kept (starting a thread at every step cost
+/// about 60 µs: more than stepping a few dozen hovering worlds). A process forked since
+/// (Python's `multiprocessing`, a `SubprocVecEnv`) has none of its parent's threads: it
+/// starts its own. `None` when they cannot be started (then the calling thread steps every
+/// world).
 fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
     static POOL: Mutex<Option<(u32, Arc<rayon_core::ThreadPool>)>> = Mutex::new(None);
     let mut pool = POOL.lock().unwrap_or_else(PoisonError::into_inner);
     let pid = std::process::id();
-    match pool.take() {
-        Some((owner, threads)) if owner == pid => *pool = Some((owner, threads)),
+    if pool.as_ref().is_some_and(|(owner, _)| *owner != pid) {
         // The parent's pool: its threads do not exist here, so it is never told to stop.
-        Some(inherited) => std::mem::forget(inherited),
-        None => {}
+        std::mem::forget(pool.take());
     }
     if pool.is_none() {
         // The calling thread steps a share too: one thread fewer than cores (none on one
@@ -809,11 +808,10 @@ fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
 
 /// Runs `f` on every item (a world, with what goes with it) with its index, spread over the
 /// cores when there are enough (this thread and [`pool`]'s): each thread steps its own
-/// share of the items (the same share at every call), a small piece at a time, and a
-/// thread done with its share takes the pieces left of the others'. Not a fixed
-/// share each: a thread the machine holds up (or a share whose UAVs are pressed against
-/// walls, each tick's sweep then casting) no longer keeps the others waiting at the end of
-/// the step. Not pieces in turn from one queue either: a world then moved between threads
+/// share of the items (the same share at every call), a small piece at a time, and a thread
+/// done with its share takes the pieces left of the others'. Not a fixed share each: a
+/// thread the machine holds up (or a share whose UAVs are pressed against walls, each
+/// tick's sweep then casting) no longer keeps the others waiting at the end of the step. Not pieces in turn from one queue either: a world then moved between threads
 /// from call to call, and what a reset freed went back to another thread's heap (resets
 /// were slower).
 fn par_each<T: Send, F>(items: &mut [T], f: F)

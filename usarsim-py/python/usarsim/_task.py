@@ -278,7 +278,7 @@ class Tasks:
         self.index = np.zeros(n, dtype=np.int64)
         self.steps = np.zeros(n, dtype=np.int64)
         self.prev = np.zeros(n)
-        self._columns = None  # observe()'s layout, made at its first call
+        self._layout_of, self._columns = None, None  # observe()'s layout, made at its first call
 
     def default_start(self) -> np.ndarray:
         """The first PlayerStart, or (0, 0, -1)."""
@@ -366,15 +366,15 @@ class Tasks:
         # Hover: the yaw to hold minus the yaw (wrapped); Waypoints: 0.
         yaw_error = (self.hold_yaw - raw["attitude"][:, 2] + np.pi) % (2 * np.pi) - np.pi
         values["yaw_error"] = (yaw_error if self.task == "hover" else np.zeros(self.n))[:, None]
-        if out is None:
-            out = {k: np.clip(values[k], BOUNDS[k][0], BOUNDS[k][1]).astype(np.float32) for k in self.keys}
-            return np.concatenate(list(out.values()), axis=1) if self.flat else out
         # Gathered into one float64 row per UAV and clipped in one call (one call per key
         # cost more than the clipping): in float64, then rounded to float32, the values
         # astype() gives.
         lo, hi, columns, scratch = self._layout(values)
         for k, a, b in columns:
             scratch[:, a:b] = values[k]
+        if out is None:
+            out = (np.empty(scratch.shape, np.float32) if self.flat
+                   else {k: np.empty((len(scratch), b - a), np.float32) for k, a, b in columns})
         if self.flat:
             np.clip(scratch, lo, hi, out=out, casting="same_kind")
         else:
@@ -386,15 +386,16 @@ class Tasks:
     def _layout(self, values):
         """Per-column bounds, each key's columns and a float64 scratch array for
         :meth:`observe`, made again when the keys or the number of rows change."""
-        keys, rows = tuple(self.keys), len(values["position"])
-        if self._columns is None or self._columns[0] != (keys, rows):
+        shape = (tuple(self.keys), len(values["position"]))
+        if self._layout_of != shape:
+            keys, rows = shape
             widths = [values[k].shape[1] for k in keys]
             ends = np.cumsum(widths).tolist()
             columns = [(k, e - w, e) for k, w, e in zip(keys, widths, ends)]
             lo = np.concatenate([np.full(w, BOUNDS[k][0], dtype=np.float64) for k, w in zip(keys, widths)])
             hi = np.concatenate([np.full(w, BOUNDS[k][1], dtype=np.float64) for k, w in zip(keys, widths)])
-            self._columns = ((keys, rows), (lo, hi, columns, np.empty((rows, sum(widths)))))
-        return self._columns[1]
+            self._layout_of, self._columns = shape, (lo, hi, columns, np.empty((rows, ends[-1])))
+        return self._columns
 
     def row(self, obs, i: int):
         """Row `i` of an observation from :meth:`observe`."""
