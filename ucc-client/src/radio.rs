@@ -89,7 +89,7 @@ pub struct Outgoing {
 pub struct Undelivered {
     /// The message.
     pub message: Outgoing,
-    /// The signal to the other UAV when it was sent, dBm (NaN: unknown; the cut-off is
+    /// The signal to the other UAV when the send failed, dBm (NaN: unknown; the cut-off is
     /// [`CUTOFF`]).
     pub strength: f64,
     /// Why, in words ([`RadioError`]'s message).
@@ -191,25 +191,20 @@ impl Radio {
             .and_then(|r| r.strip_suffix('}'))
             .and_then(|p| p.parse().ok())
             .ok_or_else(|| RadioError::Refused(reply.clone()))?;
-        let out_of_range = || RadioError::OutOfRange {
-            to: to.to_owned(),
-            strength,
-        };
-        let mut link = TcpStream::connect((self.wss.ip(), port))
-            .await
-            .map_err(|_| out_of_range())?;
         let mut frame = Vec::with_capacity(6 + self.name.len() + data.len());
         frame.extend_from_slice(&(self.name.len() as u16).to_be_bytes());
         frame.extend_from_slice(self.name.as_bytes());
         frame.extend_from_slice(&(data.len() as u32).to_be_bytes());
         frame.extend_from_slice(data);
-        link.write_all(&frame).await.map_err(|_| out_of_range())?;
-        link.shutdown().await.map_err(|_| out_of_range())?;
-        // Delivered once the other side has read it all and closed (the WSS closes our end
-        // after the other side's).
-        let mut rest = Vec::new();
-        let _ = tokio::time::timeout(REPLY_TIMEOUT, link.read_to_end(&mut rest)).await;
-        Ok(())
+        if relay(self.wss, port, &frame).await.is_ok() {
+            return Ok(());
+        }
+        // The WSS closed the relay: the link broke since the signal was asked (the WSS
+        // re-evaluates links between two requests), so the error gives the signal now.
+        Err(RadioError::OutOfRange {
+            to: to.to_owned(),
+            strength: self.strength(to).await.unwrap_or(f64::NAN),
+        })
     }
 
     /// The next message received, if any (without waiting).
@@ -221,6 +216,17 @@ impl Radio {
     pub async fn recv(&mut self) -> Option<Message> {
         self.inbox.recv().await
     }
+}
+
+/// Writes one framed message through the WSS's relay `port`; delivered once the other side
+/// has read it all and closed (the WSS closes our end after the other side's).
+async fn relay(wss: SocketAddr, port: u16, frame: &[u8]) -> std::io::Result<()> {
+    let mut link = TcpStream::connect((wss.ip(), port)).await?;
+    link.write_all(frame).await?;
+    link.shutdown().await?;
+    let mut rest = Vec::new();
+    let _ = tokio::time::timeout(REPLY_TIMEOUT, link.read_to_end(&mut rest)).await;
+    Ok(())
 }
 
 /// Accepts relayed connections and reads one message from each.

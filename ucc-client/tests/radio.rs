@@ -113,3 +113,46 @@ async fn a_message_reaches_a_uav_in_range_and_fails_behind_walls() {
     }
     shutdown.cancel();
 }
+
+/// A link that breaks between the signal's query and the relay (the WSS re-evaluates links
+/// between two requests) fails with the signal the WSS gives then, not the one before:
+/// an agent told "out of range at -80 dBm" could not tell why.
+#[tokio::test]
+async fn a_relay_closed_after_the_signal_query_reports_the_signal_after_it() {
+    use tokio::io::{AsyncBufReadExt, BufReader};
+    let wss = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let wss_at = wss.local_addr().unwrap();
+    // A relay port nobody listens on.
+    let closed = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let closed_port = closed.local_addr().unwrap().port();
+    drop(closed);
+    tokio::spawn(async move {
+        let (stream, _) = wss.accept().await.unwrap();
+        let (read, mut write) = stream.into_split();
+        let mut lines = BufReader::new(read).lines();
+        let mut asked = 0;
+        while let Ok(Some(line)) = lines.next_line().await {
+            let reply = if line.starts_with("INIT") {
+                "INITREPLY {Status OK}".to_owned()
+            } else if line.starts_with("GETSS") {
+                asked += 1;
+                let s = if asked == 1 { "-80.00" } else { "-120.00" };
+                format!("SS {{Robot Robot2}} {{Strength {s}}}")
+            } else {
+                format!("DNSREPLY {{Robot Robot2}} {{Port {closed_port}}}")
+            };
+            write
+                .write_all(format!("{reply}\r\n").as_bytes())
+                .await
+                .unwrap();
+        }
+    });
+    let mut radio = Radio::join(wss_at, "Robot1").await.unwrap();
+    match radio.send("Robot2", b"hello").await {
+        Err(RadioError::OutOfRange { to, strength }) => {
+            assert_eq!(to, "Robot2");
+            assert_eq!(strength, -120.0);
+        }
+        other => panic!("{other:?}"),
+    }
+}
