@@ -57,10 +57,18 @@ class MapInfo:
     def free(self, points, clearance: float) -> np.ndarray:
         """:meth:`is_free` of each row (x, y[, z]) of `points`, as a boolean array."""
         p = np.asarray(points, dtype=np.float64)
-        lo, hi = self._box_lo - clearance, self._box_hi + clearance
-        x, y = p[:, :1], p[:, 1:2]  # (n, 1) against each box's (k,) bounds
-        inside = (x > lo[:, 0]) & (x < hi[:, 0]) & (y > lo[:, 1]) & (y < hi[:, 1])
-        return ~inside.any(axis=1)
+        x, y = np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1])
+        free = np.ones(len(p), dtype=bool)
+        inside = np.empty(len(p), dtype=bool)
+        # Box after box on whole columns: a few boxes, many points (a reset of 1024 rows
+        # took 2.7x as long with one (n, k) comparison per bound).
+        for (x0, y0), (x1, y1) in zip((self._box_lo - clearance).tolist(), (self._box_hi + clearance).tolist()):
+            np.greater(x, x0, out=inside)
+            inside &= x < x1
+            inside &= y > y0
+            inside &= y < y1
+            free &= ~inside
+        return free
 
     def sample(self, rng: np.random.Generator, n: int, clearance: float = 1.0, spacing: float = 1.2, near=None, radius=None):
         """`n` free points (x, y, z) in the flight band, `spacing` apart; within `radius` of `near` if given."""

@@ -335,9 +335,11 @@ class Tasks:
             self.targets[rows, 0] = base[:, :3]
             self.hold_yaw[rows] = base[:, 3]
             u = rng.random((m, 3)) if shared else rng.doubles(rows, 3)
-            cand = base[:, :3] + (_OFFSET_LOW + _OFFSET_SPAN * u)
+            cand = _OFFSET_SPAN * u  # in place: base + (low + span × u), the same sums
+            cand += _OFFSET_LOW
+            cand += base[:, :3]
             ok = self.map.free(cand, 0.8) & (cand[:, 2] < -0.5)
-            spawns[ok, :3] = cand[ok]
+            np.copyto(spawns[:, :3], cand, where=ok[:, None])
         elif waypoints is not None:
             self.targets[rows, :len(waypoints)] = waypoints
             self.count[rows] = len(waypoints)
