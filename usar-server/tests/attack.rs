@@ -30,15 +30,68 @@ const MIN_SHARE: f64 = 0.9;
 /// a fresh server, and only a share under it in every attempt fails.
 const ATTEMPTS: usize = 3;
 
-/// The failure when every attempt's share of the baseline was under [`MIN_SHARE`].
-fn starved(name: &str, shares: &[f64]) -> Option<String> {
-    shares.iter().all(|&s| s < MIN_SHARE).then(|| {
-        let shown: Vec<String> = shares
-            .iter()
-            .map(|s| format!("{:.0} %", s * 100.0))
-            .collect();
-        format!("{name}: healthy client at {}", shown.join(", "))
-    })
+/// One attack on a fresh server: what the healthy client and the server went through.
+struct Attempt {
+    /// The healthy client's rate, lines/s.
+    rate: f64,
+    /// The side ports that did not answer a new client during the attack.
+    silent: Vec<&'static str>,
+    /// The server's peak memory, MiB.
+    peak: f64,
+    /// Whether the server was still running at the end.
+    alive: bool,
+    /// What the attack did, in words.
+    what: String,
+}
+
+/// Runs `attempt` up to [`ATTEMPTS`] times, until the healthy client keeps [`MIN_SHARE`] of
+/// `baseline`; prints each and adds to `failures` what went wrong (memory, death and the side
+/// ports at every attempt, the share only when every attempt was under).
+async fn judge(
+    name: &str,
+    baseline: f64,
+    failures: &mut Vec<String>,
+    mut attempt: impl AsyncFnMut() -> Attempt,
+) {
+    let mut shares = Vec::new();
+    for _ in 0..ATTEMPTS {
+        let Attempt {
+            rate,
+            silent,
+            peak,
+            alive,
+            what,
+        } = attempt().await;
+        let share = rate / baseline;
+        println!(
+            "{name:<22} {rate:>10.1} {:>7.0}% {peak:>12.1}  {what}{}",
+            share * 100.0,
+            if silent.is_empty() {
+                String::new()
+            } else {
+                format!("; not answering: {}", silent.join(", "))
+            }
+        );
+        // NaN (no /proc) fails too.
+        if peak.partial_cmp(&MEMORY_BOUND_MIB) != Some(std::cmp::Ordering::Less) {
+            failures.push(format!("{name}: server peak memory {peak:.1} MiB"));
+        }
+        if !silent.is_empty() {
+            failures.push(format!("{name}: {silent:?} did not answer a new client"));
+        }
+        if !alive {
+            failures.push(format!("{name}: the server died"));
+        }
+        shares.push(share);
+        if share >= MIN_SHARE {
+            return;
+        }
+    }
+    let shown: Vec<String> = shares
+        .iter()
+        .map(|s| format!("{:.0} %", s * 100.0))
+        .collect();
+    failures.push(format!("{name}: healthy client at {}", shown.join(", ")));
 }
 
 /// The server's peak resident memory (VmHWM) during any attack, MiB (docs/limits.md).
@@ -608,8 +661,7 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
         "attack", "lines/s", "share", "peak MiB"
     );
     for (name, attack) in attacks {
-        let mut shares = Vec::new();
-        for _ in 0..ATTEMPTS {
+        judge(name, baseline, &mut failures, async || {
             let mut server = Server::start(&[]);
             let stop = CancellationToken::new();
             let attacker = attack(server.addr, stop.clone());
@@ -618,26 +670,16 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
             let peak = server.peak_mib();
             stop.cancel();
             let what = attacker.await.unwrap();
-            let share = rate / baseline;
-            println!(
-                "{name:<22} {rate:>10.1} {:>7.0}% {peak:>12.1}  {what}",
-                share * 100.0
-            );
-            // NaN (no /proc) fails too.
-            if peak.partial_cmp(&MEMORY_BOUND_MIB) != Some(std::cmp::Ordering::Less) {
-                failures.push(format!("{name}: server peak memory {peak:.1} MiB"));
+            let alive = server.alive();
+            Attempt {
+                rate,
+                silent: Vec::new(),
+                peak,
+                alive,
+                what,
             }
-            if !server.alive() {
-                failures.push(format!("{name}: the server died"));
-            }
-            shares.push(share);
-            if share >= MIN_SHARE {
-                break;
-            }
-        }
-        if let Some(failure) = starved(name, &shares) {
-            failures.push(failure);
-        }
+        })
+        .await;
     }
     let side_attacks: &[SideAttack] = &[
         ("side: flood, reading", side_flood_reading),
@@ -648,8 +690,7 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
         ("side: churn", side_churn),
     ];
     for (name, attack) in side_attacks {
-        let mut shares = Vec::new();
-        for _ in 0..ATTEMPTS {
+        judge(name, baseline, &mut failures, async || {
             let mut server = Server::start(&[]);
             let stop = CancellationToken::new();
             let attacker = attack(server.side, stop.clone());
@@ -660,33 +701,16 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
             let peak = server.peak_mib();
             stop.cancel();
             let what = attacker.await.unwrap();
-            let share = rate / baseline;
-            println!(
-                "{name:<22} {rate:>10.1} {:>7.0}% {peak:>12.1}  {what}{}",
-                share * 100.0,
-                if silent.is_empty() {
-                    String::new()
-                } else {
-                    format!("; not answering: {}", silent.join(", "))
-                }
-            );
-            if peak.partial_cmp(&MEMORY_BOUND_MIB) != Some(std::cmp::Ordering::Less) {
-                failures.push(format!("{name}: server peak memory {peak:.1} MiB"));
+            let alive = server.alive();
+            Attempt {
+                rate,
+                silent,
+                peak,
+                alive,
+                what,
             }
-            if !silent.is_empty() {
-                failures.push(format!("{name}: {silent:?} did not answer a new client"));
-            }
-            if !server.alive() {
-                failures.push(format!("{name}: the server died"));
-            }
-            shares.push(share);
-            if share >= MIN_SHARE {
-                break;
-            }
-        }
-        if let Some(failure) = starved(name, &shares) {
-            failures.push(failure);
-        }
+        })
+        .await;
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
