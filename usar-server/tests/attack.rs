@@ -30,38 +30,34 @@ const MIN_SHARE: f64 = 0.9;
 /// a fresh server, and only a share under it in every attempt fails.
 const ATTEMPTS: usize = 3;
 
-/// One attack on a fresh server: what the healthy client and the server went through.
-struct Attempt {
-    /// The healthy client's rate, lines/s.
-    rate: f64,
-    /// The side ports that did not answer a new client during the attack.
-    silent: Vec<&'static str>,
-    /// The server's peak memory, MiB.
-    peak: f64,
-    /// Whether the server was still running at the end.
-    alive: bool,
-    /// What the attack did, in words.
-    what: String,
-}
-
-/// Runs `attempt` up to [`ATTEMPTS`] times, until the healthy client keeps [`MIN_SHARE`] of
-/// `baseline`; prints each and adds to `failures` what went wrong (memory, death and the side
-/// ports at every attempt, the share only when every attempt was under).
+/// Runs one attack on a fresh server (`start` starts it; with `side_ports`, each side port
+/// must also answer a new client during it) up to [`ATTEMPTS`] times, until the healthy
+/// client keeps [`MIN_SHARE`] of `baseline`; prints each attempt and adds to `failures` what
+/// went wrong (memory, death and the side ports at every attempt, the share only when every
+/// attempt was under).
 async fn judge(
     name: &str,
     baseline: f64,
     failures: &mut Vec<String>,
-    mut attempt: impl AsyncFnMut() -> Attempt,
+    start: impl Fn(&Server, CancellationToken) -> tokio::task::JoinHandle<String>,
+    side_ports: bool,
 ) {
     let mut shares = Vec::new();
     for _ in 0..ATTEMPTS {
-        let Attempt {
-            rate,
-            silent,
-            peak,
-            alive,
-            what,
-        } = attempt().await;
+        let mut server = Server::start(&[]);
+        let stop = CancellationToken::new();
+        let attacker = start(&server, stop.clone());
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        let rate = healthy_rate(server.addr).await;
+        // Under attack still, each side port answers a new client.
+        let silent = if side_ports {
+            unanswered(server.side).await
+        } else {
+            Vec::new()
+        };
+        let peak = server.peak_mib();
+        stop.cancel();
+        let what = attacker.await.unwrap();
         let share = rate / baseline;
         println!(
             "{name:<22} {rate:>10.1} {:>7.0}% {peak:>12.1}  {what}{}",
@@ -79,7 +75,7 @@ async fn judge(
         if !silent.is_empty() {
             failures.push(format!("{name}: {silent:?} did not answer a new client"));
         }
-        if !alive {
+        if !server.alive() {
             failures.push(format!("{name}: the server died"));
         }
         shares.push(share);
@@ -661,25 +657,8 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
         "attack", "lines/s", "share", "peak MiB"
     );
     for (name, attack) in attacks {
-        judge(name, baseline, &mut failures, async || {
-            let mut server = Server::start(&[]);
-            let stop = CancellationToken::new();
-            let attacker = attack(server.addr, stop.clone());
-            tokio::time::sleep(Duration::from_millis(100)).await;
-            let rate = healthy_rate(server.addr).await;
-            let peak = server.peak_mib();
-            stop.cancel();
-            let what = attacker.await.unwrap();
-            let alive = server.alive();
-            Attempt {
-                rate,
-                silent: Vec::new(),
-                peak,
-                alive,
-                what,
-            }
-        })
-        .await;
+        let start = |server: &Server, stop| attack(server.addr, stop);
+        judge(name, baseline, &mut failures, start, false).await;
     }
     let side_attacks: &[SideAttack] = &[
         ("side: flood, reading", side_flood_reading),
@@ -690,27 +669,8 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
         ("side: churn", side_churn),
     ];
     for (name, attack) in side_attacks {
-        judge(name, baseline, &mut failures, async || {
-            let mut server = Server::start(&[]);
-            let stop = CancellationToken::new();
-            let attacker = attack(server.side, stop.clone());
-            tokio::time::sleep(Duration::from_millis(100)).await;
-            let rate = healthy_rate(server.addr).await;
-            // Under attack still, each side port answers a new client.
-            let silent = unanswered(server.side).await;
-            let peak = server.peak_mib();
-            stop.cancel();
-            let what = attacker.await.unwrap();
-            let alive = server.alive();
-            Attempt {
-                rate,
-                silent,
-                peak,
-                alive,
-                what,
-            }
-        })
-        .await;
+        let start = |server: &Server, stop| attack(server.side, stop);
+        judge(name, baseline, &mut failures, start, true).await;
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }

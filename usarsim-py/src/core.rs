@@ -811,9 +811,9 @@ fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
 /// share of the items (the same share at every call), a small piece at a time, and a thread
 /// done with its share takes the pieces left of the others'. Not a fixed share each: a
 /// thread the machine holds up (or a share whose UAVs are pressed against walls, each
-/// tick's sweep then casting) no longer keeps the others waiting at the end of the step. Not pieces in turn from one queue either: a world then moved between threads
-/// from call to call, and what a reset freed went back to another thread's heap (resets
-/// were slower).
+/// tick's sweep then casting) no longer keeps the others waiting at the end of the step.
+/// Not pieces in turn from one queue either: a world then moved between threads from call
+/// to call, and what a reset freed went back to another thread's heap (resets were slower).
 fn par_each<T: Send, F>(items: &mut [T], f: F)
 where
     F: Fn(usize, &mut T) + Sync,
