@@ -14,6 +14,7 @@
 //! * [`image`]: the image server's binary requests and frames (port 5003), sans I/O;
 //! * [`shown`]: a peer's text as a log shows it (escaped, cut) and a counter that
 //!   summarises repeated warnings;
+//! * [`wss`]: the Wireless Simulation Server's obstacle propagation model ([`wss::PathLoss`]);
 //! * [`error`]: the crate-edge errors, [`ParseError`] (reading) and [`TextError`] (a value
 //!   that cannot be printed into a line).
 //!
@@ -40,6 +41,7 @@ pub mod primitive;
 pub mod record;
 pub mod shown;
 mod value;
+pub mod wss;
 
 pub use error::{ParseError, ParseErrorKind, TextError};
 pub use message::{Deviation, Group, Message, Pair, Parsed};

@@ -320,11 +320,15 @@ fn wss(
         cutoff.is_finite() && attenuation.is_finite() && attenuation >= 0.0,
         "--cutoff and --attenuation must be finite numbers (attenuation >= 0)"
     );
-    let config = usar_server::net::wss::WssConfig {
+    use usar_server::net::wss::{PathLoss, WssConfig};
+    let config = WssConfig {
         poll: std::time::Duration::from_secs_f64(poll),
-        cutoff,
-        attenuation,
-        ..usar_server::net::wss::WssConfig::new(at)
+        model: PathLoss {
+            cutoff,
+            attenuation,
+            ..PathLoss::default()
+        },
+        ..WssConfig::new(at)
     };
     let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
     runtime.block_on(async {

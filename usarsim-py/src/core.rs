@@ -551,7 +551,7 @@ impl WorldSim {
     /// The radio signal between every two UAVs, dBm (row-major `n × n`, the WSS's default
     /// model: distance and walls between their centres; 0 on the diagonal).
     pub(crate) fn signals(&self, out: &mut Vec<f64>) {
-        let model = usar_server::net::wss::WssConfig::new(([127, 0, 0, 1], 0).into());
+        let model = usar_proto::wss::PathLoss::default();
         let robots = self.world.robots_truth();
         for a in &robots {
             for b in &robots {

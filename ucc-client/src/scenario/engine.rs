@@ -872,7 +872,7 @@ fn radio_networks(world: &World, radio: &super::model::Radio, at: &[[f64; 3]]) -
                 continue;
             }
             let walls = world.obstacles_between(at[a], at[b]);
-            if radio.strength(at[a], at[b], walls) >= radio.cutoff {
+            if radio.reaches(at[a], at[b], f64::from(walls)) {
                 let (ra, rb) = (root(&mut network, a), root(&mut network, b));
                 network[ra.max(rb)] = ra.min(rb);
             }

@@ -239,7 +239,7 @@ impl Tracker {
                 for b in 0..n {
                     if !reached[b] {
                         let walls = world.obstacles_between(nodes[a], nodes[b]);
-                        if radio.strength(nodes[a], nodes[b], walls) >= radio.cutoff {
+                        if radio.reaches(nodes[a], nodes[b], f64::from(walls)) {
                             reached[b] = true;
                             stack.push(b);
                         }

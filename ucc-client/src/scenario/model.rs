@@ -186,42 +186,9 @@ pub struct Relay {
     pub chain: usize,
 }
 
-/// The WSS obstacle model (docs/wss.md) with the scenario's figures.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Radio {
-    /// dBm at `d0`.
-    pub pd0: f64,
-    /// Metres.
-    pub d0: f64,
-    /// Path-loss exponent.
-    pub n: f64,
-    /// dB per wall.
-    pub attenuation: f64,
-    /// Weakest usable signal, dBm.
-    pub cutoff: f64,
-}
-
-impl Default for Radio {
-    fn default() -> Self {
-        Self {
-            pd0: -49.67,
-            d0: 2.0,
-            n: 1.0,
-            attenuation: 6.325,
-            cutoff: -93.0,
-        }
-    }
-}
-
-impl Radio {
-    /// dBm between two points `walls` walls apart.
-    pub fn strength(&self, a: [f64; 3], b: [f64; 3], walls: u32) -> f64 {
-        let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2))
-            .sqrt()
-            .max(1e-3);
-        self.pd0 - 10.0 * self.n * (d / self.d0).log10() - f64::from(walls) * self.attenuation
-    }
-}
+/// The WSS obstacle model (docs/wss.md) with the scenario's figures: the WSS's own
+/// ([`usar_proto::wss::PathLoss`]), so that a scenario's links are those the WSS keeps.
+pub type Radio = usar_proto::wss::PathLoss;
 
 /// What to deliver where.
 #[derive(Debug, Clone, PartialEq)]

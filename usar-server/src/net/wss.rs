@@ -32,24 +32,19 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
 
+pub use usar_proto::wss::PathLoss;
+
 use super::request::Request;
 use crate::sim::World;
 
-/// The obstacle propagation model and the WSS's settings (defaults as the original's).
+/// The WSS's settings: its obstacle propagation model (defaults as the original's) and the
+/// monitor it polls.
 #[derive(Debug, Clone)]
 pub struct WssConfig {
     /// The robot monitor to ask (USARSim: port 7435).
     pub monitor: SocketAddr,
-    /// Signal at the reference distance, dBm.
-    pub pd0: f64,
-    /// Reference distance, m.
-    pub d0: f64,
-    /// Path-loss exponent.
-    pub n: f64,
-    /// Attenuation per wall, dB.
-    pub attenuation: f64,
-    /// Weakest usable signal, dBm.
-    pub cutoff: f64,
+    /// The signal between two robots and the weakest usable one.
+    pub model: PathLoss,
     /// How often positions are polled and links broken or resumed: wall time for
     /// [`serve`], simulated time for a [`Clock`].
     pub poll: Duration,
@@ -60,19 +55,9 @@ impl WssConfig {
     pub fn new(monitor: SocketAddr) -> Self {
         Self {
             monitor,
-            pd0: -49.67,
-            d0: 2.0,
-            n: 1.0,
-            attenuation: 6.325,
-            cutoff: -93.0,
+            model: PathLoss::default(),
             poll: Duration::from_secs(1),
         }
-    }
-
-    /// The signal in dBm between two points with `walls` between them (+∞ at distance 0).
-    pub fn strength(&self, a: [f64; 3], b: [f64; 3], walls: f64) -> f64 {
-        let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
-        self.pd0 - 10.0 * self.n * (d / self.d0).log10() - walls * self.attenuation
     }
 }
 
@@ -397,11 +382,11 @@ impl Wss {
         let Some((walls, ..)) = state.walls.get(&pair(a, b)) else {
             return f64::NAN;
         };
-        self.config.strength(*pa, *pb, *walls)
+        self.config.model.strength(*pa, *pb, *walls)
     }
 
     fn in_range(&self, state: &State, a: &str, b: &str) -> bool {
-        self.strength(state, a, b) >= self.config.cutoff
+        self.strength(state, a, b) >= self.config.model.cutoff
     }
 }
 
@@ -1305,7 +1290,7 @@ mod tests {
 
     #[test]
     fn the_obstacle_model_has_the_wss_defaults() {
-        let c = WssConfig::new("127.0.0.1:7435".parse().unwrap());
+        let c = WssConfig::new("127.0.0.1:7435".parse().unwrap()).model;
         let s = |d: f64, walls: f64| c.strength([0.0; 3], [d, 0.0, 0.0], walls);
         assert!((s(2.0, 0.0) - -49.67).abs() < 1e-9);
         // Five walls: in range up to about 29.6 m.
