@@ -165,27 +165,10 @@ enum Room {
     /// any leaf box that grows makes the leaves near it `Unknown`). A robot whose motion
     /// stays inside its own box then moves without a tree query or a shape cast.
     Clear,
-    /// Exactly one other leaf's box, this one, comes within `SWEEP_PAD` (a robot near the
-    /// floor, the ceiling or one wall, and nothing else): a sweep that stays inside the box
-    /// casts against that leaf alone, without asking the tree. Possibly stale when the other
-    /// leaf moved away or left, which costs a cast that meets nothing, not results (a leaf
-    /// box that comes near makes this one `Unknown`); every refit forgets it.
-    Beside(u32),
-    /// More than one other leaf's box came within `SWEEP_PAD` (a robot in a corner): its
-    /// sweeps cast without asking again. Possibly stale when another leaf moved away or
-    /// left, which costs casts, not results; every refit forgets it.
+    /// Another leaf's box came within `SWEEP_PAD` (a robot beside a wall or on the floor):
+    /// its sweeps cast without asking again. Possibly stale when the other leaf moved away
+    /// or left, which costs casts, not results; every refit forgets it.
     Crowded,
-}
-
-/// What a sweep may hit, as [`Scene::near`] knows it without the tree.
-#[derive(Debug, Clone, Copy)]
-enum Near {
-    /// Nothing: the sweep moves freely.
-    Nothing,
-    /// At most the collider at this leaf.
-    One(u32),
-    /// Not known: ask the tree.
-    Ask,
 }
 
 /// A sweep that left its robot where it was, pressed against one map solid: a UAV landed
@@ -567,7 +550,7 @@ impl Scene {
         self.bvh.refit(&mut self.workspace);
         self.stale = false;
         for room in &mut self.clear {
-            if matches!(room, Room::Crowded | Room::Beside(_)) {
+            if *room == Room::Crowded {
                 *room = Room::Unknown;
             }
         }
@@ -802,18 +785,23 @@ impl Scene {
         }
     }
 
-    /// What may be hit by `handle`'s motion from `centre` by `motion` when it stays within
-    /// its own tree box: nothing when no other box comes within `SWEEP_PAD` of that box, at
-    /// most the one leaf that does ([`Room::Beside`]); `Near::Ask` (the tree) otherwise.
-    /// Learns the room with one tree query when it is not known ([`Room`]).
-    fn near(&mut self, handle: ColliderHandle, shape: BodyShape, centre: V3, motion: V3) -> Near {
+    /// Whether `handle`'s motion from `centre` by `motion` stays within its own tree box and
+    /// no other box comes within `SWEEP_PAD` of that box (then nothing can be hit). Learns
+    /// the second fact with one tree query when it is not known ([`Room`]).
+    fn known_clear(
+        &mut self,
+        handle: ColliderHandle,
+        shape: BodyShape,
+        centre: V3,
+        motion: V3,
+    ) -> bool {
         let leaf = handle.into_raw_parts().0;
         let room = self.clear.get(leaf as usize).copied().unwrap_or_default();
         if room == Room::Crowded {
-            return Near::Ask;
+            return false;
         }
         let Some(own) = self.bvh.leaf_node(leaf).map(|n| n.aabb()) else {
-            return Near::Ask;
+            return false;
         };
         let half = [shape.radius, shape.radius, shape.half_height];
         // Rounded outwards by far more than f32's error.
@@ -822,32 +810,18 @@ impl Scene {
         let inside =
             (0..3).all(|i| f64::from(own.mins[i]) <= lo[i] && hi[i] <= f64::from(own.maxs[i]));
         if !inside {
-            return Near::Ask;
+            return false;
         }
-        let room = match room {
-            Room::Unknown => {
-                let near = Aabb::new(
-                    own.mins - Vector::splat(SWEEP_PAD),
-                    own.maxs + Vector::splat(SWEEP_PAD),
-                );
-                let room = {
-                    let mut others = self.bvh.intersect_aabb(&near).filter(|&l| l != leaf);
-                    match (others.next(), others.next()) {
-                        (None, _) => Room::Clear,
-                        (Some(other), None) => Room::Beside(other),
-                        _ => Room::Crowded,
-                    }
-                };
-                self.set_clear(leaf, room);
-                room
-            }
-            known => known,
-        };
-        match room {
-            Room::Clear => Near::Nothing,
-            Room::Beside(other) => Near::One(other),
-            _ => Near::Ask,
+        if room == Room::Clear {
+            return true;
         }
+        let near = Aabb::new(
+            own.mins - Vector::splat(SWEEP_PAD),
+            own.maxs + Vector::splat(SWEEP_PAD),
+        );
+        let alone = self.bvh.intersect_aabb(&near).all(|l| l == leaf);
+        self.set_clear(leaf, if alone { Room::Clear } else { Room::Crowded });
+        alone
     }
 
     /// Whether no collider but `exclude` has its tree box inside the box `lo`..`hi` (padded
@@ -884,29 +858,15 @@ impl Scene {
         let pad = f64::from(SWEEP_PAD);
         let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i] - pad);
         let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i] + pad);
-        let swept = Aabb::new(to_vector(lo), to_vector(hi));
-        let leaves = self.bvh.intersect_aabb(&swept);
-        self.cast_boxes(handle, shape, centre, motion, options, leaves)
-    }
-
-    /// [`Scene::cast_among_boxes`]'s casts against the colliders at `leaves`, in their
-    /// order (the first of equal times wins); `None` when one is not a box. Any collider
-    /// that may be hit must be among them; one farther away meets nothing.
-    fn cast_boxes(
-        &self,
-        handle: ColliderHandle,
-        shape: BodyShape,
-        centre: V3,
-        motion: V3,
-        options: ShapeCastOptions,
-        leaves: impl Iterator<Item = u32>,
-    ) -> Option<Option<(ColliderHandle, ShapeCastHit)>> {
         let me = handle.into_raw_parts().0;
         let body = upright_pose(centre);
         let cylinder = shape.cylinder();
         let vel = to_vector(motion);
         let mut best: Option<(ColliderHandle, ShapeCastHit)> = None;
-        for leaf in leaves {
+        for leaf in self
+            .bvh
+            .intersect_aabb(&Aabb::new(to_vector(lo), to_vector(hi)))
+        {
             if leaf == me {
                 continue;
             }
@@ -993,19 +953,9 @@ impl Scene {
                 stop_at_penetration: false,
                 compute_impact_geometry_on_penetration: true,
             };
-            let near = if self.shortcuts {
-                self.near(handle, shape, pos, rest)
-            } else {
-                Near::Ask
-            };
-            let cast = match near {
-                Near::Nothing => Some(None),
-                Near::One(leaf) => {
-                    self.cast_boxes(handle, shape, pos, rest, options, std::iter::once(leaf))
-                }
-                Near::Ask => self.cast_among_boxes(handle, shape, pos, rest, options),
-            };
-            let hit = if let Some(hit) = cast {
+            let hit = if self.shortcuts && self.known_clear(handle, shape, pos, rest) {
+                None
+            } else if let Some(hit) = self.cast_among_boxes(handle, shape, pos, rest, options) {
                 hit
             } else {
                 self.sweep_query(Some(handle)).cast_shape(
