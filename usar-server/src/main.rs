@@ -332,22 +332,31 @@ fn wss(
     };
     let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
     runtime.block_on(async {
-        let listener = tokio::net::TcpListener::bind((bind, port))
-            .await
-            .with_context(|| format!("cannot listen on {bind}:{port}"))?;
-        let shutdown = CancellationToken::new();
-        tokio::spawn(cancel_on_signal(shutdown.clone()));
-        let mut stdout = std::io::stdout().lock();
-        writeln!(
-            stdout,
-            "usar-server WSS listening on {}",
-            listener.local_addr()?
-        )?;
-        stdout.flush()?;
-        drop(stdout);
+        let (listener, shutdown) = listen(bind, port, |at| {
+            format!("usar-server WSS listening on {at}")
+        })
+        .await?;
         usar_server::net::wss::serve(listener, config, shutdown).await;
         Ok(())
     })
+}
+
+/// Listens on `bind`:`port`, stops at Ctrl-C or SIGTERM (the token) and says where on
+/// stdout (`line` of the address), at once: scripts wait for that line.
+async fn listen(
+    bind: &str,
+    port: u16,
+    line: impl FnOnce(std::net::SocketAddr) -> String,
+) -> anyhow::Result<(tokio::net::TcpListener, CancellationToken)> {
+    let listener = tokio::net::TcpListener::bind((bind, port))
+        .await
+        .with_context(|| format!("cannot listen on {bind}:{port}"))?;
+    let shutdown = CancellationToken::new();
+    tokio::spawn(cancel_on_signal(shutdown.clone()));
+    let mut stdout = std::io::stdout().lock();
+    writeln!(stdout, "{}", line(listener.local_addr()?))?;
+    stdout.flush()?;
+    Ok((listener, shutdown))
 }
 
 /// A side service's port; `None`: off.
@@ -416,21 +425,14 @@ fn replay(file: &Path, bind: &str, port: u16, fast: bool, speed: f64) -> anyhow:
     };
     let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
     runtime.block_on(async {
-        let listener = tokio::net::TcpListener::bind((bind, port))
-            .await
-            .with_context(|| format!("cannot listen on {bind}:{port}"))?;
-        let shutdown = CancellationToken::new();
-        tokio::spawn(cancel_on_signal(shutdown.clone()));
-        let mut stdout = std::io::stdout().lock();
-        writeln!(
-            stdout,
-            "usar-server replaying {} ({} lines) on {}",
-            file.display(),
-            recording.lines(),
-            listener.local_addr()?
-        )?;
-        stdout.flush()?;
-        drop(stdout);
+        let lines = recording.lines();
+        let (listener, shutdown) = listen(bind, port, |at| {
+            format!(
+                "usar-server replaying {} ({lines} lines) on {at}",
+                file.display()
+            )
+        })
+        .await?;
         replay::serve(listener, recording, pace, shutdown).await?;
         Ok(())
     })
