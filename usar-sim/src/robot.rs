@@ -324,6 +324,9 @@ pub(crate) struct Robot {
     velocity: V3,
     /// roll, pitch, yaw, rad.
     rotation: V3,
+    /// A yaw with its sine and cosine: the kinematic flight's last, kept while the yaw
+    /// holds (a hovering or straight-flying robot does not compute them every tick).
+    yaw_trig: (f64, f64, f64),
     set: SetPoints,
     /// The physics model; `None` for the kinematic AerialVehicle flight.
     dynamics: Option<Box<dyn Dynamics>>,
@@ -439,6 +442,7 @@ impl Robot {
             position: spawn.position,
             velocity: [0.0; 3],
             rotation: spawn.rotation,
+            yaw_trig: (f64::NAN, f64::NAN, f64::NAN),
             set: SetPoints::default(),
             dynamics,
             crashed: None,
@@ -538,7 +542,17 @@ impl Robot {
 
     /// Whether the battery is empty (commands ignored, sensors silent, robot stopped).
     pub(crate) fn is_dead(&self, tick: u64, dt: f64) -> bool {
-        self.battery_left(tick, dt) == 0
+        // What `battery_left(..) == 0` says, without its rounding (every tick, every robot):
+        // no seconds left above 0 (NaN: none).
+        let left = if let Some(gauge) = self.dynamics.as_ref().and_then(|d| d.gauge()) {
+            gauge.time_left
+        } else {
+            match self.model.class.battery {
+                None => return false,
+                Some(capacity) => capacity - tick.saturating_sub(self.charged_tick) as f64 * dt,
+            }
+        };
+        !(left > 0.0)
     }
 
     /// Applies a DRIVE (§2.3). Every value is held to the robot's limits (normalized values
@@ -729,7 +743,18 @@ impl Robot {
             self.set = SetPoints::default();
         }
         let s = self.set;
-        let horizontal = yaw_rotate(self.rotation[2], [s.linear, s.lateral, 0.0]);
+        let yaw = self.rotation[2];
+        if self.yaw_trig.0.to_bits() != yaw.to_bits() {
+            let (sin, cos) = yaw.sin_cos();
+            self.yaw_trig = (yaw, sin, cos);
+        }
+        // yaw_rotate's sums, with the sine and cosine kept.
+        let (_, sin, cos) = self.yaw_trig;
+        let horizontal = [
+            cos * s.linear - sin * s.lateral,
+            sin * s.linear + cos * s.lateral,
+            0.0,
+        ];
         let mut motion = scale(add(horizontal, [0.0, 0.0, -s.altitude]), dt);
         if self.crashed.is_some() {
             motion = [0.0, 0.0, KINEMATIC_FALL_SPEED * dt];

@@ -503,11 +503,12 @@ impl WorldSim {
                 uav.touched = touched;
             }
         });
-        for (client, message) in self.out.drain(..) {
-            let Some(uav) = uav_of(&mut self.uavs, self.first, client) else {
+        // Read in place, then dropped together: each message is moved once less.
+        for (client, message) in &self.out {
+            let Some(uav) = uav_of(&mut self.uavs, self.first, *client) else {
                 continue;
             };
-            if let ServerMessage::Sen(sen) = &message
+            if let ServerMessage::Sen(sen) = message
                 && let SenData::Other { kind, groups } = &sen.data
                 && kind == "Rotors"
             {
@@ -523,8 +524,9 @@ impl WorldSim {
                 }
                 continue;
             }
-            uav.state.apply(&message);
+            uav.state.apply(message);
         }
+        self.out.clear();
     }
 
     /// Simulated seconds.
