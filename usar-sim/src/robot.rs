@@ -552,7 +552,7 @@ impl Robot {
                 Some(capacity) => capacity - tick.saturating_sub(self.charged_tick) as f64 * dt,
             }
         };
-        !(left > 0.0)
+        left.is_nan() || left <= 0.0
     }
 
     /// Applies a DRIVE (§2.3). Every value is held to the robot's limits (normalized values
