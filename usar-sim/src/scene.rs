@@ -1867,41 +1867,4 @@ mod tests {
         let up = direction(std::f64::consts::FRAC_PI_2, 0.0);
         assert!((up[2] + 1.0).abs() < 1e-12);
     }
-
-    #[test]
-    #[ignore]
-    fn zz_time_sweeps() {
-        let shape = BodyShape {
-            radius: 0.45,
-            half_height: 0.1,
-        };
-        for (label, z0, vz) in [
-            ("free", 0.0, 0.0),
-            ("slide", 1.3, 0.02),
-            ("near-floor-up", 1.3, -0.0001),
-        ] {
-            let mut scene = Scene::new();
-            for (z, half) in [(1.5f32, 0.1f32), (-1.5, 0.1)] {
-                scene.insert(
-                    ColliderBuilder::cuboid(5.0, 5.0, half).translation(Vector::new(0.0, 0.0, z)),
-                );
-            }
-            let robot = scene.insert_body(shape, [0.0, 0.0, z0]);
-            let mut at = [0.0, 0.0, z0];
-            let n = 2_000_000;
-            let t = std::time::Instant::now();
-            for tick in 0..n {
-                let heading = f64::from(tick % 1000) * 0.01;
-                let motion = [0.00001 * heading.cos(), 0.00001 * heading.sin(), vz];
-                at = scene.sweep_contact(robot, shape, at, motion).0;
-                if tick % 1000 == 999 {
-                    at = [0.0, 0.0, z0];
-                }
-            }
-            eprintln!(
-                "{label}: {:.1} ns per sweep",
-                t.elapsed().as_nanos() as f64 / f64::from(n)
-            );
-        }
-    }
 }
