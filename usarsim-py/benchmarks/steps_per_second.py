@@ -6,8 +6,9 @@
 wrappers, as users run it). N UAVs: usarsim.vector_env(N), one Rust call per step; a UAV-step
 is one UAV advanced one control period (0.1 s simulated, 20 physics ticks). "full": the
 stsAirRobot with every sensor (228-beam laser, 10 sonars) and the Dict observation; "state":
-``state_only=True, flat=True`` (no range sensors; one float32 Box). Random actions; episodes
-end and autoreset (NEXT_STEP) as they come. "autoreset step": one step in which every
+``state_only=True, flat=True`` (no range sensors; one float32 Box). Random actions (the
+``hover-state-1024`` case of --compare: zero actions, every UAV hovering);
+episodes end and autoreset (NEXT_STEP) as they come. "autoreset step": one step in which every
 sub-environment resets (episodes of 1 step, zero actions: the cheapest normal step there is),
 against a normal step, full and state-only (a reset flies the world until every sensor has
 read once: three control periods with the 0.3 s laser, one without the range sensors).
@@ -61,7 +62,7 @@ def single(seconds):
     return n / (w1 - w0), n / max(c1 - c0, 1e-9)
 
 
-def vector(num, seconds, **options):
+def vector(num, seconds, hover=False, **options):
     import numpy as np
 
     import usarsim
@@ -69,7 +70,8 @@ def vector(num, seconds, **options):
     venv = usarsim.vector_env(num, **options)
     venv.reset(seed=0)
     rng = np.random.default_rng(0)
-    actions = [rng.uniform(-1, 1, (num, 4)) for _ in range(8)]
+    # hover: zero actions, the cheapest step there is (no move, no contact).
+    actions = [np.zeros((num, 4)) if hover else rng.uniform(-1, 1, (num, 4)) for _ in range(8)]
     n, (w0, c0) = 0, clocks()
     while clocks()[0] - w0 < seconds or n == 0:
         venv.step(actions[n % 8])
@@ -149,6 +151,7 @@ CASES = {
     "state-256": ("vector env, 256 UAVs, state", lambda s: vector(256, s, **STATE)),
     "full-1024": ("vector env, 1024 UAVs, full", lambda s: vector(1024, s)),
     "state-1024": ("vector env, 1024 UAVs, state", lambda s: vector(1024, s, **STATE)),
+    "hover-state-1024": ("vector env, 1024 UAVs, state, zero actions", lambda s: vector(1024, s, hover=True, **STATE)),
     "autoreset-full-256": ("resetting steps, 256 UAVs, full", lambda s: _autoreset_rate(256, s)),
     "autoreset-state-256": ("resetting steps, 256 UAVs, state", lambda s: _autoreset_rate(256, s, **STATE)),
     "autoreset-full-1024": ("resetting steps, 1024 UAVs, full", lambda s: _autoreset_rate(1024, s)),
