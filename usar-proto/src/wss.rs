@@ -49,12 +49,20 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_default_model_reaches_29_m_through_five_walls_not_30_5_m() {
-        let m = PathLoss::default();
+    fn the_obstacle_model_has_the_wss_defaults() {
+        let c = PathLoss::default();
+        let s = |d: f64, walls: f64| c.strength([0.0; 3], [d, 0.0, 0.0], walls);
+        assert!((s(2.0, 0.0) - -49.67).abs() < 1e-9);
+        // Five walls: in range up to about 29.6 m.
+        assert!(s(29.0, 5.0) >= c.cutoff && s(30.5, 5.0) < c.cutoff);
         let at = |d: f64| [d, 0.0, 0.0];
-        assert!(m.reaches([0.0; 3], at(29.0), 5.0));
-        assert!(!m.reaches([0.0; 3], at(30.5), 5.0));
-        assert_eq!(m.strength([0.0; 3], at(2.0), 0.0), m.pd0);
-        assert_eq!(m.strength([1.0; 3], [1.0; 3], 3.0), f64::INFINITY);
+        assert!(c.reaches([0.0; 3], at(29.0), 5.0));
+        assert!(!c.reaches([0.0; 3], at(30.5), 5.0));
+        assert!(
+            s(2.0, 7.0) < c.cutoff,
+            "seven walls cut any link of 2 m or more"
+        );
+        assert!(s(0.0, 0.0).is_infinite());
+        assert_eq!(c.strength([1.0; 3], [1.0; 3], 3.0), f64::INFINITY);
     }
 }

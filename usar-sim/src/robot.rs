@@ -15,7 +15,7 @@ use super::noise::Noise;
 use super::quadrotor::{self, Quadrotor};
 use super::render::{ROBOT_SEGMENT, View};
 use super::robots::{ActuatorConfig, DynamicsKind, RobotClass};
-use super::scene::{BodyShape, Look, Scene, V3, add, direction, scale, yaw_rotate};
+use super::scene::{BodyShape, Look, Scene, V3, add, direction, rotate_by, scale, yaw_rotate};
 use super::sensors::camera::Camera;
 use super::sensors::{self, Reading, Sensor};
 use super::wind::WindConfig;
@@ -512,17 +512,24 @@ impl Robot {
 
     /// Remaining battery seconds as STA reports them (rounded up, so 0 means empty).
     fn battery_left(&self, tick: u64, dt: f64) -> i64 {
-        if let Some(gauge) = self.dynamics.as_ref().and_then(|d| d.gauge()) {
-            // The energy model: seconds left above the reserve at the average draw.
-            return gauge.time_left.ceil().clamp(0.0, NO_BATTERY as f64) as i64;
-        }
-        match self.model.class.battery {
+        match self.seconds_left(tick, dt) {
             None => NO_BATTERY,
-            Some(capacity) => {
-                let used = tick.saturating_sub(self.charged_tick) as f64 * dt;
-                (capacity - used).ceil().max(0.0) as i64
-            }
+            Some((left, most)) => left.ceil().clamp(0.0, most) as i64,
         }
+    }
+
+    /// Battery seconds left, unrounded, and the most STA reports of them (`None`: no
+    /// battery): with the energy model, those above the reserve at the average draw (up to
+    /// [`NO_BATTERY`]); else the class's capacity less the time since the last charge.
+    fn seconds_left(&self, tick: u64, dt: f64) -> Option<(f64, f64)> {
+        if let Some(gauge) = self.dynamics.as_ref().and_then(|d| d.gauge()) {
+            return Some((gauge.time_left, NO_BATTERY as f64));
+        }
+        let used = tick.saturating_sub(self.charged_tick) as f64 * dt;
+        self.model
+            .class
+            .battery
+            .map(|capacity| (capacity - used, f64::INFINITY))
     }
 
     /// Fills the battery (a charging pad): USARSim's timer restarts at `tick`, the energy
@@ -544,15 +551,8 @@ impl Robot {
     pub(crate) fn is_dead(&self, tick: u64, dt: f64) -> bool {
         // What `battery_left(..) == 0` says, without its rounding (every tick, every robot):
         // no seconds left above 0 (NaN: none).
-        let left = if let Some(gauge) = self.dynamics.as_ref().and_then(|d| d.gauge()) {
-            gauge.time_left
-        } else {
-            match self.model.class.battery {
-                None => return false,
-                Some(capacity) => capacity - tick.saturating_sub(self.charged_tick) as f64 * dt,
-            }
-        };
-        left.is_nan() || left <= 0.0
+        self.seconds_left(tick, dt)
+            .is_some_and(|(left, _)| left.is_nan() || left <= 0.0)
     }
 
     /// Applies a DRIVE (§2.3). Every value is held to the robot's limits (normalized values
@@ -748,13 +748,8 @@ impl Robot {
             let (sin, cos) = yaw.sin_cos();
             self.yaw_trig = (yaw, sin, cos);
         }
-        // yaw_rotate's sums, with the sine and cosine kept.
         let (_, sin, cos) = self.yaw_trig;
-        let horizontal = [
-            cos * s.linear - sin * s.lateral,
-            sin * s.linear + cos * s.lateral,
-            0.0,
-        ];
+        let horizontal = rotate_by(sin, cos, [s.linear, s.lateral, 0.0]);
         let mut motion = scale(add(horizontal, [0.0, 0.0, -s.altitude]), dt);
         if self.crashed.is_some() {
             motion = [0.0, 0.0, KINEMATIC_FALL_SPEED * dt];

@@ -67,6 +67,11 @@ const MIN_SLIDE: f64 = 0.05;
 /// Rotates `v` by `yaw` about the vertical axis (positive = clockwise seen from above).
 pub(crate) fn yaw_rotate(yaw: f64, v: V3) -> V3 {
     let (s, c) = yaw.sin_cos();
+    rotate_by(s, c, v)
+}
+
+/// [`yaw_rotate`] by the yaw whose sine and cosine are `s` and `c`.
+pub(crate) fn rotate_by(s: f64, c: f64, v: V3) -> V3 {
     [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]]
 }
 

@@ -1289,20 +1289,6 @@ mod tests {
     }
 
     #[test]
-    fn the_obstacle_model_has_the_wss_defaults() {
-        let c = WssConfig::new("127.0.0.1:7435".parse().unwrap()).model;
-        let s = |d: f64, walls: f64| c.strength([0.0; 3], [d, 0.0, 0.0], walls);
-        assert!((s(2.0, 0.0) - -49.67).abs() < 1e-9);
-        // Five walls: in range up to about 29.6 m.
-        assert!(s(29.0, 5.0) >= c.cutoff && s(30.5, 5.0) < c.cutoff);
-        assert!(
-            s(2.0, 7.0) < c.cutoff,
-            "seven walls cut any link of 2 m or more"
-        );
-        assert!(s(0.0, 0.0).is_infinite());
-    }
-
-    #[test]
     fn requests_parse_as_the_wss_grammar() {
         assert_eq!(
             parse("INIT {Robot R1} {Port 8001,8002}"),

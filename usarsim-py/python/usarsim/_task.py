@@ -62,14 +62,15 @@ CRASH_PENALTY = 100.0
 _TWO_PI = 2 * np.pi
 
 
-def _wrap(shifted: np.ndarray) -> np.ndarray:
-    """Angles wrapped into [-pi, pi), given as ``x + pi`` in a fresh array (changed in
-    place): ``(x + pi) % (2 pi) - pi`` bit for bit. NumPy's ``%`` works out the quotient
-    too; ``fmod`` with 2 pi added to the negative remainders gives the same numbers (a
-    remainder of -0 stays -0, and -0 - pi is -pi as +0 - pi is) in less time."""
-    np.fmod(shifted, _TWO_PI, out=shifted)
-    np.add(shifted, _TWO_PI, out=shifted, where=shifted < 0)
-    return np.subtract(shifted, np.pi, out=shifted)
+def _wrap(x: np.ndarray) -> np.ndarray:
+    """Angles wrapped into [-pi, pi): ``(x + pi) % (2 pi) - pi`` bit for bit, in a new
+    array. NumPy's ``%`` works out the quotient too; ``fmod`` with 2 pi added to the negative
+    remainders gives the same numbers (a remainder of -0 stays -0, and -0 - pi is -pi as
+    +0 - pi is) in less time."""
+    out = np.add(x, np.pi)
+    np.fmod(out, _TWO_PI, out=out)
+    np.add(out, _TWO_PI, out=out, where=out < 0)
+    return np.subtract(out, np.pi, out=out)
 
 
 def _lengths(v: np.ndarray) -> np.ndarray:
@@ -376,10 +377,10 @@ class Tasks:
         """The observation (float32 arrays, one row per UAV): a dict, or with ``flat`` one
         array. With ``out`` (an earlier result), written into its arrays and returned."""
         values = {k: raw[k] for k in self.keys if k not in ("waypoint", "yaw_error")}
-        values["attitude"] = _wrap(raw["attitude"] + np.pi)
+        values["attitude"] = _wrap(raw["attitude"])
         values["waypoint"] = self._vector(raw)
         # Hover: the yaw to hold minus the yaw (wrapped); Waypoints: 0.
-        yaw_error = _wrap(self.hold_yaw - raw["attitude"][:, 2] + np.pi)
+        yaw_error = _wrap(self.hold_yaw - raw["attitude"][:, 2])
         values["yaw_error"] = (yaw_error if self.task == "hover" else np.zeros(self.n))[:, None]
         # Gathered into one float64 row per UAV and clipped in one call (one call per key
         # cost more than the clipping): in float64, then rounded to float32, the values
@@ -426,7 +427,7 @@ class Tasks:
         crashed = np.asarray(raw["crashed"], dtype=bool)
         dist = _lengths(self._vector(raw))
         if self.task == "hover":
-            yaw_err = np.abs(_wrap(raw["attitude"][:, 2] - self.hold_yaw + np.pi))
+            yaw_err = np.abs(_wrap(raw["attitude"][:, 2] - self.hold_yaw))
             reward = -dist - 0.2 * yaw_err - TOUCH_PENALTY * touched
             terminated = np.zeros(self.n, dtype=bool)
             reached = np.zeros(self.n, dtype=bool)
