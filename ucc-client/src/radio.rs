@@ -22,13 +22,14 @@
 //! # }
 //! ```
 
+use std::collections::VecDeque;
+use std::io::Read;
 use std::net::SocketAddr;
 use std::time::Duration;
 
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
+use tokio::net::TcpStream;
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
-use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::mpsc;
 
 /// The weakest usable signal of the WSS's default model, dBm.
 pub const CUTOFF: f64 = -93.0;
@@ -38,6 +39,12 @@ pub const MAX_MESSAGE: usize = 1 << 20;
 
 /// Messages kept until read; more wait in TCP (the sender's write waits).
 const INBOX: usize = 256;
+
+/// Relayed connections read at once; more wait to be accepted.
+const RELAYED: usize = 64;
+
+/// How often [`Radio::recv`] looks for a message.
+const RECV_POLL: Duration = Duration::from_millis(2);
 
 /// How long a WSS reply may take.
 const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
@@ -97,13 +104,23 @@ pub struct Undelivered {
 }
 
 /// One UAV's registration with a WSS and its listener for others' messages.
+///
+/// Messages are taken from the listener's sockets when asked for ([`Radio::try_recv`]),
+/// not in the background: a message the WSS delivered before the caller looks is there
+/// when it looks. So in lockstep (docs/wss.md), where the WSS delivers at a barrier before
+/// the world steps on, a runner that looks before each step of its agent hands each message
+/// to the first step after that barrier, whatever the wall-clock timing.
 #[derive(Debug)]
 pub struct Radio {
     name: String,
     wss: SocketAddr,
     read: BufReader<OwnedReadHalf>,
     write: OwnedWriteHalf,
-    inbox: mpsc::Receiver<Message>,
+    /// Non-blocking: the WSS's connections, one message each.
+    listener: std::net::TcpListener,
+    /// Accepted connections whose message has not all come yet.
+    relayed: Vec<Relayed>,
+    inbox: VecDeque<Message>,
 }
 
 impl Radio {
@@ -111,19 +128,19 @@ impl Radio {
     /// port of this machine.
     pub async fn join(wss: SocketAddr, name: &str) -> Result<Self, RadioError> {
         // On the address the WSS reaches us at when it is local, else on every interface.
-        let listener = match TcpListener::bind((wss.ip(), 0)).await {
-            Ok(l) => l,
-            Err(_) => TcpListener::bind("0.0.0.0:0").await?,
-        };
+        let listener = std::net::TcpListener::bind((wss.ip(), 0))
+            .or_else(|_| std::net::TcpListener::bind("0.0.0.0:0"))?;
+        listener.set_nonblocking(true)?;
         let port = listener.local_addr()?.port();
         let (read, write) = TcpStream::connect(wss).await?.into_split();
-        let (tx, inbox) = mpsc::channel(INBOX);
         let mut radio = Self {
             name: name.to_owned(),
             wss,
             read: BufReader::new(read),
             write,
-            inbox,
+            listener,
+            relayed: Vec::new(),
+            inbox: VecDeque::new(),
         };
         let reply = radio
             .ask(&format!("INIT {{Robot {name}}} {{Port {port}}}"))
@@ -131,7 +148,6 @@ impl Radio {
         if reply != "INITREPLY {Status OK}" {
             return Err(RadioError::Refused(reply));
         }
-        tokio::spawn(receive(listener, tx));
         Ok(radio)
     }
 
@@ -207,60 +223,169 @@ impl Radio {
         })
     }
 
-    /// The next message received, if any (without waiting).
+    /// The next message received, if any, without waiting: takes every message that has
+    /// come in full by now (in the order the WSS connected), then hands out the oldest.
     pub fn try_recv(&mut self) -> Option<Message> {
-        self.inbox.try_recv().ok()
+        self.take();
+        self.inbox.pop_front()
     }
 
-    /// Waits for the next message.
+    /// Waits for the next message (looking every 2 ms).
     pub async fn recv(&mut self) -> Option<Message> {
-        self.inbox.recv().await
+        loop {
+            if let Some(message) = self.try_recv() {
+                return Some(message);
+            }
+            tokio::time::sleep(RECV_POLL).await;
+        }
     }
-}
 
-/// Writes one framed message through the WSS's relay `port`; delivered once the other side
-/// has read it all and closed (the WSS closes our end after the other side's).
-async fn relay(wss: SocketAddr, port: u16, frame: &[u8]) -> std::io::Result<()> {
-    let mut link = TcpStream::connect((wss.ip(), port)).await?;
-    link.write_all(frame).await?;
-    link.shutdown().await?;
-    let mut rest = Vec::new();
-    let _ = tokio::time::timeout(REPLY_TIMEOUT, link.read_to_end(&mut rest)).await;
-    Ok(())
-}
-
-/// Accepts relayed connections and reads one message from each.
-async fn receive(listener: TcpListener, inbox: mpsc::Sender<Message>) {
-    // Ends when the radio is dropped (the next connection finds the inbox closed).
-    while !inbox.is_closed() {
-        let Ok((mut stream, _)) = listener.accept().await else {
-            continue;
-        };
-        let inbox = inbox.clone();
-        tokio::spawn(async move {
-            if let Ok(message) = read_message(&mut stream).await {
-                let _ = inbox.send(message).await;
+    /// Accepts the WSS's new connections and reads what has come on each, without waiting.
+    fn take(&mut self) {
+        while self.relayed.len() < RELAYED {
+            match self.listener.accept() {
+                Ok((stream, _)) => {
+                    if stream.set_nonblocking(true).is_ok() {
+                        self.relayed.push(Relayed {
+                            stream,
+                            bytes: Vec::new(),
+                        });
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(_) => break, // none waiting (or an error: looked at again next time)
+            }
+        }
+        let inbox = &mut self.inbox;
+        self.relayed.retain_mut(|relayed| {
+            if inbox.len() >= INBOX {
+                return true; // read later; meanwhile the rest waits in TCP
+            }
+            match relayed.read() {
+                Arrival::Done(message) => {
+                    inbox.push_back(message);
+                    false
+                }
+                Arrival::Waiting => true,
+                Arrival::Broken => false,
             }
         });
     }
 }
 
-async fn read_message(stream: &mut TcpStream) -> std::io::Result<Message> {
-    let bad = || std::io::Error::from(std::io::ErrorKind::InvalidData);
-    let mut n = [0u8; 2];
-    stream.read_exact(&mut n).await?;
-    let mut from = vec![0u8; usize::from(u16::from_be_bytes(n))];
-    stream.read_exact(&mut from).await?;
-    let mut len = [0u8; 4];
-    stream.read_exact(&mut len).await?;
-    let len = u32::from_be_bytes(len) as usize;
-    if len > MAX_MESSAGE {
-        return Err(bad());
+/// One connection from the WSS and the bytes of its message read so far.
+#[derive(Debug)]
+struct Relayed {
+    stream: std::net::TcpStream,
+    bytes: Vec<u8>,
+}
+
+/// Where a relayed connection's message is.
+enum Arrival {
+    Done(Message),
+    /// Not all here yet.
+    Waiting,
+    /// Closed before the end, too large, or not a message: dropped.
+    Broken,
+}
+
+impl Relayed {
+    /// Reads what has come (without waiting) and the message if it is complete.
+    fn read(&mut self) -> Arrival {
+        let mut chunk = [0u8; 16 * 1024];
+        let closed = loop {
+            match self.stream.read(&mut chunk) {
+                Ok(0) => break true,
+                Ok(n) => {
+                    self.bytes.extend_from_slice(&chunk[..n]);
+                    if self.bytes.len() > 6 + usize::from(u16::MAX) + MAX_MESSAGE {
+                        return Arrival::Broken;
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break false,
+                Err(_) => break true,
+            }
+        };
+        match frame(&self.bytes) {
+            Some(Ok(message)) => Arrival::Done(message),
+            Some(Err(())) => Arrival::Broken,
+            None if closed => Arrival::Broken,
+            None => Arrival::Waiting,
+        }
     }
-    let mut data = vec![0u8; len];
-    stream.read_exact(&mut data).await?;
-    Ok(Message {
-        from: String::from_utf8(from).map_err(|_| bad())?,
-        data,
-    })
+}
+
+/// The message framed at the start of `bytes`: the sender's name (a 2-byte big-endian
+/// length, then UTF-8), the data (a 4-byte big-endian length, then the bytes). `None`: not
+/// all here yet; `Err`: not a message (or larger than [`MAX_MESSAGE`]).
+fn frame(bytes: &[u8]) -> Option<Result<Message, ()>> {
+    let name = usize::from(u16::from_be_bytes(bytes.get(..2)?.try_into().ok()?));
+    let len = bytes.get(2 + name..6 + name)?;
+    let len = u32::from_be_bytes(len.try_into().ok()?) as usize;
+    if len > MAX_MESSAGE {
+        return Some(Err(()));
+    }
+    let data = bytes.get(6 + name..6 + name + len)?;
+    Some(
+        String::from_utf8(bytes[2..2 + name].to_vec())
+            .map(|from| Message {
+                from,
+                data: data.to_vec(),
+            })
+            .map_err(|_| ()),
+    )
+}
+
+/// Writes one framed message through the WSS's relay `port`. It is delivered once the WSS
+/// has relayed it and the other side has read it and closed, which is not waited for (in
+/// lockstep that comes only after this client's next `SYNC`): the connection is kept open
+/// in the background until the WSS closes it.
+async fn relay(wss: SocketAddr, port: u16, frame: &[u8]) -> std::io::Result<()> {
+    let mut link = TcpStream::connect((wss.ip(), port)).await?;
+    // Written at once, not held back for the WSS's acknowledgement (docs/wss.md, lockstep).
+    link.set_nodelay(true)?;
+    link.write_all(frame).await?;
+    link.shutdown().await?;
+    tokio::spawn(async move {
+        let mut rest = Vec::new();
+        let _ = tokio::time::timeout(REPLY_TIMEOUT, link.read_to_end(&mut rest)).await;
+    });
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn framed(from: &[u8], data: &[u8]) -> Vec<u8> {
+        let mut bytes = (from.len() as u16).to_be_bytes().to_vec();
+        bytes.extend_from_slice(from);
+        bytes.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        bytes.extend_from_slice(data);
+        bytes
+    }
+
+    #[test]
+    fn a_message_is_taken_once_all_of_it_has_come() {
+        let bytes = framed(b"Robot2", b"victim at 3,4");
+        for cut in 0..bytes.len() {
+            assert!(frame(&bytes[..cut]).is_none(), "{cut} bytes");
+        }
+        let message = frame(&bytes).unwrap().unwrap();
+        assert_eq!(message.from, "Robot2");
+        assert_eq!(message.data, b"victim at 3,4");
+        // What follows the message (nothing should) is not part of it.
+        let mut more = bytes.clone();
+        more.extend_from_slice(b"junk");
+        assert_eq!(frame(&more).unwrap().unwrap(), message);
+    }
+
+    #[test]
+    fn an_oversized_or_misnamed_message_is_refused() {
+        let mut huge = framed(b"R", b"");
+        huge[3..7].copy_from_slice(&(MAX_MESSAGE as u32 + 1).to_be_bytes());
+        assert!(frame(&huge).unwrap().is_err());
+        assert!(frame(&framed(&[0xff, 0xfe], b"x")).unwrap().is_err());
+    }
 }

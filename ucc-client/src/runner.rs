@@ -465,8 +465,11 @@ async fn fly_loop(
     observer: &mut dyn Observer,
 ) -> Result<(), RunError> {
     loop {
-        send_all(flight, conn).await?;
+        // The radio first: a step's messages are written, and the signals asked, before
+        // the step's `SYNC` goes out, so that in lockstep the WSS takes them at the barrier
+        // the world is held at (docs/wss.md), whatever the timing.
         side.serve(flight, settings).await?;
+        send_all(flight, conn).await?;
         drain(flight, observer);
         match flight.phase() {
             Phase::Done => break,

@@ -189,6 +189,8 @@ struct Talker {
     peer: &'static str,
     steps: u64,
     heard: Arc<Mutex<Vec<Heard>>>,
+    /// Wall-clock milliseconds this agent takes at its steps (in turn), to vary the timing.
+    jitter: &'static [u64],
 }
 
 impl Agent for Talker {
@@ -224,12 +226,18 @@ impl Agent for Talker {
                 .collect(),
             signal: uav.signal.get(self.peer).copied(),
         });
+        if let Some(ms) = self
+            .jitter
+            .get(self.steps as usize % self.jitter.len().max(1))
+        {
+            std::thread::sleep(std::time::Duration::from_millis(*ms));
+        }
         self.steps += 1;
         let mut step = self.inner.step(uav, time);
         if self.steps.is_multiple_of(5) {
             step.send.push(ucc_client::radio::Outgoing {
                 to: self.peer.into(),
-                data: format!("hello from {} at {time:.1}", self.me).into_bytes(),
+                data: format!("hello from {} at {time}", self.me).into_bytes(),
             });
         }
         step
@@ -325,6 +333,7 @@ async fn two_uavs_talk_until_one_flies_down_behind_walls() {
                 peer,
                 steps: 0,
                 heard: heard.clone(),
+                jitter: &[],
             }) as Box<dyn Agent>
         }
     };
@@ -385,4 +394,141 @@ async fn two_uavs_talk_until_one_flies_down_behind_walls() {
         first_out.time
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// In lockstep with the in-process WSS (on the simulated clock), when a message arrives does
+/// not depend on how long the agents take: the runner writes a step's messages before that
+/// step's `SYNC`, so the WSS takes them at the barrier the world is held at, and delivers
+/// them before the world steps on; the receiving runner takes them from its radio's sockets
+/// before its agent's next step. So every message reaches the other agent at its first step
+/// after the barrier the sender's step was at — whichever UAV joined first and however long
+/// each agent thinks (the sender here sleeps a few milliseconds at some steps).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn in_lockstep_a_message_arrives_at_the_first_step_after_its_barrier() {
+    let bind = async || tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let (main, monitor, wss) = (bind().await, bind().await, bind().await);
+    let (gamebots, wss_at) = (main.local_addr().unwrap(), wss.local_addr().unwrap());
+    let shutdown = CancellationToken::new();
+    let config = usar_server::ServerConfig {
+        map: walls_map(),
+        lockstep: true,
+        time_scale: usar_server::TimeScale::Max,
+        ..usar_server::ServerConfig::default()
+    };
+    let side = usar_server::SideListeners {
+        monitor: Some(monitor),
+        wss: Some(wss),
+        ..usar_server::SideListeners::default()
+    };
+    let server = tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
+    let dir = temp_dir("lockstep-radio");
+    let uav = |name: &str, start: Coordinates| RunSettings {
+        addr: gamebots.to_string(),
+        name: name.into(),
+        prefix: name.into(),
+        start: Start::at(start),
+        missions: vec![Mission::Hover { seconds: 4.0 }],
+        lockstep: ucc_client::Lockstep::Required,
+        log_dir: Some(dir.clone()),
+        pictures: ucc_client::Pictures::None,
+        radio: Some(ucc_client::RadioSettings {
+            wss: wss_at.to_string(),
+            peers: Vec::new(),
+        }),
+        ..RunSettings::default()
+    };
+    let (one, two) = (
+        uav("Robot1", Coordinates::new(0.0, 0.0, -1.0)),
+        uav("Robot2", Coordinates::new(3.0, 0.0, -1.0)),
+    );
+    let talker = |me: &'static str, peer: &'static str, jitter: &'static [u64]| {
+        let heard: Arc<Mutex<Vec<Heard>>> = Arc::default();
+        let kept = heard.clone();
+        let factory = move || {
+            Box::new(Talker {
+                inner: agents::create("base").unwrap(),
+                me,
+                peer,
+                steps: 0,
+                heard: heard.clone(),
+                jitter,
+            }) as Box<dyn Agent>
+        };
+        (factory, kept)
+    };
+    let ((f1, heard1), (f2, heard2)) = (
+        talker("Robot1", "Robot2", &[0, 4, 0, 0, 9, 1, 0]),
+        talker("Robot2", "Robot1", &[]),
+    );
+    // Each UAV on its own thread, as two programs would be.
+    let cancel = CancellationToken::new();
+    let fly = |settings: RunSettings, factory: Box<dyn Fn() -> Box<dyn Agent> + Send + Sync>| {
+        let cancel = cancel.clone();
+        std::thread::spawn(move || {
+            let runtime = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap();
+            runtime.block_on(ucc_client::run(
+                &settings,
+                &factory,
+                &mut |_: &Progress| {},
+                &cancel,
+            ))
+        })
+    };
+    let (t1, t2) = (fly(one, Box::new(f1)), fly(two, Box::new(f2)));
+    let (r1, r2) = tokio::task::spawn_blocking(move || (t1.join(), t2.join()))
+        .await
+        .unwrap();
+    r1.unwrap().unwrap();
+    r2.unwrap().unwrap();
+    shutdown.cancel();
+    server.await.unwrap().unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+
+    // The barrier a step at `time` was taken at: lockstep's 0.1 s steps.
+    let barrier = |time: f64| (time / 0.1 - 1e-6).ceil() * 0.1;
+    let mut checked = 0;
+    for (sender, receiver) in [(&heard1, &heard2), (&heard2, &heard1)] {
+        let (sender, receiver) = (sender.lock().unwrap(), receiver.lock().unwrap());
+        let sent: Vec<f64> = sender
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| (i + 1) % 5 == 0)
+            .map(|(_, h)| h.time)
+            .collect();
+        for h in receiver.iter() {
+            for (_, text) in &h.inbox {
+                let at: f64 = text.rsplit(' ').next().unwrap().parse().unwrap();
+                let first_after = receiver
+                    .iter()
+                    .map(|r| r.time)
+                    .find(|t| *t > barrier(at) + 1e-6)
+                    .unwrap();
+                assert!(
+                    (h.time - first_after).abs() < 1e-6,
+                    "{text:?} (barrier {:.2}) arrived at {} instead of {first_after}",
+                    barrier(at),
+                    h.time
+                );
+                checked += 1;
+            }
+        }
+        // In range all along (once the WSS knew both positions): every message sent before
+        // the receiver's last step arrived or came back undelivered (those sent before the
+        // WSS's first evaluation, at 1 s).
+        let last = receiver.last().unwrap().time;
+        let received: usize = receiver.iter().map(|h| h.inbox.len()).sum();
+        let refused: usize = sender.iter().map(|h| h.undelivered.len()).sum();
+        let due = sent
+            .iter()
+            .filter(|t| barrier(**t) + 0.1 < last - 1e-6)
+            .count();
+        assert!(
+            received + refused >= due && refused <= 4,
+            "{received} of {due} messages arrived, {refused} refused: {receiver:?}"
+        );
+    }
+    assert!(checked >= 10, "only {checked} messages");
 }

@@ -845,6 +845,12 @@ impl Driver {
             }
             Request::Wake => {}
             Request::Ask(ask) => (ask.0)(&self.world),
+            // A relay socket has news. While lockstep clients are in the barrier, it is taken
+            // just before the world's next step, after every member's next `SYNC`: so what a
+            // member writes while the world stands at a barrier reaches the other robot
+            // after each agent's last step at that barrier and before its first step past
+            // it, whatever the timing (docs/wss.md). Without members, at once.
+            Request::Radio if self.joined > 0 => self.radio_due = true,
             Request::Radio => {
                 if let Some(radio) = &self.radio {
                     radio.take();

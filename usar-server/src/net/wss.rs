@@ -14,9 +14,10 @@
 //! * **Simulated clock** (in-process with lockstep, [`Clock`]): the simulation thread calls
 //!   the WSS. After the step that reaches each multiple of `poll` of simulated time it
 //!   evaluates the links against the world itself; relayed bytes move only at the world's
-//!   current time — when the world is about to step on from a lockstep barrier, or when a
-//!   relay socket has news — so bytes a client writes before its `SYNC` are taken at that
-//!   barrier's time and delivered if and only if the link held at the last evaluation.
+//!   current time — just before the world's next step while lockstep clients are in the
+//!   barrier, else when a relay socket has news — so bytes a client writes before its
+//!   `SYNC` are taken at that barrier's time and delivered if and only if the link held at
+//!   the last evaluation, before any client is sent a reading of a later time.
 
 use std::collections::{BTreeMap, HashMap};
 use std::io::{Read, Write};
