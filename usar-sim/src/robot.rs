@@ -324,9 +324,8 @@ pub(crate) struct Robot {
     velocity: V3,
     /// roll, pitch, yaw, rad.
     rotation: V3,
-    /// A yaw with its sine and cosine: the kinematic flight's last, kept while the yaw
-    /// holds (a hovering or straight-flying robot does not compute them every tick).
-    yaw_trig: (f64, f64, f64),
+    /// The kinematic flight's yaw with its sine and cosine ([`YawTrig`]).
+    yaw_trig: YawTrig,
     set: SetPoints,
     /// The physics model; `None` for the kinematic AerialVehicle flight.
     dynamics: Option<Box<dyn Dynamics>>,
@@ -350,6 +349,69 @@ pub(crate) struct Robot {
     notices: Vec<ServerMessage>,
     /// The parameters drawn for it (`--randomize`).
     drawn: super::randomize::Drawn,
+}
+
+/// A yaw with its sine and cosine, kept from tick to tick by the kinematic flight: while
+/// the yaw holds they are not computed again, and while it turns at a steady rate the next
+/// ones come from the angle-sum formulas with the turn's own sine and cosine (computed once
+/// per yaw rate) — exactly again (`sin_cos`) every [`YawTrig::EXACT_EVERY`] ticks, so the
+/// rounding of the sums (an ulp or so per tick) never adds up. `sin_cos` was the largest
+/// single cost of a robot flying with a yaw rate (issue 24).
+#[derive(Debug, Clone, Copy)]
+struct YawTrig {
+    yaw: f64,
+    sin: f64,
+    cos: f64,
+    /// The last turn per tick (rad) and its sine and cosine.
+    turn: (f64, f64, f64),
+    /// Ticks the sums may still be used before the next exact value.
+    sums_left: u8,
+}
+
+impl Default for YawTrig {
+    fn default() -> Self {
+        Self {
+            yaw: f64::NAN,
+            sin: f64::NAN,
+            cos: f64::NAN,
+            turn: (f64::NAN, f64::NAN, f64::NAN),
+            sums_left: 0,
+        }
+    }
+}
+
+impl YawTrig {
+    const EXACT_EVERY: u8 = 64;
+
+    /// The sine and cosine of `yaw`: kept ones if they are of this yaw, else exact ones.
+    fn at(&mut self, yaw: f64) -> (f64, f64) {
+        if self.yaw.to_bits() != yaw.to_bits() {
+            (self.sin, self.cos) = yaw.sin_cos();
+            self.yaw = yaw;
+            self.sums_left = Self::EXACT_EVERY;
+        }
+        (self.sin, self.cos)
+    }
+
+    /// The yaw turned by `turn` to `next`: keeps `next`'s sine and cosine by the sums —
+    /// unless `next` is not the kept yaw plus `turn` (wrapped by `bounded_angle`, or set
+    /// otherwise), or nothing turned: then the next [`YawTrig::at`] computes them.
+    fn turn(&mut self, next: f64, turn: f64) {
+        if next.to_bits() == self.yaw.to_bits()
+            || next.to_bits() != (self.yaw + turn).to_bits()
+            || self.sums_left == 0
+        {
+            return;
+        }
+        if self.turn.0.to_bits() != turn.to_bits() {
+            let (sin, cos) = turn.sin_cos();
+            self.turn = (turn, sin, cos);
+        }
+        let (_, st, ct) = self.turn;
+        (self.sin, self.cos) = (self.sin * ct + self.cos * st, self.cos * ct - self.sin * st);
+        self.yaw = next;
+        self.sums_left -= 1;
+    }
 }
 
 impl Robot {
@@ -442,7 +504,7 @@ impl Robot {
             position: spawn.position,
             velocity: [0.0; 3],
             rotation: spawn.rotation,
-            yaw_trig: (f64::NAN, f64::NAN, f64::NAN),
+            yaw_trig: YawTrig::default(),
             set: SetPoints::default(),
             dynamics,
             crashed: None,
@@ -744,11 +806,7 @@ impl Robot {
         }
         let s = self.set;
         let yaw = self.rotation[2];
-        if self.yaw_trig.0.to_bits() != yaw.to_bits() {
-            let (sin, cos) = yaw.sin_cos();
-            self.yaw_trig = (yaw, sin, cos);
-        }
-        let (_, sin, cos) = self.yaw_trig;
+        let (sin, cos) = self.yaw_trig.at(yaw);
         let horizontal = rotate_by(sin, cos, [s.linear, s.lateral, 0.0]);
         let mut motion = scale(add(horizontal, [0.0, 0.0, -s.altitude]), dt);
         if self.crashed.is_some() {
@@ -775,7 +833,9 @@ impl Robot {
             }
         }
         self.velocity = std::array::from_fn(|i| (self.position[i] - start[i]) / dt);
-        self.rotation[2] = bounded_angle(self.rotation[2] + s.yaw_rate * dt);
+        let turn = s.yaw_rate * dt;
+        self.rotation[2] = bounded_angle(yaw + turn);
+        self.yaw_trig.turn(self.rotation[2], turn);
         let flight = &self.model.class.flight;
         let step = flight.tilt_rate * dt;
         for (angle, target) in [(0, s.roll), (1, s.pitch)] {
@@ -1199,4 +1259,42 @@ fn cross(a: V3, b: V3) -> V3 {
 /// GETCONF/GETGEO/SET matching: type and (optional) name, case-insensitive.
 fn matches(item_type: &str, item_name: &str, kind: &str, name: Option<&str>) -> bool {
     item_type.eq_ignore_ascii_case(kind) && name.is_none_or(|n| item_name.eq_ignore_ascii_case(n))
+}
+
+#[cfg(test)]
+mod yaw_trig_tests {
+    use super::YawTrig;
+
+    /// Turning at steady rates for many ticks, wrapping past ±π and the 1000 turns of
+    /// `bounded_angle`, the kept sine and cosine stay as near `sin_cos` as the yaw's own
+    /// rounding allows: each tick's `yaw + turn` is rounded to the yaw's ulp, which the sums
+    /// (of the unrounded angle) do not follow, for up to `EXACT_EVERY` ticks.
+    #[test]
+    fn the_kept_sine_and_cosine_follow_a_steady_turn() {
+        for (start, rate) in [(0.0, 1.0), (3.1, -2.7), (6283.0, 0.3), (-1.0, 1e-9)] {
+            let (mut trig, mut yaw) = (YawTrig::default(), start);
+            let mut worst: f64 = 0.0;
+            for _ in 0..10_000 {
+                let (s, c) = trig.at(yaw);
+                let (es, ec) = yaw.sin_cos();
+                let ulps = f64::from(YawTrig::EXACT_EVERY) * f64::EPSILON * yaw.abs().max(1.0);
+                worst = worst.max((s - es).abs().max((c - ec).abs()) / ulps);
+                let turn = rate * 0.005;
+                yaw = super::bounded_angle(yaw + turn);
+                trig.turn(yaw, turn);
+            }
+            assert!(worst < 1.0, "start {start}, rate {rate}: {worst}");
+        }
+    }
+
+    /// A yaw set from outside (not by a turn) is computed exactly; so is a yaw that holds.
+    #[test]
+    fn another_yaw_is_computed_exactly() {
+        let mut trig = YawTrig::default();
+        trig.at(0.5);
+        trig.turn(0.505, 0.005);
+        assert_eq!(trig.at(2.0), 2.0f64.sin_cos());
+        assert_eq!(trig.at(2.0), 2.0f64.sin_cos());
+        assert!(trig.at(f64::NAN).0.is_nan());
+    }
 }
