@@ -98,6 +98,21 @@ fn norm(a: V3) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
+/// `norm(a).partial_cmp(&limit)` for a `limit` > 0, with the square root taken only when
+/// the squared length is within a factor 4 of `limit`'s square (the same answer: the root
+/// is monotonic; a sweep asked two such questions of every move).
+fn compare_norm(a: V3, limit: f64) -> Option<std::cmp::Ordering> {
+    let squared = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+    let limit_squared = limit * limit;
+    if squared < 0.25 * limit_squared {
+        Some(std::cmp::Ordering::Less)
+    } else if squared > 4.0 * limit_squared {
+        Some(std::cmp::Ordering::Greater)
+    } else {
+        squared.sqrt().partial_cmp(&limit)
+    }
+}
+
 fn to_vector(v: V3) -> Vector {
     Vector::new(v[0] as f32, v[1] as f32, v[2] as f32)
 }
@@ -942,14 +957,13 @@ impl Scene {
         let mut pos = centre;
         // The solid every cast so far hit at once (time 0), if every cast did so.
         let mut pressed: Option<Option<u32>> = None;
-        let length = norm(motion);
-        let mut rest = if length > MAX_STEP {
-            scale(motion, MAX_STEP / length)
+        let mut rest = if compare_norm(motion, MAX_STEP) == Some(std::cmp::Ordering::Greater) {
+            scale(motion, MAX_STEP / norm(motion))
         } else {
             motion
         };
         for _ in 0..3 {
-            if norm(rest) < 1e-9 {
+            if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
                 break;
             }
             let options = ShapeCastOptions {
@@ -1709,6 +1723,22 @@ mod tests {
                     "beam {} dir {:?}: fan {:?} walk {:?}", k, dir, fan[k], walk);
                 proptest::prop_assert_eq!(batch.cast(dir, max), walk);
             }
+        }
+    }
+
+    proptest::proptest! {
+        /// `compare_norm` answers as comparing the square root, near the limit (where it
+        /// takes the root) and far from it, for the limits the sweep asks about.
+        #[test]
+        fn comparing_a_norm_answers_as_the_square_root(
+            direction in proptest::array::uniform3(-1.0f64..1.0),
+            scale in -3.0f64..3.0,
+            limit in proptest::sample::select(vec![1e-9, MAX_STEP, 0.5]),
+        ) {
+            let k = limit * 10f64.powf(scale) / norm(direction).max(1e-300);
+            let a = direction.map(|v| v * k);
+            proptest::prop_assert_eq!(compare_norm(a, limit), norm(a).partial_cmp(&limit));
+            proptest::prop_assert_eq!(compare_norm(a, norm(a)), Some(std::cmp::Ordering::Equal));
         }
     }
 
