@@ -244,6 +244,30 @@ impl Agent for Talker {
     }
 }
 
+/// A factory of [`Talker`]s (`me` talking to `peer`, sleeping `jitter`) and what they heard.
+fn talker(
+    me: &'static str,
+    peer: &'static str,
+    jitter: &'static [u64],
+) -> (
+    impl Fn() -> Box<dyn Agent> + Send + Sync + 'static,
+    Arc<Mutex<Vec<Heard>>>,
+) {
+    let heard: Arc<Mutex<Vec<Heard>>> = Arc::default();
+    let kept = heard.clone();
+    let factory = move || {
+        Box::new(Talker {
+            inner: agents::create("base").unwrap(),
+            me,
+            peer,
+            steps: 0,
+            heard: heard.clone(),
+            jitter,
+        }) as Box<dyn Agent>
+    };
+    (factory, kept)
+}
+
 /// Eight thin walls between y = 2 and y = 4.1, 3 m high, 20 m wide.
 fn walls_map() -> usar_server::sim::Map {
     let mut text =
@@ -324,23 +348,9 @@ async fn two_uavs_talk_until_one_flies_down_behind_walls() {
         ],
         "Robot1",
     );
-    let talker = |me: &'static str, peer: &'static str, heard: &Arc<Mutex<Vec<Heard>>>| {
-        let heard = heard.clone();
-        move || {
-            Box::new(Talker {
-                inner: agents::create("base").unwrap(),
-                me,
-                peer,
-                steps: 0,
-                heard: heard.clone(),
-                jitter: &[],
-            }) as Box<dyn Agent>
-        }
-    };
-    let (heard1, heard2) = (Arc::default(), Arc::default());
-    let (f1, f2) = (
-        talker("Robot1", "Robot2", &heard1),
-        talker("Robot2", "Robot1", &heard2),
+    let ((f1, heard1), (f2, heard2)) = (
+        talker("Robot1", "Robot2", &[]),
+        talker("Robot2", "Robot1", &[]),
     );
     let cancel = CancellationToken::new();
     let (mut o1, mut o2) = (|_: &Progress| {}, |_: &Progress| {});
@@ -441,21 +451,6 @@ async fn in_lockstep_a_message_arrives_at_the_first_step_after_its_barrier() {
         uav("Robot1", Coordinates::new(0.0, 0.0, -1.0)),
         uav("Robot2", Coordinates::new(3.0, 0.0, -1.0)),
     );
-    let talker = |me: &'static str, peer: &'static str, jitter: &'static [u64]| {
-        let heard: Arc<Mutex<Vec<Heard>>> = Arc::default();
-        let kept = heard.clone();
-        let factory = move || {
-            Box::new(Talker {
-                inner: agents::create("base").unwrap(),
-                me,
-                peer,
-                steps: 0,
-                heard: heard.clone(),
-                jitter,
-            }) as Box<dyn Agent>
-        };
-        (factory, kept)
-    };
     let ((f1, heard1), (f2, heard2)) = (
         talker("Robot1", "Robot2", &[0, 4, 0, 0, 9, 1, 0]),
         talker("Robot2", "Robot1", &[]),
