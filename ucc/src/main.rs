@@ -414,28 +414,10 @@ fn wire_exit(failed: std::io::Result<usize>) -> anyhow::Result<ExitCode> {
     })
 }
 
-/// A token cancelled by Ctrl-C or SIGTERM.
+/// A token cancelled by Ctrl-C or SIGTERM (the handlers in place at once).
 fn interrupt_token() -> CancellationToken {
     let token = CancellationToken::new();
-    let cancel = token.clone();
-    tokio::spawn(async move {
-        #[cfg(unix)]
-        let terminate = async {
-            match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-                Ok(mut s) => {
-                    s.recv().await;
-                }
-                Err(_) => std::future::pending().await,
-            }
-        };
-        #[cfg(not(unix))]
-        let terminate = std::future::pending::<()>();
-        tokio::select! {
-            _ = tokio::signal::ctrl_c() => {}
-            () = terminate => {}
-        }
-        cancel.cancel();
-    });
+    usar_server::cancel_on_signal(token.clone());
     token
 }
 

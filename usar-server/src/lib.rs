@@ -43,3 +43,34 @@ pub use args::{ArgsError, ServerArgs};
 pub use local::{LocalServer, LocalSides};
 pub use net::image::ImageConfig;
 pub use net::{ServerConfig, ServerError, SideListeners, TimeScale, run, run_with};
+
+/// Cancels `token` on Ctrl-C or SIGTERM, for programs (`usar-server`, `ucc`); call it
+/// inside a tokio runtime. The handlers are in place when it returns, so a signal sent
+/// once the program has said it is ready is never lost: installed by a spawned task
+/// instead, a SIGTERM that came between tokio's handler and the task's listener was
+/// swallowed, and the server ran on (a test hung on it).
+pub fn cancel_on_signal(token: tokio_util::sync::CancellationToken) {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        if let (Ok(mut interrupt), Ok(mut terminate)) = (
+            signal(SignalKind::interrupt()),
+            signal(SignalKind::terminate()),
+        ) {
+            tokio::spawn(async move {
+                tokio::select! {
+                    _ = interrupt.recv() => {}
+                    _ = terminate.recv() => {}
+                }
+                tracing::info!("signal: stopping");
+                token.cancel();
+            });
+            return;
+        }
+    }
+    tokio::spawn(async move {
+        let _ = tokio::signal::ctrl_c().await;
+        tracing::info!("signal: stopping");
+        token.cancel();
+    });
+}

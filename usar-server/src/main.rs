@@ -250,7 +250,7 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
         let address = listener.local_addr()?;
         let level = config.map.level().to_owned();
         let shutdown = CancellationToken::new();
-        tokio::spawn(cancel_on_signal(shutdown.clone()));
+        usar_server::cancel_on_signal(shutdown.clone());
         // With `--port 0` (tests, several servers on one machine) every side service picks
         // a free port unless told otherwise.
         let bind = async |service: &str, flag: &str, port: Option<SidePort>, default: u16| {
@@ -352,7 +352,7 @@ async fn listen(
         .await
         .with_context(|| format!("cannot listen on {bind}:{port}"))?;
     let shutdown = CancellationToken::new();
-    tokio::spawn(cancel_on_signal(shutdown.clone()));
+    usar_server::cancel_on_signal(shutdown.clone());
     let mut stdout = std::io::stdout().lock();
     writeln!(stdout, "{}", line(listener.local_addr()?))?;
     stdout.flush()?;
@@ -436,28 +436,4 @@ fn replay(file: &Path, bind: &str, port: u16, fast: bool, speed: f64) -> anyhow:
         replay::serve(listener, recording, pace, shutdown).await?;
         Ok(())
     })
-}
-
-/// Cancels `shutdown` on Ctrl-C or SIGTERM.
-async fn cancel_on_signal(shutdown: CancellationToken) {
-    let ctrl_c = tokio::signal::ctrl_c();
-    #[cfg(unix)]
-    {
-        use tokio::signal::unix::{SignalKind, signal};
-        match signal(SignalKind::terminate()) {
-            Ok(mut term) => {
-                tokio::select! {
-                    _ = ctrl_c => {}
-                    _ = term.recv() => {}
-                }
-            }
-            Err(_) => {
-                let _ = ctrl_c.await;
-            }
-        }
-    }
-    #[cfg(not(unix))]
-    let _ = ctrl_c.await;
-    tracing::info!("shutting down");
-    shutdown.cancel();
 }
