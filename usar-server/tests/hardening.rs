@@ -6,13 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// The program under test (`USAR_SERVER_BIN=path` tests another build).
-fn server() -> Command {
-    Command::new(
-        std::env::var_os("USAR_SERVER_BIN")
-            .unwrap_or_else(|| env!("CARGO_BIN_EXE_usar-server").into()),
-    )
-}
+mod common;
+use common::{program as server, start_program, terminate};
 
 /// A scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
@@ -23,15 +18,7 @@ fn scratch(name: &str) -> PathBuf {
 
 /// Starts the server with `args` (stderr into `log`); returns it and its address.
 fn start(args: &[&std::ffi::OsStr], log: &Path) -> (Child, String) {
-    let mut child = server()
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(std::fs::File::create(log).unwrap())
-        .spawn()
-        .unwrap();
-    let mut stdout = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    stdout.read_line(&mut line).unwrap();
+    let (child, line) = start_program(args, std::fs::File::create(log).unwrap().into());
     let addr = line
         .trim_end()
         .rsplit(' ')
@@ -39,13 +26,6 @@ fn start(args: &[&std::ffi::OsStr], log: &Path) -> (Child, String) {
         .unwrap_or_else(|| panic!("ready line: {line:?}"))
         .to_owned();
     (child, addr)
-}
-
-fn terminate(child: &Child) {
-    Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
 }
 
 /// Waits until `log` contains `text` (at most 60 s).

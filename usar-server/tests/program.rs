@@ -1,11 +1,10 @@
 //! The `usar-server` program as a user runs it.
 
 use std::io::{BufRead, BufReader, Read};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 
-fn server() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_usar-server"))
-}
+mod common;
+use common::{program as server, start_program, terminate};
 
 #[test]
 fn prints_one_ready_line_per_service_and_exits_cleanly_on_sigterm() {
@@ -53,11 +52,7 @@ fn prints_one_ready_line_per_service_and_exits_cleanly_on_sigterm() {
     client.read_exact(&mut greeting).unwrap();
     assert_eq!(&greeting, b"NFO");
 
-    let status = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
+    terminate(&child);
     assert!(child.wait().unwrap().success(), "exit status 0 on SIGTERM");
     let mut rest = Vec::new();
     client.read_to_end(&mut rest).unwrap(); // EOF, not a reset
@@ -269,10 +264,7 @@ fn replay_time_stamps_are_checked() {
     client.read_exact(&mut first).unwrap();
     assert_eq!(&first, b"NFO");
     std::thread::sleep(std::time::Duration::from_millis(200));
-    Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
+    terminate(&child);
     let out = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
@@ -320,10 +312,7 @@ fn a_client_cannot_flood_the_log_or_write_control_bytes_into_it() {
     }
     drop(client);
     std::thread::sleep(std::time::Duration::from_millis(500));
-    Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
+    terminate(&child);
     assert!(child.wait().unwrap().success());
     let log = log.join().unwrap();
     println!("{sent} bytes of garbage gave {} bytes of log", log.len());
@@ -365,21 +354,23 @@ fn a_record_folder_that_cannot_be_made_is_refused_before_listening() {
 #[test]
 fn sigterm_right_after_the_ready_line_stops_the_server_cleanly() {
     for run in 0..20 {
-        let mut child = server()
-            .args(["--port", "0", "--image-port", "off", "--truth-port", "off"])
-            .args(["--wss-port", "off", "--monitor-port", "off"])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
+        let (mut child, line) = start_program(
+            &[
+                "--port",
+                "0",
+                "--image-port",
+                "off",
+                "--truth-port",
+                "off",
+                "--wss-port",
+                "off",
+                "--monitor-port",
+                "off",
+            ],
+            Stdio::null(),
+        );
         assert!(line.starts_with("usar-server listening on "), "{line:?}");
-        let _ = Command::new("kill")
-            .args(["-TERM", &child.id().to_string()])
-            .status();
+        terminate(&child);
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
         let status = loop {
             if let Some(status) = child.try_wait().unwrap() {
@@ -410,9 +401,7 @@ fn the_image_port_option_takes_a_port_or_off() {
         let mut text = String::new();
         stdout.read_line(&mut text).unwrap();
         assert!(text.starts_with("usar-server listening on "), "{text:?}");
-        let _ = Command::new("kill")
-            .args(["-TERM", &child.id().to_string()])
-            .status();
+        terminate(&child);
         stdout.read_to_string(&mut text).unwrap();
         assert!(child.wait().unwrap().success(), "--image-port {value}");
         assert_eq!(

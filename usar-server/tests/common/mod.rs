@@ -183,3 +183,39 @@ impl Client {
 pub fn distance(a: Vec3, b: Vec3) -> f64 {
     ((a.x - b.x).powi(2) + (a.y - b.y).powi(2) + (a.z - b.z).powi(2)).sqrt()
 }
+
+/// The `usar-server` program (`USAR_SERVER_BIN=path` tests another build).
+pub fn program() -> std::process::Command {
+    std::process::Command::new(
+        std::env::var_os("USAR_SERVER_BIN")
+            .unwrap_or_else(|| env!("CARGO_BIN_EXE_usar-server").into()),
+    )
+}
+
+/// Starts the program with `args`, its stderr into `stderr`; returns it and the first line
+/// it printed (its ready line).
+pub fn start_program<S: AsRef<std::ffi::OsStr>>(
+    args: &[S],
+    stderr: std::process::Stdio,
+) -> (std::process::Child, String) {
+    use std::io::BufRead;
+    let mut child = program()
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(stderr)
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    (child, line)
+}
+
+/// Sends the program SIGTERM.
+pub fn terminate(child: &std::process::Child) {
+    std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+}
