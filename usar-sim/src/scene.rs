@@ -575,32 +575,42 @@ impl Scene {
                 }
                 None => collider.compute_aabb(),
             };
-            let leaf = handle.into_raw_parts().0;
-            let fat = || {
-                let margin = Vector::splat(leaf_margin(leaf, &aabb));
-                Aabb::new(aabb.mins - margin, aabb.maxs + margin)
-            };
-            match self.bvh.leaf_node(leaf) {
-                Some(node) if node.contains_aabb(&aabb) => {}
-                Some(_) => {
-                    // The leaf grows to the box with its margin, and so do its ancestors.
-                    // (parry's `insert_with_change_detection` with a margin widens the
-                    // ancestors only to the bare box: the robot could then drift out of
-                    // them, within its leaf, and tree walks missed it until a refit.)
-                    let fat = fat();
-                    let _ = self.bvh.insert_with_change_detection(fat, leaf, 0.0);
+            let body = collider.user_data == BODY;
+            self.place_leaf(handle.into_raw_parts().0, aabb, body);
+        }
+    }
+
+    /// Puts the leaf `leaf` (a `body` or not) in the tree with the box `aabb`, or grows its
+    /// tree box (with a margin) when `aabb` left it.
+    fn place_leaf(&mut self, leaf: u32, aabb: Aabb, body: bool) {
+        let fat = || {
+            let margin = Vector::splat(leaf_margin(leaf, &aabb));
+            Aabb::new(aabb.mins - margin, aabb.maxs + margin)
+        };
+        match self.bvh.leaf_node(leaf) {
+            Some(node) if node.contains_aabb(&aabb) => {}
+            Some(_) => {
+                // The leaf grows to the box with its margin, and so do its ancestors.
+                // (parry's `insert_with_change_detection` with a margin widens the
+                // ancestors only to the bare box: the robot could then drift out of
+                // them, within its leaf, and tree walks missed it until a refit.)
+                let fat = fat();
+                let _ = self.bvh.insert_with_change_detection(fat, leaf, 0.0);
+                if self.body_count == 1 && body {
+                    // The only robot: no other leaf's room is ever asked about.
+                    self.set_clear(leaf, Room::Unknown);
+                } else {
                     self.unclear_near(leaf, &fat);
                 }
-                None => {
-                    // A robot's body starts with its margin (with the bare box, every robot
-                    // spawned together left it on the first tick it moved, all at once);
-                    // map solids never move and keep the bare box.
-                    let body = collider.user_data == BODY;
-                    let aabb = if body { fat() } else { aabb };
-                    self.bvh.insert(aabb, leaf);
-                    self.unclear_near(leaf, &aabb);
-                    self.stale = true;
-                }
+            }
+            None => {
+                // A robot's body starts with its margin (with the bare box, every robot
+                // spawned together left it on the first tick it moved, all at once);
+                // map solids never move and keep the bare box.
+                let aabb = if body { fat() } else { aabb };
+                self.bvh.insert(aabb, leaf);
+                self.unclear_near(leaf, &aabb);
+                self.stale = true;
             }
         }
     }
@@ -1122,9 +1132,15 @@ impl Scene {
             None => {}
         }
         if let Some(collider) = self.colliders.get_mut(handle) {
+            debug_assert!(collider.shape().as_cylinder().is_some_and(|c| {
+                (c.radius, c.half_height) == (cylinder.radius, cylinder.half_height)
+            }));
             collider.set_position(upright_pose(pos));
         }
-        self.reindex(handle);
+        // The body's box in closed form, as `reindex` finds it from the collider.
+        let half = Vector::new(cylinder.radius, cylinder.radius, cylinder.half_height);
+        let centre = to_vector(pos);
+        self.place_leaf(leaf, Aabb::new(centre - half, centre + half), true);
         (pos, contact)
     }
 }
