@@ -1,0 +1,126 @@
+//! What the Python vector env's worlds cost in Rust alone: `WORLDS` worlds of one
+//! state-only stsAirRobot each (no sonars, no laser) in `empty_room`, stepped one control
+//! period (0.1 s, 20 ticks) at a time on one thread, each period with a new random
+//! normalized `DRIVE` per robot (as the Python benchmark's random actions), or none with
+//! `hover`. Prints the time per robot and tick and a digest of every message, which must not
+//! change when only the speed does.
+//!
+//! ```text
+//! cargo run --release -p usar-sim --example lone_robots -- [WORLDS] [PERIODS] [hover]
+//! valgrind --tool=callgrind target/release/examples/lone_robots 256 100   # instructions
+//! ```
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use usar_proto::{Command, Drive, Init, Vec3};
+use usar_sim::{ClientId, Map, RobotCatalog, SimConfig, World};
+
+const TICKS: usize = 20;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let number = |i: usize, default: usize| match args.get(i) {
+        None => default,
+        Some(s) => s.parse().unwrap_or_else(|_| {
+            eprintln!("lone_robots: argument {}: not a count: {s:?}", i + 1);
+            std::process::exit(2)
+        }),
+    };
+    let (worlds, periods) = (number(0, 1024).max(1), number(1, 200));
+    let hover = args.get(2).is_some_and(|s| s == "hover");
+    let map = Arc::new(Map::embedded("empty_room").expect("an embedded map"));
+    let mut catalog = RobotCatalog::embedded();
+    if let Some(class) = catalog.get_mut("USARBot.stsAirRobot") {
+        class.parts.retain(|p| {
+            !p.kind.eq_ignore_ascii_case("Sonar") && !p.kind.eq_ignore_ascii_case("RangeScanner")
+        });
+    }
+    let catalog = Arc::new(catalog);
+    let start = map.starts()[0].location;
+    let mut sims: Vec<(World, ClientId)> = (0..worlds)
+        .map(|i| {
+            let config = SimConfig {
+                seed: i as u64,
+                ..SimConfig::default()
+            };
+            let mut world = World::new(map.clone(), catalog.clone(), config);
+            let client = world.connect();
+            world.command(
+                client,
+                Command::Init(Init {
+                    class_name: "USARBot.stsAirRobot".into(),
+                    name: Some(format!("UAV{i}")),
+                    location: Some(Vec3::new(start[0], start[1], start[2])),
+                    rotation: Some(Vec3::new(0.0, 0.0, 0.0)),
+                    start: None,
+                }),
+            );
+            (world, client)
+        })
+        .collect();
+    // Eight sets of actions in turn, as the Python benchmark: uniform in -1..=1 (SplitMix64).
+    let mut seed = 12_345u64;
+    let mut uniform = || {
+        let bits = usar_sim::splitmix(&mut seed) >> 11;
+        bits as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let actions: Vec<Vec<Drive>> = (0..8)
+        .map(|_| {
+            (0..worlds)
+                .map(|_| {
+                    let mut a = [0.0; 4];
+                    if !hover {
+                        a = a.map(|_| (uniform() * 100.0).round());
+                    }
+                    Drive {
+                        linear_velocity: Some(a[0]),
+                        lateral_velocity: Some(a[1]),
+                        altitude_velocity: Some(a[2]),
+                        rotational_velocity: Some(a[3]),
+                        normalized: Some(true),
+                        ..Drive::default()
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let mut digest = 0xcbf2_9ce4_8422_2325u64;
+    let mut out = Vec::new();
+    // The digest reads the messages of the periods before and after the timed ones (their
+    // state follows from the timed ones); the timed ones drop theirs unread.
+    let mut run = |periods: usize, digest: Option<&mut u64>| {
+        let mut digest = digest;
+        for k in 0..periods {
+            for (i, (world, client)) in sims.iter_mut().enumerate() {
+                world.command(*client, Command::Drive(actions[k % 8][i].clone()));
+                for _ in 0..TICKS {
+                    world.step(&mut out);
+                }
+                world.take_touched(|_, _| {});
+                for (_, message) in out.drain(..) {
+                    if let Some(digest) = digest.as_deref_mut() {
+                        for byte in message.to_string().bytes() {
+                            *digest = (*digest ^ u64::from(byte)).wrapping_mul(0x100_0000_01b3);
+                        }
+                    }
+                }
+            }
+        }
+    };
+    // Episodes of some age first, as in the Python benchmark (UAVs against floor and ceiling).
+    run(100, Some(&mut digest));
+    let started = Instant::now();
+    run(periods, None);
+    let seconds = started.elapsed().as_secs_f64();
+    run(10, Some(&mut digest));
+    let per_step = seconds / (periods * worlds).max(1) as f64;
+    println!(
+        "{worlds} worlds x {periods} periods ({}): {:.0} ns per robot and tick, {:.2} µs per \
+         UAV-step, {:.0} UAV-steps/s on one thread; digest {digest:016x}",
+        if hover { "hovering" } else { "random actions" },
+        per_step * 1e9 / TICKS as f64,
+        per_step * 1e6,
+        1.0 / per_step,
+    );
+}
