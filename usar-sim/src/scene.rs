@@ -196,8 +196,9 @@ struct Plan {
     near: Vec<(u32, BvhNode)>,
 }
 
-/// Metres of room a [`Plan`] learns around the sweep that made it: a robot at 2 m/s
-/// crosses it in a quarter of a second (50 ticks) or more.
+/// Metres of room a [`Plan`] learns around the sweep that made it: a robot flying at 2 m/s
+/// along one axis leaves it after a quarter of a second (50 ticks), one at every maximum
+/// speed at once (about 3.5 m/s) after 0.14 s.
 const PLAN_ROOM: f32 = 0.5;
 
 /// What a leaf's entry in [`Scene`]'s `clear` knows of the room around the leaf's tree box.
