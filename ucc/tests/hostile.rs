@@ -287,13 +287,13 @@ fn the_tap_checks_its_upstream_and_recording_at_start() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// The attack suite of the tap (docs/limits.md): with the open files limited to 48, the tap
-/// must outlive 200 connections, refuse those past `--max-connections`, keep its log small and free of control bytes under a flood of
-/// them (66 MB of traffic gave 662 MB of log), and stay under the memory bound, while a
-/// healthy client flying through it keeps 90 % of its rate (in one of three attempts per
-/// attack: a starving attack starves every time, a busy machine only now and then).
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_tap_survives_the_attack_suite() {
+/// A real-time server that takes a thousand connections, and `ucc tap` in front of it with
+/// `fd_limit` open files and `--max-connections max`, recording into a fresh folder `name`.
+async fn attacked_tap(
+    name: &str,
+    fd_limit: u32,
+    max: &str,
+) -> (usar_server::LocalServer, PathBuf, Tap) {
     let server = usar_server::LocalServer::start(usar_server::ServerConfig {
         time_scale: usar_server::TimeScale::Factor(1.0),
         max_connections: 1000,
@@ -302,20 +302,31 @@ async fn the_tap_survives_the_attack_suite() {
     })
     .await
     .unwrap();
-    let dir = scratch("tap-attack");
+    let dir = scratch(name);
     let record = dir.join("session.usarlog");
+    let tap = Tap::start(
+        server.addr(),
+        &dir,
+        &record,
+        fd_limit,
+        &["--max-connections", max],
+    );
+    (server, dir, tap)
+}
+
+/// The attack suite of the tap (docs/limits.md): with the open files limited to 48, the tap
+/// must outlive 200 connections, refuse those past `--max-connections`, keep its log small
+/// and free of control bytes under a flood of them (66 MB of traffic gave 662 MB of log), and stay under the memory bound, while a
+/// healthy client flying through it keeps 90 % of its rate (in one of three attempts per
+/// attack: a starving attack starves every time, a busy machine only now and then).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_tap_survives_the_attack_suite() {
     // A session holds three files (its client, its upstream, its recording): eight of them
     // and the tap's own fit in 48, so the limit of connections is what refuses the others.
     // (With 32, the files could run out first, and whether the log said "connection
     // refused" depended on how the sessions' tasks and the accepts interleaved; running out
     // of files is the next test's.)
-    let mut tap = Tap::start(
-        server.addr(),
-        &dir,
-        &record,
-        48,
-        &["--max-connections", "8"],
-    );
+    let (server, dir, mut tap) = attacked_tap("tap-attack", 48, "8").await;
     let (baseline, rate) = tap_share(tap.addr, server.addr(), "Base").await;
     assert!(rate > 20.0, "the healthy client gets {rate:.1} lines/s");
     assert!(
@@ -444,23 +455,7 @@ async fn the_tap_survives_the_attack_suite() {
 /// and serves a new client once they have gone.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_tap_outlives_running_out_of_files() {
-    let server = usar_server::LocalServer::start(usar_server::ServerConfig {
-        time_scale: usar_server::TimeScale::Factor(1.0),
-        max_connections: 1000,
-        max_connections_per_address: 1000,
-        ..usar_server::ServerConfig::default()
-    })
-    .await
-    .unwrap();
-    let dir = scratch("tap-files");
-    let record = dir.join("session.usarlog");
-    let mut tap = Tap::start(
-        server.addr(),
-        &dir,
-        &record,
-        32,
-        &["--max-connections", "200"],
-    );
+    let (server, dir, mut tap) = attacked_tap("tap-files", 32, "200").await;
     let mut held = Vec::new();
     for _ in 0..100 {
         if let Ok(Ok(s)) =

@@ -597,7 +597,7 @@ impl Scene {
                 // them, within its leaf, and tree walks missed it until a refit.)
                 let fat = fat();
                 let _ = self.bvh.insert_with_change_detection(fat, leaf, 0.0);
-                if self.body_count == 1 && body {
+                if body && self.lone() {
                     // The only robot: no other leaf's room is ever asked about.
                     self.set_clear(leaf, Room::Unknown);
                 } else {
@@ -911,11 +911,17 @@ impl Scene {
             .all(|leaf| Some(leaf) == me)
     }
 
+    /// Whether the scene holds exactly one robot body: its sweeps then read a [`Plan`] and
+    /// skip the memos that serve crowds.
+    fn lone(&self) -> bool {
+        self.shortcuts && self.body_count == 1
+    }
+
     /// Whether the kept [`Plan`] (learnt again when it does not cover the sweep) answers for
     /// the leaf `me` a sweep whose padded swept box is `query`: not unless `me` is the scene's only
     /// robot body (or with shortcuts off: the tree is asked at every sweep).
     fn plan_for(&mut self, me: u32, query: &Aabb) -> bool {
-        if !self.shortcuts || self.body_count != 1 {
+        if !self.lone() {
             return false;
         }
         let known = self.plan.as_ref().is_some_and(|p| {
@@ -968,9 +974,9 @@ impl Scene {
         let body = upright_pose(centre);
         let cylinder = shape.cylinder();
         let vel = to_vector(motion);
-        let cast = |scene: &Self, leaves: &mut dyn FnMut() -> Option<u32>| {
+        let cast = |scene: &Self, leaves: &mut dyn Iterator<Item = u32>| {
             let mut best: Option<(ColliderHandle, ShapeCastHit)> = None;
-            while let Some(leaf) = leaves() {
+            for leaf in leaves {
                 if leaf == me {
                     continue;
                 }
@@ -996,14 +1002,13 @@ impl Scene {
         if self.plan_for(me, &query) {
             let node = BvhNode::leaf(query, 0);
             let near = self.plan.as_ref().map_or(&[][..], |p| &p.near[..]);
-            let mut near = near.iter();
-            return cast(self, &mut || {
-                near.find(|(_, n)| n.intersects(&node))
-                    .map(|&(leaf, _)| leaf)
-            });
+            let mut near = near
+                .iter()
+                .filter(|(_, n)| n.intersects(&node))
+                .map(|&(leaf, _)| leaf);
+            return cast(self, &mut near);
         }
-        let mut leaves = self.bvh.intersect_aabb(&query);
-        cast(self, &mut || leaves.next())
+        cast(self, &mut self.bvh.intersect_aabb(&query))
     }
 
     /// The contact normal of `leaf`'s last sweep if it is a [`Rest`] that this sweep repeats:
@@ -1046,7 +1051,7 @@ impl Scene {
         let leaf = handle.into_raw_parts().0;
         // The scene's only robot reads the solids near it from its plan: the memos of clear
         // rooms and rests would only add their own lookups.
-        let memos = self.shortcuts && self.body_count != 1;
+        let memos = self.shortcuts && !self.lone();
         if memos && let Some(normal) = self.still_resting(leaf, shape, centre, motion) {
             return (centre, Some(normal));
         }
