@@ -192,8 +192,24 @@ struct Plan {
     leaf: u32,
     /// The region the plan knows.
     region: Aabb,
-    /// The other leaves whose boxes meet the region, in the tree's order, with their boxes.
-    near: Vec<(u32, BvhNode)>,
+    /// The other leaves whose boxes meet the region, in the tree's order.
+    near: Vec<Near>,
+}
+
+/// A leaf of a [`Plan`]: its tree box, and what a cast against it reads of its collider
+/// (`None` when that is not a box upright to the robot: the sweep then casts as usual).
+#[derive(Debug, Clone)]
+struct Near {
+    node: BvhNode,
+    solid: Option<Solid>,
+}
+
+/// A box collider as a [`Plan`] keeps it: no lookups or shape dispatch at each cast.
+#[derive(Debug, Clone)]
+struct Solid {
+    handle: ColliderHandle,
+    pose: Pose,
+    cuboid: Cuboid,
 }
 
 /// Metres of room a [`Plan`] learns around the sweep that made it: a robot flying at 2 m/s
@@ -940,7 +956,22 @@ impl Scene {
             near.extend(
                 bvh.intersect_aabb(&region)
                     .filter(|&l| l != me)
-                    .filter_map(|l| Some((l, *bvh.leaf_node(l)?))),
+                    .filter_map(|l| {
+                        let node = *bvh.leaf_node(l)?;
+                        let solid = self.collider_at(l).and_then(|(collider, handle)| {
+                            let pose = *collider.position();
+                            let cuboid = *collider.shape().as_cuboid()?;
+                            // Upright to every robot (whose rotation is the same at every
+                            // position) as `box_cast` asks.
+                            let pos12 = pose.inv_mul(&upright_pose([0.0; 3]));
+                            is_upright(&pos12).then_some(Solid {
+                                handle,
+                                pose,
+                                cuboid,
+                            })
+                        });
+                        Some(Near { node, solid })
+                    }),
             );
             self.plan = Some(Plan {
                 leaf: me,
@@ -964,7 +995,7 @@ impl Scene {
         centre: V3,
         motion: V3,
         options: ShapeCastOptions,
-    ) -> Option<Option<(ColliderHandle, ShapeCastHit)>> {
+    ) -> Option<Option<Impact>> {
         let half = [shape.radius, shape.radius, shape.half_height];
         let pad = f64::from(SWEEP_PAD);
         let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i] - pad);
@@ -975,7 +1006,7 @@ impl Scene {
         let cylinder = shape.cylinder();
         let vel = to_vector(motion);
         let cast = |scene: &Self, leaves: &mut dyn Iterator<Item = u32>| {
-            let mut best: Option<(ColliderHandle, ShapeCastHit)> = None;
+            let mut best: Option<Impact> = None;
             for leaf in leaves {
                 if leaf == me {
                     continue;
@@ -990,23 +1021,45 @@ impl Scene {
                     options,
                 )?;
                 if let Some(hit) = hit
-                    && best
-                        .as_ref()
-                        .is_none_or(|(_, b)| hit.time_of_impact < b.time_of_impact)
+                    && best.as_ref().is_none_or(|b| hit.time_of_impact < b.toi)
                 {
-                    best = Some((solid, hit.transform1_by(pose)));
+                    best = Some(Impact::of(solid, &hit.transform1_by(pose)));
                 }
             }
             Some(best)
         };
-        if self.plan_for(me, &query) {
+        if !options.stop_at_penetration && self.plan_for(me, &query) {
             let node = BvhNode::leaf(query, 0);
             let near = self.plan.as_ref().map_or(&[][..], |p| &p.near[..]);
-            let mut near = near
-                .iter()
-                .filter(|(_, n)| n.intersects(&node))
-                .map(|&(leaf, _)| leaf);
-            return cast(self, &mut near);
+            let mut best: Option<Impact> = None;
+            for near in near.iter().filter(|n| n.node.intersects(&node)) {
+                let Solid {
+                    handle,
+                    pose,
+                    cuboid,
+                } = near.solid.as_ref()?;
+                let pos12 = pose.inv_mul(&body);
+                let vel12 = pose.rotation.inverse() * vel;
+                // `upright_cast`'s time and normal (the sweep reads nothing else of a hit).
+                let Some(hit) = upright_pair(cuboid, &cylinder).cast(
+                    v3(pos12.translation),
+                    v3(vel12),
+                    f64::from(options.target_distance),
+                    f64::from(options.max_time_of_impact),
+                ) else {
+                    continue;
+                };
+                let toi = hit.toi as Real;
+                if best.as_ref().is_none_or(|b| toi < b.toi) {
+                    let n = hit.normal.map(|x| x as Real);
+                    best = Some(Impact {
+                        solid: *handle,
+                        toi,
+                        normal: pose.rotation * Vector::new(n[0], n[1], n[2]),
+                    });
+                }
+            }
+            return Some(best);
         }
         cast(self, &mut self.bvh.intersect_aabb(&query))
     }
@@ -1079,19 +1132,23 @@ impl Scene {
             } else if let Some(hit) = self.cast_among_boxes(handle, shape, pos, rest, options) {
                 hit
             } else {
-                self.sweep_query(Some(handle)).cast_shape(
-                    &upright_pose(pos),
-                    to_vector(rest),
-                    &cylinder,
-                    options,
-                )
+                self.sweep_query(Some(handle))
+                    .cast_shape(&upright_pose(pos), to_vector(rest), &cylinder, options)
+                    .map(|(solid, hit)| Impact::of(solid, &hit))
             };
-            let Some((solid, hit)) = hit else {
+            let Some(Impact {
+                solid,
+                toi,
+                normal: n,
+            }) = hit
+            else {
                 pos = add(pos, rest);
                 pressed = Some(None);
                 break;
             };
-            let static_now = hit.time_of_impact == 0.0
+            // (Only the memos ask which solid pressed.)
+            let static_now = memos
+                && toi == 0.0
                 && self
                     .colliders
                     .get(solid)
@@ -1102,11 +1159,10 @@ impl Scene {
                 Some(Some(s)) if static_now && s == solid => Some(Some(s)),
                 _ => Some(None),
             };
-            let toi = f64::from(hit.time_of_impact).clamp(0.0, 1.0);
+            let toi = f64::from(toi).clamp(0.0, 1.0);
             pos = add(pos, scale(rest, toi));
             // Slide: keep the part of the remaining motion that is tangent to the surface.
-            let n = hit.normal1;
-            let n = [f64::from(n.x), f64::from(n.y), f64::from(n.z)];
+            let n = v3(n);
             contact.get_or_insert(n);
             let left = scale(rest, 1.0 - toi);
             let into = left[0] * n[0] + left[1] * n[1] + left[2] * n[2];
@@ -1275,10 +1331,45 @@ fn box_cast(
 ) -> Option<Option<ShapeCastHit>> {
     let cuboid = g1.as_cuboid()?;
     let cylinder = g2.as_cylinder()?;
-    // parry's cylinders stand along their y axis: upright in the box's frame.
-    let upright = (pos12.rotation * Vector::Y).z.abs() >= 1.0 - 1e-6;
-    (upright && !options.stop_at_penetration)
+    (is_upright(pos12) && !options.stop_at_penetration)
         .then(|| upright_cast(pos12, vel12, cuboid, cylinder, options))
+}
+
+/// A swept body's first contact: the solid, the fraction of the motion before it, and the
+/// solid's outward normal there (in the world's frame).
+struct Impact {
+    solid: ColliderHandle,
+    toi: Real,
+    normal: Vector,
+}
+
+impl Impact {
+    fn of(solid: ColliderHandle, hit: &ShapeCastHit) -> Self {
+        Impact {
+            solid,
+            toi: hit.time_of_impact,
+            normal: hit.normal1,
+        }
+    }
+}
+
+fn v3(v: Vector) -> V3 {
+    [f64::from(v.x), f64::from(v.y), f64::from(v.z)]
+}
+
+/// The box and the cylinder of a closed-form cast ([`crate::upright`]).
+fn upright_pair(cuboid: &Cuboid, cylinder: &Cylinder) -> Pair {
+    Pair {
+        half: v3(cuboid.half_extents),
+        radius: f64::from(cylinder.radius),
+        half_height: f64::from(cylinder.half_height),
+    }
+}
+
+/// Whether a cylinder at `pos12` in a box's frame stands upright in it (parry's cylinders
+/// stand along their y axis).
+fn is_upright(pos12: &Pose) -> bool {
+    (pos12.rotation * Vector::Y).z.abs() >= 1.0 - 1e-6
 }
 
 /// [`NearBoxes::cast_shapes`] for an upright cylinder against a box: in closed form
@@ -1290,12 +1381,7 @@ fn upright_cast(
     cylinder: &Cylinder,
     options: ShapeCastOptions,
 ) -> Option<ShapeCastHit> {
-    let v3 = |v: Vector| [f64::from(v.x), f64::from(v.y), f64::from(v.z)];
-    let pair = Pair {
-        half: v3(cuboid.half_extents),
-        radius: f64::from(cylinder.radius),
-        half_height: f64::from(cylinder.half_height),
-    };
+    let pair = upright_pair(cuboid, cylinder);
     let target = f64::from(options.target_distance);
     let hit = pair.cast(
         v3(pos12.translation),

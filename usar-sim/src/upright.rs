@@ -46,6 +46,16 @@ pub(crate) struct Pair {
 /// Below this fraction of the motion, parry decides a hit by the contact normal at the start.
 const EARLY: f64 = 1e-4;
 
+/// The length of `e`, as `hypot` (+0 for zeros of either sign) without its call for a
+/// centre over the box (where the body of a robot on a floor or under a ceiling is).
+fn planar(e: [f64; 2]) -> f64 {
+    if e[0] == 0.0 && e[1] == 0.0 {
+        0.0
+    } else {
+        e[0].hypot(e[1])
+    }
+}
+
 fn dot(a: V3, b: V3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
@@ -119,7 +129,7 @@ impl Pair {
             c[0] - c[0].clamp(-h[0], h[0]),
             c[1] - c[1].clamp(-h[1], h[1]),
         ];
-        let len = e[0].hypot(e[1]);
+        let len = planar(e);
         let out = (len - self.radius).max(0.0);
         let (x, y) = if out > 0.0 {
             (e[0] / len * out, e[1] / len * out)
@@ -140,7 +150,7 @@ impl Pair {
             c[0] - c[0].clamp(-h[0], h[0]),
             c[1] - c[1].clamp(-h[1], h[1]),
         ];
-        let len = e[0].hypot(e[1]);
+        let len = planar(e);
         let sides = if len > 0.0 {
             vec![(self.radius - len, [e[0] / len, e[1] / len, 0.0])]
         } else {
@@ -166,15 +176,23 @@ impl Pair {
     /// The box's outward normal nearest a cylinder at `c`, and the box's nearest point.
     fn contact(&self, c: V3) -> (V3, V3) {
         let w = self.separation(c);
-        let len = dot(w, w).sqrt();
-        let normal = if len > 0.0 {
+        (self.normal(c, w, dot(w, w).sqrt()), self.nearest(c))
+    }
+
+    /// The box's outward normal nearest a cylinder at `c` whose [`Pair::separation`] is `w`,
+    /// of length `len`.
+    fn normal(&self, c: V3, w: V3, len: f64) -> V3 {
+        if len > 0.0 {
             [w[0] / len, w[1] / len, w[2] / len]
         } else {
             self.way_out(c)
-        };
+        }
+    }
+
+    /// The box's point nearest `c`.
+    fn nearest(&self, c: V3) -> V3 {
         let h = self.half;
-        let point = std::array::from_fn(|i| c[i].clamp(-h[i], h[i]));
-        (normal, point)
+        std::array::from_fn(|i| c[i].clamp(-h[i], h[i]))
     }
 
     fn distance(&self, c: V3) -> f64 {
@@ -194,14 +212,19 @@ impl Pair {
                 within,
             }
         };
+        // The start's separation, read once for its distance and its normal.
+        let w = self.separation(c);
+        let start = dot(w, w).sqrt();
         let decide_at_start = |toi: f64, within: bool| {
-            let (normal, _) = self.contact(c);
+            let normal = self.normal(c, w, start);
             (dot(normal, v) < 0.0).then(|| Hit {
+                toi,
                 normal,
-                ..hit(toi, within)
+                point: self.nearest(at(c, v, toi)),
+                within,
             })
         };
-        if self.distance(c) <= target {
+        if start <= target {
             return decide_at_start(0.0, true);
         }
         // The centre's span in the box grown by the cylinder and then by a cube of side
