@@ -1345,7 +1345,7 @@ struct Impact {
 
 impl Impact {
     fn of(solid: ColliderHandle, hit: &ShapeCastHit) -> Self {
-        Impact {
+        Self {
             solid,
             toi: hit.time_of_impact,
             normal: hit.normal1,
