@@ -194,6 +194,8 @@ struct Plan {
     region: Aabb,
     /// The other leaves whose boxes meet the region, in the tree's order.
     near: Vec<Near>,
+    /// The robot's own leaf as the tree holds it (kept by [`Scene::place_leaf`]).
+    mine: Option<BvhNode>,
 }
 
 /// A leaf of a [`Plan`]: its tree box, and what a cast against it reads of its collider
@@ -210,6 +212,15 @@ struct Solid {
     handle: ColliderHandle,
     pose: Pose,
     cuboid: Cuboid,
+}
+
+impl Plan {
+    /// Whether the plan answers for the leaf `me` a sweep whose padded swept box is `query`.
+    fn covers(&self, me: u32, query: &Aabb) -> bool {
+        self.leaf == me
+            && self.region.mins.cmple(query.mins).all()
+            && query.maxs.cmple(self.region.maxs).all()
+    }
 }
 
 /// Metres of room a [`Plan`] learns around the sweep that made it: a robot flying at 2 m/s
@@ -613,6 +624,9 @@ impl Scene {
                 // them, within its leaf, and tree walks missed it until a refit.)
                 let fat = fat();
                 let _ = self.bvh.insert_with_change_detection(fat, leaf, 0.0);
+                if let Some(plan) = self.plan.as_mut().filter(|p| p.leaf == leaf) {
+                    plan.mine = self.bvh.leaf_node(leaf).copied();
+                }
                 if body && self.lone() {
                     // The only robot: no other leaf's room is ever asked about.
                     self.set_clear(leaf, Room::Unknown);
@@ -940,11 +954,7 @@ impl Scene {
         if !self.lone() {
             return false;
         }
-        let known = self.plan.as_ref().is_some_and(|p| {
-            p.leaf == me
-                && p.region.mins.cmple(query.mins).all()
-                && query.maxs.cmple(p.region.maxs).all()
-        });
+        let known = self.plan.as_ref().is_some_and(|p| p.covers(me, query));
         if !known {
             let region = Aabb::new(
                 query.mins - Vector::splat(PLAN_ROOM),
@@ -977,6 +987,7 @@ impl Scene {
                 leaf: me,
                 region,
                 near,
+                mine: self.bvh.leaf_node(me).copied(),
             });
         }
         true
@@ -996,12 +1007,8 @@ impl Scene {
         motion: V3,
         options: ShapeCastOptions,
     ) -> Option<Option<Impact>> {
-        let half = [shape.radius, shape.radius, shape.half_height];
-        let pad = f64::from(SWEEP_PAD);
-        let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i] - pad);
-        let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i] + pad);
         let me = handle.into_raw_parts().0;
-        let query = Aabb::new(to_vector(lo), to_vector(hi));
+        let query = swept_box(shape, centre, motion);
         let body = upright_pose(centre);
         let cylinder = shape.cylinder();
         let vel = to_vector(motion);
@@ -1108,6 +1115,13 @@ impl Scene {
         if memos && let Some(normal) = self.still_resting(leaf, shape, centre, motion) {
             return (centre, Some(normal));
         }
+        if !memos && let Some(pos) = self.free_move(leaf, shape, centre, motion) {
+            if !self.resting.is_empty() {
+                self.resting.remove(&leaf);
+            }
+            self.moved(handle, shape, pos);
+            return (pos, None);
+        }
         let cylinder = shape.cylinder();
         let mut pos = centre;
         // The solid every cast so far hit at once (time 0), if every cast did so.
@@ -1193,17 +1207,55 @@ impl Scene {
             }
             None => {}
         }
+        self.moved(handle, shape, pos);
+        (pos, contact)
+    }
+
+    /// The sweep's end for the only robot when its plan has nothing near the swept box:
+    /// the motion (held to [`MAX_STEP`]) whole, as the casts would find it (`None`: they
+    /// are needed, or the plan does not cover the sweep).
+    fn free_move(&self, me: u32, shape: BodyShape, centre: V3, motion: V3) -> Option<V3> {
+        if !self.lone() {
+            return None;
+        }
+        let rest = if compare_norm(motion, MAX_STEP) == Some(std::cmp::Ordering::Greater) {
+            scale(motion, MAX_STEP / norm(motion))
+        } else {
+            motion
+        };
+        if compare_norm(rest, 1e-9).is_none_or(|o| o == std::cmp::Ordering::Less) {
+            return None;
+        }
+        let query = swept_box(shape, centre, rest);
+        let plan = self.plan.as_ref().filter(|p| p.covers(me, &query))?;
+        let node = BvhNode::leaf(query, 0);
+        (!plan.near.iter().any(|n| n.node.intersects(&node))).then(|| add(centre, rest))
+    }
+
+    /// Puts the body `handle` (`shape`) at `pos`: its collider, and its tree box in closed
+    /// form, as `reindex` finds it from the collider.
+    fn moved(&mut self, handle: ColliderHandle, shape: BodyShape, pos: V3) {
         if let Some(collider) = self.colliders.get_mut(handle) {
-            debug_assert!(collider.shape().as_cylinder().is_some_and(|c| {
-                (c.radius, c.half_height) == (cylinder.radius, cylinder.half_height)
-            }));
             collider.set_position(upright_pose(pos));
         }
-        // The body's box in closed form, as `reindex` finds it from the collider.
-        let half = Vector::new(cylinder.radius, cylinder.radius, cylinder.half_height);
+        let half = Vector::new(
+            shape.radius as f32,
+            shape.radius as f32,
+            shape.half_height as f32,
+        );
         let centre = to_vector(pos);
-        self.place_leaf(leaf, Aabb::new(centre - half, centre + half), true);
-        (pos, contact)
+        let (leaf, aabb) = (
+            handle.into_raw_parts().0,
+            Aabb::new(centre - half, centre + half),
+        );
+        // The only robot's tree box, as its plan keeps it: when it holds the new box,
+        // `place_leaf` has nothing to do.
+        let inside = self.plan.as_ref().is_some_and(|p| {
+            p.leaf == leaf && p.mine.is_some_and(|node| node.contains_aabb(&aabb))
+        });
+        if !inside {
+            self.place_leaf(leaf, aabb, true);
+        }
     }
 }
 
@@ -1333,6 +1385,16 @@ fn box_cast(
     let cylinder = g2.as_cylinder()?;
     (is_upright(pos12) && !options.stop_at_penetration)
         .then(|| upright_cast(pos12, vel12, cuboid, cylinder, options))
+}
+
+/// The box a body `shape` at `centre` sweeps moving by `motion`, padded by [`SWEEP_PAD`]:
+/// every collider a cast of it can hit has a tree box that meets it.
+fn swept_box(shape: BodyShape, centre: V3, motion: V3) -> Aabb {
+    let half = [shape.radius, shape.radius, shape.half_height];
+    let pad = f64::from(SWEEP_PAD);
+    let lo: V3 = std::array::from_fn(|i| centre[i] + motion[i].min(0.0) - half[i] - pad);
+    let hi: V3 = std::array::from_fn(|i| centre[i] + motion[i].max(0.0) + half[i] + pad);
+    Aabb::new(to_vector(lo), to_vector(hi))
 }
 
 /// A swept body's first contact: the solid, the fraction of the motion before it, and the
