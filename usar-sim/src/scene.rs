@@ -2069,9 +2069,9 @@ mod tests {
 
     proptest::proptest! {
         /// The scene's only robot, whose sweeps read the solids near it from its plan, ends
-        /// where the tree's answers put it, bit for bit, with the same contact normals: long
-        /// flights between a floor, a ceiling and random solids, across many plans, with
-        /// refits between the sweeps.
+        /// where the tree's answers put it, bit for bit, with the same contact normals and
+        /// tree box: long flights between a floor, a ceiling and random solids, across many
+        /// plans, with refits between the sweeps.
         #[test]
         fn a_lone_robot_sweeps_from_its_plan_as_from_the_tree(
             solids in random_solids(2, 0..10),
@@ -2105,6 +2105,11 @@ mod tests {
                 (pa, pb) = (na, nb);
                 proptest::prop_assert_eq!(pa.map(f64::to_bits), pb.map(f64::to_bits), "tick {}", tick);
                 proptest::prop_assert_eq!(ca.map(|n| n.map(f64::to_bits)), cb.map(|n| n.map(f64::to_bits)));
+                // Its tree box too (what rays and other bodies' queries read).
+                let leaf = |scene: &Scene, h: ColliderHandle| {
+                    scene.bvh.leaf_node(h.into_raw_parts().0).map(|n| (n.mins().to_array(), n.maxs().to_array()))
+                };
+                proptest::prop_assert_eq!(leaf(&fast, a), leaf(&slow, b), "tick {}", tick);
             }
         }
     }
