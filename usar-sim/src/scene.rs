@@ -206,12 +206,53 @@ struct Near {
     solid: Option<Solid>,
 }
 
-/// A box collider as a [`Plan`] keeps it: no lookups or shape dispatch at each cast.
-#[derive(Debug, Clone)]
+/// A box collider upright to the robots, as a cast in closed form reads it (a [`Plan`]
+/// keeps them: no lookups or shape dispatch at each cast).
+#[derive(Debug, Clone, Copy)]
 struct Solid {
     handle: ColliderHandle,
     pose: Pose,
     cuboid: Cuboid,
+}
+
+impl Solid {
+    /// `None` when the collider is not a box, or a robot does not stand upright in its frame
+    /// (a robot's rotation is the same wherever it is).
+    fn of(collider: &Collider, handle: ColliderHandle) -> Option<Self> {
+        let pose = *collider.position();
+        let cuboid = *collider.shape().as_cuboid()?;
+        is_upright(&pose.inv_mul(&upright_pose([0.0; 3]))).then_some(Self {
+            handle,
+            pose,
+            cuboid,
+        })
+    }
+
+    /// The cylinder at `body` moving by `vel` against this box: the closed form's time and
+    /// normal, turned into the world's frame as parry's `transform1_by` turns a hit (the
+    /// sweep reads nothing else of it).
+    fn impact(
+        &self,
+        body: &Pose,
+        vel: Vector,
+        cylinder: &Cylinder,
+        options: ShapeCastOptions,
+    ) -> Option<Impact> {
+        let pose = &self.pose;
+        let hit = upright_hit(
+            &pose.inv_mul(body),
+            pose.rotation.inverse() * vel,
+            &self.cuboid,
+            cylinder,
+            options,
+        )?;
+        let n = hit.normal.map(|x| x as Real);
+        Some(Impact {
+            solid: self.handle,
+            toi: hit.toi as Real,
+            normal: pose.rotation * Vector::new(n[0], n[1], n[2]),
+        })
+    }
 }
 
 impl Plan {
@@ -967,20 +1008,10 @@ impl Scene {
                 bvh.intersect_aabb(&region)
                     .filter(|&l| l != me)
                     .filter_map(|l| {
-                        let node = *bvh.leaf_node(l)?;
-                        let solid = self.collider_at(l).and_then(|(collider, handle)| {
-                            let pose = *collider.position();
-                            let cuboid = *collider.shape().as_cuboid()?;
-                            // Upright to every robot (whose rotation is the same at every
-                            // position) as `box_cast` asks.
-                            let pos12 = pose.inv_mul(&upright_pose([0.0; 3]));
-                            is_upright(&pos12).then_some(Solid {
-                                handle,
-                                pose,
-                                cuboid,
-                            })
-                        });
-                        Some(Near { node, solid })
+                        Some(Near {
+                            node: *bvh.leaf_node(l)?,
+                            solid: self.collider_at(l).and_then(|(c, h)| Solid::of(c, h)),
+                        })
                     }),
             );
             self.plan = Some(Plan {
@@ -995,10 +1026,11 @@ impl Scene {
 
     /// [`Scene::sweep_query`]'s shape cast of the body `handle` at `centre` by `motion`
     /// when every other collider whose tree box comes within the gap `SKIN` (doubled, for
-    /// rounding: `SWEEP_PAD`) of the swept box is a box: each cast in closed form
-    /// ([`box_cast`]), without the query's tree walk and support-map bounds. Nothing there
-    /// (most robots, most ticks) is no hit, after one tree query. `None` when one is not a
-    /// box (the caller casts as usual); a collider farther away cannot be hit.
+    /// rounding: `SWEEP_PAD`) of the swept box is a box upright to the robot: each cast in
+    /// closed form ([`Solid::impact`]), without the query's tree walk and support-map bounds,
+    /// the solids read from the robot's [`Plan`] when it is the scene's only one. Nothing
+    /// there (most robots, most ticks) is no hit. `None` when one is not such a box (the
+    /// caller casts as usual); a collider farther away cannot be hit.
     fn cast_among_boxes(
         &mut self,
         handle: ColliderHandle,
@@ -1007,68 +1039,26 @@ impl Scene {
         motion: V3,
         options: ShapeCastOptions,
     ) -> Option<Option<Impact>> {
+        if options.stop_at_penetration {
+            return None;
+        }
         let me = handle.into_raw_parts().0;
         let query = swept_box(shape, centre, motion);
         let body = upright_pose(centre);
         let cylinder = shape.cylinder();
         let vel = to_vector(motion);
-        let cast = |scene: &Self, leaves: &mut dyn Iterator<Item = u32>| {
-            let mut best: Option<Impact> = None;
-            for leaf in leaves {
-                if leaf == me {
-                    continue;
-                }
-                let (collider, solid) = scene.collider_at(leaf)?;
-                let pose = collider.position();
-                let hit = box_cast(
-                    &pose.inv_mul(&body),
-                    pose.rotation.inverse() * vel,
-                    collider.shape(),
-                    &cylinder,
-                    options,
-                )?;
-                if let Some(hit) = hit
-                    && best.as_ref().is_none_or(|b| hit.time_of_impact < b.toi)
-                {
-                    best = Some(Impact::of(solid, &hit.transform1_by(pose)));
-                }
-            }
-            Some(best)
-        };
-        if !options.stop_at_penetration && self.plan_for(me, &query) {
+        if self.plan_for(me, &query) {
             let node = BvhNode::leaf(query, 0);
             let near = self.plan.as_ref().map_or(&[][..], |p| &p.near[..]);
-            let mut best: Option<Impact> = None;
-            for near in near.iter().filter(|n| n.node.intersects(&node)) {
-                let Solid {
-                    handle,
-                    pose,
-                    cuboid,
-                } = near.solid.as_ref()?;
-                let pos12 = pose.inv_mul(&body);
-                let vel12 = pose.rotation.inverse() * vel;
-                // `upright_cast`'s time and normal (the sweep reads nothing else of a hit).
-                let Some(hit) = upright_pair(cuboid, &cylinder).cast(
-                    v3(pos12.translation),
-                    v3(vel12),
-                    f64::from(options.target_distance),
-                    f64::from(options.max_time_of_impact),
-                ) else {
-                    continue;
-                };
-                let toi = hit.toi as Real;
-                if best.as_ref().is_none_or(|b| toi < b.toi) {
-                    let n = hit.normal.map(|x| x as Real);
-                    best = Some(Impact {
-                        solid: *handle,
-                        toi,
-                        normal: pose.rotation * Vector::new(n[0], n[1], n[2]),
-                    });
-                }
-            }
-            return Some(best);
+            let solids = near.iter().filter(|n| n.node.intersects(&node));
+            return first_impact(solids.map(|n| n.solid), &body, vel, &cylinder, options);
         }
-        cast(self, &mut self.bvh.intersect_aabb(&query))
+        let solids = self.bvh.intersect_aabb(&query).filter(|&l| l != me);
+        let solids = solids.map(|leaf| {
+            let (collider, handle) = self.collider_at(leaf)?;
+            Solid::of(collider, handle)
+        });
+        first_impact(solids, &body, vel, &cylinder, options)
     }
 
     /// The contact normal of `leaf`'s last sweep if it is a [`Rest`] that this sweep repeats:
@@ -1115,22 +1105,21 @@ impl Scene {
         if memos && let Some(normal) = self.still_resting(leaf, shape, centre, motion) {
             return (centre, Some(normal));
         }
-        if !memos && let Some(pos) = self.free_move(leaf, shape, centre, motion) {
-            if !self.resting.is_empty() {
-                self.resting.remove(&leaf);
-            }
-            self.moved(handle, shape, pos);
+        let mut rest = if compare_norm(motion, MAX_STEP) == Some(std::cmp::Ordering::Greater) {
+            scale(motion, MAX_STEP / norm(motion))
+        } else {
+            motion
+        };
+        if self.lone()
+            && let Some(pos) = self.free_move(leaf, shape, centre, rest)
+        {
+            self.settle(handle, shape, pos, None);
             return (pos, None);
         }
         let cylinder = shape.cylinder();
         let mut pos = centre;
         // The solid every cast so far hit at once (time 0), if every cast did so.
         let mut pressed: Option<Option<u32>> = None;
-        let mut rest = if compare_norm(motion, MAX_STEP) == Some(std::cmp::Ordering::Greater) {
-            scale(motion, MAX_STEP / norm(motion))
-        } else {
-            motion
-        };
         for _ in 0..3 {
             if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
                 break;
@@ -1198,31 +1187,14 @@ impl Scene {
             }),
             _ => None,
         };
-        match memo {
-            Some(rest) => {
-                self.resting.insert(leaf, rest);
-            }
-            None if !self.resting.is_empty() => {
-                self.resting.remove(&leaf);
-            }
-            None => {}
-        }
-        self.moved(handle, shape, pos);
+        self.settle(handle, shape, pos, memo);
         (pos, contact)
     }
 
-    /// The sweep's end for the only robot when its plan has nothing near the swept box:
-    /// the motion (held to [`MAX_STEP`]) whole, as the casts would find it (`None`: they
-    /// are needed, or the plan does not cover the sweep).
-    fn free_move(&self, me: u32, shape: BodyShape, centre: V3, motion: V3) -> Option<V3> {
-        if !self.lone() {
-            return None;
-        }
-        let rest = if compare_norm(motion, MAX_STEP) == Some(std::cmp::Ordering::Greater) {
-            scale(motion, MAX_STEP / norm(motion))
-        } else {
-            motion
-        };
+    /// The sweep's end for the only robot (`me`) moving by `rest` (held to [`MAX_STEP`]) when
+    /// its plan has nothing near the swept box: the motion whole, as the casts would find it
+    /// (`None`: they are needed, or the plan does not cover the sweep).
+    fn free_move(&self, me: u32, shape: BodyShape, centre: V3, rest: V3) -> Option<V3> {
         if compare_norm(rest, 1e-9).is_none_or(|o| o == std::cmp::Ordering::Less) {
             return None;
         }
@@ -1232,9 +1204,19 @@ impl Scene {
         (!plan.near.iter().any(|n| n.node.intersects(&node))).then(|| add(centre, rest))
     }
 
-    /// Puts the body `handle` (`shape`) at `pos`: its collider, and its tree box in closed
-    /// form, as `reindex` finds it from the collider.
-    fn moved(&mut self, handle: ColliderHandle, shape: BodyShape, pos: V3) {
+    /// Puts the body `handle` (`shape`) where its sweep left it, at `pos`: its collider, its
+    /// tree box in closed form (as `reindex` finds it from the collider), and its rest memo.
+    fn settle(&mut self, handle: ColliderHandle, shape: BodyShape, pos: V3, memo: Option<Rest>) {
+        let leaf = handle.into_raw_parts().0;
+        match memo {
+            Some(rest) => {
+                self.resting.insert(leaf, rest);
+            }
+            None if !self.resting.is_empty() => {
+                self.resting.remove(&leaf);
+            }
+            None => {}
+        }
         if let Some(collider) = self.colliders.get_mut(handle) {
             collider.set_position(upright_pose(pos));
         }
@@ -1244,10 +1226,7 @@ impl Scene {
             shape.half_height as f32,
         );
         let centre = to_vector(pos);
-        let (leaf, aabb) = (
-            handle.into_raw_parts().0,
-            Aabb::new(centre - half, centre + half),
-        );
+        let aabb = Aabb::new(centre - half, centre + half);
         // The only robot's tree box, as its plan keeps it: when it holds the new box,
         // `place_leaf` has nothing to do.
         let inside = self.plan.as_ref().is_some_and(|p| {
@@ -1397,6 +1376,26 @@ fn swept_box(shape: BodyShape, centre: V3, motion: V3) -> Aabb {
     Aabb::new(to_vector(lo), to_vector(hi))
 }
 
+/// The first hit of the cylinder at `body` moving by `vel` among `solids` (the first of
+/// equal times, in their order); `None` when one is not a box upright to the robot.
+fn first_impact(
+    solids: impl Iterator<Item = Option<Solid>>,
+    body: &Pose,
+    vel: Vector,
+    cylinder: &Cylinder,
+    options: ShapeCastOptions,
+) -> Option<Option<Impact>> {
+    let mut best: Option<Impact> = None;
+    for solid in solids {
+        if let Some(hit) = solid?.impact(body, vel, cylinder, options)
+            && best.as_ref().is_none_or(|b| hit.toi < b.toi)
+        {
+            best = Some(hit);
+        }
+    }
+    Some(best)
+}
+
 /// A swept body's first contact: the solid, the fraction of the motion before it, and the
 /// solid's outward normal there (in the world's frame).
 struct Impact {
@@ -1419,13 +1418,26 @@ fn v3(v: Vector) -> V3 {
     [f64::from(v.x), f64::from(v.y), f64::from(v.z)]
 }
 
-/// The box and the cylinder of a closed-form cast ([`crate::upright`]).
-fn upright_pair(cuboid: &Cuboid, cylinder: &Cylinder) -> Pair {
-    Pair {
+/// The closed form's cast ([`crate::upright`]) of `cylinder` at `pos12` in `cuboid`'s
+/// frame, moving by `vel12` there.
+fn upright_hit(
+    pos12: &Pose,
+    vel12: Vector,
+    cuboid: &Cuboid,
+    cylinder: &Cylinder,
+    options: ShapeCastOptions,
+) -> Option<crate::upright::Hit> {
+    let pair = Pair {
         half: v3(cuboid.half_extents),
         radius: f64::from(cylinder.radius),
         half_height: f64::from(cylinder.half_height),
-    }
+    };
+    pair.cast(
+        v3(pos12.translation),
+        v3(vel12),
+        f64::from(options.target_distance),
+        f64::from(options.max_time_of_impact),
+    )
 }
 
 /// Whether a cylinder at `pos12` in a box's frame stands upright in it (parry's cylinders
@@ -1443,14 +1455,7 @@ fn upright_cast(
     cylinder: &Cylinder,
     options: ShapeCastOptions,
 ) -> Option<ShapeCastHit> {
-    let pair = upright_pair(cuboid, cylinder);
-    let target = f64::from(options.target_distance);
-    let hit = pair.cast(
-        v3(pos12.translation),
-        v3(vel12),
-        target,
-        f64::from(options.max_time_of_impact),
-    )?;
+    let hit = upright_hit(pos12, vel12, cuboid, cylinder, options)?;
     let toi = hit.toi as Real;
     let normal1 = Vector::new(
         hit.normal[0] as Real,
