@@ -3,10 +3,12 @@
 //! period (0.1 s, 20 ticks) at a time on one thread, each period with a new random
 //! normalized `DRIVE` per robot (as the Python benchmark's random actions), or none with
 //! `hover`. Prints the time per robot and tick and a digest of every message, which must not
-//! change when only the speed does.
+//! change when only the speed does. With `resets`, every period is a new episode instead
+//! (the Python env's autoreset with one-step episodes): each world is reset with a new seed,
+//! its robot spawned again and hovered one period; it prints the time per reset.
 //!
 //! ```text
-//! cargo run --release -p usar-sim --example lone_robots -- [WORLDS] [PERIODS] [hover]
+//! cargo run --release -p usar-sim --example lone_robots -- [WORLDS] [PERIODS] [hover|resets]
 //! valgrind --tool=callgrind target/release/examples/lone_robots 256 100   # instructions
 //! ```
 
@@ -28,7 +30,12 @@ fn main() {
         }),
     };
     let (worlds, periods) = (number(0, 1024).max(1), number(1, 200));
-    let hover = args.get(2).is_some_and(|s| s == "hover");
+    let mode = args.get(2).map_or("", String::as_str);
+    if !["", "hover", "resets"].contains(&mode) {
+        eprintln!("lone_robots: argument 3: expected hover or resets, got {mode:?}");
+        std::process::exit(2)
+    }
+    let (hover, resets) = (!mode.is_empty(), mode == "resets");
     let map = Arc::new(Map::embedded("empty_room").expect("an embedded map"));
     let mut catalog = RobotCatalog::embedded();
     if let Some(class) = catalog.get_mut("USARBot.stsAirRobot") {
@@ -38,6 +45,20 @@ fn main() {
     }
     let catalog = Arc::new(catalog);
     let start = map.starts()[0].location;
+    let spawn = |world: &mut World, i: usize| {
+        let client = world.connect();
+        world.command(
+            client,
+            Command::Init(Init {
+                class_name: "USARBot.stsAirRobot".into(),
+                name: Some(format!("UAV{i}")),
+                location: Some(Vec3::new(start[0], start[1], start[2])),
+                rotation: Some(Vec3::new(0.0, 0.0, 0.0)),
+                start: None,
+            }),
+        );
+        client
+    };
     let mut sims: Vec<(World, ClientId)> = (0..worlds)
         .map(|i| {
             let config = SimConfig {
@@ -45,20 +66,11 @@ fn main() {
                 ..SimConfig::default()
             };
             let mut world = World::new(map.clone(), catalog.clone(), config);
-            let client = world.connect();
-            world.command(
-                client,
-                Command::Init(Init {
-                    class_name: "USARBot.stsAirRobot".into(),
-                    name: Some(format!("UAV{i}")),
-                    location: Some(Vec3::new(start[0], start[1], start[2])),
-                    rotation: Some(Vec3::new(0.0, 0.0, 0.0)),
-                    start: None,
-                }),
-            );
+            let client = spawn(&mut world, i);
             (world, client)
         })
         .collect();
+    let mut episodes = 0u64;
     // Eight sets of actions in turn, as the Python benchmark: uniform in -1..=1 (SplitMix64).
     let mut seed = 12_345u64;
     let mut uniform = || {
@@ -93,6 +105,11 @@ fn main() {
         let mut digest = digest;
         for k in 0..periods {
             for (i, (world, client)) in sims.iter_mut().enumerate() {
+                if resets {
+                    episodes += 1;
+                    world.reset(episodes);
+                    *client = spawn(world, i);
+                }
                 world.command(*client, Command::Drive(actions[k % 8][i].clone()));
                 for _ in 0..TICKS {
                     world.step(&mut out);
@@ -118,7 +135,13 @@ fn main() {
     println!(
         "{worlds} worlds x {periods} periods ({}): {:.0} ns per robot and tick, {:.2} µs per \
          UAV-step, {:.0} UAV-steps/s on one thread; digest {digest:016x}",
-        if hover { "hovering" } else { "random actions" },
+        if resets {
+            "each a new episode: reset, spawn, hover"
+        } else if hover {
+            "hovering"
+        } else {
+            "random actions"
+        },
         per_step * 1e9 / TICKS as f64,
         per_step * 1e6,
         1.0 / per_step,

@@ -415,8 +415,10 @@ impl YawTrig {
 }
 
 impl Robot {
-    /// Spawns into `scene`; `None` (logged) when the place is taken.
-    pub(crate) fn spawn(spawn: Spawn<'_>, scene: &mut Scene) -> Option<Self> {
+    /// Spawns into `scene`; `None` (logged) when the place is taken. A `spare` robot of the
+    /// same model (one a reset took out of the world) lends its sensors' allocations and its
+    /// model's reference: the new robot is the same as one built afresh.
+    pub(crate) fn spawn(spawn: Spawn<'_>, scene: &mut Scene, spare: Option<Self>) -> Option<Self> {
         let model = spawn.model;
         let class = &model.class;
         let shape = model.shape;
@@ -429,6 +431,10 @@ impl Robot {
             .map(|r| r.draw(spawn.seed, spawn.serial))
             .unwrap_or_default();
         let noise_scale = drawn.get("noise");
+        let (model, mut old_parts) = match spare {
+            Some(r) if Arc::ptr_eq(&r.model, model) => (r.model, r.parts.into_iter()),
+            _ => (model.clone(), Vec::new().into_iter()),
+        };
         let parts = model
             .parts
             .iter()
@@ -436,7 +442,13 @@ impl Robot {
                 timer: Timer::new(p.interval, spawn.tick, spawn.dt, phase),
                 forced: false,
                 noise: Noise::new(spawn.seed, spawn.serial, p.index, p.noise),
-                sensor: p.sensor.clone_box(),
+                sensor: match old_parts.next() {
+                    Some(Part { mut sensor, .. }) => {
+                        p.sensor.clone_into_box(&mut sensor);
+                        sensor
+                    }
+                    None => p.sensor.clone_box(),
+                },
                 fault: SensorFault::Ok,
                 frozen: None,
                 fault_since: 0.0,
@@ -499,7 +511,7 @@ impl Robot {
             owner: Some(spawn.owner),
             spawned_by: spawn.owner,
             name: spawn.name,
-            model: model.clone(),
+            model,
             body,
             position: spawn.position,
             velocity: [0.0; 3],

@@ -40,6 +40,9 @@ pub struct World {
     scene: Scene,
     /// Ordered by serial (spawn order): the order of movement and of output.
     robots: Vec<Robot>,
+    /// The robots the last [`World::reset`] took out, for spawns to reuse (their sensors'
+    /// allocations), next one last.
+    spare: Vec<Robot>,
     /// [`World::step`]'s messages of each run of robots, kept between ticks (emptied, not
     /// dropped: most ticks some robot speaks, and every world allocated them anew).
     emitted: Vec<Vec<(ClientId, ServerMessage)>>,
@@ -126,6 +129,7 @@ impl World {
             models: HashMap::new(),
             scene,
             robots: Vec::new(),
+            spare: Vec::new(),
             due: Vec::new(),
             speaking: Vec::new(),
             clients: BTreeMap::new(),
@@ -153,7 +157,9 @@ impl World {
         self.scene.reset(&mut bodies);
         self.tick = 0;
         self.seed = seed;
-        self.robots.clear();
+        // Kept for the next spawns to reuse (first robot last: spawns pop them in order).
+        self.spare.clear();
+        self.spare.extend(self.robots.drain(..).rev());
         self.due.clear();
         self.speaking.clear();
         self.clients.clear();
@@ -437,7 +443,7 @@ impl World {
             wind: self.wind,
             randomize: self.randomize.as_ref(),
         };
-        let Some(robot) = Robot::spawn(spawn, &mut self.scene) else {
+        let Some(robot) = Robot::spawn(spawn, &mut self.scene, self.spare.pop()) else {
             if let Some(n) = complain(&mut self.complaints, client) {
                 warn!(
                     ?client,

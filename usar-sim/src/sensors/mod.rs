@@ -172,11 +172,26 @@ impl Reading<'_> {
 /// sensors, built once).
 pub(crate) trait SensorClone {
     fn clone_box(&self) -> Box<dyn Sensor>;
+    /// Makes `target` a copy of this sensor: in its own allocation when it is one of this
+    /// type (a robot spawned again in a reset world reuses its sensors), else in a new one.
+    fn clone_into_box(&self, target: &mut Box<dyn Sensor>);
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
 }
 
 impl<T: Sensor + Clone + 'static> SensorClone for T {
     fn clone_box(&self) -> Box<dyn Sensor> {
         Box::new(self.clone())
+    }
+
+    fn clone_into_box(&self, target: &mut Box<dyn Sensor>) {
+        match (**target).as_any_mut().downcast_mut::<T>() {
+            Some(same) => same.clone_from(self),
+            None => *target = self.clone_box(),
+        }
+    }
+
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
     }
 }
 
