@@ -691,6 +691,7 @@ impl Map {
                 let mut scene = Scene::new();
                 self.build(&mut scene);
                 scene.refit();
+                scene.make_room();
                 std::sync::Arc::new(scene)
             })
             .clone()

@@ -698,6 +698,19 @@ impl Scene {
         }
     }
 
+    /// Makes room in the tree for one more leaf, the next collider's (a first robot's): a
+    /// leaf is inserted and taken out again, which leaves its slots allocated (parry reuses a
+    /// freed node for the next insertion). Copies of the scene (every world's, and every
+    /// reset's) then place their first robot without growing the tree's arrays, each time.
+    pub(crate) fn make_room(&mut self) {
+        let leaf = u32::try_from(self.colliders.len()).unwrap_or(u32::MAX);
+        if self.bvh.is_empty() || self.bvh.leaf_node(leaf).is_some() {
+            return;
+        }
+        self.bvh.insert(self.bvh.root_aabb(), leaf);
+        self.bvh.remove(leaf);
+    }
+
     /// Refits the tree if leaves were added or removed since the last refit (insertions
     /// rotate subtrees; a refit leaves every inner box tight and right). Called at the
     /// start of each tick.
