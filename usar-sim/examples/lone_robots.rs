@@ -20,6 +20,10 @@ use usar_sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 
 const TICKS: usize = 20;
 
+/// The Python package's allocator (usarsim-py), so that the figures are its worlds'.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let number = |i: usize, default: usize| match args.get(i) {

@@ -178,6 +178,21 @@ struct Part {
     fault_noise: Noise,
 }
 
+impl Part {
+    /// The part as a new robot's (its sensor aside): timers and noise streams from the spawn,
+    /// no fault.
+    fn renew(&mut self, timer: Timer, noise: Noise, fault_noise: Noise) {
+        self.timer = timer;
+        self.forced = false;
+        self.noise = noise;
+        self.fault = SensorFault::Ok;
+        self.frozen = None;
+        self.fault_since = 0.0;
+        self.fault_until = None;
+        self.fault_noise = fault_noise;
+    }
+}
+
 /// Stream numbers of the fault noise generators (above any part index).
 const FAULT_STREAM: u64 = 1 << 32;
 
@@ -431,38 +446,38 @@ impl Robot {
             .map(|r| r.draw(spawn.seed, spawn.serial))
             .unwrap_or_default();
         let noise_scale = drawn.get("noise");
-        let (model, mut old_parts) = match spare {
-            Some(r) if Arc::ptr_eq(&r.model, model) => (r.model, r.parts.into_iter()),
-            _ => (model.clone(), Vec::new().into_iter()),
+        // A spare robot's parts are renewed in place: their memory is already the world's.
+        let (model, mut parts) = match spare {
+            Some(r) if Arc::ptr_eq(&r.model, model) => (r.model, r.parts),
+            _ => (model.clone(), Vec::with_capacity(model.parts.len())),
         };
-        let parts = model
-            .parts
-            .iter()
-            .map(|p| Part {
-                timer: Timer::new(p.interval, spawn.tick, spawn.dt, phase),
-                forced: false,
-                noise: Noise::new(spawn.seed, spawn.serial, p.index, p.noise),
-                sensor: match old_parts.next() {
-                    Some(Part { mut sensor, .. }) => {
-                        p.sensor.clone_into_box(&mut sensor);
-                        sensor
-                    }
-                    None => p.sensor.clone_box(),
-                },
-                fault: SensorFault::Ok,
-                frozen: None,
-                fault_since: 0.0,
-                fault_until: None,
-                fault_noise: Noise::new(spawn.seed, spawn.serial, FAULT_STREAM + p.index, 0.0),
-            })
-            .map(|mut part: Part| {
-                if let Some(k) = noise_scale {
-                    part.noise.scale(k);
-                    part.sensor.scale_noise(k);
-                }
-                part
-            })
-            .collect();
+        parts.truncate(model.parts.len());
+        for (i, p) in model.parts.iter().enumerate() {
+            let timer = Timer::new(p.interval, spawn.tick, spawn.dt, phase);
+            let noise = Noise::new(spawn.seed, spawn.serial, p.index, p.noise);
+            let fault_noise = Noise::new(spawn.seed, spawn.serial, FAULT_STREAM + p.index, 0.0);
+            if let Some(part) = parts.get_mut(i) {
+                p.sensor.clone_into_box(&mut part.sensor);
+                part.renew(timer, noise, fault_noise);
+            } else {
+                parts.push(Part {
+                    timer,
+                    forced: false,
+                    noise,
+                    sensor: p.sensor.clone_box(),
+                    fault: SensorFault::Ok,
+                    frozen: None,
+                    fault_since: 0.0,
+                    fault_until: None,
+                    fault_noise,
+                });
+            }
+            if let Some(k) = noise_scale {
+                let part = &mut parts[i];
+                part.noise.scale(k);
+                part.sensor.scale_noise(k);
+            }
+        }
         let actuators = class
             .actuators
             .iter()

@@ -52,7 +52,7 @@ pub struct World {
     /// This tick's robots with output due (indices into `robots`, ascending); reused.
     speaking: Vec<usize>,
     /// Connection → serial of the robot it controls.
-    clients: BTreeMap<ClientId, Option<u64>>,
+    clients: Clients,
     next_client: u64,
     next_serial: u64,
     /// Threads that read sensors ([`SimConfig::threads`]).
@@ -68,6 +68,40 @@ pub struct World {
     fault_plan: super::faults::FaultPlan,
     /// Parameter ranges each robot draws from at its spawn.
     randomize: Option<super::randomize::Randomization>,
+}
+
+/// Connection → serial of the robot it controls, in connection order (ids only grow): a
+/// sorted list, kept allocated when a reset clears it (a map's node was allocated and freed
+/// at every Python reset).
+#[derive(Debug, Default)]
+struct Clients(Vec<(ClientId, Option<u64>)>);
+
+impl Clients {
+    fn get(&self, client: ClientId) -> Option<Option<u64>> {
+        let i = self.0.binary_search_by_key(&client, |e| e.0).ok()?;
+        Some(self.0[i].1)
+    }
+
+    /// Sets `client`'s robot; returns the one it had.
+    fn insert(&mut self, client: ClientId, serial: Option<u64>) -> Option<Option<u64>> {
+        match self.0.binary_search_by_key(&client, |e| e.0) {
+            Ok(i) => Some(std::mem::replace(&mut self.0[i].1, serial)),
+            Err(i) => {
+                self.0.insert(i, (client, serial));
+                None
+            }
+        }
+    }
+
+    fn remove(&mut self, client: ClientId) {
+        if let Ok(i) = self.0.binary_search_by_key(&client, |e| e.0) {
+            self.0.remove(i);
+        }
+    }
+
+    fn clear(&mut self) {
+        self.0.clear();
+    }
 }
 
 /// Whether to log a warning about `client`'s command: the first few in full, then a
@@ -132,7 +166,7 @@ impl World {
             spare: Vec::new(),
             due: Vec::new(),
             speaking: Vec::new(),
-            clients: BTreeMap::new(),
+            clients: Clients::default(),
             next_client: 0,
             next_serial: 0,
             threads: config.threads.max(1),
@@ -241,7 +275,7 @@ impl World {
 
     /// Removes a connection and every robot it spawned.
     pub fn disconnect(&mut self, client: ClientId) {
-        self.clients.remove(&client);
+        self.clients.remove(client);
         self.complaints.remove(&client);
         let (gone, kept) = std::mem::take(&mut self.robots)
             .into_iter()
@@ -256,7 +290,7 @@ impl World {
     /// Applies one command; returns the immediate replies (NFO StartPoses, CONF, GEO).
     /// INIT, DRIVE, SET, ACT and MISPKG apply silently; anything else is ignored.
     pub fn command(&mut self, client: ClientId, command: Command) -> Vec<ServerMessage> {
-        if !self.clients.contains_key(&client) {
+        if self.clients.get(client).is_none() {
             debug!(?client, "command from an unknown connection ignored");
             return Vec::new();
         }
@@ -560,7 +594,7 @@ impl World {
     /// DRIVE/GETCONF/GETGEO/SET/ACT/MISPKG: only with a robot whose battery is not empty.
     fn robot_command(&mut self, client: ClientId, command: Command) -> Vec<ServerMessage> {
         let (tick, dt) = (self.tick, self.dt);
-        let serial = self.clients.get(&client).copied().flatten();
+        let serial = self.clients.get(client).flatten();
         let Some(index) = serial.and_then(|s| self.index_of(s)) else {
             return Vec::new();
         };
@@ -672,13 +706,13 @@ impl World {
     }
 
     fn client_robot(&mut self, client: ClientId) -> Option<&mut Robot> {
-        let serial = self.clients.get(&client).copied().flatten()?;
+        let serial = self.clients.get(client).flatten()?;
         self.robot_mut(serial)
     }
 
     /// Whether the robot `client` controls has crashed.
     pub fn crashed(&self, client: ClientId) -> bool {
-        let serial = self.clients.get(&client).copied().flatten();
+        let serial = self.clients.get(client).flatten();
         self.robots
             .iter()
             .any(|r| Some(r.serial) == serial && r.crashed())
@@ -686,7 +720,7 @@ impl World {
 
     #[cfg(test)]
     pub(crate) fn robot(&self, client: ClientId) -> Option<&Robot> {
-        let serial = self.clients.get(&client).copied().flatten()?;
+        let serial = self.clients.get(client).flatten()?;
         self.robots.iter().find(|r| r.serial == serial)
     }
 }
