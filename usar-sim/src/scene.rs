@@ -178,6 +178,9 @@ pub(crate) struct Scene {
     body_count: usize,
     /// The solids near the scene's only robot ([`Scene::plan_for`]).
     plan: Option<Plan>,
+    /// Robot bodies a reset kept in the collider set, out of the tree, highest index first:
+    /// the next bodies of their shape take them back ([`Scene::insert_body`]).
+    parked: Vec<ColliderHandle>,
 }
 
 /// The tree leaves near the scene's only robot body, learnt by one tree query over a
@@ -388,6 +391,7 @@ impl Scene {
             base: None,
             body_count: 0,
             plan: None,
+            parked: Vec::new(),
         }
     }
 
@@ -424,23 +428,16 @@ impl Scene {
         let Some(template) = self.base.take() else {
             return;
         };
+        self.drop_parked();
         if self.removed || self.colliders.len() != template.colliders.len() + bodies.len() {
             *self = Self::copy_of(&template);
             return;
         }
+        // The bodies stay in the collider set, out of the tree, for the next robots to take
+        // back ([`Scene::insert_body`]): the same indices as new colliders would get.
         bodies.sort_unstable_by_key(|h| std::cmp::Reverse(h.into_raw_parts().0));
-        for &body in bodies.iter() {
-            self.colliders.remove(
-                body,
-                &mut self.islands,
-                &mut self.bodies,
-                &mut self.soft_bodies,
-                false,
-            );
-        }
-        // rapier's change lists, kept for a physics pipeline this scene never runs.
-        drop(self.colliders.take_modified());
-        drop(self.colliders.take_removed());
+        self.parked.clear();
+        self.parked.extend_from_slice(bodies);
         self.bvh.clone_from(&template.bvh);
         self.shortcuts = template.shortcuts;
         self.stale = template.stale;
@@ -585,6 +582,7 @@ impl Scene {
 
     /// Adds a collider (static solid or robot body) and indexes it.
     pub(crate) fn insert(&mut self, collider: impl Into<Collider>) -> ColliderHandle {
+        self.drop_parked();
         let collider = collider.into();
         self.body_count += usize::from(collider.user_data == BODY);
         self.plan = None;
@@ -593,8 +591,20 @@ impl Scene {
         handle
     }
 
-    /// Adds a robot body at `centre`.
+    /// Adds a robot body at `centre`: the first parked body when it has this shape (its
+    /// collider moved there, as a new one would be), else a new collider.
     pub(crate) fn insert_body(&mut self, shape: BodyShape, centre: V3) -> ColliderHandle {
+        if let Some(&handle) = self.parked.last()
+            && let Some(collider) = self.colliders.get_mut(handle)
+            && collider.shape().as_cylinder() == Some(&shape.cylinder())
+        {
+            self.parked.pop();
+            collider.set_position(upright_pose(centre));
+            self.body_count += 1;
+            self.plan = None;
+            self.reindex(handle);
+            return handle;
+        }
         let collider = rapier3d::prelude::ColliderBuilder::new(
             rapier3d::prelude::SharedShape::new(shape.cylinder()),
         )
@@ -602,6 +612,42 @@ impl Scene {
         .user_data(BODY)
         .build();
         self.insert(collider)
+    }
+
+    /// A body's collider centre and tree box (min and max corners); NaN for what is missing.
+    #[cfg(test)]
+    pub(crate) fn body_box(&self, handle: ColliderHandle) -> [[f32; 3]; 3] {
+        let xyz = |v: Vector| [v.x, v.y, v.z];
+        let centre = self.colliders.get(handle).map(|c| xyz(c.translation()));
+        let aabb = self
+            .bvh
+            .leaf_node(handle.into_raw_parts().0)
+            .map(|n| n.aabb());
+        [
+            centre.unwrap_or([f32::NAN; 3]),
+            aabb.map_or([f32::NAN; 3], |b| xyz(b.mins)),
+            aabb.map_or([f32::NAN; 3], |b| xyz(b.maxs)),
+        ]
+    }
+
+    /// Takes the parked bodies ([`Scene::reset`]) out of the collider set, highest index
+    /// first, so that new colliders get the indices they would get in a new copy.
+    fn drop_parked(&mut self) {
+        if self.parked.is_empty() {
+            return;
+        }
+        for body in self.parked.drain(..) {
+            self.colliders.remove(
+                body,
+                &mut self.islands,
+                &mut self.bodies,
+                &mut self.soft_bodies,
+                false,
+            );
+        }
+        // rapier's change lists, kept for a physics pipeline this scene never runs.
+        drop(self.colliders.take_modified());
+        drop(self.colliders.take_removed());
     }
 
     /// Removes a collider.

@@ -1179,6 +1179,9 @@ fn a_reset_world_flies_as_a_new_one() {
         let mut text = String::new();
         for (i, class) in [STS, "USARBot.stsQuadrotor", STS].into_iter().enumerate() {
             let c = spawn(w, class, [i as f64 * 2.0 - 2.0, 0.0, -1.5], 0.3 * i as f64);
+            // Where the scene holds the new body (a body taken back from the last episode
+            // is moved to its spawn, as a new one is placed there).
+            text.push_str(&format!("{:?}\n", w.body_boxes()));
             drive(
                 w,
                 c,

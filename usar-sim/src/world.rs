@@ -212,6 +212,16 @@ impl World {
             .collect()
     }
 
+    /// Each robot's body as the scene holds it, in spawn order: its collider's centre and
+    /// its tree box (min and max corners).
+    #[cfg(test)]
+    pub(crate) fn body_boxes(&self) -> Vec<[[f32; 3]; 3]> {
+        self.robots
+            .iter()
+            .map(|r| self.scene.body_box(r.body))
+            .collect()
+    }
+
     /// The model this world spawns the class `class` (its catalog name) with, once spawned.
     #[cfg(test)]
     pub(crate) fn model(&self, class: &str) -> Option<&Arc<Model>> {
