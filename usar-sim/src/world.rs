@@ -191,9 +191,11 @@ impl World {
         self.scene.reset(&mut bodies);
         self.tick = 0;
         self.seed = seed;
-        // Kept for the next spawns to reuse (first robot last: spawns pop them in order).
-        self.spare.clear();
-        self.spare.extend(self.robots.drain(..).rev());
+        // Kept for the next spawns to reuse (first robot last: spawns pop them in order),
+        // swapped, not moved; the spares the last episode left are dropped.
+        std::mem::swap(&mut self.robots, &mut self.spare);
+        self.robots.clear();
+        self.spare.reverse();
         self.due.clear();
         self.speaking.clear();
         self.clients.clear();
