@@ -140,6 +140,11 @@ pub(crate) fn upright_pose(centre: V3) -> Pose {
     Pose::from_parts(to_vector(centre), upright())
 }
 
+thread_local! {
+    /// Scratch space for [`Scene::refit`], one per thread (its contents never outlive a refit).
+    static WORKSPACE: std::cell::RefCell<BvhWorkspace> = std::cell::RefCell::default();
+}
+
 /// The world geometry and the robots' bodies.
 #[derive(Clone)]
 pub(crate) struct Scene {
@@ -148,7 +153,6 @@ pub(crate) struct Scene {
     islands: IslandManager,
     soft_bodies: SoftBodySet,
     bvh: Bvh,
-    workspace: BvhWorkspace,
     /// Batched ray casts and skipped sweeps (off: one tree walk per ray and a shape cast per
     /// move, the reference they must equal bit for bit).
     pub(crate) shortcuts: bool,
@@ -380,7 +384,6 @@ impl Scene {
             islands: IslandManager::new(),
             soft_bodies: SoftBodySet::new(),
             bvh: Bvh::new(),
-            workspace: BvhWorkspace::default(),
             shortcuts: true,
             stale: false,
             clear: Vec::new(),
@@ -735,7 +738,9 @@ impl Scene {
 
     /// Tightens the BVH (leaf updates only ever grow their ancestors). Call now and then.
     pub(crate) fn refit(&mut self) {
-        self.bvh.refit(&mut self.workspace);
+        // The refit's scratch tree is the thread's: it swaps buffers with the scene's, so
+        // the one it writes is one the thread just used, not a cold one of this world's.
+        WORKSPACE.with_borrow_mut(|workspace| self.bvh.refit(workspace));
         self.stale = false;
         for room in &mut self.clear {
             if *room == Room::Crowded {
