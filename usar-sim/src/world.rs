@@ -1,6 +1,6 @@
 //! The world: map geometry, robots, connections; one `step` per tick.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use tracing::{debug, warn};
@@ -36,7 +36,7 @@ pub struct World {
     map: Arc<Map>,
     catalog: Arc<RobotCatalog>,
     /// Each spawned class's parts, built once (keyed by the catalog's class name).
-    models: HashMap<String, Arc<Model>>,
+    models: Vec<Arc<Model>>,
     scene: Scene,
     /// Ordered by serial (spawn order): the order of movement and of output.
     robots: Vec<Robot>,
@@ -160,7 +160,7 @@ impl World {
             wind,
             map,
             catalog: robots,
-            models: HashMap::new(),
+            models: Vec::new(),
             scene,
             robots: Vec::new(),
             spare: Vec::new(),
@@ -227,7 +227,7 @@ impl World {
     /// The model this world spawns the class `class` (its catalog name) with, once spawned.
     #[cfg(test)]
     pub(crate) fn model(&self, class: &str) -> Option<&Arc<Model>> {
-        self.models.get(class)
+        self.models.iter().find(|m| m.class_name() == class)
     }
 
     /// The map's level name for the NFO line.
@@ -461,16 +461,23 @@ impl World {
                 init.rotation.map_or([0.0; 3], spawn_rotation),
             ),
         };
-        // Looked up before inserting: `entry` would copy the class name at every spawn. The
-        // model itself is the catalog's, shared by the worlds that share the catalog.
-        if !self.models.contains_key(&class.class) {
-            let model = self
-                .catalog
-                .built(&class.class, Model::new)
-                .unwrap_or_else(|| Arc::new(Model::new(class)));
-            self.models.insert(class.class.clone(), model);
-        }
-        let model = &self.models[&class.class];
+        // The model is the catalog's, shared by the worlds that share the catalog; a world
+        // spawns one class or a few (a list: no hashing of the name at every spawn).
+        let known = self
+            .models
+            .iter()
+            .position(|m| m.class_name() == class.class);
+        let model = match known {
+            Some(i) => &self.models[i],
+            None => {
+                let model = self
+                    .catalog
+                    .built(&class.class, Model::new)
+                    .unwrap_or_else(|| Arc::new(Model::new(class)));
+                self.models.push(model);
+                &self.models[self.models.len() - 1]
+            }
+        };
         let name = match init.name.as_deref().map(str::trim) {
             Some(n) if !n.is_empty() && !n.contains([' ', '{', '}']) => n.to_owned(),
             _ => format!("{}_{}", class.short_name(), self.next_serial),
