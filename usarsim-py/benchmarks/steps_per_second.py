@@ -85,7 +85,7 @@ def _medians(times):
     return statistics.median(w for w, _ in times), statistics.median(c for _, c in times)
 
 
-def autoreset(num, repeats=5, seconds=None, **options):
+def autoreset(num, repeats=20, seconds=None, **options):
     """(wall, CPU) seconds of a normal step and of a step where all `num` sub-envs reset
     (medians). With `seconds`, repeats at least `repeats` times and until `seconds` have
     passed."""
