@@ -120,13 +120,13 @@ struct PartModel {
 }
 
 impl Model {
-    /// Builds the parts of `class`; a part of an unknown type or with invalid settings is
-    /// skipped with a warning.
     /// The class's catalog name (`USARBot.stsAirRobot`).
     pub(crate) fn class_name(&self) -> &str {
         &self.class.class
     }
 
+    /// Builds the parts of `class`; a part of an unknown type or with invalid settings is
+    /// skipped with a warning.
     pub(crate) fn new(class: &RobotClass) -> Self {
         let mut parts = Vec::new();
         for (index, p) in class.parts.iter().enumerate() {

@@ -419,9 +419,10 @@ impl Scene {
 
     /// Becomes the scene it was copied from again ([`Scene::copy_of`]: the map as first
     /// built, before any robot) when it is that scene plus the robot `bodies` inserted since:
-    /// their colliders are removed, highest index first, so that the next bodies get the
-    /// indices (the tree leaves) a new copy would give them, and the tree and the small
-    /// tables are copied. Every query then answers as on a new copy, bit for bit, without
+    /// their colliders are parked (out of the tree; the next bodies of their shape take them
+    /// back, lowest index first, and the rest are removed, highest first, before any other
+    /// insertion: the indices, the tree leaves, a new copy would give), and the tree and the
+    /// small tables are copied. Every query then answers as on a new copy, bit for bit, without
     /// copying the map's colliders (most of a Python reset's cost). Otherwise (a robot left
     /// meanwhile) a new copy. A scene not copied from another is left as it is.
     pub(crate) fn reset(&mut self, bodies: &mut [ColliderHandle]) {
@@ -436,8 +437,6 @@ impl Scene {
             *self = Self::copy_of(&template);
             return;
         }
-        // The bodies stay in the collider set, out of the tree, for the next robots to take
-        // back ([`Scene::insert_body`]): the same indices as new colliders would get.
         bodies.sort_unstable_by_key(|h| std::cmp::Reverse(h.into_raw_parts().0));
         self.parked.clear();
         self.parked.extend_from_slice(bodies);

@@ -35,7 +35,7 @@ pub struct World {
     /// read one copy, which stays in the caches).
     map: Arc<Map>,
     catalog: Arc<RobotCatalog>,
-    /// Each spawned class's parts, built once (keyed by the catalog's class name).
+    /// Each spawned class's parts, built once (found by the catalog's class name).
     models: Vec<Arc<Model>>,
     scene: Scene,
     /// Ordered by serial (spawn order): the order of movement and of output.
