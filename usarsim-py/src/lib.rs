@@ -21,6 +21,7 @@ mod agents;
 mod core;
 mod remote;
 mod scenario;
+mod tasks;
 
 use numpy::ndarray::Array2;
 use numpy::{
@@ -677,6 +678,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(agents::fly, m)?)?;
     m.add_function(wrap_pyfunction!(qualified_class, m)?)?;
     m.add_function(wrap_pyfunction!(stream_draws, m)?)?;
+    m.add_function(wrap_pyfunction!(tasks::task_reward, m)?)?;
+    m.add_function(wrap_pyfunction!(tasks::task_observe, m)?)?;
+    m.add_function(wrap_pyfunction!(tasks::stream_sample, m)?)?;
     m.add("LASER_BEAMS", LASER)?;
     m.add("SONARS", SONARS)?;
     Ok(())

@@ -53,7 +53,7 @@ def test_seeds_of_any_size_draw_without_overflow_warnings():
             s = Streams.seeded(seed, 3)
             s.draw([0, 1, 2], 4)
             s.seeds([0, 2])
-            s.generator(1).random()
+            s.doubles([1], 2)
 
 
 @pytest.mark.parametrize("task", ["hover", "waypoints"])

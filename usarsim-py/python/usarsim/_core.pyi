@@ -13,6 +13,26 @@ def stream_draws(keys: np.ndarray, drawn: np.ndarray, rows: np.ndarray, k: int) 
     """`k` uint64 draws from each row's SplitMix64 stream, (len(rows), k); advances `drawn` in
     place (``usarsim._task.Streams.draw``)."""
 
+def stream_sample(keys: np.ndarray, drawn: np.ndarray, rows: np.ndarray, k: int, lo: Sequence[float],
+                  hi: Sequence[float], band: Sequence[float], boxes: np.ndarray, spacing: float,
+                  near: np.ndarray | None = None, radius: float = 0.0) -> np.ndarray:
+    """`k` free places (x, y, z) per row, (len(rows), k, 3), each drawn from the row's stream;
+    advances `drawn` in place (``usarsim._maps.MapInfo.sample_rows``)."""
+
+def task_reward(hover: bool, position: np.ndarray, attitude: np.ndarray, touched: np.ndarray,
+                crashed: np.ndarray, battery: np.ndarray, targets: np.ndarray, count: np.ndarray,
+                index: np.ndarray, steps: np.ndarray, prev: np.ndarray, hold_yaw: np.ndarray,
+                radius: float, max_steps: int, live: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(reward, terminated, truncated, touched, crashed, reached) of every row; updates `index`,
+    `steps` and `prev` in place (``usarsim._task.Tasks.reward``)."""
+
+def task_observe(hover: bool, keys: list[str], raw: dict[str, np.ndarray], targets: np.ndarray,
+                 count: np.ndarray, index: np.ndarray, hold_yaw: np.ndarray, lo: np.ndarray,
+                 hi: np.ndarray, out: np.ndarray | dict[str, np.ndarray]) -> None:
+    """Every row's observation, clipped to `lo`..`hi` and rounded to float32, written into
+    `out` (``usarsim._task.Tasks.observe``)."""
+
 class Batch:
     """N worlds with K UAVs each, stepped together one control period per call."""
 

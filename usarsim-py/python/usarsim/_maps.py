@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._core import stream_sample
+
 #: Heights (z, metres, z down) where random starts and waypoints are placed.
 FLIGHT_BAND = (-3.0, -1.0)
 
@@ -89,3 +91,46 @@ class MapInfo:
         if len(out) < n:
             raise ValueError(f"map: could not find {n} free places {spacing} m apart in the flight band")
         return np.array(out)
+
+    def _sample_args(self, clearance: float):
+        """`stream_sample`'s map arguments: the bounds, the flight band and the obstacles'
+        boxes grown by `clearance` (rows of x0, y0, x1, y1)."""
+        lo = self.lo + clearance + 0.5
+        hi = self.hi - clearance - 0.5
+        boxes = np.hstack([self._box_lo - clearance, self._box_hi + clearance]).reshape(-1, 4)
+        return lo.tolist(), hi.tolist(), list(FLIGHT_BAND), np.ascontiguousarray(boxes)
+
+    def sample_rows(self, streams, rows, n: int, clearance: float = 1.0, spacing: float = 1.2, near=None,
+                    radius: float = 0.0) -> np.ndarray:
+        """:meth:`sample` for each of `rows` from its own stream (`streams`, a
+        ``_task.Streams``), shape (len(rows), n, 3), in Rust: each candidate takes three
+        uniform draws of the row's stream (x, y, then z), as :meth:`_sample_rows_python`
+        defines. `near`: one (x, y, ...) per row."""
+        lo, hi, band, boxes = self._sample_args(clearance)
+        near = None if near is None else np.ascontiguousarray(near, dtype=np.float64)
+        return stream_sample(streams.keys, streams.drawn, np.asarray(rows, dtype=np.int64), n, lo, hi, band, boxes,
+                             spacing, near, radius)
+
+    def _sample_rows_python(self, streams, rows, n: int, clearance: float = 1.0, spacing: float = 1.2, near=None,
+                            radius: float = 0.0) -> np.ndarray:
+        """:meth:`sample_rows` in Python: the definition `stream_sample` must equal (tests)."""
+        lo, hi, _, _ = self._sample_args(clearance)
+        out = np.zeros((len(rows), n, 3))
+        for m, r in enumerate(rows):
+            found = 0
+            for _ in range(20000):
+                if found == n:
+                    break
+                u = streams.doubles([r], 3)[0]
+                if near is not None:
+                    xy = np.clip(np.asarray(near[m][:2]) + (-radius + (radius - -radius) * u[:2]), lo, hi)
+                else:
+                    xy = np.asarray(lo) + (np.asarray(hi) - np.asarray(lo)) * u[:2]
+                p = np.array([xy[0], xy[1], FLIGHT_BAND[0] + (FLIGHT_BAND[1] - FLIGHT_BAND[0]) * u[2]])
+                if self.is_free(p, clearance) and all(np.sqrt(np.sum((p[:2] - q[:2]) ** 2)) >= spacing
+                                                      for q in out[m, :found]):
+                    out[m, found] = p
+                    found += 1
+            if found < n:
+                raise ValueError(f"map: could not find {n} free places {spacing} m apart in the flight band")
+        return out

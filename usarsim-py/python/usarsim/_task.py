@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from ._core import LASER_BEAMS, SONARS, stream_draws
+from ._core import LASER_BEAMS, SONARS, stream_draws, task_observe, task_reward
 from ._maps import MapInfo
 
 INF = np.float32(np.inf)
@@ -211,8 +211,9 @@ class Streams:
     64-bit draw is a function of the key and ``j`` alone. So a row draws the same whether it
     resets alone or with a thousand others, and its state is two integers (the key and the
     draws made), recorded at every autoreset for nothing (per-row NumPy generators cost a
-    vector env 17 ms per 1024 resets, most of a reset step). Draws that need NumPy's
-    sampling (random starts and waypoints) come from a generator seeded by one draw.
+    vector env 17 ms per 1024 resets, most of a reset step). Random starts and waypoints are
+    drawn from the row's stream too, in Rust (``MapInfo.sample_rows``; a NumPy generator per
+    row and the sampling loop in Python cost 0.3-0.45 s per 1024 Waypoints resets).
     """
 
     def __init__(self, keys, drawn) -> None:
@@ -248,10 +249,6 @@ class Streams:
     def seeds(self, rows) -> list[int]:
         """A world seed (63 bits) per row."""
         return (self.draw(rows, 1)[:, 0] >> np.uint64(1)).tolist()
-
-    def generator(self, row: int) -> np.random.Generator:
-        """A NumPy generator seeded by one draw of `row`'s stream."""
-        return np.random.default_rng(int(self.draw([row], 1)[0, 0]))
 
 
 class Tasks:
@@ -321,20 +318,15 @@ class Tasks:
         shared = isinstance(rng, np.random.Generator)
         random_start = start is None or (isinstance(start, str) and start == "random")
         sample_start = poses is None and random_start and (start is not None or shared_world)
-        if shared:
-            gens = [rng] * m
-        elif sample_start or (self.task == "waypoints" and waypoints is None):
-            gens = [rng.generator(r) for r in rows]  # NumPy's sampling, one generator per row
-        else:
-            gens = None
         if poses is not None:
             base = np.asarray(poses, dtype=np.float64)
+        elif sample_start and shared:
+            pts = self.map.sample(rng, m)
+            base = np.column_stack([pts, rng.uniform(-np.pi, np.pi, m)])
         elif sample_start:
-            if shared:
-                pts = self.map.sample(rng, m)
-                base = np.column_stack([pts, rng.uniform(-np.pi, np.pi, m)])
-            else:
-                base = np.array([np.append(self.map.sample(g, 1)[0], g.uniform(-np.pi, np.pi)) for g in gens])
+            # Each row's own stream, in Rust: the point, then the yaw.
+            pts = self.map.sample_rows(rng, rows, 1)[:, 0]
+            base = np.column_stack([pts, -np.pi + 2 * np.pi * rng.doubles(rows, 1)[:, 0]])
         elif start is None:
             base = np.tile(self.default_start(), (m, 1))
         else:
@@ -357,10 +349,14 @@ class Tasks:
         elif waypoints is not None:
             self.targets[rows, :len(waypoints)] = waypoints
             self.count[rows] = len(waypoints)
+        elif shared:
+            for k in range(m):
+                self.targets[rows[k], :self.n_waypoints] = self.map.sample(rng, self.n_waypoints, spacing=1.5,
+                                                                           near=base[k], radius=5.0)
+            self.count[rows] = self.n_waypoints
         else:
-            for k, r in enumerate(rows):
-                self.targets[r, :self.n_waypoints] = self.map.sample(gens[k], self.n_waypoints, spacing=1.5,
-                                                                     near=base[k], radius=5.0)
+            self.targets[rows, :self.n_waypoints] = self.map.sample_rows(rng, rows, self.n_waypoints, spacing=1.5,
+                                                                         near=base, radius=5.0)
             self.count[rows] = self.n_waypoints
         return spawns
 
@@ -375,17 +371,29 @@ class Tasks:
 
     def observe(self, raw, out=None):
         """The observation (float32 arrays, one row per UAV): a dict, or with ``flat`` one
-        array. With ``out`` (an earlier result), written into its arrays and returned."""
+        array. With ``out`` (an earlier result), written into its arrays and returned.
+        Worked out in Rust (`task_observe`): what :meth:`_observe_numpy` gives, bit for bit."""
+        widths = {"waypoint": 3, "yaw_error": 1}
+        lo, hi, columns, _ = self._layout({k: widths.get(k) or raw[k].shape[1] for k in self.keys}, len(raw["position"]))
+        if out is None:
+            n = len(raw["position"])
+            out = (np.empty((n, len(lo)), np.float32) if self.flat
+                   else {k: np.empty((n, b - a), np.float32) for k, a, b in columns})
+        task_observe(self.task == "hover", self.keys, raw, self.targets, self.count, self.index, self.hold_yaw,
+                     lo, hi, out)
+        return out
+
+    def _observe_numpy(self, raw, out=None):
+        """:meth:`observe` in NumPy: the definition `task_observe` must equal (tests)."""
         values = {k: raw[k] for k in self.keys if k not in ("waypoint", "yaw_error")}
         values["attitude"] = _wrap(raw["attitude"])
         values["waypoint"] = self._vector(raw)
         # Hover: the yaw to hold minus the yaw (wrapped); Waypoints: 0.
         yaw_error = _wrap(self.hold_yaw - raw["attitude"][:, 2])
         values["yaw_error"] = (yaw_error if self.task == "hover" else np.zeros(self.n))[:, None]
-        # Gathered into one float64 row per UAV and clipped in one call (one call per key
-        # cost more than the clipping): in float64, then rounded to float32, the values
-        # astype() gives.
-        lo, hi, columns, scratch = self._layout(values)
+        # Gathered into one float64 row per UAV and clipped in one call: in float64, then
+        # rounded to float32, the values astype() gives.
+        lo, hi, columns, scratch = self._layout({k: values[k].shape[1] for k in self.keys}, len(values["position"]))
         for k, a, b in columns:
             scratch[:, a:b] = values[k]
         if out is None:
@@ -399,13 +407,13 @@ class Tasks:
                 out[k][...] = scratch[:, a:b]
         return out
 
-    def _layout(self, values):
+    def _layout(self, widths: dict, rows: int):
         """Per-column bounds, each key's columns and a float64 scratch array for
-        :meth:`observe`, made again when the keys or the number of rows change."""
-        shape = (tuple(self.keys), len(values["position"]))
+        :meth:`_observe_numpy`, made again when the keys, their widths (`widths`: key ->
+        columns) or the number of rows change."""
+        shape = (tuple(self.keys), tuple(widths[k] for k in self.keys), rows)
         if self._layout_of != shape:
-            keys, rows = shape
-            widths = [values[k].shape[1] for k in keys]
+            keys, widths, rows = shape
             ends = np.cumsum(widths).tolist()
             columns = [(k, e - w, e) for k, w, e in zip(keys, widths, ends)]
             lo = np.concatenate([np.full(w, BOUNDS[k][0], dtype=np.float64) for k, w in zip(keys, widths)])
@@ -420,7 +428,21 @@ class Tasks:
     def reward(self, raw, live=None):
         """Rewards, terminated and truncated flags and info arrays after one step. Rows not in
         the boolean mask `live` (sub-environments reset in this step) get reward 0, no end and
-        no progress, and begin their episodes here (the distance :meth:`begin` remembers)."""
+        no progress, and begin their episodes here (the distance :meth:`begin` remembers).
+        Worked out in Rust (`task_reward`): what :meth:`_reward_numpy` gives, bit for bit."""
+        live = np.ones(self.n, dtype=bool) if live is None else np.ascontiguousarray(live, dtype=bool)
+        reward, terminated, truncated, touched, crashed, reached = task_reward(
+            self.task == "hover", raw["position"], raw["attitude"], raw["touched"], raw["crashed"], raw["battery"],
+            self.targets, self.count, self.index, self.steps, self.prev, self.hold_yaw, self.radius,
+            self.max_steps, live)
+        return reward, terminated, truncated, {"touched": touched, "crashed": crashed, "reached": reached,
+                                               "waypoints_reached": self.index.copy()}
+
+    def _reward_numpy(self, raw, live=None):
+        """Rewards, terminated and truncated flags and info arrays after one step. Rows not in
+        the boolean mask `live` (sub-environments reset in this step) get reward 0, no end and
+        no progress, and begin their episodes here (the distance :meth:`begin` remembers).
+        :meth:`reward` in NumPy: the definition `task_reward` must equal (tests)."""
         live = np.ones(self.n, dtype=bool) if live is None else np.asarray(live, dtype=bool)
         self.steps += live
         touched = np.asarray(raw["touched"], dtype=bool)

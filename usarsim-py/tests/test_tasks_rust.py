@@ -1,0 +1,145 @@
+"""Issue 24: the tasks' rewards and observations are worked out in Rust (``task_reward``,
+``task_observe``); their NumPy definitions are kept and must give the same bits."""
+
+import copy
+
+import numpy as np
+import pytest
+
+import usarsim
+from usarsim._core import LASER_BEAMS, SONARS, task_reward
+from usarsim._task import Streams
+
+
+def raw_state(rng, n, edge=True):
+    """A raw observation as the batch gives, with values that probe the arithmetic: angles
+    far outside [-pi, pi) and on its edges, positions beyond the clip, -0, NaN, empty
+    batteries."""
+    def col(w, scale):
+        return rng.normal(size=(n, w)) * scale
+
+    raw = {
+        "position": col(3, 5.0), "velocity": col(3, 60.0), "attitude": col(3, 4.0),
+        "angular_velocity": col(3, 80.0), "sonar": np.abs(col(SONARS, 4.0)), "laser": np.abs(col(LASER_BEAMS, 3.0)),
+        "battery": rng.uniform(-0.2, 1.0, (n, 1)), "time": col(1, 1.0), "rotor_speeds": np.abs(col(4, 6e3)),
+        "touched": rng.random(n) < 0.4, "crashed": rng.random(n) < 0.1,
+    }
+    if edge:
+        raw["attitude"][:3, 2] = [np.pi, -np.pi, 3 * np.pi]
+        raw["attitude"][3, :] = -0.0
+        raw["position"][4] = [2e4, -3e4, 0.0]
+        raw["velocity"][5, 1] = np.nan
+        raw["sonar"][6, 0] = -0.0
+        raw["battery"][7, 0] = 0.0
+    return raw
+
+
+def bits(a):
+    """An array's bits (so -0 differs from +0 and NaN equals NaN)."""
+    a = np.ascontiguousarray(a)
+    return a.view(np.uint32 if a.dtype == np.float32 else np.uint64) if a.dtype.kind == "f" else a
+
+
+def same(a, b):
+    if isinstance(a, dict):
+        assert a.keys() == b.keys()
+        for k in a:
+            same(a[k], b[k])
+        return
+    assert a.dtype == b.dtype and a.shape == b.shape
+    assert np.array_equal(bits(a), bits(b))
+
+
+@pytest.mark.parametrize("task", ["hover", "waypoints"])
+@pytest.mark.parametrize("state_only,flat", [(True, True), (False, False), (False, True), (True, False)])
+def test_rewards_and_observations_in_rust_equal_their_numpy_definition(task, state_only, flat):
+    n = 40
+    env = usarsim.vector_env(n, task=task, state_only=state_only, flat=flat, max_steps=7)
+    env.reset(seed=3)
+    rust = env.unwrapped._tasks if hasattr(env, "unwrapped") else env._tasks
+    rust.keys.append("rotor_speeds")
+    # Rows with fewer waypoints than others, some near the last one.
+    rust.count[::3] = 1
+    numpy_ = copy.deepcopy(rust)
+    reached = 0
+    rng = np.random.default_rng(5)
+    for step in range(30):
+        raw = raw_state(rng, n, edge=step % 2 == 0)
+        # Some rows right at their target, so that they reach it.
+        near = rng.random(n) < 0.3
+        k = np.minimum(rust.index, rust.count - 1)
+        raw["position"][near] = rust.targets[np.arange(n), k][near] + rng.normal(size=(near.sum(), 3)) * 0.2
+        live = rng.random(n) < 0.9 if step % 3 else None
+        got, want = rust.reward(raw, live), numpy_._reward_numpy(raw, live)
+        for a, b in zip(got[:3], want[:3]):
+            same(a, b)
+        same(got[3], want[3])
+        reached += got[3]["reached"].sum()
+        for name in ("index", "steps", "prev"):
+            same(getattr(rust, name), getattr(numpy_, name))
+        same(rust.observe(raw), numpy_._observe_numpy(raw))
+        out = rust.observe(raw)  # written into an earlier result
+        same(rust.observe(raw, out=out), numpy_._observe_numpy(raw))
+        # Episodes that ended start over, as a reset does.
+        ended = np.flatnonzero(got[1] | got[2])
+        for t in (rust, numpy_):
+            t.index[ended], t.steps[ended] = 0, 0
+    if task == "waypoints":
+        assert reached > 10, "few waypoints reached: the test would not see the bonus"
+
+
+def test_bad_arrays_are_named():
+    env = usarsim.vector_env(4, task="waypoints", state_only=True)
+    env.reset(seed=0)
+    t = env._tasks
+    raw = raw_state(np.random.default_rng(0), 4, edge=False)
+    with pytest.raises(ValueError, match="live: 3 rows, expected 4"):
+        t.reward(raw, np.ones(3, dtype=bool))
+    with pytest.raises(ValueError, match="position"):
+        t.reward({**raw, "position": raw["position"][:, :2]})
+    t.count[1] = 0
+    with pytest.raises(ValueError, match="row 1: 0 waypoints"):
+        t.reward(raw)
+    with pytest.raises(ValueError, match="row 1: 0 waypoints"):
+        t.observe(raw)
+    t.count[1] = 3
+    with pytest.raises(ValueError, match="out"):
+        t.observe(raw, out=np.zeros((4, 2), np.float32))
+    with pytest.raises(TypeError):
+        task_reward(True)
+
+
+def test_waypoints_and_random_starts_drawn_in_rust_follow_their_python_definition():
+    env = usarsim.vector_env(3, map="arena", state_only=True)  # a map with obstacles
+    m = env.map
+    assert len(m.obstacles) > 0
+    rows = [2, 0, 2, 1]  # a row twice: its second draws continue its stream
+    near = np.array([[0.0, 0.0, -2.0], [3.0, -4.0, -2.0], [m.hi[0], 0.0, -2.0], [m.lo[0], 1.0, -2.0]])
+    for kw in ({}, {"spacing": 1.5, "near": near, "radius": 5.0}, {"clearance": 0.3, "spacing": 0.1}):
+        a, b = Streams.seeded(9, 3), Streams.seeded(9, 3)
+        got, want = m.sample_rows(a, rows, 3, **kw), m._sample_rows_python(b, rows, 3, **kw)
+        same(got, want)
+        assert np.array_equal(a.drawn, b.drawn) and a.drawn.min() >= 9  # three draws per candidate
+        assert all(m.free(p, kw.get("clearance", 1.0)).all() for p in got)
+    with pytest.raises(ValueError, match="could not find 50 free places 5 m apart"):
+        m.sample_rows(Streams.seeded(9, 3), [0], 50, spacing=5.0)
+
+
+@pytest.mark.parametrize("start", [None, "random"])
+def test_waypoints_resets_of_many_rows_take_milliseconds_and_repeat(start):
+    # 1024 Waypoints rows drew their waypoints with a NumPy generator each, in a Python loop:
+    # 0.3-0.45 s per step in which they all reset. The rows' draws do not depend on who else
+    # resets with them.
+    env = usarsim.vector_env(64, task="waypoints", state_only=True, start=start)
+    env.reset(seed=4)
+    alone = usarsim.vector_env(64, task="waypoints", state_only=True, start=start)
+    alone.reset(seed=4)
+    rows = np.arange(64)
+    env._new_worlds(rows)
+    for r in (5, 17):  # alone, each row draws what it drew with the others
+        alone._new_worlds([r])
+        assert np.array_equal(alone._tasks.targets[r], env._tasks.targets[r])
+    t = env._tasks.targets
+    assert len({tuple(np.round(t[r, 0], 9)) for r in rows}) == 64  # every row its own
+    d = np.linalg.norm(t[:, 1, :2] - t[:, 0, :2], axis=1)
+    assert d.min() >= 1.5
