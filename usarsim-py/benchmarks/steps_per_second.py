@@ -13,7 +13,8 @@ sub-environment resets (episodes of 1 step, zero actions: the cheapest normal st
 against a normal step, full and state-only (a reset flies the world until every sensor has
 read once: three control periods with the 0.3 s laser, one without the range sensors).
 "autoreset in flight": the same in Hover episodes of 50 steps flown with the random actions
-(the normal step the speed cases time; every sub-env ends in the same step).
+(the normal step the speed cases time; every sub-env ends in the same step), and in Waypoints
+episodes (state-only), whose resets draw new random waypoints.
 
 Per CPU-second is the process's CPU time (user + system, all threads): on a machine shared
 with other work it is the fairer figure; wall-clock UAV-steps/s depends on the free cores.
@@ -107,15 +108,16 @@ def autoreset(num, repeats=20, seconds=None, **options):
     return _medians(normal), _medians(resetting)
 
 
-def autoreset_flying(num, episode=50, episodes=6, **options):
+def autoreset_flying(num, episode=50, episodes=6, task="hover", **options):
     """(wall, CPU) seconds of a normal step and of a step where all `num` sub-envs reset
-    (medians), in Hover episodes of `episode` steps flown with the speed cases' random
-    actions: every sub-env ends in the same step, and the next resets them all."""
+    (medians), in `task` episodes of `episode` steps flown with the speed cases' random
+    actions: every sub-env ends in the same step, and the next resets them all (Waypoints:
+    each reset draws new random waypoints)."""
     import numpy as np
 
     import usarsim
 
-    venv = usarsim.vector_env(num, "hover", max_steps=episode, **options)
+    venv = usarsim.vector_env(num, task, max_steps=episode, **options)
     venv.reset(seed=0)
     rng = np.random.default_rng(0)
     actions = [rng.uniform(-1, 1, (num, 4)) for _ in range(8)]
@@ -172,9 +174,9 @@ def run_default(seconds):
             (nw, nc), (rw, rc) = autoreset(n, **options)
             print(f"autoreset, {n:4d} UAVs, {kind}: normal step {nw * 1e3:6.1f} ms ({nc * 1e3:5.1f} CPU), "
                   f"resetting all {rw * 1e3:6.1f} ms ({rc * 1e3:5.1f} CPU): {rw / nw:.2f}x wall, {rc / nc:.2f}x CPU")
-    for kind, options in (("full", {}), ("state", STATE)):
-        (nw, nc), (rw, rc) = autoreset_flying(1024, **options)
-        print(f"autoreset in flight, 1024 UAVs, {kind}: normal step {nw * 1e3:6.1f} ms ({nc * 1e3:5.1f} CPU), "
+    for kind, task, options in (("full", "hover", {}), ("state", "hover", STATE), ("state", "waypoints", STATE)):
+        (nw, nc), (rw, rc) = autoreset_flying(1024, task=task, **options)
+        print(f"autoreset in flight, 1024 UAVs, {kind}, {task}: normal step {nw * 1e3:6.1f} ms ({nc * 1e3:5.1f} CPU), "
               f"resetting all {rw * 1e3:6.1f} ms ({rc * 1e3:5.1f} CPU): {rw / nw:.2f}x wall, {rc / nc:.2f}x CPU")
 
 
