@@ -7,7 +7,7 @@
 use numpy::ndarray::{Array3, ArrayView1, ArrayView2, ArrayView3};
 use numpy::{
     IntoPyArray, PyArray1, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
-    PyReadwriteArray1, PyReadwriteArray2,
+    PyReadwriteArray1, PyReadwriteArray2, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -300,7 +300,7 @@ pub(crate) fn task_observe(
         })
         .collect::<PyResult<Vec<_>>>()?;
     let columns: usize = sources.iter().map(|(_, w)| w).sum();
-    let (lo, hi) = (lo.as_array(), hi.as_array());
+    let (lo, hi) = (lo.as_slice()?, hi.as_slice()?);
     if lo.len() != columns || hi.len() != columns {
         return Err(bad(format!(
             "tasks: {} low and {} high bounds for {columns} columns",
@@ -325,20 +325,22 @@ pub(crate) fn task_observe(
             }
             at += w;
         }
-        for ((b, lo), hi) in buf.iter_mut().zip(&lo).zip(&hi) {
+        for ((b, lo), hi) in buf.iter_mut().zip(lo).zip(hi) {
             *b = clip(*b, *lo, *hi);
         }
     };
     let mut buf = vec![0.0; columns];
     if let Ok(mut flat) = out.extract::<PyReadwriteArray2<'_, f32>>() {
-        let mut dest = flat.as_array_mut();
-        if dest.dim() != (n, columns) {
-            return Err(bad(format!(
-                "tasks: out: shape {:?}, expected ({n}, {columns})",
-                dest.shape()
-            )));
-        }
-        for (i, mut row) in dest.rows_mut().into_iter().enumerate() {
+        let shape = flat.shape().to_vec();
+        let dest = match flat.as_slice_mut() {
+            Ok(dest) if shape == [n, columns] => dest,
+            _ => {
+                return Err(bad(format!(
+                    "tasks: out: shape {shape:?}, expected a C-contiguous ({n}, {columns})"
+                )));
+            }
+        };
+        for (i, row) in dest.chunks_exact_mut(columns.max(1)).enumerate() {
             fill(i, &mut buf);
             row.iter_mut().zip(&buf).for_each(|(d, v)| *d = *v as f32);
         }
