@@ -256,11 +256,30 @@ impl PyBatch {
     /// One entry per world: `Some((seed, starts))` for the worlds in `indices`.
     fn resets(
         &mut self,
-        indices: Vec<usize>,
-        seeds: Vec<u64>,
+        indices: &Bound<'_, PyAny>,
+        seeds: &Bound<'_, PyAny>,
         starts: &PyReadonlyArray2<'_, f64>,
     ) -> PyResult<Vec<Option<Reset>>> {
-        let (worlds, per) = (self.get().worlds.len(), self.get().uavs_per_world);
+        let worlds = self.get().worlds.len();
+        let indices: Vec<usize> = match indices.extract::<PyReadonlyArray1<'_, i64>>() {
+            Ok(a) => a
+                .as_array()
+                .iter()
+                .map(|&i| {
+                    usize::try_from(i).map_err(|_| {
+                        PyValueError::new_err(format!(
+                            "indices: world index {i} out of range (0..{worlds})"
+                        ))
+                    })
+                })
+                .collect::<PyResult<_>>()?,
+            Err(_) => indices.extract()?,
+        };
+        let seeds: Vec<u64> = match seeds.extract::<PyReadonlyArray1<'_, u64>>() {
+            Ok(a) => a.as_array().to_vec(),
+            Err(_) => seeds.extract()?,
+        };
+        let per = self.get().uavs_per_world;
         if seeds.len() != indices.len() {
             return Err(PyValueError::new_err(format!(
                 "seeds: expected one per reset world ({}), got {}",
@@ -400,8 +419,8 @@ impl PyBatch {
     fn reset(
         &mut self,
         py: Python<'_>,
-        indices: Vec<usize>,
-        seeds: Vec<u64>,
+        indices: &Bound<'_, PyAny>,
+        seeds: &Bound<'_, PyAny>,
         starts: PyReadonlyArray2<'_, f64>,
     ) -> PyResult<()> {
         let resets = self.resets(indices, seeds, &starts)?;
@@ -421,7 +440,11 @@ impl PyBatch {
         &mut self,
         py: Python<'_>,
         actions: PyReadonlyArray2<'_, f64>,
-        reset: Option<(Vec<usize>, Vec<u64>, PyReadonlyArray2<'_, f64>)>,
+        reset: Option<(
+            Bound<'_, PyAny>,
+            Bound<'_, PyAny>,
+            PyReadonlyArray2<'_, f64>,
+        )>,
         out: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<()> {
         let actions: Vec<[f64; 4]> = rows::<4>(&actions, self.get().len(), "action")?
@@ -429,7 +452,7 @@ impl PyBatch {
             .map(|a| a.map(|v| v.clamp(-1.0, 1.0)))
             .collect();
         let resets = match reset {
-            Some((indices, seeds, starts)) => self.resets(indices, seeds, &starts)?,
+            Some((indices, seeds, starts)) => self.resets(&indices, &seeds, &starts)?,
             None => Vec::new(),
         };
         let mut windows = match out {
@@ -681,6 +704,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tasks::task_reward, m)?)?;
     m.add_function(wrap_pyfunction!(tasks::task_observe, m)?)?;
     m.add_function(wrap_pyfunction!(tasks::stream_sample, m)?)?;
+    m.add_function(wrap_pyfunction!(tasks::hover_spawns, m)?)?;
     m.add("LASER_BEAMS", LASER)?;
     m.add("SONARS", SONARS)?;
     Ok(())

@@ -6,12 +6,17 @@
 
 use numpy::ndarray::{Array3, ArrayView1, ArrayView2, ArrayView3};
 use numpy::{
-    IntoPyArray, PyArray1, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
-    PyReadwriteArray1, PyReadwriteArray2, PyUntypedArrayMethods,
+    IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2,
+    PyReadonlyArray3, PyReadwriteArray1, PyReadwriteArray2, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+
+/// The streams' increment (`usarsim._task._GOLDEN`).
+const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
+/// 2⁻⁵³: a draw's top 53 bits times this is a uniform double in [0, 1).
+const UNIT: f64 = 1.0 / 9_007_199_254_740_992.0;
 
 /// Reward per waypoint reached (`_task.WAYPOINT_BONUS`).
 const WAYPOINT_BONUS: f64 = 10.0;
@@ -408,7 +413,6 @@ pub(crate) fn stream_sample<'py>(
     near: Option<PyReadonlyArray2<'py, f64>>,
     radius: f64,
 ) -> PyResult<Bound<'py, PyArray3<f64>>> {
-    const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
     const TRIES: u64 = 20_000;
     let keys = keys.as_array();
     let mut drawn = drawn.as_array_mut();
@@ -451,7 +455,7 @@ pub(crate) fn stream_sample<'py>(
             })?;
         let mut state = keys[r].wrapping_add(drawn[r].wrapping_mul(GOLDEN));
         let mut uniform = |low: f64, high: f64| {
-            let u = (usar_sim::splitmix(&mut state) >> 11) as f64 * (1.0 / 9_007_199_254_740_992.0);
+            let u = (usar_sim::splitmix(&mut state) >> 11) as f64 * UNIT;
             low + (high - low) * u
         };
         let (mut found, mut tried) = (0, 0_u64);
@@ -481,6 +485,75 @@ pub(crate) fn stream_sample<'py>(
             return Err(bad(format!(
                 "map: could not find {k} free places {spacing} m apart in the flight band"
             )));
+        }
+    }
+    Ok(out.into_pyarray(py))
+}
+
+/// Hover's spawns for `rows` (`Tasks.new_starts`): each row's start pose `base` (x, y, z,
+/// yaw) moved by `low + span × u` per axis, `u` three uniform draws of the row's stream
+/// (advanced here), where that place is outside every box of `boxes` (rows of x0, y0, x1,
+/// y1, open) and above `z_max` (z down: `z < z_max`); else the start itself. What
+/// `Tasks._hover_spawns_numpy` gives, bit for bit.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn hover_spawns<'py>(
+    py: Python<'py>,
+    keys: PyReadonlyArray1<'py, u64>,
+    mut drawn: PyReadwriteArray1<'py, u64>,
+    rows: PyReadonlyArray1<'py, i64>,
+    base: PyReadonlyArray2<'py, f64>,
+    low: [f64; 3],
+    span: [f64; 3],
+    boxes: PyReadonlyArray2<'py, f64>,
+    z_max: f64,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let (keys, rows) = (keys.as_array(), rows.as_array());
+    let mut drawn = drawn.as_array_mut();
+    let (base, boxes) = (base.as_array(), boxes.as_array());
+    if drawn.len() != keys.len() || base.dim() != (rows.len(), 4) || boxes.ncols() != 4 {
+        return Err(bad(format!(
+            "hover_spawns: {} keys, {} draw counts, base {:?} for {} rows, boxes {:?}",
+            keys.len(),
+            drawn.len(),
+            base.shape(),
+            rows.len(),
+            boxes.shape()
+        )));
+    }
+    // Every row checked, and its draws made read, before any count moves (a row listed twice
+    // draws the same twice, as `Streams.doubles` gives).
+    let made = rows
+        .iter()
+        .map(|&row| {
+            usize::try_from(row)
+                .ok()
+                .filter(|&r| r < keys.len())
+                .map(|r| (r, drawn[r]))
+                .ok_or_else(|| {
+                    bad(format!(
+                        "hover_spawns: row {row} is not in 0..{}",
+                        keys.len()
+                    ))
+                })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let mut out = base.to_owned();
+    for (m, &(r, made)) in made.iter().enumerate() {
+        let mut state = keys[r].wrapping_add(made.wrapping_mul(GOLDEN));
+        drawn[r] = made.wrapping_add(3);
+        let p: [f64; 3] = std::array::from_fn(|c| {
+            let u = (usar_sim::splitmix(&mut state) >> 11) as f64 * UNIT;
+            span[c] * u + low[c] + base[[m, c]]
+        });
+        let inside = boxes
+            .rows()
+            .into_iter()
+            .any(|b| p[0] > b[0] && p[0] < b[2] && p[1] > b[1] && p[1] < b[3]);
+        if !inside && p[2] < z_max {
+            for (c, v) in p.into_iter().enumerate() {
+                out[[m, c]] = v;
+            }
         }
     }
     Ok(out.into_pyarray(py))

@@ -143,3 +143,32 @@ def test_waypoints_resets_of_many_rows_take_milliseconds_and_repeat(start):
     assert len({tuple(np.round(t[r, 0], 9)) for r in rows}) == 64  # every row its own
     d = np.linalg.norm(t[:, 1, :2] - t[:, 0, :2], axis=1)
     assert d.min() >= 1.5
+
+
+def test_hover_spawns_drawn_in_rust_follow_their_numpy_definition():
+    env = usarsim.vector_env(6, task="hover", map="arena", state_only=True)
+    t = env._tasks
+    rows = np.array([4, 0, 5, 1, 4])  # a row twice draws the same twice, as Streams.doubles
+    base = np.array([[0.0, 0.0, -2.0, 0.3], [3.0, -4.0, -1.0, 0.0], [5.0, 5.0, -0.7, 1.0],
+                     [-3.0, 2.0, -2.5, -2.0], [1.0, 1.0, -0.9, 0.0]])
+    for seed in range(20):
+        a, b = Streams.seeded(seed, 6), Streams.seeded(seed, 6)
+        got = usarsim._core.hover_spawns(a.keys, a.drawn, rows, base, [-1.0, -1.0, -0.5], [2.0, 2.0, 1.0],
+                                         env.map.boxes(0.8), -0.5)
+        same(got, t._hover_spawns_numpy(b.doubles(rows, 3), base))
+        assert np.array_equal(a.drawn, b.drawn)
+    assert not np.array_equal(got, base)  # some moved
+
+
+def test_batch_resets_take_arrays_or_lists_and_name_bad_indices():
+    env = usarsim.vector_env(3, task="hover", state_only=True)
+    env.reset(seed=1)
+    starts = np.tile([0.0, 0.0, -2.0, 0.0], (2, 1))
+    env._batch.reset(np.array([2, 0]), np.array([5, 6], dtype=np.uint64), starts)
+    env._batch.reset([2, 0], [5, 6], starts)
+    with pytest.raises(ValueError, match=r"world index -1 out of range \(0..3\)"):
+        env._batch.reset(np.array([-1, 0]), np.array([5, 6], dtype=np.uint64), starts)
+    with pytest.raises(ValueError, match="world index 3 out of range"):
+        env._batch.reset(np.array([3, 0]), [5, 6], starts)
+    with pytest.raises(ValueError, match="listed twice"):
+        env._batch.reset(np.array([1, 1]), [5, 6], starts)

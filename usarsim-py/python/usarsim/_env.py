@@ -367,7 +367,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         self._streams = Streams(*rng_state)
         self._replay = self._record(rng_state, options)
         rows = np.arange(self.num_envs)
-        self._batch.reset(rows.tolist(), *self._new_worlds(rows, options))
+        self._batch.reset(rows, *self._new_worlds(rows, options))
         self._autoreset[:] = False
         raw = self._observe_raw()
         self._tasks.begin(raw, rows)
@@ -450,7 +450,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                     del replay["actions"][:oldest]
                     replay["reset_step"] -= oldest
                 replay["rng"], replay["options"] = None, None
-        reset = (done.tolist(), *self._new_worlds(done)) if len(done) else None
+        reset = (done, *self._new_worlds(done)) if len(done) else None
         raw = self._step_raw(a, reset)
         live = np.ones(self.num_envs, dtype=bool)
         live[done] = False
@@ -488,7 +488,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
             infos["final_obs"], infos["_final_obs"] = final_obs, mask
             infos["final_info"] = _with_masks({k: np.where(mask, v, np.zeros_like(v)) for k, v in info.items()}, mask)
             infos["_final_info"] = mask.copy()
-            self._batch.reset(ended.tolist(), *self._new_worlds(ended))
+            self._batch.reset(ended, *self._new_worlds(ended))
             raw = self._observe_raw()
             self._tasks.begin(raw, ended)
             obs = self._observe_all(raw)

@@ -92,13 +92,16 @@ class MapInfo:
             raise ValueError(f"map: could not find {n} free places {spacing} m apart in the flight band")
         return np.array(out)
 
+    def boxes(self, clearance: float) -> np.ndarray:
+        """The obstacles' boxes seen from above grown by `clearance`, rows of x0, y0, x1, y1
+        (what :meth:`free` tests against)."""
+        return np.ascontiguousarray(np.hstack([self._box_lo - clearance, self._box_hi + clearance]).reshape(-1, 4))
+
     def _sample_args(self, clearance: float):
-        """`stream_sample`'s map arguments: the bounds, the flight band and the obstacles'
-        boxes grown by `clearance` (rows of x0, y0, x1, y1)."""
+        """`stream_sample`'s map arguments: the bounds, the flight band and :meth:`boxes`."""
         lo = self.lo + clearance + 0.5
         hi = self.hi - clearance - 0.5
-        boxes = np.hstack([self._box_lo - clearance, self._box_hi + clearance]).reshape(-1, 4)
-        return lo.tolist(), hi.tolist(), list(FLIGHT_BAND), np.ascontiguousarray(boxes)
+        return lo.tolist(), hi.tolist(), list(FLIGHT_BAND), self.boxes(clearance)
 
     def sample_rows(self, streams, rows, n: int, clearance: float = 1.0, spacing: float = 1.2, near=None,
                     radius: float = 0.0) -> np.ndarray:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from ._core import LASER_BEAMS, SONARS, stream_draws, task_observe, task_reward
+from ._core import LASER_BEAMS, SONARS, hover_spawns, stream_draws, task_observe, task_reward
 from ._maps import MapInfo
 
 INF = np.float32(np.inf)
@@ -246,9 +246,9 @@ class Streams:
         """Uniform doubles in [0, 1) (the top 53 bits of a draw × 2⁻⁵³), shape (len(rows), k)."""
         return (self.draw(rows, k) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
-    def seeds(self, rows) -> list[int]:
-        """A world seed (63 bits) per row."""
-        return (self.draw(rows, 1)[:, 0] >> np.uint64(1)).tolist()
+    def seeds(self, rows) -> np.ndarray:
+        """A world seed (63 bits) per row, uint64."""
+        return self.draw(rows, 1)[:, 0] >> np.uint64(1)
 
 
 class Tasks:
@@ -340,12 +340,11 @@ class Tasks:
             # row's three uniform draws, as uniform(-1, 1, 2) then uniform(-0.5, 0.5) give.
             self.targets[rows, 0] = base[:, :3]
             self.hold_yaw[rows] = base[:, 3]
-            u = rng.random((m, 3)) if shared else rng.doubles(rows, 3)
-            cand = _OFFSET_SPAN * u  # in place: base + (low + span × u), the same sums
-            cand += _OFFSET_LOW
-            cand += base[:, :3]
-            ok = self.map.free(cand, 0.8) & (cand[:, 2] < -0.5)
-            np.copyto(spawns[:, :3], cand, where=ok[:, None])
+            if shared:
+                spawns = self._hover_spawns_numpy(rng.random((m, 3)), base)
+            else:  # in Rust: what _hover_spawns_numpy gives with the rows' three doubles
+                spawns = hover_spawns(rng.keys, rng.drawn, rows, base, _OFFSET_LOW.tolist(), _OFFSET_SPAN.tolist(),
+                                      self.map.boxes(0.8), -0.5)
         elif waypoints is not None:
             self.targets[rows, :len(waypoints)] = waypoints
             self.count[rows] = len(waypoints)
@@ -358,6 +357,18 @@ class Tasks:
             self.targets[rows, :self.n_waypoints] = self.map.sample_rows(rng, rows, self.n_waypoints, spacing=1.5,
                                                                          near=base, radius=5.0)
             self.count[rows] = self.n_waypoints
+        return spawns
+
+    def _hover_spawns_numpy(self, u, base) -> np.ndarray:
+        """Hover's spawns: each start `base` moved by low + span × `u` (three uniform doubles
+        per row) where that place is free (0.8 m from the obstacles' boxes) and above
+        z = -0.5 m; else the start. The definition `hover_spawns` must equal (tests)."""
+        spawns = base.copy()
+        cand = _OFFSET_SPAN * u  # in place: base + (low + span × u), the same sums
+        cand += _OFFSET_LOW
+        cand += base[:, :3]
+        ok = self.map.free(cand, 0.8) & (cand[:, 2] < -0.5)
+        np.copyto(spawns[:, :3], cand, where=ok[:, None])
         return spawns
 
     def _vector(self, raw) -> np.ndarray:
