@@ -389,6 +389,27 @@ pub(crate) fn task_observe(
     Ok(())
 }
 
+/// Boxes seen from above, rows of x0, y0, x1, y1 (`MapInfo.boxes`).
+struct Boxes(Vec<[f64; 4]>);
+
+impl Boxes {
+    fn of(a: &ArrayView2<'_, f64>) -> Self {
+        Self(
+            a.rows()
+                .into_iter()
+                .map(|b| [b[0], b[1], b[2], b[3]])
+                .collect(),
+        )
+    }
+
+    /// Whether (x, y) is inside one of them (open: `MapInfo.free`'s test).
+    fn inside(&self, x: f64, y: f64) -> bool {
+        self.0
+            .iter()
+            .any(|b| x > b[0] && x < b[2] && y > b[1] && y < b[3])
+    }
+}
+
 /// `k` free points per row of `rows` (`(len(rows), k, 3)`: x, y, z), each drawn from the
 /// row's own stream (`usarsim._task.Streams`: keys and draws made, advanced here), as
 /// `MapInfo.sample_rows` describes: three uniform draws per candidate (x, y, then z in
@@ -436,12 +457,7 @@ pub(crate) fn stream_sample<'py>(
             rows.len()
         )));
     }
-    let inside = |x: f64, y: f64| {
-        boxes
-            .rows()
-            .into_iter()
-            .any(|b| x > b[0] && x < b[2] && y > b[1] && y < b[3])
-    };
+    let boxes = Boxes::of(&boxes);
     let mut out = Array3::<f64>::zeros((rows.len(), k, 3));
     for (m, &row) in rows.iter().enumerate() {
         let r = usize::try_from(row)
@@ -473,7 +489,7 @@ pub(crate) fn stream_sample<'py>(
                 let (dx, dy) = (x - out[[m, j, 0]], y - out[[m, j, 1]]);
                 (dx * dx + dy * dy).sqrt() >= spacing
             });
-            if !inside(x, y) && apart {
+            if !boxes.inside(x, y) && apart {
                 out[[m, found, 0]] = x;
                 out[[m, found, 1]] = y;
                 out[[m, found, 2]] = z;
@@ -510,7 +526,8 @@ pub(crate) fn hover_spawns<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let (keys, rows) = (keys.as_array(), rows.as_array());
     let mut drawn = drawn.as_array_mut();
-    let (base, boxes) = (base.as_array(), boxes.as_array());
+    let base = base.as_array();
+    let boxes = boxes.as_array();
     if drawn.len() != keys.len() || base.dim() != (rows.len(), 4) || boxes.ncols() != 4 {
         return Err(bad(format!(
             "hover_spawns: {} keys, {} draw counts, base {:?} for {} rows, boxes {:?}",
@@ -538,6 +555,7 @@ pub(crate) fn hover_spawns<'py>(
                 })
         })
         .collect::<PyResult<Vec<_>>>()?;
+    let boxes = Boxes::of(&boxes);
     let mut out = base.to_owned();
     for (m, &(r, made)) in made.iter().enumerate() {
         let mut state = keys[r].wrapping_add(made.wrapping_mul(GOLDEN));
@@ -546,11 +564,7 @@ pub(crate) fn hover_spawns<'py>(
             let u = (usar_sim::splitmix(&mut state) >> 11) as f64 * UNIT;
             span[c] * u + low[c] + base[[m, c]]
         });
-        let inside = boxes
-            .rows()
-            .into_iter()
-            .any(|b| p[0] > b[0] && p[0] < b[2] && p[1] > b[1] && p[1] < b[3]);
-        if !inside && p[2] < z_max {
+        if !boxes.inside(p[0], p[1]) && p[2] < z_max {
             for (c, v) in p.into_iter().enumerate() {
                 out[[m, c]] = v;
             }

@@ -94,8 +94,13 @@ class MapInfo:
 
     def boxes(self, clearance: float) -> np.ndarray:
         """The obstacles' boxes seen from above grown by `clearance`, rows of x0, y0, x1, y1
-        (what :meth:`free` tests against)."""
-        return np.ascontiguousarray(np.hstack([self._box_lo - clearance, self._box_hi + clearance]).reshape(-1, 4))
+        (what :meth:`free` tests against; kept per clearance: read only)."""
+        cache = self.__dict__.setdefault("_boxes", {})
+        if clearance not in cache:
+            boxes = np.hstack([self._box_lo - clearance, self._box_hi + clearance]).reshape(-1, 4)
+            cache[clearance] = np.ascontiguousarray(boxes)
+            cache[clearance].flags.writeable = False
+        return cache[clearance]
 
     def _sample_args(self, clearance: float):
         """`stream_sample`'s map arguments: the bounds, the flight band and :meth:`boxes`."""

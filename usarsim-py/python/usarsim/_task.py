@@ -192,6 +192,7 @@ def _waypoints(value, map_info: MapInfo, what: str) -> np.ndarray:
 #: Hover's spawn offset from the start: low + span × a uniform draw in [0, 1) per axis.
 _OFFSET_LOW = np.array([-1.0, -1.0, -0.5])
 _OFFSET_SPAN = np.array([2.0, 2.0, 1.0])
+_OFFSET_LOW_LIST, _OFFSET_SPAN_LIST = _OFFSET_LOW.tolist(), _OFFSET_SPAN.tolist()
 
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -328,7 +329,8 @@ class Tasks:
             pts = self.map.sample_rows(rng, rows, 1)[:, 0]
             base = np.column_stack([pts, -np.pi + 2 * np.pi * rng.doubles(rows, 1)[:, 0]])
         elif start is None:
-            base = np.tile(self.default_start(), (m, 1))
+            base = np.empty((m, 4))
+            base[:] = self.default_start()  # np.tile's rows, without its reshapes
         else:
             base = np.tile(_pose(start, self.map, "start"), (m, 1))
         base = base.reshape(m, 4)
@@ -343,7 +345,7 @@ class Tasks:
             if shared:
                 spawns = self._hover_spawns_numpy(rng.random((m, 3)), base)
             else:  # in Rust: what _hover_spawns_numpy gives with the rows' three doubles
-                spawns = hover_spawns(rng.keys, rng.drawn, rows, base, _OFFSET_LOW.tolist(), _OFFSET_SPAN.tolist(),
+                spawns = hover_spawns(rng.keys, rng.drawn, rows, base, _OFFSET_LOW_LIST, _OFFSET_SPAN_LIST,
                                       self.map.boxes(0.8), -0.5)
         elif waypoints is not None:
             self.targets[rows, :len(waypoints)] = waypoints
