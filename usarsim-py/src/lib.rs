@@ -24,10 +24,7 @@ mod scenario;
 mod tasks;
 
 use numpy::ndarray::Array2;
-use numpy::{
-    IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1,
-    PyUntypedArrayMethods,
-};
+use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use std::sync::{Mutex, PoisonError};
 
@@ -644,51 +641,6 @@ fn qualified_class(robot: &str) -> String {
     usar_proto::Init::qualified_class(robot)
 }
 
-/// `usarsim._task.Streams.draw`: `k` 64-bit draws from the stream of each of `rows`, shape
-/// `(len(rows), k)`: SplitMix64 from `keys[row] + drawn[row] * golden` (the `drawn[row]`
-/// draws made so far), the golden-ratio increment once per draw; then `drawn[row] += k` (once
-/// per row, as NumPy's `drawn[rows] += k` does when a row repeats). What the NumPy expression
-/// gives, bit for bit, without its dozen temporary arrays (a vector env's autoreset draws for
-/// every resetting row).
-#[pyfunction]
-fn stream_draws<'py>(
-    py: Python<'py>,
-    keys: PyReadonlyArray1<'py, u64>,
-    mut drawn: PyReadwriteArray1<'py, u64>,
-    rows: PyReadonlyArray1<'py, i64>,
-    k: usize,
-) -> PyResult<Bound<'py, PyArray2<u64>>> {
-    const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
-    let keys = keys.as_array();
-    let mut drawn = drawn.as_array_mut();
-    let n = keys.len();
-    if drawn.len() != n {
-        return Err(PyValueError::new_err(format!(
-            "stream_draws: {n} keys but {} draw counts",
-            drawn.len()
-        )));
-    }
-    // Every row checked, and its count read, before any count moves.
-    let starts = rows
-        .as_array()
-        .iter()
-        .map(|&r| match usize::try_from(r) {
-            Ok(r) if r < n => Ok((r, drawn[r])),
-            _ => Err(PyValueError::new_err(format!(
-                "stream_draws: row {r} is not in 0..{n}"
-            ))),
-        })
-        .collect::<PyResult<Vec<_>>>()?;
-    let mut out = Array2::<u64>::zeros((starts.len(), k));
-    for (mut row, &(r, made)) in out.rows_mut().into_iter().zip(&starts) {
-        let mut state = keys[r].wrapping_add(made.wrapping_mul(GOLDEN));
-        row.iter_mut()
-            .for_each(|v| *v = usar_sim::splitmix(&mut state));
-        drawn[r] = made.wrapping_add(k as u64);
-    }
-    Ok(out.into_pyarray(py))
-}
-
 /// The Rust core of the `usarsim` package.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -700,7 +652,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<agents::PyState>()?;
     m.add_function(wrap_pyfunction!(agents::fly, m)?)?;
     m.add_function(wrap_pyfunction!(qualified_class, m)?)?;
-    m.add_function(wrap_pyfunction!(stream_draws, m)?)?;
+    m.add_function(wrap_pyfunction!(tasks::stream_draws, m)?)?;
     m.add_function(wrap_pyfunction!(tasks::task_reward, m)?)?;
     m.add_function(wrap_pyfunction!(tasks::task_observe, m)?)?;
     m.add_function(wrap_pyfunction!(tasks::stream_sample, m)?)?;

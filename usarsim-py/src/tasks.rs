@@ -1,10 +1,13 @@
-//! The tasks' per-step arithmetic (`usarsim._task.Tasks.reward` and `Tasks.observe`) over
-//! every row in one call: what the NumPy expressions in `_task.py` give, bit for bit (the
-//! same operations in the same order, in float64; the tests compare them on random states),
-//! without their forty array passes and temporaries — at 1024 rows the NumPy version took
-//! 0.5–0.6 ms of a step, during which the stepping threads wait.
+//! The tasks' per-step arithmetic over every row in one call each: the rewards
+//! (`usarsim._task.Tasks.reward`), the observations (`Tasks.observe`), and a reset's random
+//! places — Waypoints' waypoints and `start="random"` (`MapInfo.sample_rows`), Hover's spawns
+//! (`Tasks.new_starts`) — drawn from each row's stream. Each gives what its Python definition
+//! kept in `_task.py` / `_maps.py` gives, bit for bit (the same operations in the same order,
+//! in float64; the tests compare them), without the NumPy passes and temporaries: at 1024
+//! rows the NumPy rewards and observations took 0.5–0.6 ms of a step, during which the
+//! stepping threads wait, and the Python sampling loop 0.3–0.45 s per 1024 Waypoints resets.
 
-use numpy::ndarray::{Array3, ArrayView1, ArrayView2, ArrayView3};
+use numpy::ndarray::{Array2, Array3, ArrayView1, ArrayView2, ArrayView3};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2,
     PyReadonlyArray3, PyReadwriteArray1, PyReadwriteArray2, PyUntypedArrayMethods,
@@ -17,6 +20,80 @@ use pyo3::types::PyDict;
 const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
 /// 2⁻⁵³: a draw's top 53 bits times this is a uniform double in [0, 1).
 const UNIT: f64 = 1.0 / 9_007_199_254_740_992.0;
+
+/// The rows' random streams (`usarsim._task.Streams`): each row's key and the draws its
+/// stream has made.
+struct Streams<'a> {
+    keys: ArrayView1<'a, u64>,
+    drawn: numpy::ndarray::ArrayViewMut1<'a, u64>,
+}
+
+impl<'a> Streams<'a> {
+    fn of(
+        keys: &'a PyReadonlyArray1<'_, u64>,
+        drawn: &'a mut PyReadwriteArray1<'_, u64>,
+        what: &str,
+    ) -> PyResult<Self> {
+        let (keys, drawn) = (keys.as_array(), drawn.as_array_mut());
+        if drawn.len() != keys.len() {
+            return Err(bad(format!(
+                "{what}: {} keys but {} draw counts",
+                keys.len(),
+                drawn.len()
+            )));
+        }
+        Ok(Self { keys, drawn })
+    }
+
+    /// Each of `rows` checked, with the draws its stream had made: all read before any count
+    /// moves (a row listed twice draws the same twice, as NumPy's `drawn[rows] += k` counts it
+    /// once).
+    fn starts(&self, rows: &ArrayView1<'_, i64>, what: &str) -> PyResult<Vec<(usize, u64)>> {
+        let n = self.keys.len();
+        rows.iter()
+            .map(|&r| match usize::try_from(r) {
+                Ok(r) if r < n => Ok((r, self.drawn[r])),
+                _ => Err(bad(format!("{what}: row {r} is not in 0..{n}"))),
+            })
+            .collect()
+    }
+
+    /// SplitMix64's state for row `r` after `made` draws: the next draws continue from it.
+    fn state(&self, r: usize, made: u64) -> u64 {
+        self.keys[r].wrapping_add(made.wrapping_mul(GOLDEN))
+    }
+}
+
+/// A uniform double in [0, 1): the next draw's top 53 bits times 2⁻⁵³ (`Streams.doubles`).
+fn uniform(state: &mut u64) -> f64 {
+    (usar_sim::splitmix(state) >> 11) as f64 * UNIT
+}
+
+/// `usarsim._task.Streams.draw`: `k` 64-bit draws from the stream of each of `rows`, shape
+/// `(len(rows), k)`: SplitMix64 from `keys[row] + drawn[row] * golden` (the `drawn[row]`
+/// draws made so far), the golden-ratio increment once per draw; then `drawn[row] += k` (once
+/// per row, as NumPy's `drawn[rows] += k` does when a row repeats). What the NumPy expression
+/// gives, bit for bit, without its dozen temporary arrays (a vector env's autoreset draws for
+/// every resetting row).
+#[pyfunction]
+pub(crate) fn stream_draws<'py>(
+    py: Python<'py>,
+    keys: PyReadonlyArray1<'py, u64>,
+    mut drawn: PyReadwriteArray1<'py, u64>,
+    rows: PyReadonlyArray1<'py, i64>,
+    k: usize,
+) -> PyResult<Bound<'py, PyArray2<u64>>> {
+    let mut streams = Streams::of(&keys, &mut drawn, "stream_draws")?;
+    let starts = streams.starts(&rows.as_array(), "stream_draws")?;
+    let mut out = Array2::<u64>::zeros((starts.len(), k));
+    for (mut row, &(r, made)) in out.rows_mut().into_iter().zip(&starts) {
+        let mut state = streams.state(r, made);
+        row.iter_mut()
+            .for_each(|v| *v = usar_sim::splitmix(&mut state));
+        streams.drawn[r] = made.wrapping_add(k as u64);
+    }
+    Ok(out.into_pyarray(py))
+}
 
 /// Reward per waypoint reached (`_task.WAYPOINT_BONUS`).
 const WAYPOINT_BONUS: f64 = 10.0;
@@ -435,18 +512,16 @@ pub(crate) fn stream_sample<'py>(
     radius: f64,
 ) -> PyResult<Bound<'py, PyArray3<f64>>> {
     const TRIES: u64 = 20_000;
-    let keys = keys.as_array();
-    let mut drawn = drawn.as_array_mut();
+    let mut streams = Streams::of(&keys, &mut drawn, "stream_sample")?;
     let rows = rows.as_array();
     let boxes = boxes.as_array();
-    if drawn.len() != keys.len() || boxes.ncols() != 4 {
+    if boxes.ncols() != 4 {
         return Err(bad(format!(
-            "stream_sample: {} keys, {} draw counts, boxes {:?} (expected (k, 4))",
-            keys.len(),
-            drawn.len(),
+            "stream_sample: boxes {:?} (expected (k, 4))",
             boxes.shape()
         )));
     }
+    streams.starts(&rows, "stream_sample")?;
     let near = near.as_ref().map(PyReadonlyArray2::as_array);
     if let Some(near) = &near
         && (near.nrows() != rows.len() || near.ncols() < 2)
@@ -460,31 +535,21 @@ pub(crate) fn stream_sample<'py>(
     let boxes = Boxes::of(&boxes);
     let mut out = Array3::<f64>::zeros((rows.len(), k, 3));
     for (m, &row) in rows.iter().enumerate() {
-        let r = usize::try_from(row)
-            .ok()
-            .filter(|&r| r < keys.len())
-            .ok_or_else(|| {
-                bad(format!(
-                    "stream_sample: row {row} is not in 0..{}",
-                    keys.len()
-                ))
-            })?;
-        let mut state = keys[r].wrapping_add(drawn[r].wrapping_mul(GOLDEN));
-        let mut uniform = |low: f64, high: f64| {
-            let u = (usar_sim::splitmix(&mut state) >> 11) as f64 * UNIT;
-            low + (high - low) * u
-        };
+        // Read now, not before the call: a row listed twice continues its stream.
+        let r = row as usize;
+        let mut state = streams.state(r, streams.drawn[r]);
+        let mut between = |low: f64, high: f64| low + (high - low) * uniform(&mut state);
         let (mut found, mut tried) = (0, 0_u64);
         while found < k && tried < TRIES {
             tried += 1;
             let (x, y) = match &near {
                 Some(near) => (
-                    clip(near[[m, 0]] + uniform(-radius, radius), lo[0], hi[0]),
-                    clip(near[[m, 1]] + uniform(-radius, radius), lo[1], hi[1]),
+                    clip(near[[m, 0]] + between(-radius, radius), lo[0], hi[0]),
+                    clip(near[[m, 1]] + between(-radius, radius), lo[1], hi[1]),
                 ),
-                None => (uniform(lo[0], hi[0]), uniform(lo[1], hi[1])),
+                None => (between(lo[0], hi[0]), between(lo[1], hi[1])),
             };
-            let z = uniform(band[0], band[1]);
+            let z = between(band[0], band[1]);
             let apart = (0..found).all(|j| {
                 let (dx, dy) = (x - out[[m, j, 0]], y - out[[m, j, 1]]);
                 (dx * dx + dy * dy).sqrt() >= spacing
@@ -496,7 +561,7 @@ pub(crate) fn stream_sample<'py>(
                 found += 1;
             }
         }
-        drawn[r] = drawn[r].wrapping_add(3 * tried);
+        streams.drawn[r] = streams.drawn[r].wrapping_add(3 * tried);
         if found < k {
             return Err(bad(format!(
                 "map: could not find {k} free places {spacing} m apart in the flight band"
@@ -524,46 +589,26 @@ pub(crate) fn hover_spawns<'py>(
     boxes: PyReadonlyArray2<'py, f64>,
     z_max: f64,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let (keys, rows) = (keys.as_array(), rows.as_array());
-    let mut drawn = drawn.as_array_mut();
+    let mut streams = Streams::of(&keys, &mut drawn, "hover_spawns")?;
+    let rows = rows.as_array();
     let base = base.as_array();
     let boxes = boxes.as_array();
-    if drawn.len() != keys.len() || base.dim() != (rows.len(), 4) || boxes.ncols() != 4 {
+    if base.dim() != (rows.len(), 4) || boxes.ncols() != 4 {
         return Err(bad(format!(
-            "hover_spawns: {} keys, {} draw counts, base {:?} for {} rows, boxes {:?}",
-            keys.len(),
-            drawn.len(),
+            "hover_spawns: base {:?} for {} rows, boxes {:?}",
             base.shape(),
             rows.len(),
             boxes.shape()
         )));
     }
-    // Every row checked, and its draws made read, before any count moves (a row listed twice
-    // draws the same twice, as `Streams.doubles` gives).
-    let made = rows
-        .iter()
-        .map(|&row| {
-            usize::try_from(row)
-                .ok()
-                .filter(|&r| r < keys.len())
-                .map(|r| (r, drawn[r]))
-                .ok_or_else(|| {
-                    bad(format!(
-                        "hover_spawns: row {row} is not in 0..{}",
-                        keys.len()
-                    ))
-                })
-        })
-        .collect::<PyResult<Vec<_>>>()?;
+    let made = streams.starts(&rows, "hover_spawns")?;
     let boxes = Boxes::of(&boxes);
     let mut out = base.to_owned();
     for (m, &(r, made)) in made.iter().enumerate() {
-        let mut state = keys[r].wrapping_add(made.wrapping_mul(GOLDEN));
-        drawn[r] = made.wrapping_add(3);
-        let p: [f64; 3] = std::array::from_fn(|c| {
-            let u = (usar_sim::splitmix(&mut state) >> 11) as f64 * UNIT;
-            span[c] * u + low[c] + base[[m, c]]
-        });
+        let mut state = streams.state(r, made);
+        streams.drawn[r] = made.wrapping_add(3);
+        let p: [f64; 3] =
+            std::array::from_fn(|c| span[c] * uniform(&mut state) + low[c] + base[[m, c]]);
         if !boxes.inside(p[0], p[1]) && p[2] < z_max {
             for (c, v) in p.into_iter().enumerate() {
                 out[[m, c]] = v;
