@@ -126,10 +126,10 @@ def test_waypoints_and_random_starts_drawn_in_rust_follow_their_python_definitio
 
 
 @pytest.mark.parametrize("start", [None, "random"])
-def test_waypoints_resets_of_many_rows_take_milliseconds_and_repeat(start):
-    # 1024 Waypoints rows drew their waypoints with a NumPy generator each, in a Python loop:
-    # 0.3-0.45 s per step in which they all reset. The rows' draws do not depend on who else
-    # resets with them.
+def test_each_row_draws_its_own_waypoints_whoever_resets_with_it(start):
+    # The rows' waypoints are drawn in Rust now (a NumPy generator each and a Python loop
+    # cost 0.3-0.45 s per 1024 resets: BENCHMARKS.md, fifteenth round). A row's draws do
+    # not depend on who else resets with it, and its waypoints keep their spacing.
     env = usarsim.vector_env(64, task="waypoints", state_only=True, start=start)
     env.reset(seed=4)
     alone = usarsim.vector_env(64, task="waypoints", state_only=True, start=start)
