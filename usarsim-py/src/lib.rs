@@ -270,11 +270,15 @@ impl PyBatch {
                     })
                 })
                 .collect::<PyResult<_>>()?,
-            Err(_) => indices.extract()?,
+            Err(_) => indices.extract().map_err(|e| {
+                PyValueError::new_err(format!("indices: expected world indices: {e}"))
+            })?,
         };
         let seeds: Vec<u64> = match seeds.extract::<PyReadonlyArray1<'_, u64>>() {
             Ok(a) => a.as_array().to_vec(),
-            Err(_) => seeds.extract()?,
+            Err(_) => seeds
+                .extract()
+                .map_err(|e| PyValueError::new_err(format!("seeds: expected integers: {e}")))?,
         };
         let per = self.get().uavs_per_world;
         if seeds.len() != indices.len() {

@@ -136,26 +136,25 @@ fn clip(x: f64, lo: f64, hi: f64) -> f64 {
     if x.is_nan() || x < hi { x } else { hi }
 }
 
-/// The rows' targets and progress, shared by both calls.
+/// The rows' targets and how many each has, shared by both calls.
 struct Targets<'a> {
     targets: ArrayView3<'a, f64>,
     count: ArrayView1<'a, i64>,
-    index: ArrayView1<'a, i64>,
 }
 
 impl Targets<'_> {
-    /// Checks the shapes against `n` rows and every row's target index.
-    fn check(&self, n: usize) -> PyResult<()> {
+    /// Checks the shapes against `n` rows and every row's target `index`.
+    fn check(&self, n: usize, index: &ArrayView1<'_, i64>) -> PyResult<()> {
         let (rows, slots, three) = self.targets.dim();
-        if rows != n || three != 3 || self.count.len() != n || self.index.len() != n {
+        if rows != n || three != 3 || self.count.len() != n || index.len() != n {
             return Err(bad(format!(
                 "tasks: targets {:?}, count {}, index {} for {n} rows",
                 self.targets.shape(),
                 self.count.len(),
-                self.index.len()
+                index.len()
             )));
         }
-        for (i, (&c, &k)) in self.count.iter().zip(&self.index).enumerate() {
+        for (i, (&c, &k)) in self.count.iter().zip(index).enumerate() {
             if c < 1 || c as usize > slots || k < 0 {
                 return Err(bad(format!(
                     "tasks: row {i}: {c} waypoints of {slots} slots, index {k}"
@@ -263,18 +262,16 @@ pub(crate) fn task_reward<'py>(
     let t = Targets {
         targets: targets.as_array(),
         count: count.as_array(),
-        index: index.view(),
     };
-    t.check(n)?;
+    t.check(n, &index.view())?;
     let mut reward = vec![0.0; n];
     let (mut terminated, mut reached) = (vec![false; n], vec![false; n]);
     let mut truncated = vec![false; n];
-    let mut new_index = Vec::with_capacity(n);
     for i in 0..n {
         let live = live[i];
         steps[i] += i64::from(live);
         let touch = if touched[i] { TOUCH_PENALTY } else { 0.0 };
-        let k = t.index[i];
+        let k = index[i];
         let mut dist = length(t.vector(i, &position, k));
         let (mut r, mut end, next) = if hover {
             let yaw = wrap(attitude[[i, 2]] - hold_yaw[i]).abs();
@@ -293,9 +290,8 @@ pub(crate) fn task_reward<'py>(
         truncated[i] = live && !end && (steps[i] >= max_steps || battery[[i, 0]] <= 0.0);
         terminated[i] = end;
         reward[i] = if live { r } else { 0.0 };
-        new_index.push(next);
+        index[i] = next;
     }
-    index.iter_mut().zip(new_index).for_each(|(k, v)| *k = v);
     Ok((
         reward.into_pyarray(py),
         terminated.into_pyarray(py),
@@ -348,12 +344,12 @@ pub(crate) fn task_observe(
     let attitude = item("attitude")?;
     let attitude = rows2(&attitude, n, 3, "attitude")?;
     let hold_yaw = rows1(&hold_yaw, n, "hold_yaw")?;
+    let index = index.as_array();
     let t = Targets {
         targets: targets.as_array(),
         count: count.as_array(),
-        index: index.as_array(),
     };
-    t.check(n)?;
+    t.check(n, &index)?;
     let arrays = keys
         .iter()
         .filter(|k| !["attitude", "waypoint", "yaw_error"].contains(&k.as_str()))
@@ -401,7 +397,7 @@ pub(crate) fn task_observe(
                     .iter_mut()
                     .zip(&a[i * w..(i + 1) * w])
                     .for_each(|(b, v)| *b = wrap(*v)),
-                Source::Waypoint => b.copy_from_slice(&t.vector(i, &position, t.index[i])),
+                Source::Waypoint => b.copy_from_slice(&t.vector(i, &position, index[i])),
                 Source::YawError if hover => b[0] = wrap(hold_yaw[i] - attitude[[i, 2]]),
                 Source::YawError => b[0] = 0.0,
             }

@@ -32,6 +32,7 @@ class MapInfo:
         #: Their bounding boxes seen from above, (k, 2) corners each.
         self._box_lo = np.array([lo for _, lo, _ in self.obstacles]).reshape(-1, 2)
         self._box_hi = np.array([hi for _, _, hi in self.obstacles]).reshape(-1, 2)
+        self._boxes = {}  # boxes(clearance), kept
 
     def start(self, key: str):
         """The PlayerStart with tag `key` as (x, y, z, yaw)."""
@@ -95,12 +96,11 @@ class MapInfo:
     def boxes(self, clearance: float) -> np.ndarray:
         """The obstacles' boxes seen from above grown by `clearance`, rows of x0, y0, x1, y1
         (what :meth:`free` tests against; kept per clearance: read only)."""
-        cache = self.__dict__.setdefault("_boxes", {})
-        if clearance not in cache:
+        if clearance not in self._boxes:
             boxes = np.hstack([self._box_lo - clearance, self._box_hi + clearance]).reshape(-1, 4)
-            cache[clearance] = np.ascontiguousarray(boxes)
-            cache[clearance].flags.writeable = False
-        return cache[clearance]
+            self._boxes[clearance] = np.ascontiguousarray(boxes)
+            self._boxes[clearance].flags.writeable = False
+        return self._boxes[clearance]
 
     def _sample_args(self, clearance: float):
         """`stream_sample`'s map arguments: the bounds, the flight band and :meth:`boxes`."""
