@@ -108,7 +108,12 @@ fn main() {
     let mut run = |periods: usize, digest: Option<&mut u64>| {
         let mut digest = digest;
         for k in 0..periods {
-            for (i, (world, client)) in sims.iter_mut().enumerate() {
+            for i in 0..sims.len() {
+                // As the Python batch does: the next world's memory on its way meanwhile.
+                if let Some((next, _)) = sims.get(i + 1) {
+                    next.prefetch();
+                }
+                let (world, client) = &mut sims[i];
                 if resets {
                     episodes += 1;
                     world.reset(episodes);

@@ -37,6 +37,7 @@ mod noise;
 mod obj;
 pub mod part;
 pub mod power;
+pub mod prefetch;
 pub mod quadrotor;
 pub mod randomize;
 pub mod render;

@@ -435,6 +435,27 @@ impl YawTrig {
 }
 
 impl Robot {
+    /// [`crate::World::prefetch`]'s part for the robot: its fields and its parts' timers
+    /// and noise.
+    pub(crate) fn prefetch(&self) {
+        use crate::prefetch::line;
+        line(&self.position);
+        line(&self.set);
+        line(&self.yaw_trig);
+        line(&self.status);
+        line(&self.parts);
+        line(&self.notices);
+        line(&self.crashed);
+        line(&self.drawn);
+        line(&self.spawn_tick);
+        for part in self.parts.iter().take(16) {
+            line(&part.timer);
+            line(&part.noise);
+            line(&part.fault);
+            part.sensor.prefetch();
+        }
+    }
+
     /// Spawns into `scene`; `None` (logged) when the place is taken. A `spare` robot of the
     /// same model (one a reset took out of the world) lends its sensors' allocations and its
     /// model's reference: the new robot is the same as one built afresh.

@@ -534,6 +534,13 @@ impl WorldSim {
         self.world.time()
     }
 
+    /// Starts bringing the world's and its UAVs' memory into the caches (a hint:
+    /// [`World::prefetch`]); the batch asks it of the next world while it steps one.
+    pub(crate) fn prefetch(&self) {
+        self.world.prefetch();
+        usar_sim::prefetch::lines(&self.uavs, 16);
+    }
+
     /// Renders every UAV's camera and appends, per UAV, its R, G, B bytes (`rgb`) and its
     /// depths in metres, [`DEPTH_MAX`] where nothing is nearer (`depth`).
     pub(crate) fn render(&mut self, rgb: Option<&mut Vec<u8>>, depth: Option<&mut Vec<f32>>) {
@@ -816,14 +823,20 @@ fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
 /// tick's sweep then casting) no longer keeps the others waiting at the end of the step.
 /// Not pieces in turn from one queue either: a world then moved between threads from call
 /// to call, and what a reset freed went back to another thread's heap (resets were slower).
-fn par_each<T: Send, F>(items: &mut [T], f: F)
+/// Before each item a thread passes the next of its piece to `ahead` (a cache hint,
+/// [`WorldSim::prefetch`]: a world's state is scattered over a few kilobytes of the heap).
+fn par_each<T: Send, F, A>(items: &mut [T], ahead: A, f: F)
 where
     F: Fn(usize, &mut T) + Sync,
+    A: Fn(&T) + Sync,
 {
     let pool = (items.len() >= 4).then(pool).flatten();
     let Some(pool) = pool else {
-        for (i, w) in items.iter_mut().enumerate() {
-            f(i, w);
+        for i in 0..items.len() {
+            if let Some(next) = items.get(i + 1) {
+                ahead(next);
+            }
+            f(i, &mut items[i]);
         }
         return;
     };
@@ -852,8 +865,12 @@ where
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner)
                     .take();
-                for (j, w) in piece.into_iter().flatten().enumerate() {
-                    f(p * chunk + j, w);
+                let piece = piece.unwrap_or_default();
+                for j in 0..piece.len() {
+                    if let Some(next) = piece.get(j + 1) {
+                        ahead(next);
+                    }
+                    f(p * chunk + j, &mut piece[j]);
                 }
             }
         }
@@ -909,24 +926,28 @@ impl Batch {
         let mut rows = out.map_or_else(Vec::new, |r| r.split(per)).into_iter();
         let mut items: Vec<(&mut WorldSim, Option<Rows<'_>>)> =
             self.worlds.iter_mut().map(|w| (w, rows.next())).collect();
-        par_each(&mut items, |i, (w, rows)| {
-            match (resets.get(i).and_then(Option::as_ref), actions) {
-                (Some((seed, poses)), _) => match w.reset(settings, *seed, poses) {
-                    Ok(()) => {}
-                    Err(e) => {
-                        let mut failed = failed.lock().unwrap_or_else(PoisonError::into_inner);
-                        if failed.as_ref().is_none_or(|(j, _)| i < *j) {
-                            *failed = Some((i, e));
+        par_each(
+            &mut items,
+            |(w, _)| w.prefetch(),
+            |i, (w, rows)| {
+                match (resets.get(i).and_then(Option::as_ref), actions) {
+                    (Some((seed, poses)), _) => match w.reset(settings, *seed, poses) {
+                        Ok(()) => {}
+                        Err(e) => {
+                            let mut failed = failed.lock().unwrap_or_else(PoisonError::into_inner);
+                            if failed.as_ref().is_none_or(|(j, _)| i < *j) {
+                                *failed = Some((i, e));
+                            }
                         }
-                    }
-                },
-                (None, Some(actions)) => w.step(settings, &actions[i * per..(i + 1) * per]),
-                (None, None) => {}
-            }
-            if let Some(rows) = rows {
-                w.write(rows);
-            }
-        });
+                    },
+                    (None, Some(actions)) => w.step(settings, &actions[i * per..(i + 1) * per]),
+                    (None, None) => {}
+                }
+                if let Some(rows) = rows {
+                    w.write(rows);
+                }
+            },
+        );
         match failed.into_inner().unwrap_or_else(PoisonError::into_inner) {
             Some((i, e)) => Err(invalid(format!("world {i}: {e}"))),
             None => Ok(()),
@@ -938,11 +959,15 @@ impl Batch {
     pub(crate) fn images(&mut self, rgb: bool, depth: bool) -> (Vec<u8>, Vec<f32>) {
         let parts: Vec<Mutex<(Vec<u8>, Vec<f32>)>> =
             self.worlds.iter().map(|_| Mutex::default()).collect();
-        par_each(&mut self.worlds, |i, w| {
-            let mut part = parts[i].lock().unwrap_or_else(PoisonError::into_inner);
-            let (r, d) = &mut *part;
-            w.render(rgb.then_some(r), depth.then_some(d));
-        });
+        par_each(
+            &mut self.worlds,
+            |_| {},
+            |i, w| {
+                let mut part = parts[i].lock().unwrap_or_else(PoisonError::into_inner);
+                let (r, d) = &mut *part;
+                w.render(rgb.then_some(r), depth.then_some(d));
+            },
+        );
         let (mut r, mut d) = (Vec::new(), Vec::new());
         for part in parts {
             let (pr, pd) = part.into_inner().unwrap_or_else(PoisonError::into_inner);
