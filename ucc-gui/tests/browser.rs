@@ -70,8 +70,74 @@ async fn start_browser(chromium: &PathBuf, chromedriver: &PathBuf) -> Result<Ses
     start_browser_with(chromium, chromedriver, 1400, 1000, 1.0).await
 }
 
-/// A browser with a window of `width`×`height` CSS pixels at `scale` device pixels each.
+/// How many times a browser is started before its test fails: on a loaded 2-core machine
+/// Chromium sometimes does not answer chromedriver in time ("webdriver server did not
+/// respond"), which says nothing about the control center.
+const BROWSER_ATTEMPTS: usize = 3;
+
+/// `start` until it succeeds, at most `attempts` times; the error names every attempt's.
+async fn retried<T, F, Fut>(attempts: usize, what: &str, mut start: F) -> Result<T>
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = Result<T>>,
+{
+    let mut errors = Vec::new();
+    for attempt in 1..=attempts {
+        match start().await {
+            Ok(value) => return Ok(value),
+            Err(e) => {
+                eprintln!("{what}: attempt {attempt} of {attempts} failed: {e:#}");
+                errors.push(format!("attempt {attempt}: {e:#}"));
+            }
+        }
+    }
+    bail!("{what} failed {attempts} times: {}", errors.join("; "))
+}
+
+#[tokio::test]
+async fn a_failed_start_is_retried_and_every_failure_is_named() {
+    let mut calls = 0;
+    let value = retried(3, "start", || {
+        calls += 1;
+        let n = calls;
+        async move {
+            if n < 3 {
+                bail!("no answer {n}")
+            }
+            Ok(n)
+        }
+    })
+    .await
+    .unwrap();
+    assert_eq!(value, 3);
+    let e = retried(2, "the browser", || async {
+        Err::<(), _>(anyhow::anyhow!("no answer"))
+    })
+    .await
+    .unwrap_err()
+    .to_string();
+    assert_eq!(
+        e,
+        "the browser failed 2 times: attempt 1: no answer; attempt 2: no answer"
+    );
+}
+
+/// A browser with a window of `width`×`height` CSS pixels at `scale` device pixels each
+/// (started again, [`BROWSER_ATTEMPTS`] times in all, when it does not come up).
 async fn start_browser_with(
+    chromium: &PathBuf,
+    chromedriver: &PathBuf,
+    width: u32,
+    height: u32,
+    scale: f64,
+) -> Result<Session> {
+    retried(BROWSER_ATTEMPTS, "starting chromium", || {
+        start_browser_once(chromium, chromedriver, width, height, scale)
+    })
+    .await
+}
+
+async fn start_browser_once(
     chromium: &PathBuf,
     chromedriver: &PathBuf,
     width: u32,
@@ -111,10 +177,13 @@ async fn start_browser_with(
     });
     let mut builder = ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new());
     builder.capabilities(caps.as_object().unwrap().clone());
-    let client = builder
-        .connect(&format!("http://127.0.0.1:{port}"))
-        .await
-        .context("cannot open a chromium session")?;
+    let client = match builder.connect(&format!("http://127.0.0.1:{port}")).await {
+        Ok(client) => client,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&profile);
+            return Err(e).context("cannot open a chromium session");
+        }
+    };
     Ok(Session {
         client,
         driver,
