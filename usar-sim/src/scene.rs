@@ -220,6 +220,8 @@ struct Solid {
     handle: ColliderHandle,
     pose: Pose,
     cuboid: Cuboid,
+    /// The box is not rotated (a map's walls, floors and ceilings): [`Solid::resting`].
+    level: bool,
 }
 
 impl Solid {
@@ -232,6 +234,7 @@ impl Solid {
             handle,
             pose,
             cuboid,
+            level: pose.rotation == Rotation::IDENTITY,
         })
     }
 
@@ -239,6 +242,20 @@ impl Solid {
     /// normal, turned into the world's frame as parry's `transform1_by` turns a hit (the
     /// sweep reads nothing else of it).
     fn impact(
+        &self,
+        body: &Pose,
+        vel: Vector,
+        cylinder: &Cylinder,
+        options: ShapeCastOptions,
+    ) -> Option<Impact> {
+        match self.resting(body, vel, cylinder, options) {
+            Some(impact) => impact,
+            None => self.full_impact(body, vel, cylinder, options),
+        }
+    }
+
+    /// [`Solid::impact`] by the closed form's full cast in the box's frame.
+    fn full_impact(
         &self,
         body: &Pose,
         vel: Vector,
@@ -259,6 +276,51 @@ impl Solid {
             toi: hit.toi as Real,
             normal: pose.rotation * Vector::new(n[0], n[1], n[2]),
         })
+    }
+}
+
+impl Solid {
+    /// [`Solid::impact`] without turning the body into the box's frame and back, for the
+    /// cast most sweeps of a robot on a floor or under a ceiling make: a level box, the body
+    /// over (or under) its top (bottom) face and already within the target distance of it.
+    /// The closed form then decides at the start from the vertical gap alone
+    /// ([`crate::upright::Pair::cast`]: the separation is `(0, 0, z)`, the normal
+    /// `(0, 0, z / |z|)`, a hit at time 0 when the motion goes into the face), and an
+    /// unrotated frame changes no non-zero coordinate of the body or its motion (a
+    /// quaternion with zero vector part multiplies them by exactly one), so every number is
+    /// the one the full cast computes. `None` when it does not apply (the full cast then).
+    fn resting(
+        &self,
+        body: &Pose,
+        vel: Vector,
+        cylinder: &Cylinder,
+        options: ShapeCastOptions,
+    ) -> Option<Option<Impact>> {
+        if !self.level || options.stop_at_penetration {
+            return None;
+        }
+        let c = body.translation - self.pose.translation;
+        let h = self.cuboid.half_extents;
+        // Over the face: no horizontal separation (the rim's cases take the full cast).
+        if !(c.x.abs() <= h.x && c.y.abs() <= h.y) {
+            return None;
+        }
+        let cz = f64::from(c.z);
+        let z = (cz.abs() - (f64::from(h.z) + f64::from(cylinder.half_height))).max(0.0);
+        let z = z.copysign(cz);
+        let start = (z * z).sqrt();
+        // Overlapping (no gap: the way out depends on more than z) or not yet within.
+        if !(start > 0.0 && start <= f64::from(options.target_distance)) {
+            return None;
+        }
+        let normal = z / start;
+        // The dot product of the normal (0, 0, normal) with the motion, whose horizontal
+        // terms are zeros.
+        Some((normal * f64::from(vel.z) < 0.0).then(|| Impact {
+            solid: self.handle,
+            toi: 0.0,
+            normal: self.pose.rotation * Vector::new(0.0, 0.0, normal as Real),
+        }))
     }
 }
 
@@ -1891,6 +1953,90 @@ mod tests {
             most <= bodies.len() / 10,
             "{most} of {} robots regrew their tree boxes on one tick",
             bodies.len()
+        );
+    }
+
+    /// The shortcut for a body resting on (or under) a level box answers as the full
+    /// closed-form cast, bit for bit: bodies over, under and beside random boxes, from
+    /// overlapping to beyond the target distance, on the rim and at ±0, moving every way
+    /// (zeros of either sign included).
+    #[test]
+    fn a_resting_body_casts_as_the_full_cast() {
+        let mut seed = 0x2545_F491_4F6C_DD1D_u64;
+        let mut unit = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let cylinder = BodyShape {
+            radius: 0.45,
+            half_height: 0.1,
+        }
+        .cylinder();
+        let options = ShapeCastOptions {
+            max_time_of_impact: 1.0,
+            target_distance: SKIN,
+            stop_at_penetration: false,
+            compute_impact_geometry_on_penetration: true,
+        };
+        let (mut shortcuts, mut hits) = (0, 0);
+        for case in 0..20_000 {
+            let half = Vector::new(0.1 + 3.0 * unit(), 0.1 + 3.0 * unit(), 0.05 + unit());
+            let centre = Vector::new(6.0 * unit() - 3.0, 6.0 * unit() - 3.0, 4.0 * unit() - 2.0);
+            let solid = Solid {
+                handle: ColliderHandle::from_raw_parts(3, 0),
+                pose: Pose::from_translation(centre),
+                cuboid: Cuboid::new(half),
+                level: true,
+            };
+            // Across the face, on its rim, beyond it, or at ±0.
+            let mut across = |h: f32| match (4.0 * unit()) as u8 {
+                0 => h,
+                1 => -h,
+                2 => [0.0, -0.0][(2.0 * unit()) as usize],
+                _ => (2.0 * unit() - 1.0) * 1.2 * h,
+            };
+            let (x, y) = (across(half.x), across(half.y));
+            // A gap to the face of 0 to 0.03 m (the target 0.01 exactly now and then), or
+            // overlapping.
+            let gap = match (8.0 * unit()) as u8 {
+                0 => SKIN,
+                1 => -0.05,
+                _ => 0.03 * unit(),
+            };
+            let z = (half.z + 0.1 + gap) * if unit() < 0.5 { 1.0 } else { -1.0 };
+            let body = upright_pose(v3(centre + Vector::new(x, y, z)));
+            let mut speed = || match (5.0 * unit()) as u8 {
+                0 => 0.0,
+                1 => -0.0,
+                _ => 6.0 * unit() - 3.0,
+            };
+            let vel = Vector::new(speed(), speed(), speed());
+            let Some(fast) = solid.resting(&body, vel, &cylinder, options) else {
+                continue;
+            };
+            shortcuts += 1;
+            let full = solid.full_impact(&body, vel, &cylinder, options);
+            let bits = |i: &Option<Impact>| {
+                i.as_ref().map(|i| {
+                    (
+                        i.solid,
+                        i.toi.to_bits(),
+                        i.normal.to_array().map(f32::to_bits),
+                    )
+                })
+            };
+            hits += usize::from(fast.is_some());
+            assert_eq!(
+                bits(&fast),
+                bits(&full),
+                "case {case}: {body:?} {vel:?} {solid:?}"
+            );
+        }
+        assert!(
+            shortcuts > 3000 && hits > 1000,
+            "{shortcuts} shortcuts, {hits} hits"
         );
     }
 
