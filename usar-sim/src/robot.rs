@@ -452,7 +452,6 @@ impl Robot {
             line(&part.timer);
             line(&part.noise);
             line(&part.fault);
-            part.sensor.prefetch();
         }
     }
 

@@ -1107,27 +1107,6 @@ impl Scene {
             .all(|leaf| Some(leaf) == me)
     }
 
-    /// [`crate::World::prefetch`]'s part for the scene around the robot body `handle`.
-    pub(crate) fn prefetch(&self, handle: ColliderHandle) {
-        use crate::prefetch::{line, lines};
-        line(&self.plan);
-        line(&self.bvh);
-        line(&self.colliders);
-        line(&self.clear);
-        if let Some(collider) = self.colliders.get(handle) {
-            line(collider);
-            line(collider.position());
-        }
-        let leaf = handle.into_raw_parts().0;
-        if let Some(node) = self.bvh.leaf_node(leaf) {
-            line(node);
-        }
-        if let Some(plan) = &self.plan {
-            lines(&plan.near, 8);
-        }
-        lines(&self.clear, 2);
-    }
-
     /// Whether the scene holds exactly one robot body: its sweeps then read a [`Plan`] and
     /// skip the memos that serve crowds.
     fn lone(&self) -> bool {

@@ -176,8 +176,6 @@ pub(crate) trait SensorClone {
     /// type (a robot spawned again in a reset world reuses its sensors), else in a new one.
     fn clone_into_box(&self, target: &mut Box<dyn Sensor>);
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
-    /// Starts loading the sensor's first cache line ([`crate::World::prefetch`]).
-    fn prefetch(&self);
 }
 
 impl<T: Sensor + Clone + 'static> SensorClone for T {
@@ -194,10 +192,6 @@ impl<T: Sensor + Clone + 'static> SensorClone for T {
 
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
         self
-    }
-
-    fn prefetch(&self) {
-        crate::prefetch::line(self);
     }
 }
 
