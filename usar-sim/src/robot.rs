@@ -435,8 +435,8 @@ impl YawTrig {
 }
 
 impl Robot {
-    /// [`crate::World::prefetch`]'s part for the robot: its fields and its parts' timers
-    /// and noise.
+    /// [`crate::World::prefetch`]'s part for the robot: its fields and its parts' timers,
+    /// noise and faults.
     pub(crate) fn prefetch(&self) {
         use crate::prefetch::line;
         line(&self.position);
