@@ -137,6 +137,8 @@ async fn start_browser_with(
     .await
 }
 
+/// One try of [`start_browser_with`]: chromedriver on a free port, then a Chromium session
+/// (its profile removed again when the session does not open).
 async fn start_browser_once(
     chromium: &PathBuf,
     chromedriver: &PathBuf,

@@ -277,9 +277,7 @@ impl Solid {
             normal: pose.rotation * Vector::new(n[0], n[1], n[2]),
         })
     }
-}
 
-impl Solid {
     /// [`Solid::impact`] without turning the body into the box's frame and back, for the
     /// cast most sweeps of a robot on a floor or under a ceiling make: a level box, the body
     /// over (or under) its top (bottom) face and already within the target distance of it.
@@ -296,7 +294,7 @@ impl Solid {
         cylinder: &Cylinder,
         options: ShapeCastOptions,
     ) -> Option<Option<Impact>> {
-        if !self.level || options.stop_at_penetration {
+        if !self.level {
             return None;
         }
         let c = body.translation - self.pose.translation;
