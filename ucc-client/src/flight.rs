@@ -14,6 +14,12 @@
 //! * when the driver says the input went quiet ([`Flight::end_of_frame`]; without lockstep,
 //!   so that the agent does not wait a whole sensor interval for the next time stamp).
 //!
+//! In lockstep the agent steps only at the barriers (multiples of the lockstep step, shared
+//! by every client): a later time stamp between two barriers writes the open frame's row,
+//! and the agent steps at the barrier on everything read up to it, labelled with the latest
+//! time stamp. So what it sends reaches the world while the world is held, at a tick that
+//! does not depend on timing, even when a robot's sensors read between barriers.
+//!
 //! Lines without a time stamp (INS) belong to the open frame. A trajectory row is written for
 //! every frame that has a position reading of its time stamp, with every other reading as of
 //! that time stamp. If the input pauses in the middle of a time stamp's lines, the agent has
@@ -93,6 +99,14 @@ pub enum Phase {
 struct Barriers {
     step: f64,
     reached: f64,
+}
+
+impl Barriers {
+    /// The next barrier: the first multiple of `step` after `reached` (times come printed
+    /// to 0.1 ms, so one a microsecond short of a multiple is that multiple).
+    fn next(&self) -> f64 {
+        (((self.reached + 1e-6) / self.step).floor() + 1.0) * self.step
+    }
 }
 
 /// One iteration's flight.
@@ -195,9 +209,10 @@ impl Flight {
         })
     }
 
-    /// Flies in lockstep from here on: the server reported barrier `reached`; each frame
-    /// ends at a barrier and the next one, `step` simulated seconds later, is asked for once
-    /// the agent has answered.
+    /// Flies in lockstep from here on: the server reported barrier `reached`; the agent
+    /// steps at each barrier, and the next one — the next multiple of `step` simulated
+    /// seconds, so that every client with the same step shares its barriers whenever it
+    /// joined — is asked for once the agent has answered.
     pub fn set_lockstep(&mut self, step: f64, reached: f64) {
         self.lockstep = Some(Barriers { step, reached });
     }
@@ -379,7 +394,11 @@ impl Flight {
         if let (Some(time), Some(open)) = (message.time(), self.frame)
             && time > open + 1e-9
         {
-            self.close_frame();
+            if self.is_lockstep() {
+                self.record_frame(open);
+            } else {
+                self.close_frame();
+            }
         }
         match message {
             ServerMessage::Nfo(Nfo::GameInfo { level, .. }) => {
@@ -599,7 +618,7 @@ impl Flight {
             && !self.is_over()
         {
             self.commands
-                .push_back(Command::Sync(Barrier::at(l.reached + l.step)));
+                .push_back(Command::Sync(Barrier::at(l.next())));
         }
     }
 
@@ -643,6 +662,17 @@ impl Flight {
             }
             Phase::Flying => self.fly(time),
             _ => {}
+        }
+    }
+
+    /// In lockstep, a later time stamp completes the open frame's trajectory row, but the
+    /// agent steps only at the barrier, on the readings gathered up to it: while the world
+    /// runs between barriers nothing the agent would send could reach it at a tick that does
+    /// not depend on timing.
+    fn record_frame(&mut self, time: f64) {
+        if self.phase == Phase::Flying && self.stepped.is_none_or(|last| time > last + 1e-9) {
+            self.uav.dead_reckon(time);
+            self.record_point(time);
         }
     }
 
@@ -970,6 +1000,62 @@ mod tests {
         assert!(commands[0].starts_with("DRIVE "), "{commands:?}");
         assert_eq!(commands.last().unwrap(), "SYNC {Time 0.2000}");
         assert_eq!(f.phase(), Phase::Flying);
+    }
+
+    /// The defect: in lockstep, a robot whose sensors read between barriers (a second robot
+    /// reads on ticks of its own) stepped its agent at each later time stamp while the world
+    /// ran on toward the barrier, so its commands and radio messages reached the world at a
+    /// tick that depended on timing. Now such time stamps only write their rows, and the
+    /// agent steps once at each barrier, on the latest readings.
+    #[test]
+    fn in_lockstep_the_agent_steps_only_at_the_barriers() {
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let mut f = flight(Box::new(Witness(seen.clone())));
+        f.set_lockstep(0.1, 0.0);
+        f.request_barrier();
+        commands(&mut f);
+        f.on_message(&position(0.05, 0.0));
+        f.on_message(&velocity(0.05, 0.0));
+        f.on_message(&line("SYNC {Time 0.1000}"));
+        f.on_message(&position(0.15, 0.1));
+        f.on_message(&velocity(0.15, 1.0));
+        f.on_message(&position(0.18, 0.2));
+        assert_eq!(seen.lock().unwrap().len(), 1, "stepped between barriers");
+        assert_eq!(commands(&mut f), ["SYNC {Time 0.2000}"]);
+        f.on_message(&line("SYNC {Time 0.2000}"));
+        let seen = seen.lock().unwrap().clone();
+        assert_eq!(
+            seen,
+            [
+                (0.05, Some(0.05), Some(0.05)),
+                (0.18, Some(0.18), Some(0.15))
+            ]
+        );
+        let rows: Vec<f64> = f.record().trajectory.iter().map(|r| r.time).collect();
+        assert_eq!(
+            rows,
+            [0.05, 0.15, 0.18],
+            "a row per time stamp all the same"
+        );
+        assert_eq!(commands(&mut f), ["SYNC {Time 0.3000}"]);
+    }
+
+    /// The defect: a client that joined the lockstep at 0.005 s asked for barriers 0.105,
+    /// 0.205, … — never those of a client that joined at 0 — so two UAVs held the world twice
+    /// per step, and each stepped while the other's barrier held the world.
+    #[test]
+    fn lockstep_barriers_are_multiples_of_the_step_whenever_the_client_joined() {
+        let mut f = flight(agents::create("base").unwrap());
+        commands(&mut f);
+        for (reached, next) in [(0.005, "0.1000"), (0.1, "0.2000"), (0.3, "0.4000")] {
+            f.set_lockstep(0.1, reached);
+            f.request_barrier();
+            assert_eq!(
+                commands(&mut f),
+                [format!("SYNC {{Time {next}}}")],
+                "{reached}"
+            );
+        }
     }
 
     #[test]
