@@ -411,8 +411,10 @@ async fn two_uavs_talk_until_one_flies_down_behind_walls() {
 /// step's `SYNC`, so the WSS takes them at the barrier the world is held at, and delivers
 /// them before the world steps on; the receiving runner takes them from its radio's sockets
 /// before its agent's next step. So every message reaches the other agent at its first step
-/// after the barrier the sender's step was at — whichever UAV joined first and however long
-/// each agent thinks (the sender here sleeps a few milliseconds at some steps).
+/// after the barrier the sender's step was at — whichever UAV joined first, however long
+/// each agent thinks (the sender here sleeps a few milliseconds at some steps), and although
+/// the second UAV's sensors read between barriers (its agent steps at the barriers only, and
+/// the barriers are both UAVs' multiples of 0.1 s: a step's latest reading tells its barrier).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn in_lockstep_a_message_arrives_at_the_first_step_after_its_barrier() {
     let bind = async || tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
