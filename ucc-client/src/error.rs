@@ -28,6 +28,12 @@ pub enum RunError {
         /// `host:port`.
         addr: String,
     },
+    /// The configuration's lockstep step is not a positive, finite number of seconds.
+    #[error("{}", FlightError::BadLockstepStep { step: *step })]
+    BadLockstepStep {
+        /// The step given.
+        step: f64,
+    },
     /// INIT gave no stream.
     #[error("{}", FlightError::SpawnFailed { class: class.clone(), timeout: *timeout })]
     SpawnFailed {
@@ -116,6 +122,7 @@ impl From<FlightError> for RunError {
         match error {
             FlightError::Refused(e) => Self::Refused(e),
             FlightError::NoLockstep { addr } => Self::NoLockstep { addr },
+            FlightError::BadLockstepStep { step } => Self::BadLockstepStep { step },
             FlightError::SpawnFailed { class, timeout } => Self::SpawnFailed { class, timeout },
             FlightError::NoPosition { timeout } => Self::NoPosition { timeout },
             FlightError::StreamStopped { timeout } => Self::StreamStopped { timeout },
@@ -145,6 +152,7 @@ impl RunError {
             Self::NoMissions
                 | Self::Refused(_)
                 | Self::NoLockstep { .. }
+                | Self::BadLockstepStep { .. }
                 | Self::Connection(
                     ConnectionError::Connect { .. }
                         | ConnectionError::ConnectTimeout { .. }

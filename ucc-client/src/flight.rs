@@ -175,6 +175,10 @@ impl Flight {
         config: FlightConfig,
         mut agent: Box<dyn Agent>,
     ) -> Result<Self, FlightError> {
+        let step = config.lockstep_step;
+        if !(step > 0.0 && step.is_finite()) {
+            return Err(FlightError::BadLockstepStep { step });
+        }
         for mission in &config.missions {
             agent.add_mission(mission.clone())?;
         }
@@ -1055,6 +1059,23 @@ mod tests {
                 [format!("SYNC {{Time {next}}}")],
                 "{reached}"
             );
+        }
+    }
+
+    /// A step of 0, below or NaN would ask for barriers at `NaN` (or never past the last).
+    #[test]
+    fn a_lockstep_step_that_is_not_a_positive_number_is_refused() {
+        for step in [0.0, -0.1, f64::NAN, f64::INFINITY] {
+            let config = FlightConfig {
+                lockstep_step: step,
+                ..FlightConfig::default()
+            };
+            let Err(e) = Flight::new(1, config, agents::create("base").unwrap()) else {
+                panic!("step {step} accepted");
+            };
+            let text = e.to_string();
+            assert!(text.contains(&format!("lockstep step {step} s")), "{text}");
+            assert!(text.contains("positive and finite"), "{text}");
         }
     }
 

@@ -22,6 +22,15 @@ pub enum FlightError {
         /// `host:port`.
         addr: String,
     },
+    /// The configuration's lockstep step is not a positive, finite number of seconds.
+    #[error(
+        "lockstep step {step} s: the simulated seconds between barriers must be positive and \
+         finite (FlightConfig::lockstep_step)"
+    )]
+    BadLockstepStep {
+        /// The step given.
+        step: f64,
+    },
     /// INIT gave no stream.
     #[error(
         "spawn failed: no data from the server within {timeout:?} after INIT {class} \
