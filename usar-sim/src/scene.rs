@@ -1940,12 +1940,8 @@ mod tests {
     #[test]
     fn a_resting_body_casts_as_the_full_cast() {
         let mut seed = 0x2545_F491_4F6C_DD1D_u64;
-        let mut unit = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut unit =
+            move || (crate::noise::splitmix(&mut seed) >> 40) as f32 / (1u64 << 24) as f32;
         let cylinder = BodyShape {
             radius: 0.45,
             half_height: 0.1,
