@@ -18,7 +18,7 @@ use std::time::Instant;
 use usar_proto::{Command, Drive, Init, Vec3};
 use usar_sim::{ClientId, Map, RobotCatalog, SimConfig, World};
 
-const TICKS: usize = 20;
+const TICKS: u64 = 20;
 
 /// The Python package's allocator (usarsim-py), so that the figures are its worlds'.
 #[global_allocator]
@@ -120,9 +120,7 @@ fn main() {
                     *client = spawn(world, i);
                 }
                 world.command(*client, Command::Drive(actions[k % 8][i].clone()));
-                for _ in 0..TICKS {
-                    world.step(&mut out);
-                }
+                world.run(TICKS, &mut out);
                 world.take_touched(|_, _| {});
                 for (_, message) in out.drain(..) {
                     if let Some(digest) = digest.as_deref_mut() {

@@ -130,14 +130,19 @@ impl BodyShape {
     }
 }
 
-/// parry cylinders stand along y; this turns them upright along z.
-fn upright() -> Rotation {
-    Rotation::from_rotation_x(std::f32::consts::FRAC_PI_2)
-}
+/// parry cylinders stand along y; this turns them upright along z: a quarter turn about x,
+/// as `Rotation::from_rotation_x(FRAC_PI_2)` makes it (without its sine and cosine at every
+/// cast).
+const UPRIGHT: Rotation = Rotation::from_xyzw(
+    std::f32::consts::FRAC_1_SQRT_2,
+    0.0,
+    0.0,
+    std::f32::consts::FRAC_1_SQRT_2,
+);
 
 /// The pose of an upright cylinder centred at `centre`.
 pub(crate) fn upright_pose(centre: V3) -> Pose {
-    Pose::from_parts(to_vector(centre), upright())
+    Pose::from_parts(to_vector(centre), UPRIGHT)
 }
 
 thread_local! {
@@ -182,6 +187,8 @@ pub(crate) struct Scene {
     body_count: usize,
     /// The solids near the scene's only robot ([`Scene::plan_for`]).
     plan: Option<Plan>,
+    /// A [`Glide`]'s solids between glides (kept allocated).
+    glide_near: Vec<Near>,
     /// Robot bodies a reset kept in the collider set, out of the tree, highest index first:
     /// the next bodies of their shape take them back ([`Scene::insert_body`]).
     parked: Vec<ColliderHandle>,
@@ -454,6 +461,7 @@ impl Scene {
             base: None,
             body_count: 0,
             plan: None,
+            glide_near: Vec::new(),
             parked: Vec::new(),
         }
     }
@@ -1216,11 +1224,7 @@ impl Scene {
         centre: V3,
         motion: V3,
     ) -> (V3, Option<V3>) {
-        let mut contact = None;
-        // The world ends at ±LIMIT on every axis (docs/limits.md): no motion leaves it.
-        let limit = LIMIT;
-        let motion: V3 =
-            std::array::from_fn(|i| (centre[i] + motion[i]).clamp(-limit, limit) - centre[i]);
+        let motion = within_world(centre, motion);
         let leaf = handle.into_raw_parts().0;
         // The scene's only robot reads the solids near it from its plan: the memos of clear
         // rooms and rests would only add their own lookups.
@@ -1228,11 +1232,7 @@ impl Scene {
         if memos && let Some(normal) = self.still_resting(leaf, shape, centre, motion) {
             return (centre, Some(normal));
         }
-        let mut rest = if compare_norm(motion, MAX_STEP) == Some(std::cmp::Ordering::Greater) {
-            scale(motion, MAX_STEP / norm(motion))
-        } else {
-            motion
-        };
+        let rest = held_to_max_step(motion);
         if self.lone()
             && let Some(pos) = self.free_move(leaf, shape, centre, rest)
         {
@@ -1240,19 +1240,7 @@ impl Scene {
             return (pos, None);
         }
         let cylinder = shape.cylinder();
-        let mut pos = centre;
-        // The solid every cast so far hit at once (time 0), if every cast did so.
-        let mut pressed: Option<Option<u32>> = None;
-        for _ in 0..3 {
-            if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
-                break;
-            }
-            let options = ShapeCastOptions {
-                max_time_of_impact: 1.0,
-                target_distance: SKIN,
-                stop_at_penetration: false,
-                compute_impact_geometry_on_penetration: true,
-            };
+        let (pos, contact, pressed) = slide(centre, rest, |pos, rest, options| {
             let hit = if memos && self.known_clear(handle, shape, pos, rest) {
                 None
             } else if let Some(hit) = self.cast_among_boxes(handle, shape, pos, rest, options) {
@@ -1261,46 +1249,16 @@ impl Scene {
                 self.sweep_query(Some(handle))
                     .cast_shape(&upright_pose(pos), to_vector(rest), &cylinder, options)
                     .map(|(solid, hit)| Impact::of(solid, &hit))
-            };
-            let Some(Impact {
-                solid,
-                toi,
-                normal: n,
-            }) = hit
-            else {
-                pos = add(pos, rest);
-                pressed = Some(None);
-                break;
-            };
+            }?;
             // (Only the memos ask which solid pressed.)
             let static_now = memos
-                && toi == 0.0
+                && hit.toi == 0.0
                 && self
                     .colliders
-                    .get(solid)
+                    .get(hit.solid)
                     .is_some_and(|c| c.user_data != BODY);
-            let solid = solid.into_raw_parts().0;
-            pressed = match pressed {
-                None if static_now => Some(Some(solid)),
-                Some(Some(s)) if static_now && s == solid => Some(Some(s)),
-                _ => Some(None),
-            };
-            let toi = f64::from(toi).clamp(0.0, 1.0);
-            pos = add(pos, scale(rest, toi));
-            // Slide: keep the part of the remaining motion that is tangent to the surface.
-            let n = v3(n);
-            contact.get_or_insert(n);
-            let left = scale(rest, 1.0 - toi);
-            let into = left[0] * n[0] + left[1] * n[1] + left[2] * n[2];
-            rest = if into < 0.0 {
-                add(left, scale(n, -into))
-            } else {
-                left
-            };
-            if norm(rest) < MIN_SLIDE * norm(left) {
-                break;
-            }
-        }
+            Some((hit, static_now))
+        });
         let memo = match (pressed, contact) {
             (Some(Some(solid)), Some(normal)) if memos && pos == centre => Some(Rest {
                 centre,
@@ -1312,6 +1270,101 @@ impl Scene {
         };
         self.settle(handle, shape, pos, memo);
         (pos, contact)
+    }
+
+    /// Starts a [`Glide`] of the scene's only robot body `handle` (`shape`, at `centre`):
+    /// sweeps that will stay within `reach` metres of `centre` on every axis. `None` when
+    /// the body is not the scene's only one, or a solid within reach is not a box upright
+    /// to the robot (its sweeps then go through [`Scene::sweep_contact`]).
+    pub(crate) fn glide_begin(
+        &mut self,
+        handle: ColliderHandle,
+        shape: BodyShape,
+        centre: V3,
+        reach: f64,
+    ) -> Option<Glide> {
+        if !self.lone() {
+            return None;
+        }
+        let me = handle.into_raw_parts().0;
+        let pad = reach + f64::from(SWEEP_PAD);
+        let half = [shape.radius, shape.radius, shape.half_height];
+        let lo: V3 = std::array::from_fn(|i| centre[i] - half[i] - pad);
+        let hi: V3 = std::array::from_fn(|i| centre[i] + half[i] + pad);
+        let bound = Aabb::new(to_vector(lo), to_vector(hi));
+        if !self.plan_for(me, &bound) {
+            return None;
+        }
+        let node = BvhNode::leaf(bound, 0);
+        let mut near = std::mem::take(&mut self.glide_near);
+        near.clear();
+        let plan = self.plan.as_ref()?;
+        near.extend(
+            plan.near
+                .iter()
+                .filter(|n| n.node.intersects(&node))
+                .cloned(),
+        );
+        if near.iter().any(|n| n.solid.is_none()) {
+            self.glide_near = near;
+            return None;
+        }
+        // Each sweep's `settle` would forget a rest memo (the only robot makes none).
+        if !self.resting.is_empty() {
+            self.resting.remove(&me);
+        }
+        Some(Glide { near })
+    }
+
+    /// [`Scene::sweep_contact`] of a glide's body: the same end and contact, bit for bit,
+    /// cast against the glide's solids. The body's collider and tree box stay where the
+    /// glide began until [`Scene::glide_end`]: none of the glide's queries reads them (the
+    /// scene has no other robot, and a body's own sweeps skip it).
+    pub(crate) fn glide_sweep(
+        &self,
+        glide: &Glide,
+        shape: BodyShape,
+        centre: V3,
+        motion: V3,
+    ) -> (V3, Option<V3>) {
+        let motion = within_world(centre, motion);
+        let rest = held_to_max_step(motion);
+        let free = glide.near.is_empty() || {
+            let query = BvhNode::leaf(swept_box(shape, centre, rest), 0);
+            !glide.near.iter().any(|n| n.node.intersects(&query))
+        };
+        if free {
+            // Nothing within reach of this sweep: the first cast finds nothing, unless the
+            // motion is too short to cast.
+            let pos = if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
+                centre
+            } else {
+                add(centre, rest)
+            };
+            return (pos, None);
+        }
+        let cylinder = shape.cylinder();
+        let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
+            let query = BvhNode::leaf(swept_box(shape, pos, rest), 0);
+            let solids = glide.near.iter().filter(|n| n.node.intersects(&query));
+            let body = upright_pose(pos);
+            let vel = to_vector(rest);
+            let hit = first_impact(solids.map(|n| n.solid), &body, vel, &cylinder, options);
+            Some((hit.flatten()?, false))
+        });
+        (pos, contact)
+    }
+
+    /// Ends a glide: the body's collider and tree box where its sweeps left it.
+    pub(crate) fn glide_end(
+        &mut self,
+        glide: Glide,
+        handle: ColliderHandle,
+        shape: BodyShape,
+        pos: V3,
+    ) {
+        self.settle(handle, shape, pos, None);
+        self.glide_near = glide.near;
     }
 
     /// The sweep's end for the only robot (`me`) moving by `rest` (held to [`MAX_STEP`]) when
@@ -1343,6 +1396,11 @@ impl Scene {
         if let Some(collider) = self.colliders.get_mut(handle) {
             collider.set_position(upright_pose(pos));
         }
+        self.place_body(leaf, shape, pos);
+    }
+
+    /// The tree box of the body `leaf` (`shape`) at `pos`.
+    fn place_body(&mut self, leaf: u32, shape: BodyShape, pos: V3) {
         let half = Vector::new(
             shape.radius as f32,
             shape.radius as f32,
@@ -1359,6 +1417,91 @@ impl Scene {
             self.place_leaf(leaf, aabb, true);
         }
     }
+}
+
+/// A stretch of ticks in which the scene's only robot body sweeps against a few solids
+/// known in advance ([`Scene::glide_begin`]): the plan's solids whose tree boxes meet the
+/// box the body can reach in them, in the tree's order. A sweep's query would find exactly
+/// those of them that meet its swept box, so its casts are the same.
+#[derive(Debug)]
+pub(crate) struct Glide {
+    near: Vec<Near>,
+}
+
+/// `motion` from `centre`, held to the world's end: ±[`LIMIT`] on every axis
+/// (docs/limits.md).
+fn within_world(centre: V3, motion: V3) -> V3 {
+    std::array::from_fn(|i| (centre[i] + motion[i]).clamp(-LIMIT, LIMIT) - centre[i])
+}
+
+/// `motion` held to [`MAX_STEP`] metres.
+fn held_to_max_step(motion: V3) -> V3 {
+    if compare_norm(motion, MAX_STEP) == Some(std::cmp::Ordering::Greater) {
+        scale(motion, MAX_STEP / norm(motion))
+    } else {
+        motion
+    }
+}
+
+/// The moves of one sweep from `centre` by `rest`: up to three casts (`cast(pos, rest,
+/// options)`: the first hit, and whether it counts as a press on a map solid), each
+/// stopping in front of what it hit and sliding along it. Returns the end, the normal of
+/// the first surface hit, and the solid every cast hit at once (time 0), if every cast did
+/// so and counted it (`Some(None)`: some cast did not).
+fn slide(
+    centre: V3,
+    mut rest: V3,
+    mut cast: impl FnMut(V3, V3, ShapeCastOptions) -> Option<(Impact, bool)>,
+) -> (V3, Option<V3>, Option<Option<u32>>) {
+    let mut contact = None;
+    let mut pos = centre;
+    let mut pressed: Option<Option<u32>> = None;
+    for _ in 0..3 {
+        if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
+            break;
+        }
+        let options = ShapeCastOptions {
+            max_time_of_impact: 1.0,
+            target_distance: SKIN,
+            stop_at_penetration: false,
+            compute_impact_geometry_on_penetration: true,
+        };
+        let Some((
+            Impact {
+                solid,
+                toi,
+                normal: n,
+            },
+            static_now,
+        )) = cast(pos, rest, options)
+        else {
+            pos = add(pos, rest);
+            pressed = Some(None);
+            break;
+        };
+        let solid = solid.into_raw_parts().0;
+        pressed = match pressed {
+            None if static_now => Some(Some(solid)),
+            Some(Some(s)) if static_now && s == solid => Some(Some(s)),
+            _ => Some(None),
+        };
+        let toi = f64::from(toi).clamp(0.0, 1.0);
+        pos = add(pos, scale(rest, toi));
+        // Slide: keep the part of the remaining motion that is tangent to the surface.
+        let n = v3(n);
+        contact.get_or_insert(n);
+        let left = scale(rest, 1.0 - toi);
+        let into = left[0] * n[0] + left[1] * n[1] + left[2] * n[2];
+        rest = if into < 0.0 {
+            add(left, scale(n, -into))
+        } else {
+            left
+        };
+        if norm(rest) < MIN_SLIDE * norm(left) {
+            break;
+        }
+    }
+    (pos, contact, pressed)
 }
 
 /// Metres of box kept around a swept body by [`NearBoxes`], beyond its reach.
@@ -1858,6 +2001,13 @@ pub(crate) fn upright_cylinder_toi(
 mod tests {
     use super::*;
     use rapier3d::prelude::ColliderBuilder;
+
+    #[test]
+    fn the_upright_rotation_is_the_quarter_turn_about_x_bit_for_bit() {
+        let turn = Rotation::from_rotation_x(std::f32::consts::FRAC_PI_2);
+        let bits = |q: Rotation| [q.x, q.y, q.z, q.w].map(f32::to_bits);
+        assert_eq!(bits(UPRIGHT), bits(turn));
+    }
 
     #[test]
     fn ray_hits_box_and_ignores_excluded() {

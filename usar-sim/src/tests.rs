@@ -1278,3 +1278,93 @@ fn worlds_sharing_a_catalog_fly_as_their_own_and_see_its_changes() {
     spawn(&mut d, STS, [0.0, 0.0, -1.0], 0.0);
     assert!(laser(&run(&mut d, 1.0)), "the embedded class has one");
 }
+
+/// One robot's flight through `map` by a random DRIVE each period (speeds up to past the
+/// limits, turns, dives into the floor), run `ticks` ticks at a time by [`World::run`], or
+/// (`reference`) tick by tick with the shortcuts off; a second robot joins half-way (the
+/// world is no longer a lone robot's). Every message, touch and pose as text.
+fn flown(map: &str, tune: fn(&mut RobotClass), seed: u64, reference: bool) -> String {
+    let mut catalog = RobotCatalog::embedded();
+    tune(catalog.get_mut(STS).expect("sts"));
+    let config = SimConfig {
+        seed,
+        ..SimConfig::default()
+    };
+    let map = Map::embedded(map).expect("an embedded map");
+    let start = map.starts()[(seed % map.starts().len() as u64) as usize].location;
+    let mut w = World::new(map, catalog, config);
+    w.set_shortcuts(!reference);
+    let mut clients = vec![spawn(&mut w, STS, start, 0.0)];
+    let mut rng = seed ^ 0x5eed;
+    let mut uniform = |scale: f64| {
+        let bits = splitmix(&mut rng) >> 11;
+        (bits as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * scale
+    };
+    let (mut text, mut out) = (String::new(), Vec::new());
+    for period in 0..120 {
+        if period == 60 {
+            let beside = [start[0] + 3.0, start[1] - 2.0, start[2]];
+            clients.push(spawn(&mut w, STS, beside, 1.0));
+        }
+        for &c in &clients {
+            let down = uniform(1.0) < -0.6;
+            let d = Drive {
+                linear_velocity: Some(uniform(4.0)),
+                lateral_velocity: Some(uniform(4.0)),
+                altitude_velocity: Some(if down { -5.0 } else { uniform(3.0) }),
+                rotational_velocity: Some(uniform(90.0).round()),
+                ..Drive::default()
+            };
+            w.command(c, Command::Drive(d));
+        }
+        let ticks = 1 + (uniform(1.0).abs() * 40.0) as u64;
+        if reference {
+            for _ in 0..ticks {
+                w.step(&mut out);
+            }
+        } else {
+            w.run(ticks, &mut out);
+        }
+        for (c, m) in out.drain(..) {
+            text.push_str(&format!("{} {m}\n", c.0));
+        }
+        w.take_touched(|c, touched| text.push_str(&format!("{} touched {touched}\n", c.0)));
+        for &c in &clients {
+            let at = w.robot(c).map(|r| r.pose());
+            text.push_str(&format!("{} at {at:?}\n", c.0));
+        }
+    }
+    text
+}
+
+#[test]
+fn run_flies_a_lone_robot_as_the_reference_ticks_do() {
+    let tunings: [(&str, fn(&mut RobotClass)); 3] = [
+        ("as is", |_| {}),
+        ("crashing on contact", |c| c.crash.on_contact = true),
+        ("with a 4 s battery", |c| c.battery = Some(4.0)),
+    ];
+    let maps = ["empty_room", "city", "rescue", "arena"];
+    let cases = maps
+        .iter()
+        .map(|&m| (m, tunings[0]))
+        .chain(tunings[1..].iter().map(|&t| ("empty_room", t)));
+    for (map, (tuned, tune)) in cases {
+        for seed in 1..=3 {
+            let reference = flown(map, tune, seed, true);
+            let run = flown(map, tune, seed, false);
+            assert!(
+                reference.contains(" touched true"),
+                "{map}, seed {seed}: no contact"
+            );
+            if let Some(line) = reference.lines().zip(run.lines()).position(|(a, b)| a != b) {
+                panic!(
+                    "{map}, {tuned}, seed {seed}: line {line} differs:\n{}\n{}",
+                    reference.lines().nth(line).unwrap_or(""),
+                    run.lines().nth(line).unwrap_or("")
+                );
+            }
+            assert_eq!(reference.len(), run.len(), "{map}, {tuned}, seed {seed}");
+        }
+    }
+}

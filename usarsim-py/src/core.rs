@@ -494,9 +494,7 @@ impl WorldSim {
     /// something in any tick, or it had crashed (the server's own contact test, any robot:
     /// [`World::take_touched`]).
     fn advance(&mut self, ticks: usize) {
-        for _ in 0..ticks {
-            self.world.step(&mut self.out);
-        }
+        self.world.run(ticks as u64, &mut self.out);
         let (uavs, first) = (&mut self.uavs, self.first);
         self.world.take_touched(|client, touched| {
             if let Some(uav) = uav_of(uavs, first, client) {
