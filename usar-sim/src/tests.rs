@@ -1279,6 +1279,9 @@ fn worlds_sharing_a_catalog_fly_as_their_own_and_see_its_changes() {
     assert!(laser(&run(&mut d, 1.0)), "the embedded class has one");
 }
 
+/// A change to the stsAirRobot's class, named.
+type Tuning = (&'static str, fn(&mut RobotClass));
+
 /// One robot's flight through `map` by a random DRIVE each period (speeds up to past the
 /// limits, turns, dives into the floor), run `ticks` ticks at a time by [`World::run`], or
 /// (`reference`) tick by tick with the shortcuts off; a second robot joins half-way (the
@@ -1339,7 +1342,7 @@ fn flown(map: &str, tune: fn(&mut RobotClass), seed: u64, reference: bool) -> St
 
 #[test]
 fn run_flies_a_lone_robot_as_the_reference_ticks_do() {
-    let tunings: [(&str, fn(&mut RobotClass)); 3] = [
+    let tunings: [Tuning; 3] = [
         ("as is", |_| {}),
         ("crashing on contact", |c| c.crash.on_contact = true),
         ("with a 4 s battery", |c| c.battery = Some(4.0)),
