@@ -109,7 +109,10 @@ fn main() {
         let mut digest = digest;
         for k in 0..periods {
             for i in 0..sims.len() {
-                // As the Python batch does: the next world's memory on its way meanwhile.
+                // As the Python batch does: the next worlds' memory on its way meanwhile.
+                if let Some((next, _)) = sims.get(i + 2) {
+                    next.prefetch_early();
+                }
                 if let Some((next, _)) = sims.get(i + 1) {
                     next.prefetch();
                 }

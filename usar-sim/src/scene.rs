@@ -485,6 +485,18 @@ impl Scene {
         }
     }
 
+    /// [`crate::World::prefetch`]'s part: the solids near the only robot ([`Plan`]).
+    pub(crate) fn prefetch(&self) {
+        if let Some(plan) = &self.plan {
+            crate::prefetch::lines(&plan.near, 4);
+        }
+    }
+
+    /// [`crate::World::prefetch_early`]'s part: where the plan is.
+    pub(crate) fn prefetch_early(&self) {
+        crate::prefetch::line(&self.plan);
+    }
+
     /// Becomes the scene it was copied from again ([`Scene::copy_of`]: the map as first
     /// built, before any robot) when it is that scene plus the robot `bodies` inserted since:
     /// their colliders are parked (out of the tree; the next bodies of their shape take them

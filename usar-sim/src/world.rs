@@ -251,24 +251,34 @@ impl World {
 
     /// Starts bringing into the caches the memory a control period of a lone robot reads
     /// first (a hint: nothing changes): the world's and its robots' own state, each part's
-    /// timer, noise and fault. A batch of worlds asks it of the next world while it steps
-    /// one, so that state arrives in parallel instead of one miss after another. (The
-    /// scene around the body and the sensors' own state were tried too: reaching them
-    /// stalls on loads of their own, which cost a hovering batch more than they saved.)
+    /// timer, noise and fault, the solids its last sweeps found near it. A batch of worlds
+    /// asks it of the next world while it steps one, so that state arrives in parallel
+    /// instead of one miss after another, and [`World::prefetch_early`] of the one after:
+    /// this reads the pointers that one brings. (The sensors' own state was tried too:
+    /// reaching it stalls on loads of its own, which cost a hovering batch more than it
+    /// saved.)
     pub fn prefetch(&self) {
-        use crate::prefetch::{line, lines};
-        line(&self.tick);
-        line(&self.faults);
-        line(&self.robots);
-        line(&self.due);
-        line(&self.emitted);
-        line(&self.clients);
+        use crate::prefetch::lines;
         lines(&self.due, 2);
         lines(&self.emitted, 2);
         lines(&self.clients.0, 2);
         for robot in self.robots.iter().take(4) {
             robot.prefetch();
         }
+        self.scene.prefetch();
+    }
+
+    /// The first part of [`World::prefetch`], a world earlier: the world's own fields that
+    /// hold its robots', sensors' and scene's addresses.
+    pub fn prefetch_early(&self) {
+        use crate::prefetch::line;
+        line(&self.tick);
+        line(&self.faults);
+        line(&self.robots);
+        line(&self.due);
+        line(&self.emitted);
+        line(&self.clients);
+        self.scene.prefetch_early();
     }
 
     /// Simulated seconds (tick × dt).

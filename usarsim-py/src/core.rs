@@ -539,6 +539,13 @@ impl WorldSim {
         usar_sim::prefetch::lines(&self.uavs, 16);
     }
 
+    /// The part of [`WorldSim::prefetch`] the batch asks a world earlier
+    /// ([`World::prefetch_early`]).
+    pub(crate) fn prefetch_early(&self) {
+        self.world.prefetch_early();
+        usar_sim::prefetch::line(&self.uavs);
+    }
+
     /// Renders every UAV's camera and appends, per UAV, its R, G, B bytes (`rgb`) and its
     /// depths in metres, [`DEPTH_MAX`] where nothing is nearer (`depth`).
     pub(crate) fn render(&mut self, rgb: Option<&mut Vec<u8>>, depth: Option<&mut Vec<f32>>) {
@@ -821,19 +828,27 @@ fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
 /// tick's sweep then casting) no longer keeps the others waiting at the end of the step.
 /// Not pieces in turn from one queue either: a world then moved between threads from call
 /// to call, and what a reset freed went back to another thread's heap (resets were slower).
-/// Before each item a thread passes the next of its piece to `ahead` (a cache hint,
-/// [`WorldSim::prefetch`]: a world's state is scattered over a few kilobytes of the heap).
+/// Before each item a thread passes the next of its piece to `ahead(item, false)` and the
+/// one after to `ahead(item, true)` (cache hints, [`WorldSim::prefetch`] and
+/// [`WorldSim::prefetch_early`]: a world's state is scattered over a few kilobytes of the
+/// heap, and finding it reads a world's own fields first).
 fn par_each<T: Send, F, A>(items: &mut [T], ahead: A, f: F)
 where
     F: Fn(usize, &mut T) + Sync,
-    A: Fn(&T) + Sync,
+    A: Fn(&T, bool) + Sync,
 {
+    let hint = |items: &[T], j: usize| {
+        if let Some(next) = items.get(j + 2) {
+            ahead(next, true);
+        }
+        if let Some(next) = items.get(j + 1) {
+            ahead(next, false);
+        }
+    };
     let pool = (items.len() >= 4).then(pool).flatten();
     let Some(pool) = pool else {
         for i in 0..items.len() {
-            if let Some(next) = items.get(i + 1) {
-                ahead(next);
-            }
+            hint(items, i);
             f(i, &mut items[i]);
         }
         return;
@@ -865,9 +880,7 @@ where
                     .take();
                 let piece = piece.unwrap_or_default();
                 for j in 0..piece.len() {
-                    if let Some(next) = piece.get(j + 1) {
-                        ahead(next);
-                    }
+                    hint(piece, j);
                     f(p * chunk + j, &mut piece[j]);
                 }
             }
@@ -926,7 +939,13 @@ impl Batch {
             self.worlds.iter_mut().map(|w| (w, rows.next())).collect();
         par_each(
             &mut items,
-            |(w, _)| w.prefetch(),
+            |(w, _), early| {
+                if early {
+                    w.prefetch_early();
+                } else {
+                    w.prefetch();
+                }
+            },
             |i, (w, rows)| {
                 match (resets.get(i).and_then(Option::as_ref), actions) {
                     (Some((seed, poses)), _) => match w.reset(settings, *seed, poses) {
@@ -959,7 +978,7 @@ impl Batch {
             self.worlds.iter().map(|_| Mutex::default()).collect();
         par_each(
             &mut self.worlds,
-            |_| {},
+            |_, _| {},
             |i, w| {
                 let mut part = parts[i].lock().unwrap_or_else(PoisonError::into_inner);
                 let (r, d) = &mut *part;
