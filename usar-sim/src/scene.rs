@@ -52,9 +52,6 @@ fn leaf_margin(leaf: u32, aabb: &Aabb) -> f32 {
     LEAF_MARGIN * (1.0 + spread / (1u64 << 24) as f32)
 }
 
-/// [`leaf_margin`]'s scale for the scene's only robot body ([`Scene::place_leaf`]).
-const LONE_ROOM: f32 = 8.0;
-
 /// Gap (m) kept between a swept robot and what it hits.
 const SKIN: f32 = 0.01;
 /// Beyond this distance (m) between tree boxes a sweep cannot touch: the gap `SKIN`,
@@ -783,12 +780,8 @@ impl Scene {
     /// Puts the leaf `leaf` (a `body` or not) in the tree with the box `aabb`, or grows its
     /// tree box (with a margin) when `aabb` left it.
     fn place_leaf(&mut self, leaf: u32, aabb: Aabb, body: bool) {
-        // The scene's only robot: no query but its own sweeps' (which skip its leaf) walks
-        // the tree near it, so a roomier box costs nothing and is left less often (a Python
-        // env's UAV moves up to 0.35 m per control period).
-        let room = if body && self.lone() { LONE_ROOM } else { 1.0 };
         let fat = || {
-            let margin = Vector::splat(leaf_margin(leaf, &aabb) * room);
+            let margin = Vector::splat(leaf_margin(leaf, &aabb));
             Aabb::new(aabb.mins - margin, aabb.maxs + margin)
         };
         match self.bvh.leaf_node(leaf) {
