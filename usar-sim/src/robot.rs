@@ -885,12 +885,12 @@ impl Robot {
         let mut flown = 0;
         while flown < ticks && self.crashed.is_none() {
             flown += 1;
-            self.kinematic(tick + flown, dt, |_, shape, start, motion| {
-                scene.glide_sweep(&glide, shape, start, motion)
+            self.kinematic(tick + flown, dt, |body, shape, start, motion| {
+                scene.glide_sweep(&glide, body, shape, start, motion)
             });
             self.touched |= self.contact || self.crashed.is_some();
         }
-        scene.glide_end(glide, body, shape, self.position);
+        scene.glide_end(glide, body, self.position);
         flown
     }
 

@@ -1328,19 +1328,21 @@ impl Scene {
         Some(Glide { near })
     }
 
-    /// [`Scene::sweep_contact`] of a glide's body: the same end and contact, bit for bit,
-    /// cast against the glide's solids. The body's collider and tree box stay where the
-    /// glide began until [`Scene::glide_end`]: none of the glide's queries reads them (the
-    /// scene has no other robot, and a body's own sweeps skip it).
+    /// [`Scene::sweep_contact`] of a glide's body: the same end, contact and tree box, bit
+    /// for bit, cast against the glide's solids. The body's collider stays where the glide
+    /// began until [`Scene::glide_end`]: none of the glide's queries reads it (the scene has
+    /// no other robot, and a body's own sweeps skip it).
     pub(crate) fn glide_sweep(
-        &self,
+        &mut self,
         glide: &Glide,
+        handle: ColliderHandle,
         shape: BodyShape,
         centre: V3,
         motion: V3,
     ) -> (V3, Option<V3>) {
         let motion = within_world(centre, motion);
         let rest = held_to_max_step(motion);
+        let leaf = handle.into_raw_parts().0;
         let free = glide.near.is_empty() || {
             let query = BvhNode::leaf(swept_box(shape, centre, rest), 0);
             !glide.near.iter().any(|n| n.node.intersects(&query))
@@ -1353,6 +1355,7 @@ impl Scene {
             } else {
                 add(centre, rest)
             };
+            self.place_body(leaf, shape, pos);
             return (pos, None);
         }
         let cylinder = shape.cylinder();
@@ -1364,18 +1367,15 @@ impl Scene {
             let hit = first_impact(solids.map(|n| n.solid), &body, vel, &cylinder, options);
             Some((hit.flatten()?, false))
         });
+        self.place_body(leaf, shape, pos);
         (pos, contact)
     }
 
-    /// Ends a glide: the body's collider and tree box where its sweeps left it.
-    pub(crate) fn glide_end(
-        &mut self,
-        glide: Glide,
-        handle: ColliderHandle,
-        shape: BodyShape,
-        pos: V3,
-    ) {
-        self.settle(handle, shape, pos, None);
+    /// Ends a glide: the body's collider where its sweeps left it.
+    pub(crate) fn glide_end(&mut self, glide: Glide, handle: ColliderHandle, pos: V3) {
+        if let Some(collider) = self.colliders.get_mut(handle) {
+            collider.set_position(upright_pose(pos));
+        }
         self.glide_near = glide.near;
     }
 

@@ -1285,7 +1285,8 @@ type Tuning = (&'static str, fn(&mut RobotClass));
 /// One robot's flight through `map` by a random DRIVE each period (speeds up to past the
 /// limits, turns, dives into the floor), run `ticks` ticks at a time by [`World::run`], or
 /// (`reference`) tick by tick with the shortcuts off; a second robot joins half-way (the
-/// world is no longer a lone robot's). Every message, touch and pose as text.
+/// world is no longer a lone robot's). Every message, touch and pose, and the bodies'
+/// colliders and tree boxes, as text.
 fn flown(map: &str, tune: fn(&mut RobotClass), seed: u64, reference: bool) -> String {
     let mut catalog = RobotCatalog::embedded();
     tune(catalog.get_mut(STS).expect("sts"));
@@ -1336,6 +1337,8 @@ fn flown(map: &str, tune: fn(&mut RobotClass), seed: u64, reference: bool) -> St
             let at = w.robot(c).map(|r| r.pose());
             text.push_str(&format!("{} at {at:?}\n", c.0));
         }
+        // The bodies as the scene holds them (what other robots' queries read).
+        text.push_str(&format!("bodies {:?}\n", w.body_boxes()));
     }
     text
 }
