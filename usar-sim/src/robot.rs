@@ -879,18 +879,32 @@ impl Robot {
             return 0;
         }
         let (body, shape) = (self.body, self.model.shape);
-        let Some(glide) = scene.glide_begin(body, shape, self.position, reach) else {
-            return 0;
+        // Without set speeds nothing moves (a hovering UAV, one that only turns): no sweep
+        // to prepare.
+        let glide = if speed > 0.0 {
+            let Some(glide) = scene.glide_begin(body, shape, self.position, reach) else {
+                return 0;
+            };
+            Some(glide)
+        } else {
+            None
         };
         let mut flown = 0;
         while flown < ticks && self.crashed.is_none() {
             flown += 1;
-            self.kinematic(tick + flown, dt, |body, shape, start, motion| {
-                scene.glide_sweep(&glide, body, shape, start, motion)
-            });
+            self.kinematic(
+                tick + flown,
+                dt,
+                |body, shape, start, motion| match &glide {
+                    Some(glide) => scene.glide_sweep(glide, body, shape, start, motion),
+                    None => (start, None),
+                },
+            );
             self.touched |= self.contact || self.crashed.is_some();
         }
-        scene.glide_end(glide, body, self.position);
+        if let Some(glide) = glide {
+            scene.glide_end(glide, body, self.position);
+        }
         flown
     }
 

@@ -1283,7 +1283,7 @@ fn worlds_sharing_a_catalog_fly_as_their_own_and_see_its_changes() {
 type Tuning = (&'static str, fn(&mut RobotClass));
 
 /// One robot's flight through `map` by a random DRIVE each period (speeds up to past the
-/// limits, turns, dives into the floor), run `ticks` ticks at a time by [`World::run`], or
+/// limits, turns, dives into the floor, now and then only a turn or a hover), run `ticks` ticks at a time by [`World::run`], or
 /// (`reference`) tick by tick with the shortcuts off; a second robot joins half-way (the
 /// world is no longer a lone robot's). Every message, touch and pose, and the bodies'
 /// colliders and tree boxes, as text.
@@ -1312,11 +1312,14 @@ fn flown(map: &str, tune: fn(&mut RobotClass), seed: u64, reference: bool) -> St
         }
         for &c in &clients {
             let down = uniform(1.0) < -0.6;
+            // Now and then it only turns, or hovers.
+            let still = if period % 7 == 3 { 0.0 } else { 1.0 };
+            let turn = if period % 14 == 3 { 0.0 } else { 1.0 };
             let d = Drive {
-                linear_velocity: Some(uniform(4.0)),
-                lateral_velocity: Some(uniform(4.0)),
-                altitude_velocity: Some(if down { -5.0 } else { uniform(3.0) }),
-                rotational_velocity: Some(uniform(90.0).round()),
+                linear_velocity: Some(still * uniform(4.0)),
+                lateral_velocity: Some(still * uniform(4.0)),
+                altitude_velocity: Some(still * if down { -5.0 } else { uniform(3.0) }),
+                rotational_velocity: Some(turn * uniform(90.0).round()),
                 ..Drive::default()
             };
             w.command(c, Command::Drive(d));
