@@ -1191,10 +1191,9 @@ impl Scene {
         let cylinder = shape.cylinder();
         let vel = to_vector(motion);
         if self.plan_for(me, &query) {
-            let node = BvhNode::leaf(query, 0);
             let near = self.plan.as_ref().map_or(&[][..], |p| &p.near[..]);
-            let solids = near.iter().filter(|n| n.node.intersects(&node));
-            return first_impact(solids.map(|n| n.solid), &body, vel, &cylinder, options);
+            let solids = meeting(near, &query).map(|n| n.solid);
+            return first_impact(solids, &body, vel, &cylinder, options);
         }
         let solids = self.bvh.intersect_aabb(&query).filter(|&l| l != me);
         let solids = solids.map(|leaf| {
@@ -1307,16 +1306,10 @@ impl Scene {
         if !self.plan_for(me, &bound) {
             return None;
         }
-        let node = BvhNode::leaf(bound, 0);
+        let plan = self.plan.as_ref()?;
         let mut near = std::mem::take(&mut self.glide_near);
         near.clear();
-        let plan = self.plan.as_ref()?;
-        near.extend(
-            plan.near
-                .iter()
-                .filter(|n| n.node.intersects(&node))
-                .cloned(),
-        );
+        near.extend(meeting(&plan.near, &bound).cloned());
         if near.iter().any(|n| n.solid.is_none()) {
             self.glide_near = near;
             return None;
@@ -1343,10 +1336,10 @@ impl Scene {
         let motion = within_world(centre, motion);
         let rest = held_to_max_step(motion);
         let leaf = handle.into_raw_parts().0;
-        let free = glide.near.is_empty() || {
-            let query = BvhNode::leaf(swept_box(shape, centre, rest), 0);
-            !glide.near.iter().any(|n| n.node.intersects(&query))
-        };
+        let free = glide.near.is_empty()
+            || meeting(&glide.near, &swept_box(shape, centre, rest))
+                .next()
+                .is_none();
         if free {
             // Nothing within reach of this sweep: the first cast finds nothing, unless the
             // motion is too short to cast.
@@ -1360,11 +1353,10 @@ impl Scene {
         }
         let cylinder = shape.cylinder();
         let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
-            let query = BvhNode::leaf(swept_box(shape, pos, rest), 0);
-            let solids = glide.near.iter().filter(|n| n.node.intersects(&query));
+            let query = swept_box(shape, pos, rest);
+            let solids = meeting(&glide.near, &query).map(|n| n.solid);
             let body = upright_pose(pos);
-            let vel = to_vector(rest);
-            let hit = first_impact(solids.map(|n| n.solid), &body, vel, &cylinder, options);
+            let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
             Some((hit.flatten()?, false))
         });
         self.place_body(leaf, shape, pos);
@@ -1388,8 +1380,10 @@ impl Scene {
         }
         let query = swept_box(shape, centre, rest);
         let plan = self.plan.as_ref().filter(|p| p.covers(me, &query))?;
-        let node = BvhNode::leaf(query, 0);
-        (!plan.near.iter().any(|n| n.node.intersects(&node))).then(|| add(centre, rest))
+        meeting(&plan.near, &query)
+            .next()
+            .is_none()
+            .then(|| add(centre, rest))
     }
 
     /// Puts the body `handle` (`shape`) where its sweep left it, at `pos`: its collider, its
@@ -1438,6 +1432,13 @@ impl Scene {
 #[derive(Debug)]
 pub(crate) struct Glide {
     near: Vec<Near>,
+}
+
+/// Those of `near` whose tree boxes meet `query`, in their order: what a tree query over
+/// `query` finds of them.
+fn meeting<'a>(near: &'a [Near], query: &Aabb) -> impl Iterator<Item = &'a Near> {
+    let node = BvhNode::leaf(*query, 0);
+    near.iter().filter(move |n| n.node.intersects(&node))
 }
 
 /// `motion` from `centre`, held to the world's end: ±[`LIMIT`] on every axis
