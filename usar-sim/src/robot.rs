@@ -853,7 +853,7 @@ impl Robot {
             }
             return;
         }
-        self.kinematic(tick, dt, |body, shape, start, motion| {
+        self.kinematic(tick, dt, false, |body, shape, start, motion| {
             scene.sweep_contact(body, shape, start, motion)
         });
     }
@@ -879,6 +879,9 @@ impl Robot {
             return 0;
         }
         let (body, shape) = (self.body, self.model.shape);
+        // The seconds left only fall from tick to tick: a battery not empty at the glide's
+        // last tick is not empty at any of them (each tick's own test then says the same).
+        let alive = !self.is_dead(tick + ticks, dt);
         // Without set speeds nothing moves (a hovering UAV, one that only turns): no sweep
         // to prepare.
         let glide = if speed > 0.0 {
@@ -895,6 +898,7 @@ impl Robot {
             self.kinematic(
                 tick + flown,
                 dt,
+                alive,
                 |body, shape, start, motion| match &glide {
                     Some(glide) => scene.glide_sweep(glide, body, shape, start, motion),
                     None => (start, None),
@@ -909,14 +913,16 @@ impl Robot {
     }
 
     /// One tick of the kinematic flight: the set points' motion, `sweep`(body, shape, start,
-    /// motion) giving where it ends and the normal of what it touched.
+    /// motion) giving where it ends and the normal of what it touched. `alive`: the battery
+    /// is known not to be empty at `tick` (else the tick tests it).
     fn kinematic(
         &mut self,
         tick: u64,
         dt: f64,
+        alive: bool,
         sweep: impl FnOnce(ColliderHandle, BodyShape, V3, V3) -> (V3, Option<V3>),
     ) {
-        if self.is_dead(tick, dt) || self.crashed.is_some() {
+        if (!alive && self.is_dead(tick, dt)) || self.crashed.is_some() {
             self.set = SetPoints::default();
         }
         let s = self.set;

@@ -1314,11 +1314,27 @@ impl Scene {
             self.glide_near = near;
             return None;
         }
+        // Each tick's tree box stays inside the robot's leaf when the box it can reach does
+        // (with room for the f32 rounding of each box): then no tick has its box to place.
+        let slack: V3 = std::array::from_fn(|i| 1e-6 * (centre[i].abs() + half[i] + reach) + 1e-6);
+        let reach_box = Aabb::new(
+            to_vector(std::array::from_fn(|i| {
+                centre[i] - half[i] - reach - slack[i]
+            })),
+            to_vector(std::array::from_fn(|i| {
+                centre[i] + half[i] + reach + slack[i]
+            })),
+        );
+        let in_leaf = plan.mine.is_some_and(|node| node.contains_aabb(&reach_box));
         // Each sweep's `settle` would forget a rest memo (the only robot makes none).
         if !self.resting.is_empty() {
             self.resting.remove(&me);
         }
-        Some(Glide { near })
+        Some(Glide {
+            near,
+            in_leaf,
+            short: reach < 0.5 * MAX_STEP,
+        })
     }
 
     /// [`Scene::sweep_contact`] of a glide's body: the same end, contact and tree box, bit
@@ -1334,7 +1350,12 @@ impl Scene {
         motion: V3,
     ) -> (V3, Option<V3>) {
         let motion = within_world(centre, motion);
-        let rest = held_to_max_step(motion);
+        // A motion shorter than the glide's reach is never held.
+        let rest = if glide.short {
+            motion
+        } else {
+            held_to_max_step(motion)
+        };
         let leaf = handle.into_raw_parts().0;
         let free = glide.near.is_empty()
             || meeting(&glide.near, &swept_box(shape, centre, rest))
@@ -1348,7 +1369,9 @@ impl Scene {
             } else {
                 add(centre, rest)
             };
-            self.place_body(leaf, shape, pos);
+            if !glide.in_leaf {
+                self.place_body(leaf, shape, pos);
+            }
             return (pos, None);
         }
         let cylinder = shape.cylinder();
@@ -1359,7 +1382,9 @@ impl Scene {
             let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
             Some((hit.flatten()?, false))
         });
-        self.place_body(leaf, shape, pos);
+        if !glide.in_leaf {
+            self.place_body(leaf, shape, pos);
+        }
         (pos, contact)
     }
 
@@ -1432,6 +1457,10 @@ impl Scene {
 #[derive(Debug)]
 pub(crate) struct Glide {
     near: Vec<Near>,
+    /// Every box the body can have in the glide is inside its tree leaf: no tick places it.
+    in_leaf: bool,
+    /// The reach is under half of [`MAX_STEP`]: no tick's motion is held to it.
+    short: bool,
 }
 
 /// Those of `near` whose tree boxes meet `query`, in their order: what a tree query over
