@@ -809,7 +809,14 @@ impl Scene {
                 // map solids never move and keep the bare box.
                 let aabb = if body { fat() } else { aabb };
                 self.bvh.insert(aabb, leaf);
-                self.unclear_near(leaf, &aabb);
+                if body && self.lone() {
+                    // The only robot (a Python world's, at each reset): no room is asked
+                    // about while it is alone, and a second body's arrival forgets the
+                    // rooms near it.
+                    self.set_clear(leaf, Room::Unknown);
+                } else {
+                    self.unclear_near(leaf, &aabb);
+                }
                 self.stale = true;
             }
         }
