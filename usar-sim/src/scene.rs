@@ -1363,34 +1363,31 @@ impl Scene {
         } else {
             held_to_max_step(motion)
         };
-        let leaf = handle.into_raw_parts().0;
         let free = glide.near.is_empty()
             || meeting(&glide.near, &swept_box(shape, centre, rest))
                 .next()
                 .is_none();
-        if free {
+        let (pos, contact) = if free {
             // Nothing within reach of this sweep: the first cast finds nothing, unless the
             // motion is too short to cast.
-            let pos = if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
-                centre
+            if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
+                (centre, None)
             } else {
-                add(centre, rest)
-            };
-            if !glide.in_leaf {
-                self.place_body(leaf, shape, pos);
+                (add(centre, rest), None)
             }
-            return (pos, None);
-        }
-        let cylinder = shape.cylinder();
-        let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
-            let query = swept_box(shape, pos, rest);
-            let solids = meeting(&glide.near, &query).map(|n| n.solid);
-            let body = upright_pose(pos);
-            let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
-            Some((hit.flatten()?, false))
-        });
+        } else {
+            let cylinder = shape.cylinder();
+            let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
+                let query = swept_box(shape, pos, rest);
+                let solids = meeting(&glide.near, &query).map(|n| n.solid);
+                let body = upright_pose(pos);
+                let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
+                Some((hit.flatten()?, false))
+            });
+            (pos, contact)
+        };
         if !glide.in_leaf {
-            self.place_body(leaf, shape, pos);
+            self.place_body(handle.into_raw_parts().0, shape, pos);
         }
         (pos, contact)
     }
