@@ -892,9 +892,15 @@ impl Robot {
         } else {
             None
         };
+        // Without set speeds and with a battery alive throughout, a tick is a function of the
+        // robot's own state alone (no sweep, no crash, no tick-dependent test): once a tick
+        // leaves that state as it found it (the tilt has come within its margin, the yaw
+        // does not turn), every later tick of the glide would too, and they are skipped.
+        let still = glide.is_none() && alive;
         let mut flown = 0;
         while flown < ticks && self.crashed.is_none() {
             flown += 1;
+            let before = still.then(|| self.tick_state());
             self.kinematic(
                 tick + flown,
                 dt,
@@ -905,11 +911,25 @@ impl Robot {
                 },
             );
             self.touched |= self.contact || self.crashed.is_some();
+            if before.is_some_and(|b| b == self.tick_state()) {
+                flown = ticks;
+            }
         }
         if let Some(glide) = glide {
             scene.glide_end(glide, body, self.position);
         }
         flown
+    }
+
+    /// What a kinematic tick reads and writes of the robot besides its set points, bit for
+    /// bit ([`Robot::glide`]'s test that a tick changed nothing).
+    fn tick_state(&self) -> ([u64; 15], u8, bool) {
+        let (p, v, r, t) = (self.position, self.velocity, self.rotation, &self.yaw_trig);
+        let values = [
+            p[0], p[1], p[2], v[0], v[1], v[2], r[0], r[1], r[2], t.yaw, t.sin, t.cos, t.turn.0,
+            t.turn.1, t.turn.2,
+        ];
+        (values.map(f64::to_bits), t.sums_left, self.contact)
     }
 
     /// One tick of the kinematic flight: the set points' motion, `sweep`(body, shape, start,
