@@ -365,7 +365,13 @@ impl World {
             |robot, lines| robot.emit(scene, tick, dt, lines),
         );
         for part in &mut self.emitted[..used] {
-            out.append(part);
+            // Into an empty `out` (a lone robot's tick, most often) the buffers change places
+            // instead of the messages moving.
+            if out.is_empty() {
+                std::mem::swap(out, part);
+            } else {
+                out.append(part);
+            }
         }
     }
 
