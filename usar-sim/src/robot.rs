@@ -896,11 +896,10 @@ impl Robot {
         // robot's own state alone (no sweep, no crash, no tick-dependent test): once a tick
         // leaves that state as it found it (the tilt has come within its margin, the yaw
         // does not turn), every later tick of the glide would too, and they are skipped.
-        let still = glide.is_none() && alive;
+        let mut last = (glide.is_none() && alive).then(|| self.tick_state());
         let mut flown = 0;
         while flown < ticks && self.crashed.is_none() {
             flown += 1;
-            let before = still.then(|| self.tick_state());
             self.kinematic(
                 tick + flown,
                 dt,
@@ -911,8 +910,12 @@ impl Robot {
                 },
             );
             self.touched |= self.contact || self.crashed.is_some();
-            if before.is_some_and(|b| b == self.tick_state()) {
-                flown = ticks;
+            if let Some(before) = &mut last {
+                let after = self.tick_state();
+                if *before == after {
+                    flown = ticks;
+                }
+                *before = after;
             }
         }
         if let Some(glide) = glide {
