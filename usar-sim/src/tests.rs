@@ -1437,3 +1437,21 @@ fn run_holds_the_longest_sweep_as_the_reference_ticks_do() {
     let moved = first[0].hypot(first[1]);
     assert!((600.0..=700.0).contains(&moved), "{moved} m: {reference}");
 }
+
+#[test]
+fn init_by_reference_spawns_as_the_command_does_and_only_for_known_connections() {
+    let Command::Init(message) = init(STS, [1.0, 2.0, -1.5], 0.5) else {
+        unreachable!()
+    };
+    let (mut a, mut b) = (world(), world());
+    let client = spawn(&mut a, STS, [1.0, 2.0, -1.5], 0.5);
+    let other = b.connect();
+    b.init(other, &message);
+    assert_eq!(b.robot_count(), 1);
+    assert_eq!(run(&mut a, 1.0), run(&mut b, 1.0));
+    assert_eq!(pose(&a, client), pose(&b, other));
+    // An INIT from a connection the world does not know spawns nothing.
+    let mut c = world();
+    c.init(ClientId(7), &message);
+    assert_eq!(c.robot_count(), 0);
+}

@@ -340,7 +340,7 @@ impl World {
         }
         match command {
             Command::Init(init) => {
-                self.init(client, &init);
+                self.spawn(client, &init);
                 Vec::new()
             }
             Command::GetStartPoses => vec![self.start_poses()],
@@ -493,7 +493,18 @@ impl World {
         })
     }
 
-    fn init(&mut self, client: ClientId, init: &Init) {
+    /// [`World::command`] with an `INIT`, taken by reference: a caller that spawns the same
+    /// robot again and again (the Python worlds, at every reset) keeps its `Init` and builds
+    /// no strings for it each time.
+    pub fn init(&mut self, client: ClientId, init: &Init) {
+        if self.clients.get(client).is_none() {
+            debug!(?client, "INIT from an unknown connection ignored");
+            return;
+        }
+        self.spawn(client, init);
+    }
+
+    fn spawn(&mut self, client: ClientId, init: &Init) {
         let spawned = self
             .robots
             .iter()

@@ -341,13 +341,19 @@ pub(crate) type Pose = [f64; 4];
 
 /// `INIT` of a `class` robot named `name`, level, at `pose`.
 pub(crate) fn spawn(class: &str, name: &str, pose: &Pose) -> Command {
-    Command::Init(Init {
+    let mut init = Init {
         class_name: class.to_owned(),
         name: Some(name.to_owned()),
-        location: Some(Vec3::new(pose[0], pose[1], pose[2])),
-        rotation: Some(Vec3::new(0.0, 0.0, pose[3])),
-        start: None,
-    })
+        ..Init::default()
+    };
+    place(&mut init, pose);
+    Command::Init(init)
+}
+
+/// Puts `init`'s robot at `pose`, level.
+fn place(init: &mut Init, pose: &Pose) {
+    init.location = Some(Vec3::new(pose[0], pose[1], pose[2]));
+    init.rotation = Some(Vec3::new(0.0, 0.0, pose[3]));
 }
 
 /// Control periods of `period` seconds a new robot of `class` hovers before its first
@@ -394,6 +400,8 @@ pub(crate) struct WorldSim {
     /// Clients are numbered 1.. in connection order, so `client.0 - first` is the index.
     first: u64,
     out: Vec<(ClientId, ServerMessage)>,
+    /// Each UAV's `INIT` (reused: [`WorldSim::populate`]).
+    inits: Vec<Init>,
     /// The cameras' latest pictures (reused).
     frames: Vec<CameraFrame>,
     /// The [`Settings::version`] it was made under.
@@ -418,6 +426,7 @@ impl WorldSim {
             uavs: Vec::with_capacity(poses.len()),
             first: 0,
             out: Vec::new(),
+            inits: Vec::new(),
             frames: Vec::new(),
             version: settings.version,
         };
@@ -440,7 +449,6 @@ impl WorldSim {
             return Ok(());
         }
         self.world.reset(seed);
-        self.uavs.clear();
         self.out.clear();
         self.populate(settings, poses)
     }
@@ -453,20 +461,42 @@ impl WorldSim {
         let mut first = 0;
         for (i, pose) in poses.iter().enumerate() {
             if !pose.iter().all(|v| v.is_finite()) {
+                uavs.truncate(i);
                 return Err(invalid(format!("start {i}: not finite: {pose:?}")));
             }
             let client = world.connect();
             if i == 0 {
                 first = client.0;
             }
-            world.command(client, spawn(&settings.robot, &format!("UAV{i}"), pose));
-            uavs.push(Uav {
+            // Each UAV's INIT is kept from reset to reset: only its pose changes.
+            if self
+                .inits
+                .get(i)
+                .is_none_or(|init| init.class_name != settings.robot)
+            {
+                self.inits.truncate(i);
+                self.inits.push(Init {
+                    class_name: settings.robot.clone(),
+                    name: Some(format!("UAV{i}")),
+                    ..Init::default()
+                });
+            }
+            let init = &mut self.inits[i];
+            place(init, pose);
+            world.init(client, init);
+            let uav = Uav {
                 client,
                 state: UavState::new(),
                 touched: false,
                 rotors: [0.0; 4],
-            });
+            };
+            // In place where the last episode's UAV was (no move of the state into the vector).
+            match uavs.get_mut(i) {
+                Some(old) => *old = uav,
+                None => uavs.push(uav),
+            }
         }
+        uavs.truncate(poses.len());
         if world.robot_count() != poses.len() {
             return Err(invalid(format!(
                 "start: could not spawn every UAV ({} of {}): a start is inside a wall, \
