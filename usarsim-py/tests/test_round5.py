@@ -219,3 +219,29 @@ def test_a_process_forked_after_stepping_steps_its_own_worlds():
     assert child.exitcode == 0
     parent.step(np.zeros((8, 4)))
     assert parent._batch.time(7) == pytest.approx(0.3)
+
+
+@pytest.mark.parametrize("robot", ["USARBot.stsAirRobot", "USARBot.stsQuadrotor"])
+def test_a_world_reset_in_place_flies_as_a_new_one_bit_for_bit(robot):
+    # A reset keeps the world's UAVs' INITs and renews their client state in place: after an
+    # episode flown into the walls and floor (contact, for the quadrotor crashes), world 0 reset
+    # with a seed and starts observes and flies exactly as a new batch made with them, both
+    # UAVs of it (the second one's INIT names it UAV1); world 1 flies on untouched.
+    starts = np.array([[0.0, 0.0, -1.5, 0.0], [1.0, 0.5, -1.5, 0.3]] * 2)
+    old = usarsim.Batch("empty_room", robot, [3, 4], starts, uavs_per_world=2)
+    rng = np.random.default_rng(1)
+    for _ in range(60):
+        old.step(rng.uniform(-1, 1, (4, 4)))
+    for _ in range(20):  # then down onto the floor
+        old.step(np.tile([0.3, 0.0, -1.0, 0.5], (4, 1)))
+    assert old.observe()["touched"][:2].all() or old.observe()["crashed"][:2].all()
+    again = np.array([[0.5, -0.5, -1.2, 1.0], [-1.0, 0.0, -2.0, -0.4]])
+    old.reset([0], [11], again)
+    fresh = usarsim.Batch("empty_room", robot, [11], again, uavs_per_world=2)
+    for k in range(12):
+        a, b = old.observe(), fresh.observe()
+        for key in b:
+            assert np.array_equal(a[key][:2], b[key]), (k, key)
+        act = rng.uniform(-1, 1, (4, 4))
+        old.step(act)
+        fresh.step(act[:2])
