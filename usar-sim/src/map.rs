@@ -691,7 +691,7 @@ impl Map {
                 let mut scene = Scene::new();
                 self.build(&mut scene);
                 scene.refit();
-                scene.make_room();
+                scene.reserve_leaf();
                 std::sync::Arc::new(scene)
             })
             .clone()

@@ -835,17 +835,19 @@ impl Scene {
         }
     }
 
-    /// Makes room in the tree for one more leaf, the next collider's (a first robot's): a
-    /// leaf is inserted and taken out again, which leaves its slots allocated (parry reuses a
-    /// freed node for the next insertion). Copies of the scene (every world's, and every
-    /// reset's) then place their first robot without growing the tree's arrays, each time.
-    pub(crate) fn make_room(&mut self) {
+    /// Keeps a leaf of the tree for the next collider, a first robot's body (a Python world's
+    /// lone UAV at every reset, a server's first robot), far outside the world where no query
+    /// meets it: the body then moves into it (one leaf's box updated in place) instead of
+    /// being inserted, so that neither a new copy of the scene nor a reset one has a leaf to
+    /// insert, arrays to grow or a tree to refit before its first tick.
+    pub(crate) fn reserve_leaf(&mut self) {
         let leaf = u32::try_from(self.colliders.len()).unwrap_or(u32::MAX);
         if self.bvh.is_empty() || self.bvh.leaf_node(leaf).is_some() {
             return;
         }
-        self.bvh.insert(self.bvh.root_aabb(), leaf);
-        self.bvh.remove(leaf);
+        let far = Vector::new(0.0, 0.0, (4.0 * LIMIT) as f32);
+        self.bvh.insert(Aabb::new(far, far), leaf);
+        self.refit();
     }
 
     /// Refits the tree if leaves were added or removed since the last refit (insertions
