@@ -2532,6 +2532,30 @@ mod tests {
     }
 
     #[test]
+    fn a_first_body_moves_into_the_leaf_the_map_kept_without_a_refit() {
+        let map = crate::Map::embedded("empty_room").expect("an embedded map");
+        let template = map.scene();
+        let mut scene = Scene::copy_of(&template);
+        // The kept leaf is where nothing looks: a ray down the room's whole height (and far
+        // past the floor) finds the floor's top at z = 0.
+        let down = scene.cast_ray([0.0, 0.0, -4.0], [0.0, 0.0, 1.0], 1e5, None);
+        assert!(down.is_some_and(|d| (d - 4.0).abs() < 1e-4), "{down:?}");
+        let shape = BodyShape {
+            radius: 0.45,
+            half_height: 0.1,
+        };
+        let body = scene.insert_body(shape, [0.0, 0.0, -1.5]);
+        assert_eq!(body.into_raw_parts().0 as usize, template.colliders.len());
+        assert!(
+            !scene.stale,
+            "the body was inserted as a new leaf: the next tick refits"
+        );
+        // The tree finds the body where it is: the same ray stops on its top at z = -1.6.
+        let hit = scene.cast_ray([0.0, 0.0, -4.0], [0.0, 0.0, 1.0], 1e5, None);
+        assert!(hit.is_some_and(|d| (d - 2.4).abs() < 1e-4), "{hit:?}");
+    }
+
+    #[test]
     fn moved_robots_stay_visible_to_rays() {
         // A crowd that moves after the tree was built (parry's incremental leaf updates
         // once left inner boxes that missed moved robots: scans looked through them).
