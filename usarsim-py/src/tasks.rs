@@ -10,7 +10,8 @@
 use numpy::ndarray::{Array2, Array3, ArrayView1, ArrayView2, ArrayView3};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2,
-    PyReadonlyArray3, PyReadwriteArray1, PyReadwriteArray2, PyUntypedArrayMethods,
+    PyReadonlyArray3, PyReadwriteArray1, PyReadwriteArray2, PyReadwriteArray3,
+    PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -571,8 +572,11 @@ pub(crate) fn stream_sample<'py>(
 /// yaw) moved by `low + span × u` per axis, `u` three uniform draws of the row's stream
 /// (advanced here), where that place is outside every box of `boxes` (rows of x0, y0, x1,
 /// y1, open) and above `z_max` (z down: `z < z_max`); else the start itself. What
-/// `Tasks._hover_spawns_numpy` gives, bit for bit.
+/// `Tasks._hover_spawns_numpy` gives, bit for bit. With `targets` (rows, waypoints, 3) and
+/// `hold_yaw` (rows), each row's start is also its target (the first waypoint) and its yaw
+/// the one to hold (the task's own arrays, written in the same loop).
 #[pyfunction]
+#[pyo3(signature = (keys, drawn, rows, base, low, span, boxes, z_max, targets = None, hold_yaw = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn hover_spawns<'py>(
     py: Python<'py>,
@@ -584,6 +588,8 @@ pub(crate) fn hover_spawns<'py>(
     span: [f64; 3],
     boxes: PyReadonlyArray2<'py, f64>,
     z_max: f64,
+    targets: Option<PyReadwriteArray3<'py, f64>>,
+    hold_yaw: Option<PyReadwriteArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let mut streams = Streams::of(&keys, &mut drawn, "hover_spawns")?;
     let rows = rows.as_array();
@@ -598,9 +604,34 @@ pub(crate) fn hover_spawns<'py>(
         )));
     }
     let made = streams.starts(&rows, "hover_spawns")?;
+    let n = keys.as_array().len();
+    let mut targets = targets;
+    let mut targets = targets.as_mut().map(|t| t.as_array_mut());
+    let mut hold_yaw = hold_yaw;
+    let mut hold_yaw = hold_yaw.as_mut().map(|h| h.as_array_mut());
+    if targets
+        .as_ref()
+        .is_some_and(|t| t.shape()[0] != n || t.shape()[1] == 0 || t.shape()[2] != 3)
+        || hold_yaw.as_ref().is_some_and(|h| h.len() != n)
+    {
+        return Err(bad(format!(
+            "hover_spawns: targets {:?} and hold_yaw ({},) for {n} rows: expected ({n}, k >= 1, \
+             3) and ({n},)",
+            targets.as_ref().map_or(&[][..], |t| t.shape()),
+            hold_yaw.as_ref().map_or(0, |h| h.len())
+        )));
+    }
     let boxes = Boxes::of(&boxes);
     let mut out = base.to_owned();
     for (m, &(r, made)) in made.iter().enumerate() {
+        if let Some(t) = targets.as_mut() {
+            for c in 0..3 {
+                t[[r, 0, c]] = base[[m, c]];
+            }
+        }
+        if let Some(h) = hold_yaw.as_mut() {
+            h[r] = base[[m, 3]];
+        }
         let mut state = streams.state(r, made);
         streams.drawn[r] = made.wrapping_add(3);
         let p: [f64; 3] =

@@ -158,6 +158,21 @@ def test_hover_spawns_drawn_in_rust_follow_their_numpy_definition():
         same(got, t._hover_spawns_numpy(b.doubles(rows, 3), base))
         assert np.array_equal(a.drawn, b.drawn)
     assert not np.array_equal(got, base)  # some moved
+    # With the task's arrays: each row's start becomes its target and its yaw the one to hold,
+    # as NumPy's `targets[rows, 0] = base[:, :3]` and `hold_yaw[rows] = base[:, 3]` write them
+    # (a repeated row: its last start); the other rows and waypoints are left as they were.
+    targets, hold = np.full((6, 2, 3), 9.0), np.full(6, 9.0)
+    want_t, want_h = targets.copy(), hold.copy()
+    want_t[rows, 0] = base[:, :3]
+    want_h[rows] = base[:, 3]
+    a, b = Streams.seeded(3, 6), Streams.seeded(3, 6)
+    got = usarsim._core.hover_spawns(a.keys, a.drawn, rows, base, [-1.0, -1.0, -0.5], [2.0, 2.0, 1.0],
+                                     env.map.boxes(0.8), -0.5, targets, hold)
+    same(got, t._hover_spawns_numpy(b.doubles(rows, 3), base))
+    assert np.array_equal(targets, want_t) and np.array_equal(hold, want_h)
+    with pytest.raises(ValueError, match=r"hover_spawns: targets \[5, 2, 3\]"):
+        usarsim._core.hover_spawns(a.keys, a.drawn, rows, base, [-1.0, -1.0, -0.5], [2.0, 2.0, 1.0],
+                                   env.map.boxes(0.8), -0.5, np.zeros((5, 2, 3)), hold)
 
 
 def test_batch_resets_take_arrays_or_lists_and_name_bad_indices():

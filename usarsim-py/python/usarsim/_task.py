@@ -340,13 +340,14 @@ class Tasks:
         if self.task == "hover":
             # Hold the start pose; spawn up to 1 m away from it (0.5 m vertically): each
             # row's three uniform draws, as uniform(-1, 1, 2) then uniform(-0.5, 0.5) give.
-            self.targets[rows, 0] = base[:, :3]
-            self.hold_yaw[rows] = base[:, 3]
             if shared:
+                self.targets[rows, 0] = base[:, :3]
+                self.hold_yaw[rows] = base[:, 3]
                 spawns = self._hover_spawns_numpy(rng.random((m, 3)), base)
-            else:  # in Rust: what _hover_spawns_numpy gives with the rows' three doubles
+            else:  # in Rust: what _hover_spawns_numpy gives with the rows' three doubles (and
+                # the targets and yaws to hold written as above, in the same loop)
                 spawns = hover_spawns(rng.keys, rng.drawn, rows, base, _OFFSET_LOW_LIST, _OFFSET_SPAN_LIST,
-                                      self.map.boxes(0.8), -0.5)
+                                      self.map.boxes(0.8), -0.5, self.targets, self.hold_yaw)
         elif waypoints is not None:
             self.targets[rows, :len(waypoints)] = waypoints
             self.count[rows] = len(waypoints)
