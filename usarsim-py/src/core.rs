@@ -449,6 +449,7 @@ impl WorldSim {
             return Ok(());
         }
         self.world.reset(seed);
+        self.uavs.clear();
         self.out.clear();
         self.populate(settings, poses)
     }
@@ -461,20 +462,15 @@ impl WorldSim {
         let mut first = 0;
         for (i, pose) in poses.iter().enumerate() {
             if !pose.iter().all(|v| v.is_finite()) {
-                uavs.truncate(i);
                 return Err(invalid(format!("start {i}: not finite: {pose:?}")));
             }
             let client = world.connect();
             if i == 0 {
                 first = client.0;
             }
-            // Each UAV's INIT is kept from reset to reset: only its pose changes.
-            if self
-                .inits
-                .get(i)
-                .is_none_or(|init| init.class_name != settings.robot)
-            {
-                self.inits.truncate(i);
+            // Each UAV's INIT is kept from reset to reset: only its pose changes (the class
+            // is the settings', which a reset under other settings makes a new world for).
+            if self.inits.len() == i {
                 self.inits.push(Init {
                     class_name: settings.robot.clone(),
                     name: Some(format!("UAV{i}")),
@@ -484,19 +480,13 @@ impl WorldSim {
             let init = &mut self.inits[i];
             place(init, pose);
             world.init(client, init);
-            let uav = Uav {
+            uavs.push(Uav {
                 client,
                 state: UavState::new(),
                 touched: false,
                 rotors: [0.0; 4],
-            };
-            // In place where the last episode's UAV was (no move of the state into the vector).
-            match uavs.get_mut(i) {
-                Some(old) => *old = uav,
-                None => uavs.push(uav),
-            }
+            });
         }
-        uavs.truncate(poses.len());
         if world.robot_count() != poses.len() {
             return Err(invalid(format!(
                 "start: could not spawn every UAV ({} of {}): a start is inside a wall, \

@@ -588,8 +588,8 @@ pub(crate) fn hover_spawns<'py>(
     span: [f64; 3],
     boxes: PyReadonlyArray2<'py, f64>,
     z_max: f64,
-    targets: Option<PyReadwriteArray3<'py, f64>>,
-    hold_yaw: Option<PyReadwriteArray1<'py, f64>>,
+    mut targets: Option<PyReadwriteArray3<'py, f64>>,
+    mut hold_yaw: Option<PyReadwriteArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let mut streams = Streams::of(&keys, &mut drawn, "hover_spawns")?;
     let rows = rows.as_array();
@@ -605,9 +605,7 @@ pub(crate) fn hover_spawns<'py>(
     }
     let made = streams.starts(&rows, "hover_spawns")?;
     let n = keys.as_array().len();
-    let mut targets = targets;
     let mut targets = targets.as_mut().map(|t| t.as_array_mut());
-    let mut hold_yaw = hold_yaw;
     let mut hold_yaw = hold_yaw.as_mut().map(|h| h.as_array_mut());
     if targets
         .as_ref()

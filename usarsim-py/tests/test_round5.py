@@ -223,8 +223,8 @@ def test_a_process_forked_after_stepping_steps_its_own_worlds():
 
 @pytest.mark.parametrize("robot", ["USARBot.stsAirRobot", "USARBot.stsQuadrotor"])
 def test_a_world_reset_in_place_flies_as_a_new_one_bit_for_bit(robot):
-    # A reset keeps the world's UAVs' INITs and renews their client state in place: after an
-    # episode flown into the walls and floor (contact, for the quadrotor crashes), world 0 reset
+    # A reset keeps the world's UAVs' INITs (only their poses change) and starts their client
+    # state anew: after an episode flown into the walls and floor (contact, for the quadrotor crashes), world 0 reset
     # with a seed and starts observes and flies exactly as a new batch made with them, both
     # UAVs of it (the second one's INIT names it UAV1); world 1 flies on untouched.
     starts = np.array([[0.0, 0.0, -1.5, 0.0], [1.0, 0.5, -1.5, 0.3]] * 2)
