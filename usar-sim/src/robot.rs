@@ -1063,18 +1063,20 @@ impl Robot {
             ));
         }
         if !self.is_dead(tick, dt) {
-            let yaw = self.rotation[2];
+            let mut heading = Heading::new(self.rotation[2]);
+            // The body frame's yaw, for the parts that turn a vector into it.
+            let mut body = Heading::new(-self.rotation[2]);
             let tilt = self.tilt();
             let imu = self.dynamics.as_ref().map(|d| d.imu());
             let gauge = self.dynamics.as_ref().and_then(|d| d.gauge());
             let rotors = self.dynamics.as_ref().and_then(|d| d.rotor_speeds());
-            let hits = self.cast_single_rays(scene, tick, tilt.as_ref());
+            let hits = self.cast_single_rays(scene, tick, tilt.as_ref(), &mut heading);
             for (i, (part, model)) in self.parts.iter_mut().zip(&self.model.parts).enumerate() {
                 let due = part.timer.fire(tick);
                 if !(due || std::mem::take(&mut part.forced)) {
                     continue;
                 }
-                let (origin, yaw, pitch) = mount(self.position, yaw, tilt.as_ref(), model);
+                let (origin, yaw, pitch) = mount(self.position, &mut heading, tilt.as_ref(), model);
                 let reading = Reading {
                     name: &model.name,
                     scene,
@@ -1089,6 +1091,7 @@ impl Robot {
                     yaw,
                     pitch,
                     tilt,
+                    body_trig: Some(body.sin_cos()),
                     imu,
                     gauge,
                     rotors,
@@ -1160,11 +1163,12 @@ impl Robot {
         scene: &Scene,
         tick: u64,
         tilt: Option<&M3>,
+        heading: &mut Heading,
     ) -> Vec<Option<Option<f64>>> {
         if !scene.shortcuts {
             return Vec::new();
         }
-        let (yaw, mut length) = (self.rotation[2], None);
+        let (yaw, mut length) = (heading.angle, None);
         let mut fan = Vec::new();
         for (i, (part, model)) in self.parts.iter().zip(&self.model.parts).enumerate() {
             let Some(range) = part.sensor.single_ray() else {
@@ -1177,7 +1181,7 @@ impl Robot {
                 continue;
             }
             length = Some(range);
-            let (origin, ray_yaw, pitch) = mount(self.position, yaw, tilt, model);
+            let (origin, ray_yaw, pitch) = mount(self.position, heading, tilt, model);
             // As the sensor builds its direction (`Reading::trace` then tilts it).
             let dir = direction(pitch + 0.0, ray_yaw + 0.0);
             let dir = tilt.map_or(dir, |t| dynamics::mul(t, dir));
@@ -1342,7 +1346,7 @@ impl Robot {
             .filter_map(move |(part, model)| {
                 let camera = part.sensor.camera()?;
                 let (origin, mut yaw, mut pitch) =
-                    mount(self.position, self.rotation[2], tilt.as_ref(), model);
+                    mount(self.position, &mut Heading::new(self.rotation[2]), tilt.as_ref(), model);
                 if let Some(actuator) = camera.config.mount.as_deref().and_then(|name| {
                     self.actuators
                         .iter()
@@ -1386,10 +1390,28 @@ impl Robot {
 }
 
 /// A part's origin in the world and its yaw and pitch (the [`Reading`] fields).
-fn mount(position: V3, yaw: f64, tilt: Option<&M3>, model: &PartModel) -> (V3, f64, f64) {
-    let level = yaw_rotate(yaw, model.position);
+fn mount(position: V3, yaw: &mut Heading, tilt: Option<&M3>, model: &PartModel) -> (V3, f64, f64) {
+    let (s, c) = yaw.sin_cos();
+    let level = rotate_by(s, c, model.position);
     let origin = add(position, tilt.map_or(level, |t| dynamics::mul(t, level)));
-    (origin, yaw + model.direction[2], model.direction[1])
+    (origin, yaw.angle + model.direction[2], model.direction[1])
+}
+
+/// A yaw and its sine and cosine, worked out at the first use and kept: a robot's parts all
+/// mount on the same yaw (one `sin_cos` for them all instead of one per part).
+struct Heading {
+    angle: f64,
+    trig: Option<(f64, f64)>,
+}
+
+impl Heading {
+    fn new(angle: f64) -> Self {
+        Self { angle, trig: None }
+    }
+
+    fn sin_cos(&mut self) -> (f64, f64) {
+        *self.trig.get_or_insert_with(|| self.angle.sin_cos())
+    }
 }
 
 fn cross(a: V3, b: V3) -> V3 {

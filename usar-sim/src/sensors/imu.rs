@@ -10,7 +10,7 @@ use super::{Reading, Sensor, settings};
 use crate::dynamics::ImuTruth;
 use crate::noise::{ErrorModel, Errors, Noise};
 use crate::part::PartConfig;
-use crate::scene::{V3, yaw_rotate};
+use crate::scene::V3;
 
 /// IMU settings: the error models of the accelerometer (m/s²) and the gyro (rad/s), off by
 /// default (the engine adds no noise to the IMU either).
@@ -123,7 +123,7 @@ impl Imu {
                     (at.velocity[2] - v[2]) / dt,
                 ];
                 // Into the body frame (yaw only), then z negated as the engine does (+ = up).
-                let b = yaw_rotate(-at.rotation[2], dv);
+                let b = at.yaw_to_body(dv);
                 let rates: V3 = std::array::from_fn(|i| angle_diff(at.rotation[i], r[i]) / dt);
                 let rate_accel: V3 = std::array::from_fn(|i| (rates[i] - w[i]) / dt);
                 ([b[0], b[1], -b[2]], rates, rate_accel)

@@ -44,7 +44,7 @@ use super::dynamics::{ImuTruth, M3, mul, mul_t};
 use super::noise::Noise;
 use super::part::PartConfig;
 use super::power::Gauge;
-use super::scene::{Scene, V3, add, scale, yaw_rotate};
+use super::scene::{Scene, V3, add, rotate_by, scale};
 
 /// What a sensor sees when it takes a reading.
 pub(crate) struct Reading<'a> {
@@ -76,6 +76,9 @@ pub(crate) struct Reading<'a> {
     /// The body's tilt (its rotation without the yaw) for models with physics: directions
     /// built from `pitch` and `yaw` are turned by it before tracing. `None`: level.
     pub(crate) tilt: Option<M3>,
+    /// The sine and cosine of minus the robot's yaw (`rotation[2]`) when the robot has
+    /// worked them out for its parts (`None`: [`Reading::to_body`] works them out).
+    pub(crate) body_trig: Option<(f64, f64)>,
     /// What the IMU measures, for models with physics (`None`: the engine's finite
     /// differences).
     pub(crate) imu: Option<ImuTruth>,
@@ -164,7 +167,16 @@ impl Reading<'_> {
             Some(t) => mul_t(t, v),
             None => v,
         };
-        yaw_rotate(-self.rotation[2], level)
+        self.yaw_to_body(level)
+    }
+
+    /// A vector of the level frame turned by minus the yaw (into the body frame of the
+    /// kinematic model): what `yaw_rotate(-rotation[2], v)` gives.
+    pub(crate) fn yaw_to_body(&self, v: V3) -> V3 {
+        let (s, c) = self
+            .body_trig
+            .unwrap_or_else(|| (-self.rotation[2]).sin_cos());
+        rotate_by(s, c, v)
     }
 }
 
@@ -372,6 +384,7 @@ pub(crate) mod testing {
             yaw: 0.0,
             pitch: 0.0,
             tilt: None,
+            body_trig: None,
             imu: None,
             gauge: None,
             rotors: None,
