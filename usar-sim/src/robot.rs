@@ -1345,12 +1345,8 @@ impl Robot {
             .zip(&self.model.parts)
             .filter_map(move |(part, model)| {
                 let camera = part.sensor.camera()?;
-                let (origin, mut yaw, mut pitch) = mount(
-                    self.position,
-                    &mut Heading::new(self.rotation[2]),
-                    tilt.as_ref(),
-                    model,
-                );
+                let (origin, mut yaw, mut pitch) =
+                    mount(self.position, &mut Heading::new(self.rotation[2]), tilt.as_ref(), model);
                 if let Some(actuator) = camera.config.mount.as_deref().and_then(|name| {
                     self.actuators
                         .iter()

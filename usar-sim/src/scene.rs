@@ -1378,7 +1378,15 @@ impl Scene {
                 (add(centre, rest), None)
             }
         } else {
-            glide.slide(shape, centre, rest)
+            let cylinder = shape.cylinder();
+            let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
+                let query = swept_box(shape, pos, rest);
+                let solids = meeting(&glide.near, &query).map(|n| n.solid);
+                let body = upright_pose(pos);
+                let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
+                Some((hit.flatten()?, false))
+            });
+            (pos, contact)
         };
         if !glide.in_leaf {
             self.place_body(handle.into_raw_parts().0, shape, pos);
@@ -1459,24 +1467,6 @@ pub(crate) struct Glide {
     in_leaf: bool,
     /// The reach is under half of [`MAX_STEP`]: no tick's motion is held to it.
     short: bool,
-}
-
-impl Glide {
-    /// A sweep of the glide that meets one of its solids: the casts against them. Apart
-    /// from [`Scene::glide_sweep`] (and never inlined into it), so that the sweeps that meet
-    /// nothing, most of them, run without the casts' registers and stack.
-    #[inline(never)]
-    fn slide(&self, shape: BodyShape, centre: V3, rest: V3) -> (V3, Option<V3>) {
-        let cylinder = shape.cylinder();
-        let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
-            let query = swept_box(shape, pos, rest);
-            let solids = meeting(&self.near, &query).map(|n| n.solid);
-            let body = upright_pose(pos);
-            let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
-            Some((hit.flatten()?, false))
-        });
-        (pos, contact)
-    }
 }
 
 /// Those of `near` whose tree boxes meet `query`, in their order: what a tree query over
