@@ -14,8 +14,10 @@ use super::dynamics::{self, Crash, Dynamics, Fault, Flight, LowLevel, M3, Sensor
 use super::noise::Noise;
 use super::quadrotor::{self, Quadrotor};
 use super::render::{ROBOT_SEGMENT, View};
-use super::robots::{ActuatorConfig, DynamicsKind, RobotClass};
-use super::scene::{BodyShape, Look, Scene, V3, add, direction, rotate_by, scale, yaw_rotate};
+use super::robots::{ActuatorConfig, DynamicsKind, FlightConfig, RobotClass};
+use super::scene::{
+    BodyShape, Glide, Look, Scene, V3, add, direction, rotate_by, scale, yaw_rotate,
+};
 use super::sensors::camera::Camera;
 use super::sensors::{self, Reading, Sensor};
 use super::wind::WindConfig;
@@ -404,13 +406,32 @@ impl YawTrig {
     const EXACT_EVERY: u8 = 64;
 
     /// The sine and cosine of `yaw`: kept ones if they are of this yaw, else exact ones.
+    #[inline(always)]
     fn at(&mut self, yaw: f64) -> (f64, f64) {
         if self.yaw.to_bits() != yaw.to_bits() {
-            (self.sin, self.cos) = yaw.sin_cos();
-            self.yaw = yaw;
-            self.sums_left = Self::EXACT_EVERY;
+            self.exact(yaw);
         }
         (self.sin, self.cos)
+    }
+
+    /// The exact sine and cosine of `yaw`, kept. Out of line (as [`YawTrig::new_turn`]): the
+    /// compiler may otherwise compute them ahead, whether needed or not.
+    #[cold]
+    #[inline(never)]
+    fn exact(&mut self, yaw: f64) {
+        (self.sin, self.cos) = yaw.sin_cos();
+        self.yaw = yaw;
+        self.sums_left = Self::EXACT_EVERY;
+    }
+
+    /// A new turn per tick and its sine and cosine, kept. Out of line: inlined, the compiler
+    /// hoisted the `sin_cos` out of a glide's loop (a pure call on a loop-invariant turn)
+    /// and made it at every call of [`Robot::free_ticks`], needed or not.
+    #[cold]
+    #[inline(never)]
+    fn new_turn(&mut self, turn: f64) {
+        let (sin, cos) = turn.sin_cos();
+        self.turn = (turn, sin, cos);
     }
 
     /// The yaw turned by `turn` to `next`: keeps `next`'s sine and cosine by the sums —
@@ -424,8 +445,7 @@ impl YawTrig {
             return;
         }
         if self.turn.0.to_bits() != turn.to_bits() {
-            let (sin, cos) = turn.sin_cos();
-            self.turn = (turn, sin, cos);
+            self.new_turn(turn);
         }
         let (_, st, ct) = self.turn;
         (self.sin, self.cos) = (self.sin * ct + self.cos * st, self.cos * ct - self.sin * st);
@@ -899,6 +919,12 @@ impl Robot {
         let mut last = (glide.is_none() && alive).then(|| self.tick_state());
         let mut flown = 0;
         while flown < ticks && self.crashed.is_none() {
+            if let Some(glide) = glide.as_ref().filter(|_| alive) {
+                flown += self.free_ticks(scene, glide, ticks - flown, dt);
+                if flown == ticks {
+                    break;
+                }
+            }
             flown += 1;
             self.kinematic(
                 tick + flown,
@@ -920,6 +946,39 @@ impl Robot {
         }
         if let Some(glide) = glide {
             scene.glide_end(glide, body, self.position);
+        }
+        flown
+    }
+
+    /// Up to `ticks` ticks of a moving glide whose sweeps meet none of its solids (and with a
+    /// battery alive throughout): [`Robot::kinematic`]'s arithmetic, bit for bit, on copies
+    /// of the robot's state kept in registers (no contact, no crash, no velocity but the
+    /// last tick's). Stops before a tick whose sweep meets a solid; returns the ticks flown.
+    fn free_ticks(&mut self, scene: &mut Scene, glide: &Glide, ticks: u64, dt: f64) -> u64 {
+        let s = self.set;
+        let flight = &self.model.class.flight;
+        let (body, shape) = (self.body, self.model.shape);
+        let (mut pos, mut rotation, mut trig) = (self.position, self.rotation, self.yaw_trig);
+        let mut start = pos;
+        let mut flown = 0;
+        while flown < ticks {
+            let motion = set_motion(&s, &mut trig, rotation[2], dt);
+            let next = if motion == [0.0; 3] {
+                pos
+            } else {
+                match scene.glide_free(glide, body, shape, pos, motion) {
+                    Ok(next) => next,
+                    Err(_) => break,
+                }
+            };
+            (start, pos) = (pos, next);
+            flown += 1;
+            turn_and_tilt(&s, flight, &mut rotation, &mut trig, dt);
+        }
+        self.yaw_trig = trig;
+        if flown > 0 {
+            (self.position, self.rotation, self.contact) = (pos, rotation, false);
+            self.velocity = std::array::from_fn(|i| (pos[i] - start[i]) / dt);
         }
         flown
     }
@@ -949,10 +1008,7 @@ impl Robot {
             self.set = SetPoints::default();
         }
         let s = self.set;
-        let yaw = self.rotation[2];
-        let (sin, cos) = self.yaw_trig.at(yaw);
-        let horizontal = rotate_by(sin, cos, [s.linear, s.lateral, 0.0]);
-        let mut motion = scale(add(horizontal, [0.0, 0.0, -s.altitude]), dt);
+        let mut motion = set_motion(&s, &mut self.yaw_trig, self.rotation[2], dt);
         if self.crashed.is_some() {
             motion = [0.0, 0.0, KINEMATIC_FALL_SPEED * dt];
         }
@@ -977,17 +1033,8 @@ impl Robot {
             }
         }
         self.velocity = std::array::from_fn(|i| (self.position[i] - start[i]) / dt);
-        let turn = s.yaw_rate * dt;
-        self.rotation[2] = bounded_angle(yaw + turn);
-        self.yaw_trig.turn(self.rotation[2], turn);
         let flight = &self.model.class.flight;
-        let step = flight.tilt_rate * dt;
-        for (angle, target) in [(0, s.roll), (1, s.pitch)] {
-            let error = target - self.rotation[angle];
-            if error.abs() > flight.tilt_margin {
-                self.rotation[angle] += error.clamp(-step, step);
-            }
-        }
+        turn_and_tilt(&s, flight, &mut self.rotation, &mut self.yaw_trig, dt);
     }
 
     fn report_crash(&mut self, crash: Crash, tick: u64, dt: f64) {
@@ -1345,8 +1392,12 @@ impl Robot {
             .zip(&self.model.parts)
             .filter_map(move |(part, model)| {
                 let camera = part.sensor.camera()?;
-                let (origin, mut yaw, mut pitch) =
-                    mount(self.position, &mut Heading::new(self.rotation[2]), tilt.as_ref(), model);
+                let (origin, mut yaw, mut pitch) = mount(
+                    self.position,
+                    &mut Heading::new(self.rotation[2]),
+                    tilt.as_ref(),
+                    model,
+                );
                 if let Some(actuator) = camera.config.mount.as_deref().and_then(|name| {
                     self.actuators
                         .iter()
@@ -1390,6 +1441,37 @@ impl Robot {
 }
 
 /// A part's origin in the world and its yaw and pitch (the [`Reading`] fields).
+/// A kinematic tick's motion by the set points `s` at the yaw `yaw` (its sine and cosine
+/// from `trig`).
+#[inline(always)]
+fn set_motion(s: &SetPoints, trig: &mut YawTrig, yaw: f64, dt: f64) -> V3 {
+    let (sin, cos) = trig.at(yaw);
+    let horizontal = rotate_by(sin, cos, [s.linear, s.lateral, 0.0]);
+    scale(add(horizontal, [0.0, 0.0, -s.altitude]), dt)
+}
+
+/// A kinematic tick's turn by the set yaw rate (the yaw's sine and cosine kept by `trig`)
+/// and its tilt toward the set roll and pitch (visual only).
+#[inline(always)]
+fn turn_and_tilt(
+    s: &SetPoints,
+    flight: &FlightConfig,
+    rotation: &mut V3,
+    trig: &mut YawTrig,
+    dt: f64,
+) {
+    let turn = s.yaw_rate * dt;
+    rotation[2] = bounded_angle(rotation[2] + turn);
+    trig.turn(rotation[2], turn);
+    let step = flight.tilt_rate * dt;
+    for (angle, target) in [(0, s.roll), (1, s.pitch)] {
+        let error = target - rotation[angle];
+        if error.abs() > flight.tilt_margin {
+            rotation[angle] += error.clamp(-step, step);
+        }
+    }
+}
+
 fn mount(position: V3, yaw: &mut Heading, tilt: Option<&M3>, model: &PartModel) -> (V3, f64, f64) {
     let (s, c) = yaw.sin_cos();
     let level = rotate_by(s, c, model.position);

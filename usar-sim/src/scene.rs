@@ -1358,26 +1358,11 @@ impl Scene {
         centre: V3,
         motion: V3,
     ) -> (V3, Option<V3>) {
-        let motion = within_world(centre, motion);
-        // A motion shorter than the glide's reach is never held.
-        let rest = if glide.short {
-            motion
-        } else {
-            held_to_max_step(motion)
+        let rest = match self.glide_free(glide, handle, shape, centre, motion) {
+            Ok(pos) => return (pos, None),
+            Err(rest) => rest,
         };
-        let free = glide.near.is_empty()
-            || meeting(&glide.near, &swept_box(shape, centre, rest))
-                .next()
-                .is_none();
-        let (pos, contact) = if free {
-            // Nothing within reach of this sweep: the first cast finds nothing, unless the
-            // motion is too short to cast.
-            if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
-                (centre, None)
-            } else {
-                (add(centre, rest), None)
-            }
-        } else {
+        let (pos, contact) = {
             let cylinder = shape.cylinder();
             let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
                 let query = swept_box(shape, pos, rest);
@@ -1392,6 +1377,45 @@ impl Scene {
             self.place_body(handle.into_raw_parts().0, shape, pos);
         }
         (pos, contact)
+    }
+
+    /// [`Scene::glide_sweep`] when its sweep meets none of the glide's solids (no contact):
+    /// the end, its tree box placed. When it meets one, `Err` with the motion to cast (held
+    /// to the world and to [`MAX_STEP`]).
+    #[inline(always)]
+    pub(crate) fn glide_free(
+        &mut self,
+        glide: &Glide,
+        handle: ColliderHandle,
+        shape: BodyShape,
+        centre: V3,
+        motion: V3,
+    ) -> Result<V3, V3> {
+        let motion = within_world(centre, motion);
+        // A motion shorter than the glide's reach is never held.
+        let rest = if glide.short {
+            motion
+        } else {
+            held_to_max_step(motion)
+        };
+        let free = glide.near.is_empty()
+            || meeting(&glide.near, &swept_box(shape, centre, rest))
+                .next()
+                .is_none();
+        if !free {
+            return Err(rest);
+        }
+        // Nothing within reach of this sweep: the first cast finds nothing, unless the motion
+        // is too short to cast.
+        let pos = if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
+            centre
+        } else {
+            add(centre, rest)
+        };
+        if !glide.in_leaf {
+            self.place_body(handle.into_raw_parts().0, shape, pos);
+        }
+        Ok(pos)
     }
 
     /// Ends a glide: the body's collider where its sweeps left it.
