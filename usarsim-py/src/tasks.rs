@@ -133,8 +133,10 @@ fn length(v: [f64; 3]) -> f64 {
 /// `np.clip` of one float64: NaN stays NaN, and the bounds are compared as NumPy does
 /// (`max(x, lo)` is `lo` unless `x > lo`, so -0 clipped at 0 is +0).
 fn clip(x: f64, lo: f64, hi: f64) -> f64 {
-    let x = if x.is_nan() || x > lo { x } else { lo };
-    if x.is_nan() || x < hi { x } else { hi }
+    // `lo >= x` is false for a NaN x, as `x > lo` is true just when `lo >= x` is false
+    // otherwise: the same as `if x.is_nan() || x > lo { x } else { lo }`, without a branch.
+    let x = if lo >= x { lo } else { x };
+    if hi <= x { hi } else { x }
 }
 
 /// The rows' targets and how many each has, shared by both calls.
@@ -419,9 +421,43 @@ pub(crate) fn task_observe(
                 )));
             }
         };
-        for (i, row) in dest.chunks_exact_mut(columns.max(1)).enumerate() {
-            fill(i, &mut buf);
-            row.iter_mut().zip(&buf).for_each(|(d, v)| *d = *v as f32);
+        if columns == 0 {
+            return Ok(());
+        }
+        // Key after key, each over every row: no dispatch per row and value (what `fill`
+        // gives, bit for bit, written column by column).
+        let mut at = 0;
+        for (s, w) in &sources {
+            let w = *w;
+            let bounds = (&lo[at..at + w], &hi[at..at + w]);
+            let put = |dest: &mut [f32], value: &dyn Fn(usize, usize) -> f64| {
+                put_columns(dest, columns, at, bounds, value);
+            };
+            match s {
+                Source::Raw(a) if w == 3 => {
+                    put_columns3(dest, columns, at, bounds, |i, k| a[3 * i + k])
+                }
+                Source::Raw(a) if w == 1 => put_columns1(dest, columns, at, bounds, |i| a[i]),
+                Source::Raw(a) => put(dest, &|i, k| a[w * i + k]),
+                Source::Attitude(a) => {
+                    put_columns3(dest, columns, at, bounds, |i, k| wrap(a[3 * i + k]))
+                }
+                Source::Waypoint => {
+                    for (i, row) in dest.chunks_exact_mut(columns).enumerate() {
+                        let v = t.vector(i, &position, index[i]);
+                        for k in 0..3 {
+                            row[at + k] = clip(v[k], bounds.0[k], bounds.1[k]) as f32;
+                        }
+                    }
+                }
+                Source::YawError if hover => {
+                    put_columns1(dest, columns, at, bounds, |i| {
+                        wrap(hold_yaw[i] - attitude[[i, 2]])
+                    });
+                }
+                Source::YawError => put_columns1(dest, columns, at, bounds, |_| 0.0),
+            }
+            at += w;
         }
         return Ok(());
     }
@@ -461,6 +497,55 @@ pub(crate) fn task_observe(
         }
     }
     Ok(())
+}
+
+/// One key's columns `at..` (their bounds `lo`, `hi`) of every row of the flat float32
+/// `dest` (`columns` a row): `value(row, k)` clipped and rounded.
+fn put_columns(
+    dest: &mut [f32],
+    columns: usize,
+    at: usize,
+    (lo, hi): (&[f64], &[f64]),
+    value: &dyn Fn(usize, usize) -> f64,
+) {
+    for (i, row) in dest.chunks_exact_mut(columns).enumerate() {
+        for (k, d) in row[at..at + lo.len()].iter_mut().enumerate() {
+            *d = clip(value(i, k), lo[k], hi[k]) as f32;
+        }
+    }
+}
+
+/// [`put_columns`] of a key three columns wide, inlined.
+#[inline(always)]
+fn put_columns3(
+    dest: &mut [f32],
+    columns: usize,
+    at: usize,
+    (lo, hi): (&[f64], &[f64]),
+    value: impl Fn(usize, usize) -> f64,
+) {
+    let (lo, hi) = (&lo[..3], &hi[..3]);
+    for (i, row) in dest.chunks_exact_mut(columns).enumerate() {
+        let row = &mut row[at..at + 3];
+        for k in 0..3 {
+            row[k] = clip(value(i, k), lo[k], hi[k]) as f32;
+        }
+    }
+}
+
+/// [`put_columns`] of a key one column wide, inlined.
+#[inline(always)]
+fn put_columns1(
+    dest: &mut [f32],
+    columns: usize,
+    at: usize,
+    (lo, hi): (&[f64], &[f64]),
+    value: impl Fn(usize) -> f64,
+) {
+    let (lo, hi) = (lo[0], hi[0]);
+    for (i, row) in dest.chunks_exact_mut(columns).enumerate() {
+        row[at] = clip(value(i), lo, hi) as f32;
+    }
 }
 
 /// Boxes seen from above, rows of x0, y0, x1, y1 (`MapInfo.boxes`).
