@@ -918,13 +918,15 @@ impl Robot {
         // does not turn), every later tick of the glide would too, and they are skipped.
         let mut last = (glide.is_none() && alive).then(|| self.tick_state());
         let mut flown = 0;
+        // A moving glide that cannot crash (a battery alive throughout, no crash on contact):
+        // its ticks on copies of the robot's state.
+        if let Some(glide) = glide
+            .as_ref()
+            .filter(|_| alive && !self.model.class.crash.on_contact)
+        {
+            flown = self.glide_ticks(scene, glide, ticks, dt);
+        }
         while flown < ticks && self.crashed.is_none() {
-            if let Some(glide) = glide.as_ref().filter(|_| alive) {
-                flown += self.free_ticks(scene, glide, ticks - flown, dt);
-                if flown == ticks {
-                    break;
-                }
-            }
             flown += 1;
             self.kinematic(
                 tick + flown,
@@ -950,37 +952,39 @@ impl Robot {
         flown
     }
 
-    /// Up to `ticks` ticks of a moving glide whose sweeps meet none of its solids (and with a
-    /// battery alive throughout): [`Robot::kinematic`]'s arithmetic, bit for bit, on copies
-    /// of the robot's state kept in registers (no contact, no crash, no velocity but the
-    /// last tick's). Stops before a tick whose sweep meets a solid; returns the ticks flown.
-    fn free_ticks(&mut self, scene: &mut Scene, glide: &Glide, ticks: u64, dt: f64) -> u64 {
+    /// The `ticks` ticks of a moving glide that cannot crash (a battery alive throughout, no
+    /// crash on contact): [`Robot::kinematic`]'s arithmetic, bit for bit, on copies of the
+    /// robot's state kept in registers (no velocity but the last tick's); a sweep that meets
+    /// none of the glide's solids moves without a cast ([`Scene::glide_free`]). Returns
+    /// `ticks`.
+    fn glide_ticks(&mut self, scene: &mut Scene, glide: &Glide, ticks: u64, dt: f64) -> u64 {
         let s = self.set;
         let flight = &self.model.class.flight;
         let (body, shape) = (self.body, self.model.shape);
         let (mut pos, mut rotation, mut trig) = (self.position, self.rotation, self.yaw_trig);
-        let mut start = pos;
-        let mut flown = 0;
-        while flown < ticks {
+        let (mut start, mut contact, mut touched) = (pos, false, false);
+        for _ in 0..ticks {
             let motion = set_motion(&s, &mut trig, rotation[2], dt);
-            let next = if motion == [0.0; 3] {
-                pos
-            } else {
-                match scene.glide_free(glide, body, shape, pos, motion) {
+            start = pos;
+            contact = false;
+            if motion != [0.0; 3] {
+                pos = match scene.glide_free(glide, body, shape, pos, motion) {
                     Ok(next) => next,
-                    Err(_) => break,
-                }
-            };
-            (start, pos) = (pos, next);
-            flown += 1;
+                    Err(rest) => {
+                        let (next, hit) = scene.glide_slide(glide, body, shape, pos, rest);
+                        contact = hit.is_some();
+                        touched |= contact;
+                        next
+                    }
+                };
+            }
             turn_and_tilt(&s, flight, &mut rotation, &mut trig, dt);
         }
-        self.yaw_trig = trig;
-        if flown > 0 {
-            (self.position, self.rotation, self.contact) = (pos, rotation, false);
-            self.velocity = std::array::from_fn(|i| (pos[i] - start[i]) / dt);
-        }
-        flown
+        (self.position, self.rotation, self.yaw_trig) = (pos, rotation, trig);
+        self.velocity = std::array::from_fn(|i| (pos[i] - start[i]) / dt);
+        self.contact = contact;
+        self.touched |= touched;
+        ticks
     }
 
     /// What a kinematic tick reads and writes of the robot besides its set points, bit for

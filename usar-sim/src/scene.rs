@@ -1358,21 +1358,30 @@ impl Scene {
         centre: V3,
         motion: V3,
     ) -> (V3, Option<V3>) {
-        let rest = match self.glide_free(glide, handle, shape, centre, motion) {
-            Ok(pos) => return (pos, None),
-            Err(rest) => rest,
-        };
-        let (pos, contact) = {
-            let cylinder = shape.cylinder();
-            let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
-                let query = swept_box(shape, pos, rest);
-                let solids = meeting(&glide.near, &query).map(|n| n.solid);
-                let body = upright_pose(pos);
-                let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
-                Some((hit.flatten()?, false))
-            });
-            (pos, contact)
-        };
+        match self.glide_free(glide, handle, shape, centre, motion) {
+            Ok(pos) => (pos, None),
+            Err(rest) => self.glide_slide(glide, handle, shape, centre, rest),
+        }
+    }
+
+    /// The rest of [`Scene::glide_sweep`] when its sweep meets a solid of the glide: the
+    /// casts against those it meets, by `rest` (the motion [`Scene::glide_free`] held).
+    pub(crate) fn glide_slide(
+        &mut self,
+        glide: &Glide,
+        handle: ColliderHandle,
+        shape: BodyShape,
+        centre: V3,
+        rest: V3,
+    ) -> (V3, Option<V3>) {
+        let cylinder = shape.cylinder();
+        let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
+            let query = swept_box(shape, pos, rest);
+            let solids = meeting(&glide.near, &query).map(|n| n.solid);
+            let body = upright_pose(pos);
+            let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
+            Some((hit.flatten()?, false))
+        });
         if !glide.in_leaf {
             self.place_body(handle.into_raw_parts().0, shape, pos);
         }
