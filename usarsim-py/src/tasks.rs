@@ -7,7 +7,7 @@
 //! rows the NumPy rewards and observations took 0.5–0.6 ms of a step, during which the
 //! stepping threads wait, and the Python sampling loop 0.3–0.45 s per 1024 Waypoints resets.
 
-use numpy::ndarray::{Array2, Array3, ArrayView1, ArrayView2, ArrayView3};
+use numpy::ndarray::{Array2, Array3, ArrayView1, ArrayView2};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2,
     PyReadonlyArray3, PyReadwriteArray1, PyReadwriteArray2, PyReadwriteArray3,
@@ -112,9 +112,12 @@ fn bad(what: impl std::fmt::Display) -> PyErr {
 fn wrap(x: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
     let shifted = x + PI;
-    // fmod of a value already in [0, 2 pi) is that value: skip the call.
-    let mut out = if (0.0..TAU).contains(&shifted) {
+    // fmod without the call where it is exact arithmetic: a value in (-2 pi, 2 pi) is its
+    // own remainder, and one in [2 pi, 4 pi) less 2 pi is exact (Sterbenz).
+    let mut out = if shifted > -TAU && shifted < TAU {
         shifted
+    } else if (TAU..2.0 * TAU).contains(&shifted) {
+        shifted - TAU
     } else {
         shifted % TAU
     };
@@ -139,39 +142,81 @@ fn clip(x: f64, lo: f64, hi: f64) -> f64 {
     if hi <= x { hi } else { x }
 }
 
-/// The rows' targets and how many each has, shared by both calls.
+/// The rows' targets and how many each has, shared by both calls: C-ordered values, `slots`
+/// targets of three a row.
 struct Targets<'a> {
-    targets: ArrayView3<'a, f64>,
-    count: ArrayView1<'a, i64>,
+    targets: &'a [f64],
+    slots: usize,
+    count: &'a [i64],
 }
 
-impl Targets<'_> {
-    /// Checks the shapes against `n` rows and every row's target `index`.
-    fn check(&self, n: usize, index: &ArrayView1<'_, i64>) -> PyResult<()> {
-        let (rows, slots, three) = self.targets.dim();
-        if rows != n || three != 3 || self.count.len() != n || index.len() != n {
+impl<'a> Targets<'a> {
+    /// The targets `(n, slots, 3)` and counts `(n,)` of `n` rows, checked with every row's
+    /// target `index`.
+    fn of(
+        targets: &'a PyReadonlyArray3<'_, f64>,
+        count: &'a PyReadonlyArray1<'_, i64>,
+        n: usize,
+        index: &[i64],
+    ) -> PyResult<Self> {
+        let (rows, slots, three) = targets.as_array().dim();
+        if rows != n || three != 3 || count.len() != n || index.len() != n {
             return Err(bad(format!(
                 "tasks: targets {:?}, count {}, index {} for {n} rows",
-                self.targets.shape(),
-                self.count.len(),
+                targets.shape(),
+                count.len(),
                 index.len()
             )));
         }
-        for (i, (&c, &k)) in self.count.iter().zip(index).enumerate() {
+        let t = Self {
+            targets: targets
+                .as_slice()
+                .map_err(|_| bad("tasks: targets: not C-contiguous"))?,
+            slots,
+            count: count
+                .as_slice()
+                .map_err(|_| bad("tasks: count: not contiguous"))?,
+        };
+        for (i, (&c, &k)) in t.count.iter().zip(index).enumerate() {
             if c < 1 || c as usize > slots || k < 0 {
                 return Err(bad(format!(
                     "tasks: row {i}: {c} waypoints of {slots} slots, index {k}"
                 )));
             }
         }
-        Ok(())
+        Ok(t)
     }
 
-    /// `Tasks._vector` of row `i`: its current target minus its position.
-    fn vector(&self, i: usize, position: &ArrayView2<'_, f64>, index: i64) -> [f64; 3] {
+    /// `Tasks._vector` of row `i`: its current target minus its position (`position`: three
+    /// values a row).
+    #[inline(always)]
+    fn vector(&self, i: usize, position: &[f64], index: i64) -> [f64; 3] {
         let j = index.min(self.count[i] - 1) as usize;
-        std::array::from_fn(|c| self.targets[[i, j, c]] - position[[i, c]])
+        let at = (i * self.slots + j) * 3;
+        let (t, p) = (&self.targets[at..at + 3], &position[3 * i..3 * i + 3]);
+        [t[0] - p[0], t[1] - p[1], t[2] - p[2]]
     }
+}
+
+/// The values of a contiguous array of `n` rows of `width`, named in the error.
+fn slice2<'a>(
+    a: &'a PyReadonlyArray2<'_, f64>,
+    n: usize,
+    width: usize,
+    name: &str,
+) -> PyResult<&'a [f64]> {
+    contiguous(&rows2(a, n, width, name)?, name)
+}
+
+/// The values of a contiguous array of `n` values, named in the error.
+fn slice1<'a, T: numpy::Element>(
+    a: &'a PyReadonlyArray1<'_, T>,
+    n: usize,
+    name: &str,
+) -> PyResult<&'a [T]> {
+    rows1(a, n, name)?;
+    a.as_slice()
+        .map_err(|_| bad(format!("tasks: {name}: not contiguous")))
 }
 
 fn rows2<'a>(
@@ -248,25 +293,26 @@ pub(crate) fn task_reward<'py>(
     live: PyReadonlyArray1<'py, bool>,
 ) -> PyResult<Rewards<'py>> {
     let n = position.as_array().nrows();
-    let position = rows2(&position, n, 3, "position")?;
-    let attitude = rows2(&attitude, n, 3, "attitude")?;
-    let battery = rows2(&battery, n, 1, "battery")?;
+    let position = slice2(&position, n, 3, "position")?;
+    let attitude = slice2(&attitude, n, 3, "attitude")?;
+    let battery = slice2(&battery, n, 1, "battery")?;
     let (touched, crashed) = (
-        rows1(&touched, n, "touched")?,
-        rows1(&crashed, n, "crashed")?,
+        slice1(&touched, n, "touched")?,
+        slice1(&crashed, n, "crashed")?,
     );
-    let (hold_yaw, live) = (rows1(&hold_yaw, n, "hold_yaw")?, rows1(&live, n, "live")?);
-    let mut index = index.as_array_mut();
-    let mut steps = steps.as_array_mut();
-    let mut prev = prev.as_array_mut();
+    let (hold_yaw, live) = (slice1(&hold_yaw, n, "hold_yaw")?, slice1(&live, n, "live")?);
+    let (index, steps, prev) = (
+        index.as_slice_mut(),
+        steps.as_slice_mut(),
+        prev.as_slice_mut(),
+    );
+    let (Ok(index), Ok(steps), Ok(prev)) = (index, steps, prev) else {
+        return Err(bad("tasks: index, steps and prev: not contiguous"));
+    };
     if index.len() != n || steps.len() != n || prev.len() != n {
         return Err(bad(format!("tasks: index, steps and prev need {n} rows")));
     }
-    let t = Targets {
-        targets: targets.as_array(),
-        count: count.as_array(),
-    };
-    t.check(n, &index.view())?;
+    let t = Targets::of(&targets, &count, n, index)?;
     let mut reward = vec![0.0; n];
     let (mut terminated, mut reached) = (vec![false; n], vec![false; n]);
     let mut truncated = vec![false; n];
@@ -275,22 +321,22 @@ pub(crate) fn task_reward<'py>(
         steps[i] += i64::from(live);
         let touch = if touched[i] { TOUCH_PENALTY } else { 0.0 };
         let k = index[i];
-        let mut dist = length(t.vector(i, &position, k));
+        let mut dist = length(t.vector(i, position, k));
         let (mut r, mut end, next) = if hover {
-            let yaw = wrap(attitude[[i, 2]] - hold_yaw[i]).abs();
+            let yaw = wrap(attitude[3 * i + 2] - hold_yaw[i]).abs();
             (-dist - 0.2 * yaw - touch, false, k)
         } else {
             let r = prev[i] - dist - touch;
             reached[i] = dist < radius && live;
             let next = k + i64::from(reached[i]);
             let r = r + if reached[i] { WAYPOINT_BONUS } else { 0.0 };
-            dist = length(t.vector(i, &position, next));
+            dist = length(t.vector(i, position, next));
             (r, next >= t.count[i], next)
         };
         prev[i] = dist;
         r -= if crashed[i] { CRASH_PENALTY } else { 0.0 };
         end = (end || crashed[i]) && live;
-        truncated[i] = live && !end && (steps[i] >= max_steps || battery[[i, 0]] <= 0.0);
+        truncated[i] = live && !end && (steps[i] >= max_steps || battery[i] <= 0.0);
         terminated[i] = end;
         reward[i] = if live { r } else { 0.0 };
         index[i] = next;
@@ -343,16 +389,14 @@ pub(crate) fn task_observe(
     };
     let position = item("position")?;
     let n = position.as_array().nrows();
-    let position = rows2(&position, n, 3, "position")?;
+    let position = slice2(&position, n, 3, "position")?;
     let attitude = item("attitude")?;
-    let attitude = rows2(&attitude, n, 3, "attitude")?;
-    let hold_yaw = rows1(&hold_yaw, n, "hold_yaw")?;
-    let index = index.as_array();
-    let t = Targets {
-        targets: targets.as_array(),
-        count: count.as_array(),
-    };
-    t.check(n, &index)?;
+    let attitude = slice2(&attitude, n, 3, "attitude")?;
+    let hold_yaw = slice1(&hold_yaw, n, "hold_yaw")?;
+    let index = index
+        .as_slice()
+        .map_err(|_| bad("tasks: index: not contiguous"))?;
+    let t = Targets::of(&targets, &count, n, index)?;
     let arrays = keys
         .iter()
         .filter(|k| !["attitude", "waypoint", "yaw_error"].contains(&k.as_str()))
@@ -361,7 +405,7 @@ pub(crate) fn task_observe(
     let sources = keys
         .iter()
         .map(|k| match k.as_str() {
-            "attitude" => Ok((Source::Attitude(contiguous(&attitude, "attitude")?), 3)),
+            "attitude" => Ok((Source::Attitude(attitude), 3)),
             "waypoint" => Ok((Source::Waypoint, 3)),
             "yaw_error" => Ok((Source::YawError, 1)),
             k => {
@@ -400,8 +444,8 @@ pub(crate) fn task_observe(
                     .iter_mut()
                     .zip(&a[i * w..(i + 1) * w])
                     .for_each(|(b, v)| *b = wrap(*v)),
-                Source::Waypoint => b.copy_from_slice(&t.vector(i, &position, index[i])),
-                Source::YawError if hover => b[0] = wrap(hold_yaw[i] - attitude[[i, 2]]),
+                Source::Waypoint => b.copy_from_slice(&t.vector(i, position, index[i])),
+                Source::YawError if hover => b[0] = wrap(hold_yaw[i] - attitude[3 * i + 2]),
                 Source::YawError => b[0] = 0.0,
             }
             at += w;
@@ -444,7 +488,7 @@ pub(crate) fn task_observe(
                 }
                 Source::Waypoint => {
                     for (i, row) in dest.chunks_exact_mut(columns).enumerate() {
-                        let v = t.vector(i, &position, index[i]);
+                        let v = t.vector(i, position, index[i]);
                         for k in 0..3 {
                             row[at + k] = clip(v[k], bounds.0[k], bounds.1[k]) as f32;
                         }
@@ -452,7 +496,7 @@ pub(crate) fn task_observe(
                 }
                 Source::YawError if hover => {
                     put_columns1(dest, columns, at, bounds, |i| {
-                        wrap(hold_yaw[i] - attitude[[i, 2]])
+                        wrap(hold_yaw[i] - attitude[3 * i + 2])
                     });
                 }
                 Source::YawError => put_columns1(dest, columns, at, bounds, |_| 0.0),

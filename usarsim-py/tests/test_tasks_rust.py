@@ -27,6 +27,11 @@ def raw_state(rng, n, edge=True):
     if edge:
         raw["attitude"][:3, 2] = [np.pi, -np.pi, 3 * np.pi]
         raw["attitude"][3, :] = -0.0
+        # Where the wrap's remainder changes its way (a call, or exact arithmetic): x + pi
+        # at -2 pi, 2 pi and 4 pi, and an ulp either side.
+        raw["attitude"][8, :] = [-3 * np.pi, np.nextafter(-3 * np.pi, 0), np.nextafter(-3 * np.pi, -np.inf)]
+        raw["attitude"][9, :] = [np.nextafter(3 * np.pi, 0), np.nextafter(3 * np.pi, np.inf), 5 * np.pi]
+        raw["attitude"][10, :] = [np.nextafter(np.pi, 0), np.nextafter(np.pi, np.inf), -1e3]
         raw["position"][4] = [2e4, -3e4, 0.0]
         raw["velocity"][5, 1] = np.nan
         raw["sonar"][6, 0] = -0.0
