@@ -426,7 +426,7 @@ impl YawTrig {
 
     /// A new turn per tick and its sine and cosine, kept. Out of line: inlined, the compiler
     /// hoisted the `sin_cos` out of a glide's loop (a pure call on a loop-invariant turn)
-    /// and made it at every call of [`Robot::free_ticks`], needed or not.
+    /// and made it at every call of [`Robot::glide_ticks`], needed or not.
     #[cold]
     #[inline(never)]
     fn new_turn(&mut self, turn: f64) {
