@@ -1444,7 +1444,6 @@ impl Robot {
     }
 }
 
-/// A part's origin in the world and its yaw and pitch (the [`Reading`] fields).
 /// A kinematic tick's motion by the set points `s` at the yaw `yaw` (its sine and cosine
 /// from `trig`).
 #[inline(always)]
@@ -1476,6 +1475,7 @@ fn turn_and_tilt(
     }
 }
 
+/// A part's origin in the world and its yaw and pitch (the [`Reading`] fields).
 fn mount(position: V3, yaw: &mut Heading, tilt: Option<&M3>, model: &PartModel) -> (V3, f64, f64) {
     let (s, c) = yaw.sin_cos();
     let level = rotate_by(s, c, model.position);
