@@ -883,8 +883,8 @@ impl Robot {
     /// it can reach meanwhile are found once ([`Scene::glide_begin`]). Returns the ticks
     /// flown: none when that does not apply (no robot of its own in the scene, a physics
     /// model, a crash, a solid near that is not a box), fewer than `ticks` when it crashed.
-    /// The caller makes sure that nothing else happens in them (no output due, no fault,
-    /// no refit of the tree).
+    /// The caller makes sure that nothing else happens in them but their moves (no fault,
+    /// and no output or refit of the tree before the last one's moves).
     pub(crate) fn glide(&mut self, scene: &mut Scene, tick: u64, ticks: u64, dt: f64) -> u64 {
         if self.dynamics.is_some() || self.crashed.is_some() {
             return 0;

@@ -1375,12 +1375,15 @@ impl Scene {
         rest: V3,
     ) -> (V3, Option<V3>) {
         let cylinder = shape.cylinder();
-        let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
-            let query = swept_box(shape, pos, rest);
-            let solids = meeting(&glide.near, &query).map(|n| n.solid);
-            let body = upright_pose(pos);
-            let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
-            Some((hit.flatten()?, false))
+        let (pos, contact) = press(glide, shape, centre, rest).unwrap_or_else(|| {
+            let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
+                let query = swept_box(shape, pos, rest);
+                let solids = meeting(&glide.near, &query).map(|n| n.solid);
+                let body = upright_pose(pos);
+                let hit = first_impact(solids, &body, to_vector(rest), &cylinder, options);
+                Some((hit.flatten()?, false))
+            });
+            (pos, contact)
         });
         if !glide.in_leaf {
             self.place_body(handle.into_raw_parts().0, shape, pos);
@@ -1524,6 +1527,69 @@ fn held_to_max_step(motion: V3) -> V3 {
     }
 }
 
+/// [`slide`] of a glide's body from `centre` by `rest` in the sweep most glides make: the
+/// body on a floor (or under a ceiling) and nothing else near, [`Solid::resting`] answering
+/// the first cast. A hit there is at time 0 with the normal `(0, 0, ±1)`; the slide that
+/// follows keeps the motion's horizontal part and a vertical part of exactly 0 (the motion's
+/// `z` less itself), whose swept box is inside the first's: the second cast finds at most
+/// the same solid, from the same start, moving along its face: no hit. So the end is the
+/// start moved by the slid motion, as [`slide`] finds it, without its second cast. `None`
+/// when the sweep is not such a sweep.
+fn press(glide: &Glide, shape: BodyShape, centre: V3, rest: V3) -> Option<(V3, Option<V3>)> {
+    let query = swept_box(shape, centre, rest);
+    let mut meets = meeting(&glide.near, &query);
+    let (Some(near), None) = (meets.next(), meets.next()) else {
+        return None;
+    };
+    if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
+        return None;
+    }
+    let body = upright_pose(centre);
+    let cylinder = shape.cylinder();
+    let Some(hit) = near
+        .solid?
+        .resting(&body, to_vector(rest), &cylinder, CAST)?
+    else {
+        return Some((add(centre, rest), None));
+    };
+    let n = v3(hit.normal);
+    let (pos, left, rest) = slide_by(centre, rest, hit.toi, n);
+    if rest[2] != 0.0 {
+        return None;
+    }
+    let end = if norm(rest) < MIN_SLIDE * norm(left)
+        || compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less)
+    {
+        pos
+    } else {
+        add(pos, rest)
+    };
+    Some((end, Some(n)))
+}
+
+/// A sweep's cast options: stop [`SKIN`] in front of a solid, out of one already within.
+const CAST: ShapeCastOptions = ShapeCastOptions {
+    max_time_of_impact: 1.0,
+    target_distance: SKIN,
+    stop_at_penetration: false,
+    compute_impact_geometry_on_penetration: true,
+};
+
+/// One move of a [`slide`] from `pos` by `rest`, hitting at `toi` a surface of normal `n`:
+/// the position at the hit, the motion left, and the part of it along the surface.
+fn slide_by(pos: V3, rest: V3, toi: Real, n: V3) -> (V3, V3, V3) {
+    let toi = f64::from(toi).clamp(0.0, 1.0);
+    let pos = add(pos, scale(rest, toi));
+    let left = scale(rest, 1.0 - toi);
+    let into = left[0] * n[0] + left[1] * n[1] + left[2] * n[2];
+    let along = if into < 0.0 {
+        add(left, scale(n, -into))
+    } else {
+        left
+    };
+    (pos, left, along)
+}
+
 /// The moves of one sweep from `centre` by `rest`: up to three casts (`cast(pos, rest,
 /// options)`: the first hit, and whether it counts as a press on a map solid), each
 /// stopping in front of what it hit and sliding along it. Returns the end, the normal of
@@ -1541,12 +1607,6 @@ fn slide(
         if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
             break;
         }
-        let options = ShapeCastOptions {
-            max_time_of_impact: 1.0,
-            target_distance: SKIN,
-            stop_at_penetration: false,
-            compute_impact_geometry_on_penetration: true,
-        };
         let Some((
             Impact {
                 solid,
@@ -1554,7 +1614,7 @@ fn slide(
                 normal: n,
             },
             static_now,
-        )) = cast(pos, rest, options)
+        )) = cast(pos, rest, CAST)
         else {
             pos = add(pos, rest);
             pressed = Some(None);
@@ -1566,18 +1626,11 @@ fn slide(
             Some(Some(s)) if static_now && s == solid => Some(Some(s)),
             _ => Some(None),
         };
-        let toi = f64::from(toi).clamp(0.0, 1.0);
-        pos = add(pos, scale(rest, toi));
         // Slide: keep the part of the remaining motion that is tangent to the surface.
         let n = v3(n);
         contact.get_or_insert(n);
-        let left = scale(rest, 1.0 - toi);
-        let into = left[0] * n[0] + left[1] * n[1] + left[2] * n[2];
-        rest = if into < 0.0 {
-            add(left, scale(n, -into))
-        } else {
-            left
-        };
+        let left;
+        (pos, left, rest) = slide_by(pos, rest, toi, n);
         if norm(rest) < MIN_SLIDE * norm(left) {
             break;
         }

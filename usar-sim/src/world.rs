@@ -352,6 +352,11 @@ impl World {
     /// order, each robot's lines as STA, sensors in part order, ASTA.
     pub fn step(&mut self, out: &mut Vec<(ClientId, ServerMessage)>) {
         self.advance();
+        self.speak(out);
+    }
+
+    /// Appends the output due at the current tick, its moves done.
+    fn speak(&mut self, out: &mut Vec<(ClientId, ServerMessage)>) {
         let (tick, dt) = (self.tick, self.dt);
         // Most ticks no robot has output due (sensors report every 0.1-0.3 s).
         if self.due.iter().all(|&due| due > tick) {
@@ -377,8 +382,9 @@ impl World {
 
     /// Advances `ticks` ticks, appending their output as [`World::step`] does: the same as
     /// `ticks` calls of it, bit for bit. Faster for a world of one robot without a physics
-    /// model (a Python env's): the ticks in which it has no output due, no fault comes and
-    /// the tree is not refit are flown together ([`Robot::glide`]).
+    /// model (a Python env's): its moves up to the next tick with output due or a refit of
+    /// the tree, when no fault comes, are flown together ([`Robot::glide`]), then that
+    /// tick's refit and output follow as a step's would.
     pub fn run(&mut self, ticks: u64, out: &mut Vec<(ClientId, ServerMessage)>) {
         let mut left = ticks;
         while left > 0 {
@@ -389,6 +395,10 @@ impl World {
                 self.tick += flown;
                 left -= flown;
                 if flown > 0 {
+                    if self.tick.is_multiple_of(REFIT_EVERY) {
+                        self.scene.refit();
+                    }
+                    self.speak(out);
                     continue;
                 }
             }
@@ -398,14 +408,15 @@ impl World {
     }
 
     /// Of the next `ticks` ticks, how many in a row from the next one a lone robot can fly
-    /// together: none has output due, plans a fault or refits the tree (0 when the world
-    /// does not have exactly one robot).
+    /// together: up to the first with output due or a refit of the tree (which come after
+    /// the moves of a tick), when no fault is planned (0 when the world does not have
+    /// exactly one robot).
     fn quiet_ticks(&self, ticks: u64) -> u64 {
         if self.robots.len() != 1 || !self.faults.is_empty() {
             return 0;
         }
-        let due = self.due[0].saturating_sub(self.tick + 1);
-        let refit = REFIT_EVERY - 1 - self.tick % REFIT_EVERY;
+        let due = self.due[0].saturating_sub(self.tick).max(1);
+        let refit = REFIT_EVERY - self.tick % REFIT_EVERY;
         ticks.min(due).min(refit)
     }
 
