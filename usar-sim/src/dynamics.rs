@@ -412,9 +412,15 @@ pub(crate) fn yaw_matrix(yaw: f64) -> M3 {
     euler_to_matrix([0.0, 0.0, yaw])
 }
 
-/// `a - b` wrapped to [-π, π].
+/// `a` wrapped to [-π, π].
 pub(crate) fn wrap_angle(a: f64) -> f64 {
-    let d = a.rem_euclid(std::f64::consts::TAU);
+    // `rem_euclid` without its software `fmod` where the remainder is `a` itself (the
+    // difference of two angles of one turn, an IMU's at every reading).
+    let d = if a.abs() < std::f64::consts::TAU {
+        if a < 0.0 { a + std::f64::consts::TAU } else { a }
+    } else {
+        a.rem_euclid(std::f64::consts::TAU)
+    };
     if d > std::f64::consts::PI {
         d - std::f64::consts::TAU
     } else {

@@ -7,7 +7,7 @@ use usar_proto::{SenData, Vec3};
 use serde::Deserialize;
 
 use super::{Reading, Sensor, settings};
-use crate::dynamics::ImuTruth;
+use crate::dynamics::{ImuTruth, wrap_angle};
 use crate::noise::{ErrorModel, Errors, Noise};
 use crate::part::PartConfig;
 use crate::scene::V3;
@@ -44,12 +44,7 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
 
 /// `a - b` wrapped to [-π, π].
 fn angle_diff(a: f64, b: f64) -> f64 {
-    let d = (a - b).rem_euclid(std::f64::consts::TAU);
-    if d > std::f64::consts::PI {
-        d - std::f64::consts::TAU
-    } else {
-        d
-    }
+    wrap_angle(a - b)
 }
 
 impl Imu {
