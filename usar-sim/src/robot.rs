@@ -970,8 +970,8 @@ impl Robot {
             if motion != [0.0; 3] {
                 pos = match scene.glide_free(glide, body, shape, pos, motion) {
                     Ok(next) => next,
-                    Err(rest) => {
-                        let (next, hit) = scene.glide_slide(glide, body, shape, pos, rest);
+                    Err(meets) => {
+                        let (next, hit) = scene.glide_slide(glide, body, shape, pos, meets);
                         contact = hit.is_some();
                         touched |= contact;
                         next

@@ -1360,22 +1360,24 @@ impl Scene {
     ) -> (V3, Option<V3>) {
         match self.glide_free(glide, handle, shape, centre, motion) {
             Ok(pos) => (pos, None),
-            Err(rest) => self.glide_slide(glide, handle, shape, centre, rest),
+            Err(meets) => self.glide_slide(glide, handle, shape, centre, meets),
         }
     }
 
     /// The rest of [`Scene::glide_sweep`] when its sweep meets a solid of the glide: the
-    /// casts against those it meets, by `rest` (the motion [`Scene::glide_free`] held).
+    /// casts against those it meets ([`Meets`], what [`Scene::glide_free`] found).
     pub(crate) fn glide_slide(
         &mut self,
         glide: &Glide,
         handle: ColliderHandle,
         shape: BodyShape,
         centre: V3,
-        rest: V3,
+        meets: Meets<'_>,
     ) -> (V3, Option<V3>) {
-        let cylinder = shape.cylinder();
-        let (pos, contact) = press(glide, shape, centre, rest).unwrap_or_else(|| {
+        let rest = meets.rest;
+        let pressed = meets.only.and_then(|solid| press(solid, shape, centre, rest));
+        let (pos, contact) = pressed.unwrap_or_else(|| {
+            let cylinder = shape.cylinder();
             let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
                 let query = swept_box(shape, pos, rest);
                 let solids = meeting(&glide.near, &query).map(|n| n.solid);
@@ -1393,16 +1395,16 @@ impl Scene {
 
     /// [`Scene::glide_sweep`] when its sweep meets none of the glide's solids (no contact):
     /// the end, its tree box placed. When it meets one, `Err` with the motion to cast (held
-    /// to the world and to [`MAX_STEP`]).
+    /// to the world and to [`MAX_STEP`]) and the solid when it is the only one.
     #[inline(always)]
-    pub(crate) fn glide_free(
+    pub(crate) fn glide_free<'g>(
         &mut self,
-        glide: &Glide,
+        glide: &'g Glide,
         handle: ColliderHandle,
         shape: BodyShape,
         centre: V3,
         motion: V3,
-    ) -> Result<V3, V3> {
+    ) -> Result<V3, Meets<'g>> {
         let motion = within_world(centre, motion);
         // A motion shorter than the glide's reach is never held.
         let rest = if glide.short {
@@ -1410,12 +1412,13 @@ impl Scene {
         } else {
             held_to_max_step(motion)
         };
-        let free = glide.near.is_empty()
-            || meeting(&glide.near, &swept_box(shape, centre, rest))
-                .next()
-                .is_none();
-        if !free {
-            return Err(rest);
+        if !glide.near.is_empty() {
+            let query = swept_box(shape, centre, rest);
+            let mut met = meeting(&glide.near, &query);
+            if let Some(first) = met.next() {
+                let only = met.next().is_none().then_some(first.solid.as_ref()).flatten();
+                return Err(Meets { rest, only });
+            }
         }
         // Nothing within reach of this sweep: the first cast finds nothing, unless the motion
         // is too short to cast.
@@ -1505,6 +1508,15 @@ pub(crate) struct Glide {
     short: bool,
 }
 
+/// A glide's sweep that meets solids of the glide ([`Scene::glide_free`]).
+#[derive(Debug)]
+pub(crate) struct Meets<'g> {
+    /// The motion to cast, held to the world and to [`MAX_STEP`].
+    rest: V3,
+    /// The solid it meets when it meets only one.
+    only: Option<&'g Solid>,
+}
+
 /// Those of `near` whose tree boxes meet `query`, in their order: what a tree query over
 /// `query` finds of them.
 fn meeting<'a>(near: &'a [Near], query: &Aabb) -> impl Iterator<Item = &'a Near> {
@@ -1528,28 +1540,19 @@ fn held_to_max_step(motion: V3) -> V3 {
 }
 
 /// [`slide`] of a glide's body from `centre` by `rest` in the sweep most glides make: the
-/// body on a floor (or under a ceiling) and nothing else near, [`Solid::resting`] answering
-/// the first cast. A hit there is at time 0 with the normal `(0, 0, ±1)`; the slide that
-/// follows keeps the motion's horizontal part and a vertical part of exactly 0 (the motion's
-/// `z` less itself), whose swept box is inside the first's: the second cast finds at most
-/// the same solid, from the same start, moving along its face: no hit. So the end is the
-/// start moved by the slid motion, as [`slide`] finds it, without its second cast. `None`
-/// when the sweep is not such a sweep.
-fn press(glide: &Glide, shape: BodyShape, centre: V3, rest: V3) -> Option<(V3, Option<V3>)> {
-    let query = swept_box(shape, centre, rest);
-    let mut meets = meeting(&glide.near, &query);
-    let (Some(near), None) = (meets.next(), meets.next()) else {
-        return None;
-    };
+/// body on a floor (or under a ceiling), `solid`, the only solid its sweep meets,
+/// [`Solid::resting`] answering the first cast. A hit there is at time 0 with the normal
+/// `(0, 0, ±1)`; the slide that follows keeps the motion's horizontal part and a vertical
+/// part of exactly 0 (the motion's `z` less itself), whose swept box is inside the first's:
+/// the second cast finds at most the same solid, from the same start, moving along its
+/// face: no hit. So the end is the start moved by the slid motion, as [`slide`] finds it,
+/// without its second cast. `None` when the sweep is not such a sweep.
+fn press(solid: &Solid, shape: BodyShape, centre: V3, rest: V3) -> Option<(V3, Option<V3>)> {
     if compare_norm(rest, 1e-9) == Some(std::cmp::Ordering::Less) {
         return None;
     }
     let body = upright_pose(centre);
-    let cylinder = shape.cylinder();
-    let Some(hit) = near
-        .solid?
-        .resting(&body, to_vector(rest), &cylinder, CAST)?
-    else {
+    let Some(hit) = solid.resting(&body, to_vector(rest), &shape.cylinder(), CAST)? else {
         return Some((add(centre, rest), None));
     };
     let n = v3(hit.normal);
