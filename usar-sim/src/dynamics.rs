@@ -417,7 +417,11 @@ pub(crate) fn wrap_angle(a: f64) -> f64 {
     // `rem_euclid` without its software `fmod` where the remainder is `a` itself (the
     // difference of two angles of one turn, an IMU's at every reading).
     let d = if a.abs() < std::f64::consts::TAU {
-        if a < 0.0 { a + std::f64::consts::TAU } else { a }
+        if a < 0.0 {
+            a + std::f64::consts::TAU
+        } else {
+            a
+        }
     } else {
         a.rem_euclid(std::f64::consts::TAU)
     };

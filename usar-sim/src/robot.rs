@@ -1122,14 +1122,17 @@ impl Robot {
             let gauge = self.dynamics.as_ref().and_then(|d| d.gauge());
             let rotors = self.dynamics.as_ref().and_then(|d| d.rotor_speeds());
             let hits = self.cast_single_rays(scene, tick, tilt.as_ref(), &mut heading);
+            // What every part's reading shares, made at the first part due; each part then
+            // sets its own name, mount and ray.
+            let mut shared: Option<Reading<'_>> = None;
             for (i, (part, model)) in self.parts.iter_mut().zip(&self.model.parts).enumerate() {
                 let due = part.timer.fire(tick);
                 if !(due || std::mem::take(&mut part.forced)) {
                     continue;
                 }
                 let (origin, yaw, pitch) = mount(self.position, &mut heading, tilt.as_ref(), model);
-                let reading = Reading {
-                    name: &model.name,
+                let reading = shared.get_or_insert_with(|| Reading {
+                    name: "",
                     scene,
                     me: self.body,
                     time,
@@ -1148,8 +1151,12 @@ impl Robot {
                     rotors,
                     contact: self.contact,
                     crashed: self.crashed.is_some(),
-                    ray_hit: hits.get(i).copied().flatten(),
-                };
+                    ray_hit: None,
+                });
+                (reading.name, reading.origin, reading.yaw, reading.pitch) =
+                    (&model.name, origin, yaw, pitch);
+                reading.ray_hit = hits.get(i).copied().flatten();
+                let reading = &*reading;
                 if part.fault_until.is_some_and(|until| time >= until - 1e-9) {
                     (part.fault, part.frozen, part.fault_until) = (SensorFault::Ok, None, None);
                 }
@@ -1158,7 +1165,7 @@ impl Robot {
                 }
                 let mut data = match (&part.frozen, part.fault) {
                     (Some(data), SensorFault::Freeze) => data.clone(),
-                    _ => part.sensor.read(&reading, &mut part.noise),
+                    _ => part.sensor.read(reading, &mut part.noise),
                 };
                 match part.fault {
                     SensorFault::Freeze if part.frozen.is_none() => {

@@ -1375,7 +1375,9 @@ impl Scene {
         meets: Meets<'_>,
     ) -> (V3, Option<V3>) {
         let rest = meets.rest;
-        let pressed = meets.only.and_then(|solid| press(solid, shape, centre, rest));
+        let pressed = meets
+            .only
+            .and_then(|solid| press(solid, shape, centre, rest));
         let (pos, contact) = pressed.unwrap_or_else(|| {
             let cylinder = shape.cylinder();
             let (pos, contact, _) = slide(centre, rest, |pos, rest, options| {
@@ -1416,7 +1418,11 @@ impl Scene {
             let query = swept_box(shape, centre, rest);
             let mut met = meeting(&glide.near, &query);
             if let Some(first) = met.next() {
-                let only = met.next().is_none().then_some(first.solid.as_ref()).flatten();
+                let only = met
+                    .next()
+                    .is_none()
+                    .then_some(first.solid.as_ref())
+                    .flatten();
                 return Err(Meets { rest, only });
             }
         }
