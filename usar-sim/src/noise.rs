@@ -66,12 +66,30 @@ impl ErrorModel {
 }
 
 /// The state of an [`ErrorModel`] on `N` axes.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub(crate) struct Errors<const N: usize> {
     model: ErrorModel,
     bias: Option<[f64; N]>,
     last: f64,
     history: VecDeque<(f64, [f64; N])>,
+}
+
+impl<const N: usize> Clone for Errors<N> {
+    /// The copy a robot's sensors take of its model's at each spawn: an empty history (any
+    /// model without latency, and every model's before its first reading) without a call
+    /// into `VecDeque::clone`.
+    fn clone(&self) -> Self {
+        Self {
+            model: self.model.clone(),
+            bias: self.bias,
+            last: self.last,
+            history: if self.history.is_empty() {
+                VecDeque::new()
+            } else {
+                self.history.clone()
+            },
+        }
+    }
 }
 
 impl<const N: usize> Errors<N> {
