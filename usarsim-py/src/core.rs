@@ -920,7 +920,7 @@ where
 }
 
 /// A world to replace by a fresh one: its seed and one start pose per UAV.
-pub(crate) type Reset = (u64, Vec<Pose>);
+pub(crate) type Reset<'a> = (u64, &'a [Pose]);
 
 impl Batch {
     /// Total UAVs.
@@ -938,7 +938,7 @@ impl Batch {
     pub(crate) fn step(
         &mut self,
         actions: Option<&[[f64; 4]]>,
-        resets: &[Option<Reset>],
+        resets: &[Option<Reset<'_>>],
         out: Option<Rows<'_>>,
     ) -> Result<(), SimError> {
         let per = self.uavs_per_world;

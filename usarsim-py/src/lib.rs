@@ -55,6 +55,22 @@ fn rows<const W: usize>(
             a.shape()
         )));
     }
+    // A C-contiguous array (what NumPy makes) read as one slice: the ndarray row iterators
+    // cost some 100 instructions a row, serial, at every step.
+    if let Some(flat) = a.as_slice() {
+        if let Some(k) = flat.iter().position(|v| !v.is_finite()) {
+            let v = flat[k];
+            return Err(PyValueError::new_err(format!(
+                "{what}: row {}, column {} is not finite ({v})",
+                k / W,
+                k % W
+            )));
+        }
+        return Ok(flat
+            .chunks_exact(W)
+            .map(|r| std::array::from_fn(|j| r[j]))
+            .collect());
+    }
     let mut out = Vec::with_capacity(n);
     for (i, row) in a.rows().into_iter().enumerate() {
         let mut r = [0.0; W];
@@ -250,13 +266,13 @@ impl PyBatch {
         Windows::of(out, batch.len(), s.state_only, s.rotors, what)
     }
 
-    /// One entry per world: `Some((seed, starts))` for the worlds in `indices`.
+    /// The worlds in `indices` to reset, with their seeds and starts ([`Resets::entries`]).
     fn resets(
         &mut self,
         indices: &Bound<'_, PyAny>,
         seeds: &Bound<'_, PyAny>,
         starts: &PyReadonlyArray2<'_, f64>,
-    ) -> PyResult<Vec<Option<Reset>>> {
+    ) -> PyResult<Resets> {
         let worlds = self.get().worlds.len();
         let indices: Vec<usize> = match indices.extract::<PyReadonlyArray1<'_, i64>>() {
             Ok(a) => a
@@ -289,10 +305,10 @@ impl PyBatch {
             )));
         }
         let poses = rows::<4>(starts, indices.len() * per, "starts")?;
-        let mut out = vec![None; worlds];
-        for ((&i, seed), poses) in indices.iter().zip(seeds).zip(poses.chunks(per)) {
-            match out.get_mut(i) {
-                Some(slot @ None) => *slot = Some((seed, poses.to_vec())),
+        let mut at = vec![None; worlds];
+        for (j, (&i, seed)) in indices.iter().zip(seeds).enumerate() {
+            match at.get_mut(i) {
+                Some(slot @ None) => *slot = Some((seed, j * per..(j + 1) * per)),
                 Some(Some(_)) => {
                     return Err(PyValueError::new_err(format!(
                         "indices: world {i} listed twice"
@@ -305,7 +321,33 @@ impl PyBatch {
                 }
             }
         }
-        Ok(out)
+        Ok(Resets { poses, at })
+    }
+}
+
+/// The worlds a call resets: their starts in one vector (no allocation per world).
+struct Resets {
+    poses: Vec<Pose>,
+    /// Per world: its seed and its rows of `poses`, or `None` (not reset).
+    at: Vec<Option<(u64, std::ops::Range<usize>)>>,
+}
+
+impl Resets {
+    /// None.
+    fn none() -> Self {
+        Self {
+            poses: Vec::new(),
+            at: Vec::new(),
+        }
+    }
+
+    /// One entry per world, as [`Batch::step`] takes them (empty when none resets).
+    fn entries(&self) -> Vec<Option<Reset<'_>>> {
+        let poses = &self.poses;
+        self.at
+            .iter()
+            .map(|r| r.as_ref().map(|(seed, rows)| (*seed, &poses[rows.clone()])))
+            .collect()
     }
 }
 
@@ -426,7 +468,7 @@ impl PyBatch {
     ) -> PyResult<()> {
         let resets = self.resets(indices, seeds, &starts)?;
         let inner = self.get();
-        py.detach(|| inner.step(None, &resets, None))?;
+        py.detach(|| inner.step(None, &resets.entries(), None))?;
         Ok(())
     }
 
@@ -454,7 +496,7 @@ impl PyBatch {
             .collect();
         let resets = match reset {
             Some((indices, seeds, starts)) => self.resets(&indices, &seeds, &starts)?,
-            None => Vec::new(),
+            None => Resets::none(),
         };
         let mut windows = match out {
             Some(out) => Some(self.windows(out, "step: out")?),
@@ -462,7 +504,7 @@ impl PyBatch {
         };
         let rows = windows.as_mut().map(Windows::rows);
         let inner = self.get();
-        py.detach(|| inner.step(Some(&actions), &resets, rows))?;
+        py.detach(|| inner.step(Some(&actions), &resets.entries(), rows))?;
         Ok(())
     }
 
