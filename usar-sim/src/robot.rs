@@ -127,6 +127,11 @@ impl Model {
         &self.class.class
     }
 
+    /// The class it was built from.
+    pub(crate) fn class(&self) -> &RobotClass {
+        &self.class
+    }
+
     /// Builds the parts of `class`; a part of an unknown type or with invalid settings is
     /// skipped with a warning.
     pub(crate) fn new(class: &RobotClass) -> Self {

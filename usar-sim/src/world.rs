@@ -532,13 +532,32 @@ impl World {
             }
             return;
         }
-        let Some(class) = self.catalog.get(&init.class_name) else {
-            if let Some(n) = complain(&mut self.complaints, client) {
-                warn!(?client, class = %Shown(&init.class_name), count = n,
-                    "spawn failed: unknown robot class");
+        // The model is the catalog's, shared by the worlds that share the catalog; a world
+        // spawns one class or a few (a list: no hashing of the name at every spawn, and the
+        // catalog, which holds no two classes equal but for case, asked only for a new one).
+        let known = self
+            .models
+            .iter()
+            .position(|m| m.class_name().eq_ignore_ascii_case(&init.class_name));
+        let model = match known {
+            Some(i) => &self.models[i],
+            None => {
+                let Some(class) = self.catalog.get(&init.class_name) else {
+                    if let Some(n) = complain(&mut self.complaints, client) {
+                        warn!(?client, class = %Shown(&init.class_name), count = n,
+                            "spawn failed: unknown robot class");
+                    }
+                    return;
+                };
+                let model = self
+                    .catalog
+                    .built(&class.class, Model::new)
+                    .unwrap_or_else(|| Arc::new(Model::new(class)));
+                self.models.push(model);
+                &self.models[self.models.len() - 1]
             }
-            return;
         };
+        let class = model.class();
         let (position, rotation) = match init.start.as_deref().filter(|s| !s.is_empty()) {
             Some(tag) => match self.map.find_start(tag) {
                 Some(start) => (start.location, start.rotation),
@@ -554,23 +573,6 @@ impl World {
                 init.location.map_or([0.0; 3], spawn_location),
                 init.rotation.map_or([0.0; 3], spawn_rotation),
             ),
-        };
-        // The model is the catalog's, shared by the worlds that share the catalog; a world
-        // spawns one class or a few (a list: no hashing of the name at every spawn).
-        let known = self
-            .models
-            .iter()
-            .position(|m| m.class_name() == class.class);
-        let model = match known {
-            Some(i) => &self.models[i],
-            None => {
-                let model = self
-                    .catalog
-                    .built(&class.class, Model::new)
-                    .unwrap_or_else(|| Arc::new(Model::new(class)));
-                self.models.push(model);
-                &self.models[self.models.len() - 1]
-            }
         };
         let name = match init.name.as_deref().map(str::trim) {
             Some(n) if !n.is_empty() && !n.contains([' ', '{', '}']) => n.to_owned(),
