@@ -384,15 +384,19 @@ mod tests {
         assert!(hit.normal[0] > 0.0 && hit.normal[2] < 0.0, "{hit:?}");
     }
 
-    #[test]
-    fn a_cast_over_the_face_skips_the_rounded_rectangle_bit_for_bit() {
-        let mut seed = 0x5851_F42D_4C95_7F2D_u64;
-        let mut unit = move || {
+    /// Uniform numbers in [0, 1) from a xorshift stream seeded with `seed`.
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
             seed ^= seed << 13;
             seed ^= seed >> 7;
             seed ^= seed << 17;
             (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        }
+    }
+
+    #[test]
+    fn a_cast_over_the_face_skips_the_rounded_rectangle_bit_for_bit() {
+        let mut unit = uniform(0x5851_F42D_4C95_7F2D);
         let (mut short, mut hits) = (0, 0);
         for k in 0..200_000 {
             // Some floors kilometres wide, their centres' offsets as large.
@@ -468,13 +472,7 @@ mod tests {
 
     #[test]
     fn the_closed_form_agrees_with_parrys_gjk_on_random_casts() {
-        let mut seed = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut unit = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut unit = uniform(0x9E37_79B9_7F4A_7C15);
         let (mut hits, mut compared) = (0, 0);
         for _ in 0..4000 {
             let pair = Pair {
