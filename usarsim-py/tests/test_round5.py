@@ -245,3 +245,22 @@ def test_a_world_reset_in_place_flies_as_a_new_one_bit_for_bit(robot):
         act = rng.uniform(-1, 1, (4, 4))
         old.step(act)
         fresh.step(act[:2])
+
+
+def test_a_batchs_arrays_name_the_first_value_not_finite_laid_out_either_way():
+    # Contiguous arrays are read as one slice, others row by row: the same error either way,
+    # naming the row and column, and the batch is left as it was.
+    starts = np.array([[0.0, 0.0, -1.5, 0.0], [1.0, 0.5, -1.5, 0.3]])
+    batch = usarsim.Batch("empty_room", "USARBot.stsAirRobot", [3, 4], starts)
+    before = batch.observe()
+    bad = np.array([[0.5, -0.5, -1.2, 1.0], [-1.0, 0.0, np.inf, -0.4]])
+    for layout in (bad, np.asfortranarray(bad), np.hstack([bad, bad])[:, :4]):
+        with pytest.raises(ValueError, match=r"starts: row 1, column 2 is not finite \(inf\)"):
+            batch.reset([0, 1], [5, 6], layout)
+        actions = np.zeros((2, 4))
+        actions[1, 3] = np.nan
+        actions = actions if layout is bad else np.asfortranarray(actions)
+        with pytest.raises(ValueError, match=r"action: row 1, column 3 is not finite \(NaN\)"):
+            batch.step(actions)
+    after = batch.observe()
+    assert all(np.array_equal(before[k], after[k]) for k in before)
