@@ -42,11 +42,6 @@ pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
     }))
 }
 
-/// `a - b` wrapped to [-π, π].
-fn angle_diff(a: f64, b: f64) -> f64 {
-    wrap_angle(a - b)
-}
-
 impl Imu {
     /// A model with physics: specific force (gravity included, as an accelerometer measures
     /// it; hovering reads +g on z) and body rates; the angular acceleration is the rates'
@@ -119,7 +114,7 @@ impl Imu {
                 ];
                 // Into the body frame (yaw only), then z negated as the engine does (+ = up).
                 let b = at.yaw_to_body(dv);
-                let rates: V3 = std::array::from_fn(|i| angle_diff(at.rotation[i], r[i]) / dt);
+                let rates: V3 = std::array::from_fn(|i| wrap_angle(at.rotation[i] - r[i]) / dt);
                 let rate_accel: V3 = std::array::from_fn(|i| (rates[i] - w[i]) / dt);
                 ([b[0], b[1], -b[2]], rates, rate_accel)
             }
@@ -172,6 +167,6 @@ mod tests {
 
     #[test]
     fn yaw_rate_wraps() {
-        assert!((angle_diff(-3.1, 3.1) - (std::f64::consts::TAU - 6.2)).abs() < 1e-12);
+        assert!((wrap_angle(-3.1 - 3.1) - (std::f64::consts::TAU - 6.2)).abs() < 1e-12);
     }
 }
