@@ -363,12 +363,17 @@ impl World {
             return;
         }
         let scene = &self.scene;
-        let used = for_threads(
-            Speakers::at(tick, &mut self.robots, &mut self.due, &mut self.speaking),
-            self.threads,
-            &mut self.emitted,
-            |robot, lines| robot.emit(scene, tick, dt, lines),
-        );
+        let speakers = Speakers::at(tick, &mut self.robots, &mut self.due, &mut self.speaking);
+        // One run (a few robots, or one thread): straight into `out`, which the caller keeps
+        // in the caches (a Python batch's thread reuses one for all its worlds), instead of
+        // into this world's own buffer, cold since the world last spoke.
+        if runs(speakers.speaking.len(), self.threads) == 1 {
+            speakers.each(0, |robot| robot.emit(scene, tick, dt, out));
+            return;
+        }
+        let used = for_threads(speakers, self.threads, &mut self.emitted, |robot, lines| {
+            robot.emit(scene, tick, dt, lines)
+        });
         for part in &mut self.emitted[..used] {
             // Into an empty `out` (a lone robot's tick, most often) the buffers change places
             // instead of the messages moving.
@@ -1019,6 +1024,11 @@ fn for_chunks<T: Send>(items: &mut [T], threads: usize, work: impl Fn(&mut T) + 
     });
 }
 
+/// How many runs [`for_threads`] splits `speaking` robots into on up to `threads` threads.
+fn runs(speaking: usize, threads: usize) -> usize {
+    threads.min(speaking / ROBOTS_PER_THREAD).max(1)
+}
+
 /// `work` on each robot with output due, on up to `threads` threads (at least
 /// [`ROBOTS_PER_THREAD`] robots each, contiguous runs), each run with its own state from
 /// `states` (grown as needed, in robot order); returns how many runs there were. Sensors
@@ -1029,9 +1039,7 @@ fn for_threads<S: Default + Send>(
     states: &mut Vec<S>,
     work: impl Fn(&mut Robot, &mut S) + Sync,
 ) -> usize {
-    let threads = threads
-        .min(speakers.speaking.len() / ROBOTS_PER_THREAD)
-        .max(1);
+    let threads = runs(speakers.speaking.len(), threads);
     if states.len() < threads {
         states.resize_with(threads, S::default);
     }

@@ -2,6 +2,7 @@
 //! stepped in lockstep, one control period at a time, with the sensor lines folded into a
 //! [`UavState`] per UAV and written out as flat arrays. No Python types here.
 
+use std::cell::RefCell;
 use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -399,7 +400,6 @@ pub(crate) struct WorldSim {
     uavs: Vec<Uav>,
     /// Clients are numbered 1.. in connection order, so `client.0 - first` is the index.
     first: u64,
-    out: Vec<(ClientId, ServerMessage)>,
     /// Each UAV's `INIT` (reused: [`WorldSim::populate`]).
     inits: Vec<Init>,
     /// The cameras' latest pictures (reused).
@@ -425,7 +425,6 @@ impl WorldSim {
             world,
             uavs: Vec::with_capacity(poses.len()),
             first: 0,
-            out: Vec::new(),
             inits: Vec::new(),
             frames: Vec::new(),
             version: settings.version,
@@ -450,7 +449,6 @@ impl WorldSim {
         }
         self.world.reset(seed);
         self.uavs.clear();
-        self.out.clear();
         self.populate(settings, poses)
     }
 
@@ -514,37 +512,45 @@ impl WorldSim {
     /// something in any tick, or it had crashed (the server's own contact test, any robot:
     /// [`World::take_touched`]).
     fn advance(&mut self, ticks: usize) {
-        self.world.run(ticks as u64, &mut self.out);
-        let (uavs, first) = (&mut self.uavs, self.first);
-        self.world.take_touched(|client, touched| {
-            if let Some(uav) = uav_of(uavs, first, client) {
-                uav.touched = touched;
-            }
-        });
-        // Read in place, then dropped together: each message is moved once less.
-        for (client, message) in &self.out {
-            let Some(uav) = uav_of(&mut self.uavs, self.first, *client) else {
-                continue;
-            };
-            if let ServerMessage::Sen(sen) = message
-                && let SenData::Other { kind, groups } = &sen.data
-                && kind == "Rotors"
-            {
-                let speeds = groups
-                    .iter()
-                    .flat_map(|g| &g.pairs)
-                    .find(|p| p.key == "Speeds");
-                let w: Vec<f64> = speeds.map_or_else(Vec::new, |p| {
-                    p.value.split(',').filter_map(|v| v.parse().ok()).collect()
-                });
-                if let [a, b, c, d] = w[..] {
-                    uav.rotors = [a, b, c, d];
-                }
-                continue;
-            }
-            uav.state.apply(message);
+        thread_local! {
+            /// The messages of the world a thread steps, one buffer for all its worlds (in
+            /// the caches, where a world's own would be cold by its next period).
+            static OUT: RefCell<Vec<(ClientId, ServerMessage)>> = const { RefCell::new(Vec::new()) };
         }
-        self.out.clear();
+        OUT.with_borrow_mut(|out| {
+            out.clear(); // (empty unless a panic left it so)
+            self.world.run(ticks as u64, out);
+            let (uavs, first) = (&mut self.uavs, self.first);
+            self.world.take_touched(|client, touched| {
+                if let Some(uav) = uav_of(uavs, first, client) {
+                    uav.touched = touched;
+                }
+            });
+            // Read in place, then dropped together: each message is moved once less.
+            for (client, message) in out.iter() {
+                let Some(uav) = uav_of(uavs, first, *client) else {
+                    continue;
+                };
+                if let ServerMessage::Sen(sen) = message
+                    && let SenData::Other { kind, groups } = &sen.data
+                    && kind == "Rotors"
+                {
+                    let speeds = groups
+                        .iter()
+                        .flat_map(|g| &g.pairs)
+                        .find(|p| p.key == "Speeds");
+                    let w: Vec<f64> = speeds.map_or_else(Vec::new, |p| {
+                        p.value.split(',').filter_map(|v| v.parse().ok()).collect()
+                    });
+                    if let [a, b, c, d] = w[..] {
+                        uav.rotors = [a, b, c, d];
+                    }
+                    continue;
+                }
+                uav.state.apply(message);
+            }
+            out.clear();
+        });
     }
 
     /// Simulated seconds.
