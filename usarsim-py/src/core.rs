@@ -7,6 +7,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
+use crate::tasks::{RewardOut, TaskPass, TaskPiece};
 use ucc_client::SpeedCommand;
 use ucc_client::uav::UavState;
 use usar_proto::SenData;
@@ -607,9 +608,9 @@ impl WorldSim {
 
     /// Writes each UAV's observation into `rows` (this world's rows: UAV `k` of the world is
     /// row `k`).
-    pub(crate) fn write(&self, rows: &mut Rows<'_>) {
+    pub(crate) fn write(&self, rows: &mut Rows<'_>, at: usize) {
         let time = self.world.time();
-        for (k, uav) in self.uavs.iter().enumerate() {
+        for (k, uav) in (at..).zip(&self.uavs) {
             rows.write(k, &uav.state, uav.touched, time);
             if let Some(r) = rows.rotor_speeds.get_mut(4 * k..4 * k + 4) {
                 r.copy_from_slice(&uav.rotors);
@@ -739,9 +740,9 @@ fn pieces<T>(s: &mut [T], n: usize, size: usize) -> std::vec::IntoIter<&mut [T]>
 }
 
 impl<'a> Rows<'a> {
-    /// Cut into the rows of consecutive groups of `per` UAVs (one per world).
-    pub(crate) fn split(self, per: usize) -> Vec<Self> {
-        let n = self.battery.len() / per.max(1);
+    /// Cut into `n` pieces of the rows of `per` consecutive UAVs each (the last one
+    /// shorter when the UAVs run out).
+    pub(crate) fn split(self, per: usize, n: usize) -> Vec<Self> {
         let mut position = pieces(self.position, n, 3 * per);
         let mut velocity = pieces(self.velocity, n, 3 * per);
         let mut attitude = pieces(self.attitude, n, 3 * per);
@@ -768,6 +769,21 @@ impl<'a> Rows<'a> {
                 crashed: crashed.next().unwrap_or_default(),
             })
             .collect()
+    }
+
+    /// The float64 fields, in [`crate::FIELDS`]' order (empty where not observed).
+    pub(crate) fn floats(&self) -> [&[f64]; 9] {
+        [
+            self.position,
+            self.velocity,
+            self.attitude,
+            self.angular_velocity,
+            self.sonar,
+            self.laser,
+            self.battery,
+            self.time,
+            self.rotor_speeds,
+        ]
     }
 
     /// Writes the observation of the UAV in state `s` as row `k` (the range rows only where
@@ -846,7 +862,7 @@ fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
     pool.as_ref().map(|(_, threads)| threads.clone())
 }
 
-/// Runs `f` on every item (a world, with what goes with it) with its index, spread over the
+/// Runs `f` on every item (a world) with its index, spread over the
 /// cores when there are enough (this thread and [`pool`]'s): each thread steps its own
 /// share of the items (the same share at every call), a small piece at a time, and a thread
 /// done with its share takes the pieces left of the others'. Not a fixed share each: a
@@ -854,13 +870,20 @@ fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
 /// tick's sweep then casting) no longer keeps the others waiting at the end of the step.
 /// Not pieces in turn from one queue either: a world then moved between threads from call
 /// to call, and what a reset freed went back to another thread's heap (resets were slower).
-/// Before each item a thread passes the next of its piece to `ahead(item, false)` and the
-/// one after to `ahead(item, true)` (cache hints, [`WorldSim::prefetch`] and
+/// Each piece (consecutive items) has its own state, made by `states(piece length, pieces)`
+/// (one per piece, in order; dropped after the piece): `f` gets each item with its index,
+/// its index in the piece and the piece's state (a Python batch's: the piece's rows of the
+/// observation arrays). Before each item a thread passes the next of its piece to
+/// `ahead(item, false)` and the one after to `ahead(item, true)` (cache hints, [`WorldSim::prefetch`] and
 /// [`WorldSim::prefetch_early`]: a world's state is scattered over a few kilobytes of the
 /// heap, and finding it reads a world's own fields first).
-fn par_each<T: Send, F, A>(items: &mut [T], ahead: A, f: F)
-where
-    F: Fn(usize, &mut T) + Sync,
+fn par_each<T: Send, S: Send, F, A>(
+    items: &mut [T],
+    states: impl FnOnce(usize, usize) -> Vec<S>,
+    ahead: A,
+    f: F,
+) where
+    F: Fn(usize, usize, &mut T, &mut S) + Sync,
     A: Fn(&T, bool) + Sync,
 {
     let hint = |items: &[T], j: usize| {
@@ -871,11 +894,16 @@ where
             ahead(next, false);
         }
     };
+    let each = |first: usize, piece: &mut [T], state: &mut S| {
+        for j in 0..piece.len() {
+            hint(piece, j);
+            f(first + j, j, &mut piece[j], state);
+        }
+    };
     let pool = (items.len() >= 4).then(pool).flatten();
     let Some(pool) = pool else {
-        for i in 0..items.len() {
-            hint(items, i);
-            f(i, &mut items[i]);
+        if let Some(state) = states(items.len(), 1).first_mut() {
+            each(0, items, state);
         }
         return;
     };
@@ -885,8 +913,11 @@ where
     // two threads are pieces of 16 worlds (some 80 µs), where pieces of 64 left a thread
     // waiting up to a third of a millisecond at the end of each step.
     let chunk = items.len().div_ceil(threads * 32);
-    let pieces: Vec<Mutex<Option<&mut [T]>>> = items
+    let n = items.len().div_ceil(chunk);
+    type Piece<'a, T, S> = Mutex<Option<(&'a mut [T], S)>>;
+    let pieces: Vec<Piece<'_, T, S>> = items
         .chunks_mut(chunk)
+        .zip(states(chunk, n))
         .map(|p| Mutex::new(Some(p)))
         .collect();
     let n = pieces.len();
@@ -906,10 +937,8 @@ where
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner)
                     .take();
-                let piece = piece.unwrap_or_default();
-                for j in 0..piece.len() {
-                    hint(piece, j);
-                    f(p * chunk + j, &mut piece[j]);
+                if let Some((piece, mut state)) = piece {
+                    each(p * chunk, piece, &mut state);
                 }
             }
         }
@@ -924,6 +953,10 @@ where
         run(0);
     });
 }
+
+/// A task's outputs of every row of a step: its rewards (with the task state they update)
+/// and its observation's arrays ([`TaskPass::pieces`]).
+pub(crate) type TaskOut<'a> = (RewardOut<'a>, Vec<(&'a mut [f32], usize)>);
 
 /// A world to replace by a fresh one: its seed and one start pose per UAV.
 pub(crate) type Reset<'a> = (u64, &'a [Pose]);
@@ -940,12 +973,14 @@ impl Batch {
     /// is None. `resets` is empty or one entry per world. With `out` (one row per UAV), each
     /// world then writes its observations there, in the same pass. A reset that cannot spawn
     /// leaves its world as it was and is the error (the lowest world index if several fail);
-    /// the other worlds have stepped or reset.
+    /// the other worlds have stepped or reset. With `task` too (its pass and its outputs of
+    /// every row), each world then works out its rows' rewards and task observations.
     pub(crate) fn step(
         &mut self,
         actions: Option<&[[f64; 4]]>,
         resets: &[Option<Reset<'_>>],
         out: Option<Rows<'_>>,
+        task: Option<(&TaskPass<'_>, TaskOut<'_>)>,
     ) -> Result<(), SimError> {
         let per = self.uavs_per_world;
         for (i, (_, poses)) in resets
@@ -962,19 +997,35 @@ impl Batch {
         }
         let settings = &self.settings;
         let failed = Mutex::new(None::<(usize, SimError)>);
-        let mut rows = out.map_or_else(Vec::new, |r| r.split(per)).into_iter();
-        let mut items: Vec<(&mut WorldSim, Option<Rows<'_>>)> =
-            self.worlds.iter_mut().map(|w| (w, rows.next())).collect();
+        // Each piece of worlds writes its observations into its own rows of `out` (and its
+        // task's outputs into its own rows of those).
+        let pass = task.as_ref().map(|(pass, _)| *pass);
+        let states = |worlds: usize, n: usize| -> Vec<(Option<Rows<'_>>, Option<TaskPiece<'_>>)> {
+            let rows = match out {
+                Some(rows) => rows.split(per * worlds, n).into_iter().map(Some).collect(),
+                None => (0..n).map(|_| None).collect::<Vec<_>>(),
+            };
+            let tasks = match task {
+                Some((pass, (reward, obs))) => pass
+                    .pieces(reward, obs, per * worlds, n)
+                    .into_iter()
+                    .map(Some)
+                    .collect(),
+                None => (0..n).map(|_| None).collect::<Vec<_>>(),
+            };
+            rows.into_iter().zip(tasks).collect()
+        };
         par_each(
-            &mut items,
-            |(w, _), early| {
+            &mut self.worlds,
+            states,
+            |w, early| {
                 if early {
                     w.prefetch_early();
                 } else {
                     w.prefetch();
                 }
             },
-            |i, (w, rows)| {
+            |i, j, w, (rows, piece)| {
                 match (resets.get(i).and_then(Option::as_ref), actions) {
                     (Some((seed, poses)), _) => match w.reset(settings, *seed, poses) {
                         Ok(()) => {}
@@ -989,7 +1040,10 @@ impl Batch {
                     (None, None) => {}
                 }
                 if let Some(rows) = rows {
-                    w.write(rows);
+                    w.write(rows, j * per);
+                    if let (Some(pass), Some(piece)) = (pass, piece) {
+                        pass.rows(piece, rows, j * per, (j + 1) * per);
+                    }
                 }
             },
         );
@@ -1006,8 +1060,9 @@ impl Batch {
             self.worlds.iter().map(|_| Mutex::default()).collect();
         par_each(
             &mut self.worlds,
+            |_, n| vec![(); n],
             |_, _| {},
-            |i, w| {
+            |i, _, w, ()| {
                 let mut part = parts[i].lock().unwrap_or_else(PoisonError::into_inner);
                 let (r, d) = &mut *part;
                 w.render(rgb.then_some(r), depth.then_some(d));
@@ -1048,9 +1103,9 @@ impl Batch {
     }
 
     /// Every UAV's observation written into `rows` (one row per UAV, world-major).
-    pub(crate) fn write(&self, rows: Rows<'_>) {
-        for (w, mut rows) in self.worlds.iter().zip(rows.split(self.uavs_per_world)) {
-            w.write(&mut rows);
+    pub(crate) fn write(&self, mut rows: Rows<'_>) {
+        for (i, w) in self.worlds.iter().enumerate() {
+            w.write(&mut rows, i * self.uavs_per_world);
         }
     }
 }

@@ -24,7 +24,10 @@ mod scenario;
 mod tasks;
 
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyReadwriteArray1,
+    PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyValueError;
 use std::sync::{Mutex, PoisonError};
 
@@ -225,6 +228,13 @@ impl<'py> Windows<'py> {
     }
 }
 
+/// A step's `reset` argument: the worlds' indices, their seeds and their starts.
+type StepReset<'py> = (
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    PyReadonlyArray2<'py, f64>,
+);
+
 /// N worlds with K UAVs each, stepped together one control period per call.
 ///
 /// `Batch(map, robot, seeds, starts, uavs_per_world=1, period=0.1, noise=None,
@@ -250,6 +260,22 @@ impl PyBatch {
         let batch = self.get();
         let s = &batch.settings;
         Windows::of(out, batch.len(), s.state_only, s.rotors, what)
+    }
+
+    /// `actions` checked (finite, `(len, 4)`) and clipped to -1..=1.
+    fn actions(&mut self, actions: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<[f64; 4]>> {
+        Ok(rows::<4>(actions, self.get().len(), "action")?
+            .into_iter()
+            .map(|a| a.map(|v| v.clamp(-1.0, 1.0)))
+            .collect())
+    }
+
+    /// A step's `reset` argument: `(indices, seeds, starts)` or None.
+    fn step_resets(&mut self, reset: Option<StepReset<'_>>) -> PyResult<Resets> {
+        match reset {
+            Some((indices, seeds, starts)) => self.resets(&indices, &seeds, &starts),
+            None => Ok(Resets::none()),
+        }
     }
 
     /// The worlds in `indices` to reset, with their seeds and starts ([`Resets::entries`]).
@@ -454,7 +480,7 @@ impl PyBatch {
     ) -> PyResult<()> {
         let resets = self.resets(indices, seeds, &starts)?;
         let inner = self.get();
-        py.detach(|| inner.step(None, &resets.entries(), None))?;
+        py.detach(|| inner.step(None, &resets.entries(), None, None))?;
         Ok(())
     }
 
@@ -469,29 +495,78 @@ impl PyBatch {
         &mut self,
         py: Python<'_>,
         actions: PyReadonlyArray2<'_, f64>,
-        reset: Option<(
-            Bound<'_, PyAny>,
-            Bound<'_, PyAny>,
-            PyReadonlyArray2<'_, f64>,
-        )>,
+        reset: Option<StepReset<'_>>,
         out: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<()> {
-        let actions: Vec<[f64; 4]> = rows::<4>(&actions, self.get().len(), "action")?
-            .into_iter()
-            .map(|a| a.map(|v| v.clamp(-1.0, 1.0)))
-            .collect();
-        let resets = match reset {
-            Some((indices, seeds, starts)) => self.resets(&indices, &seeds, &starts)?,
-            None => Resets::none(),
-        };
+        let actions = self.actions(&actions)?;
+        let resets = self.step_resets(reset)?;
         let mut windows = match out {
             Some(out) => Some(self.windows(out, "step: out")?),
             None => None,
         };
         let rows = windows.as_mut().map(Windows::rows);
         let inner = self.get();
-        py.detach(|| inner.step(Some(&actions), &resets.entries(), rows))?;
+        py.detach(|| inner.step(Some(&actions), &resets.entries(), rows, None))?;
         Ok(())
+    }
+
+    /// `step(actions, reset, out)`, then a task's rewards and observations of every row, as
+    /// `task_reward(hover, out's position, attitude, touched, crashed, battery, targets,
+    /// count, index, steps, prev, hold_yaw, radius, max_steps, live)` followed by
+    /// `task_observe(hover, keys, out, targets, count, index, hold_yaw, lo, hi, obs)` give,
+    /// bit for bit — worked out by the stepping threads, each world's rows as soon as they
+    /// are written. Returns what `task_reward` returns; `index`, `steps`, `prev` and `obs`
+    /// are written in place.
+    #[pyo3(signature = (actions, reset, out, obs, hover, keys, targets, count, index, steps, prev, hold_yaw, radius, max_steps, live, lo, hi))]
+    #[allow(clippy::too_many_arguments)]
+    fn step_task<'py>(
+        &mut self,
+        py: Python<'py>,
+        actions: PyReadonlyArray2<'py, f64>,
+        reset: Option<StepReset<'_>>,
+        out: &Bound<'_, PyDict>,
+        obs: &Bound<'py, PyAny>,
+        hover: bool,
+        keys: Vec<String>,
+        targets: PyReadonlyArray3<'py, f64>,
+        count: PyReadonlyArray1<'py, i64>,
+        mut index: PyReadwriteArray1<'py, i64>,
+        mut steps: PyReadwriteArray1<'py, i64>,
+        mut prev: PyReadwriteArray1<'py, f64>,
+        hold_yaw: PyReadonlyArray1<'py, f64>,
+        radius: f64,
+        max_steps: i64,
+        live: PyReadonlyArray1<'py, bool>,
+        lo: PyReadonlyArray1<'py, f64>,
+        hi: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<tasks::Rewards<'py>> {
+        let actions = self.actions(&actions)?;
+        let resets = self.step_resets(reset)?;
+        let mut windows = self.windows(out, "step_task: out")?;
+        let rows = windows.rows();
+        let lengths = rows.floats().map(<[f64]>::len);
+        let arrays = tasks::TaskArrays {
+            hover,
+            keys: &keys,
+            targets: &targets,
+            count: &count,
+            index: &mut index,
+            steps: &mut steps,
+            prev: &mut prev,
+            hold_yaw: &hold_yaw,
+            radius,
+            max_steps,
+            live: &live,
+            lo: &lo,
+            hi: &hi,
+            obs,
+        };
+        let inner = self.get();
+        tasks::step_task(py, arrays, lengths, |pass, outputs| {
+            let resets = resets.entries();
+            py.detach(|| inner.step(Some(&actions), &resets, Some(rows), Some((pass, outputs))))
+                .map_err(PyErr::from)
+        })
     }
 
     /// Every UAV's observation as a dict of numpy arrays with one row per UAV:

@@ -17,6 +17,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use crate::core::Rows;
+
 /// The streams' increment (`usarsim._task._GOLDEN`).
 const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
 /// 2⁻⁵³: a draw's top 53 bits times this is a uniform double in [0, 1).
@@ -144,6 +146,7 @@ fn clip(x: f64, lo: f64, hi: f64) -> f64 {
 
 /// The rows' targets and how many each has, shared by both calls: C-ordered values, `slots`
 /// targets of three a row.
+#[derive(Clone, Copy)]
 struct Targets<'a> {
     targets: &'a [f64],
     slots: usize,
@@ -187,13 +190,13 @@ impl<'a> Targets<'a> {
         Ok(t)
     }
 
-    /// `Tasks._vector` of row `i`: its current target minus its position (`position`: three
-    /// values a row).
+    /// `Tasks._vector` of row `i`: its current target minus its position `p` (the row's
+    /// three values).
     #[inline(always)]
-    fn vector(&self, i: usize, position: &[f64], index: i64) -> [f64; 3] {
+    fn vector(&self, i: usize, p: &[f64], index: i64) -> [f64; 3] {
         let j = index.min(self.count[i] - 1) as usize;
         let at = (i * self.slots + j) * 3;
-        let (t, p) = (&self.targets[at..at + 3], &position[3 * i..3 * i + 3]);
+        let t = &self.targets[at..at + 3];
         [t[0] - p[0], t[1] - p[1], t[2] - p[2]]
     }
 }
@@ -256,12 +259,7 @@ fn contiguous<'a>(a: &ArrayView2<'a, f64>, name: &str) -> PyResult<&'a [f64]> {
         .ok_or_else(|| bad(format!("tasks: raw {name:?}: not C-contiguous")))
 }
 
-/// One bool array of `n` rows from `f`.
-fn flags<'py>(py: Python<'py>, n: usize, f: impl Fn(usize) -> bool) -> Bound<'py, PyArray1<bool>> {
-    (0..n).map(f).collect::<Vec<_>>().into_pyarray(py)
-}
-
-type Rewards<'py> = (
+pub(crate) type Rewards<'py> = (
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<bool>>,
     Bound<'py, PyArray1<bool>>,
@@ -312,55 +310,306 @@ pub(crate) fn task_reward<'py>(
     if index.len() != n || steps.len() != n || prev.len() != n {
         return Err(bad(format!("tasks: index, steps and prev need {n} rows")));
     }
-    let t = Targets::of(&targets, &count, n, index)?;
-    let mut reward = vec![0.0; n];
-    let (mut terminated, mut reached) = (vec![false; n], vec![false; n]);
-    let mut truncated = vec![false; n];
-    for i in 0..n {
-        let live = live[i];
-        steps[i] += i64::from(live);
-        let touch = if touched[i] { TOUCH_PENALTY } else { 0.0 };
-        let k = index[i];
-        let mut dist = length(t.vector(i, position, k));
-        let (mut r, mut end, next) = if hover {
-            let yaw = wrap(attitude[3 * i + 2] - hold_yaw[i]).abs();
+    let r = Reward {
+        hover,
+        targets: Targets::of(&targets, &count, n, index)?,
+        hold_yaw,
+        live,
+        radius,
+        max_steps,
+    };
+    let mut out = RewardRows::new(n);
+    {
+        let mut rows = out.rows(index, steps, prev);
+        for i in 0..n {
+            let raw = RawRow {
+                position: &position[3 * i..3 * i + 3],
+                yaw: attitude[3 * i + 2],
+                touched: touched[i],
+                crashed: crashed[i],
+                battery: battery[i],
+            };
+            r.row(i, i, &raw, &mut rows);
+        }
+    }
+    Ok(out.into_arrays(py))
+}
+
+/// What a task's reward of a row reads besides the row's raw observation (`Tasks.reward`).
+struct Reward<'a> {
+    hover: bool,
+    targets: Targets<'a>,
+    hold_yaw: &'a [f64],
+    /// Rows not reset in this step (every row's).
+    live: &'a [bool],
+    radius: f64,
+    max_steps: i64,
+}
+
+/// The raw values of one row a reward reads.
+struct RawRow<'a> {
+    position: &'a [f64],
+    yaw: f64,
+    touched: bool,
+    crashed: bool,
+    battery: f64,
+}
+
+/// Some rows' reward outputs, and the task state a reward updates (`index`, `steps`,
+/// `prev`), all indexed from the same first row.
+pub(crate) struct RewardOut<'a> {
+    index: &'a mut [i64],
+    steps: &'a mut [i64],
+    prev: &'a mut [f64],
+    reward: &'a mut [f64],
+    terminated: &'a mut [bool],
+    truncated: &'a mut [bool],
+    touched: &'a mut [bool],
+    crashed: &'a mut [bool],
+    reached: &'a mut [bool],
+}
+
+impl Reward<'_> {
+    /// Row `i`'s reward (`j`: its index in `out`) from its raw values: what the loop of
+    /// `Tasks._reward_numpy` gives for the row, bit for bit.
+    #[inline(always)]
+    fn row(&self, i: usize, j: usize, raw: &RawRow<'_>, out: &mut RewardOut<'_>) {
+        let live = self.live[i];
+        out.steps[j] += i64::from(live);
+        let touch = if raw.touched { TOUCH_PENALTY } else { 0.0 };
+        let k = out.index[j];
+        let t = &self.targets;
+        let mut dist = length(t.vector(i, raw.position, k));
+        let mut reached = false;
+        let (mut r, mut end, next) = if self.hover {
+            let yaw = wrap(raw.yaw - self.hold_yaw[i]).abs();
             (-dist - 0.2 * yaw - touch, false, k)
         } else {
-            let r = prev[i] - dist - touch;
-            reached[i] = dist < radius && live;
-            let next = k + i64::from(reached[i]);
-            let r = r + if reached[i] { WAYPOINT_BONUS } else { 0.0 };
-            dist = length(t.vector(i, position, next));
+            let r = out.prev[j] - dist - touch;
+            reached = dist < self.radius && live;
+            let next = k + i64::from(reached);
+            let r = r + if reached { WAYPOINT_BONUS } else { 0.0 };
+            dist = length(t.vector(i, raw.position, next));
             (r, next >= t.count[i], next)
         };
-        prev[i] = dist;
-        r -= if crashed[i] { CRASH_PENALTY } else { 0.0 };
-        end = (end || crashed[i]) && live;
-        truncated[i] = live && !end && (steps[i] >= max_steps || battery[i] <= 0.0);
-        terminated[i] = end;
-        reward[i] = if live { r } else { 0.0 };
-        index[i] = next;
+        out.prev[j] = dist;
+        r -= if raw.crashed { CRASH_PENALTY } else { 0.0 };
+        end = (end || raw.crashed) && live;
+        out.truncated[j] = live && !end && (out.steps[j] >= self.max_steps || raw.battery <= 0.0);
+        out.terminated[j] = end;
+        out.reward[j] = if live { r } else { 0.0 };
+        out.index[j] = next;
+        out.reached[j] = reached;
+        out.touched[j] = raw.touched && live;
+        out.crashed[j] = raw.crashed && live;
     }
-    Ok((
-        reward.into_pyarray(py),
-        terminated.into_pyarray(py),
-        truncated.into_pyarray(py),
-        flags(py, n, |i| touched[i] && live[i]),
-        flags(py, n, |i| crashed[i] && live[i]),
-        reached.into_pyarray(py),
-    ))
+}
+
+/// The reward arrays of `n` rows, filled through [`RewardRows::rows`].
+pub(crate) struct RewardRows {
+    reward: Vec<f64>,
+    flags: [Vec<bool>; 5],
+}
+
+impl RewardRows {
+    pub(crate) fn new(n: usize) -> Self {
+        Self {
+            reward: vec![0.0; n],
+            flags: std::array::from_fn(|_| vec![false; n]),
+        }
+    }
+
+    /// Every row's outputs, with the task state a reward updates.
+    pub(crate) fn rows<'a>(
+        &'a mut self,
+        index: &'a mut [i64],
+        steps: &'a mut [i64],
+        prev: &'a mut [f64],
+    ) -> RewardOut<'a> {
+        let [terminated, truncated, touched, crashed, reached] =
+            self.flags.each_mut().map(Vec::as_mut_slice);
+        RewardOut {
+            index,
+            steps,
+            prev,
+            reward: &mut self.reward,
+            terminated,
+            truncated,
+            touched,
+            crashed,
+            reached,
+        }
+    }
+
+    /// (reward, terminated, truncated, touched, crashed, reached) for Python.
+    pub(crate) fn into_arrays(self, py: Python<'_>) -> Rewards<'_> {
+        let [terminated, truncated, touched, crashed, reached] = self.flags;
+        (
+            self.reward.into_pyarray(py),
+            terminated.into_pyarray(py),
+            truncated.into_pyarray(py),
+            touched.into_pyarray(py),
+            crashed.into_pyarray(py),
+            reached.into_pyarray(py),
+        )
+    }
+}
+
+impl<'a> RewardOut<'a> {
+    /// Cut into `n` pieces of `per` rows each (the last one shorter).
+    fn split(self, per: usize, n: usize) -> Vec<Self> {
+        let mut index = self.index.chunks_mut(per);
+        let mut steps = self.steps.chunks_mut(per);
+        let mut prev = self.prev.chunks_mut(per);
+        let mut reward = self.reward.chunks_mut(per);
+        let mut terminated = self.terminated.chunks_mut(per);
+        let mut truncated = self.truncated.chunks_mut(per);
+        let mut touched = self.touched.chunks_mut(per);
+        let mut crashed = self.crashed.chunks_mut(per);
+        let mut reached = self.reached.chunks_mut(per);
+        (0..n)
+            .map(|_| RewardOut {
+                index: index.next().unwrap_or_default(),
+                steps: steps.next().unwrap_or_default(),
+                prev: prev.next().unwrap_or_default(),
+                reward: reward.next().unwrap_or_default(),
+                terminated: terminated.next().unwrap_or_default(),
+                truncated: truncated.next().unwrap_or_default(),
+                touched: touched.next().unwrap_or_default(),
+                crashed: crashed.next().unwrap_or_default(),
+                reached: reached.next().unwrap_or_default(),
+            })
+            .collect()
+    }
 }
 
 /// Where the columns of one observation key come from.
-enum Source<'a> {
-    /// The raw observation's array (C order), as it is.
-    Raw(&'a [f64]),
+#[derive(Clone, Copy)]
+enum Source {
+    /// Raw array `k` (C order), as it is.
+    Raw(usize),
     /// The raw attitude (C order), wrapped.
-    Attitude(&'a [f64]),
+    Attitude,
     /// The vector to the current target.
     Waypoint,
     /// Hover: the yaw to hold minus the yaw, wrapped; Waypoints: 0.
     YawError,
+}
+
+/// A task's observation of a row (`Tasks.observe`): each key's columns, in order, from raw
+/// arrays (C order, rows of their width) — `raws[position]` and `raws[attitude]` among them.
+struct Observe<'a> {
+    hover: bool,
+    sources: Vec<(Source, usize)>,
+    position: usize,
+    attitude: usize,
+    targets: Targets<'a>,
+    hold_yaw: &'a [f64],
+    /// One bound per column.
+    lo: &'a [f64],
+    hi: &'a [f64],
+}
+
+impl<'a> Observe<'a> {
+    /// The observation of `keys` (`raw(key)`: the index of the key's raw array and its
+    /// width, `None` when there is none), checked against the bounds.
+    #[allow(clippy::too_many_arguments)]
+    fn of(
+        hover: bool,
+        keys: &[String],
+        mut raw: impl FnMut(&str) -> PyResult<(usize, usize)>,
+        targets: Targets<'a>,
+        hold_yaw: &'a [f64],
+        lo: &'a [f64],
+        hi: &'a [f64],
+    ) -> PyResult<Self> {
+        let (position, _) = raw("position")?;
+        let (attitude, _) = raw("attitude")?;
+        let sources = keys
+            .iter()
+            .map(|k| match k.as_str() {
+                "attitude" => Ok((Source::Attitude, 3)),
+                "waypoint" => Ok((Source::Waypoint, 3)),
+                "yaw_error" => Ok((Source::YawError, 1)),
+                k => raw(k).map(|(a, w)| (Source::Raw(a), w)),
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let columns = sources.iter().map(|(_, w)| w).sum::<usize>();
+        if lo.len() != columns || hi.len() != columns {
+            return Err(bad(format!(
+                "tasks: {} low and {} high bounds for {columns} columns",
+                lo.len(),
+                hi.len()
+            )));
+        }
+        Ok(Self {
+            hover,
+            sources,
+            position,
+            attitude,
+            targets,
+            hold_yaw,
+            lo,
+            hi,
+        })
+    }
+
+    fn columns(&self) -> usize {
+        self.lo.len()
+    }
+
+    /// Row `i`'s values, every column clipped, in `buf`: row `j` of `raws` (C order, rows
+    /// of each array's width), its target `index`.
+    #[inline(always)]
+    fn fill(&self, raws: &[&[f64]], i: usize, j: usize, index: i64, buf: &mut [f64]) {
+        let mut at = 0;
+        for &(s, w) in &self.sources {
+            let b = &mut buf[at..at + w];
+            match s {
+                Source::Raw(a) => b.copy_from_slice(&raws[a][j * w..(j + 1) * w]),
+                Source::Attitude => b
+                    .iter_mut()
+                    .zip(&raws[self.attitude][3 * j..3 * j + 3])
+                    .for_each(|(b, v)| *b = wrap(*v)),
+                Source::Waypoint => {
+                    let p = &raws[self.position][3 * j..3 * j + 3];
+                    b.copy_from_slice(&self.targets.vector(i, p, index));
+                }
+                Source::YawError if self.hover => {
+                    b[0] = wrap(self.hold_yaw[i] - raws[self.attitude][3 * j + 2]);
+                }
+                Source::YawError => b[0] = 0.0,
+            }
+            at += w;
+        }
+        for ((b, lo), hi) in buf.iter_mut().zip(self.lo).zip(self.hi) {
+            *b = clip(*b, *lo, *hi);
+        }
+    }
+
+    /// [`Observe::fill`] written as float32 into row `j` of `dests` (each a C-ordered
+    /// array of its width: one of every column, or one per key).
+    #[inline(always)]
+    fn write(
+        &self,
+        raws: &[&[f64]],
+        i: usize,
+        j: usize,
+        index: i64,
+        buf: &mut [f64],
+        dests: &mut [(&mut [f32], usize)],
+    ) {
+        self.fill(raws, i, j, index, buf);
+        let mut at = 0;
+        for (dest, w) in dests {
+            let w = *w;
+            dest[j * w..(j + 1) * w]
+                .iter_mut()
+                .zip(&buf[at..at + w])
+                .for_each(|(d, v)| *d = *v as f32);
+            at += w;
+        }
+    }
 }
 
 /// `Tasks.observe`'s arithmetic: the observation of every row, each key's columns in
@@ -389,71 +638,58 @@ pub(crate) fn task_observe(
     };
     let position = item("position")?;
     let n = position.as_array().nrows();
-    let position = slice2(&position, n, 3, "position")?;
-    let attitude = item("attitude")?;
-    let attitude = slice2(&attitude, n, 3, "attitude")?;
     let hold_yaw = slice1(&hold_yaw, n, "hold_yaw")?;
     let index = index
         .as_slice()
         .map_err(|_| bad("tasks: index: not contiguous"))?;
     let t = Targets::of(&targets, &count, n, index)?;
-    let arrays = keys
+    // The raw arrays the keys read (position and attitude first), then their values.
+    let mut names = vec!["position", "attitude"];
+    names.extend(
+        keys.iter()
+            .map(String::as_str)
+            .filter(|k| !["position", "attitude", "waypoint", "yaw_error"].contains(k)),
+    );
+    let arrays = names
         .iter()
-        .filter(|k| !["attitude", "waypoint", "yaw_error"].contains(&k.as_str()))
-        .map(|k| Ok((k.as_str(), item(k)?)))
+        .map(|k| item(k))
         .collect::<PyResult<Vec<_>>>()?;
-    let sources = keys
-        .iter()
-        .map(|k| match k.as_str() {
-            "attitude" => Ok((Source::Attitude(attitude), 3)),
-            "waypoint" => Ok((Source::Waypoint, 3)),
-            "yaw_error" => Ok((Source::YawError, 1)),
-            k => {
-                let (_, a) = arrays
-                    .iter()
-                    .find(|(name, _)| *name == k)
-                    .expect("read above");
-                let a = a.as_array();
-                if a.nrows() != n {
-                    return Err(bad(format!(
-                        "tasks: raw {k:?}: {} rows, expected {n}",
-                        a.nrows()
-                    )));
-                }
-                Ok((Source::Raw(contiguous(&a, k)?), a.ncols()))
-            }
-        })
-        .collect::<PyResult<Vec<_>>>()?;
-    let columns: usize = sources.iter().map(|(_, w)| w).sum();
-    let (lo, hi) = (lo.as_slice()?, hi.as_slice()?);
-    if lo.len() != columns || hi.len() != columns {
-        return Err(bad(format!(
-            "tasks: {} low and {} high bounds for {columns} columns",
-            lo.len(),
-            hi.len()
-        )));
+    let mut raws = Vec::with_capacity(arrays.len());
+    let mut widths = Vec::with_capacity(arrays.len());
+    for (k, a) in names.iter().zip(&arrays) {
+        let a = a.as_array();
+        if a.nrows() != n {
+            return Err(bad(format!(
+                "tasks: raw {k:?}: {} rows, expected {n}",
+                a.nrows()
+            )));
+        }
+        if ["position", "attitude"].contains(k) && a.ncols() != 3 {
+            return Err(bad(format!(
+                "tasks: raw {k:?}: shape {:?}, expected ({n}, 3)",
+                a.shape()
+            )));
+        }
+        raws.push(contiguous(&a, k)?);
+        widths.push(a.ncols());
     }
-    // Row `i`'s values, every column clipped, in `buf`.
-    let fill = |i: usize, buf: &mut [f64]| {
-        let mut at = 0;
-        for (s, w) in &sources {
-            let b = &mut buf[at..at + w];
-            match s {
-                Source::Raw(a) => b.copy_from_slice(&a[i * w..(i + 1) * w]),
-                Source::Attitude(a) => b
-                    .iter_mut()
-                    .zip(&a[i * w..(i + 1) * w])
-                    .for_each(|(b, v)| *b = wrap(*v)),
-                Source::Waypoint => b.copy_from_slice(&t.vector(i, position, index[i])),
-                Source::YawError if hover => b[0] = wrap(hold_yaw[i] - attitude[3 * i + 2]),
-                Source::YawError => b[0] = 0.0,
-            }
-            at += w;
-        }
-        for ((b, lo), hi) in buf.iter_mut().zip(lo).zip(hi) {
-            *b = clip(*b, *lo, *hi);
-        }
+    let find = |k: &str| {
+        let a = names
+            .iter()
+            .position(|name| *name == k)
+            .expect("listed above");
+        Ok((a, widths[a]))
     };
+    let o = Observe::of(
+        hover,
+        &keys,
+        find,
+        t,
+        hold_yaw,
+        lo.as_slice()?,
+        hi.as_slice()?,
+    )?;
+    let columns = o.columns();
     let mut buf = vec![0.0; columns];
     if let Ok(mut flat) = out.extract::<PyReadwriteArray2<'_, f32>>() {
         let shape = flat.shape().to_vec();
@@ -470,25 +706,32 @@ pub(crate) fn task_observe(
         }
         // Key after key, each over every row: no dispatch per row and value (what `fill`
         // gives, bit for bit, written column by column).
+        let (position, attitude) = (raws[o.position], raws[o.attitude]);
         let mut at = 0;
-        for (s, w) in &sources {
-            let w = *w;
-            let bounds = (&lo[at..at + w], &hi[at..at + w]);
+        for &(s, w) in &o.sources {
+            let bounds = (&o.lo[at..at + w], &o.hi[at..at + w]);
             let put = |dest: &mut [f32], value: &dyn Fn(usize, usize) -> f64| {
                 put_columns(dest, columns, at, bounds, value);
             };
             match s {
                 Source::Raw(a) if w == 3 => {
+                    let a = raws[a];
                     put_columns3(dest, columns, at, bounds, |i, k| a[3 * i + k])
                 }
-                Source::Raw(a) if w == 1 => put_columns1(dest, columns, at, bounds, |i| a[i]),
-                Source::Raw(a) => put(dest, &|i, k| a[w * i + k]),
-                Source::Attitude(a) => {
-                    put_columns3(dest, columns, at, bounds, |i, k| wrap(a[3 * i + k]))
+                Source::Raw(a) if w == 1 => {
+                    let a = raws[a];
+                    put_columns1(dest, columns, at, bounds, |i| a[i])
+                }
+                Source::Raw(a) => {
+                    let a = raws[a];
+                    put(dest, &|i, k| a[w * i + k])
+                }
+                Source::Attitude => {
+                    put_columns3(dest, columns, at, bounds, |i, k| wrap(attitude[3 * i + k]))
                 }
                 Source::Waypoint => {
                     for (i, row) in dest.chunks_exact_mut(columns).enumerate() {
-                        let v = t.vector(i, position, index[i]);
+                        let v = t.vector(i, &position[3 * i..3 * i + 3], index[i]);
                         for k in 0..3 {
                             row[at + k] = clip(v[k], bounds.0[k], bounds.1[k]) as f32;
                         }
@@ -508,8 +751,8 @@ pub(crate) fn task_observe(
     let out = out
         .cast::<PyDict>()
         .map_err(|_| bad("tasks: out: expected a float32 (n, columns) array or a dict of them"))?;
-    let mut dests = Vec::with_capacity(keys.len());
-    for (k, (_, w)) in keys.iter().zip(&sources) {
+    let mut arrays = Vec::with_capacity(keys.len());
+    for (k, (_, w)) in keys.iter().zip(&o.sources) {
         let a = out
             .get_item(k)?
             .ok_or_else(|| bad(format!("tasks: out has no {k:?}")))?
@@ -519,28 +762,191 @@ pub(crate) fn task_observe(
                     "tasks: out[{k:?}]: not a writable 2-D float32 array: {e}"
                 ))
             })?;
-        if a.as_array().dim() != (n, *w) {
+        if a.as_array().dim() != (n, *w) || !a.is_c_contiguous() {
             return Err(bad(format!(
-                "tasks: out[{k:?}]: shape {:?}, expected ({n}, {w})",
+                "tasks: out[{k:?}]: shape {:?}, expected a C-contiguous ({n}, {w})",
                 a.as_array().shape()
             )));
         }
-        dests.push(a);
+        arrays.push((a, *w));
     }
-    let mut dests: Vec<_> = dests.iter_mut().map(|a| a.as_array_mut()).collect();
-    for i in 0..n {
-        fill(i, &mut buf);
-        let mut at = 0;
-        for dest in &mut dests {
-            let w = dest.ncols();
-            dest.row_mut(i)
-                .iter_mut()
-                .zip(&buf[at..at + w])
-                .for_each(|(d, v)| *d = *v as f32);
-            at += w;
-        }
+    let mut dests: Vec<_> = arrays
+        .iter_mut()
+        .map(|(a, w)| (a.as_slice_mut().unwrap_or_default(), *w))
+        .collect();
+    for (i, &k) in index.iter().enumerate() {
+        o.write(&raws, i, i, k, &mut buf, &mut dests);
     }
     Ok(())
+}
+
+/// A task's rewards and observations worked out by the stepping threads
+/// ([`crate::core::Batch::step`] with a task): each world's rows right after it writes its
+/// raw observation, while they are in its thread's caches — what `task_reward` then
+/// `task_observe` give over every row after the step, bit for bit.
+pub(crate) struct TaskPass<'a> {
+    reward: Reward<'a>,
+    observe: Observe<'a>,
+}
+
+/// The outputs of one piece of rows of a [`TaskPass`], from row `first` on.
+pub(crate) struct TaskPiece<'a> {
+    first: usize,
+    reward: RewardOut<'a>,
+    /// The observation's arrays: one of every column (flat), or one per key, each with its
+    /// width.
+    obs: Vec<(&'a mut [f32], usize)>,
+    /// One row's values (a row of every column).
+    buf: Vec<f64>,
+}
+
+impl<'a> TaskPass<'a> {
+    /// `out` and `obs` (all `n` rows) cut into `n` pieces of `per` rows.
+    pub(crate) fn pieces(
+        &self,
+        out: RewardOut<'a>,
+        obs: Vec<(&'a mut [f32], usize)>,
+        per: usize,
+        n: usize,
+    ) -> Vec<TaskPiece<'a>> {
+        let mut obs: Vec<_> = obs
+            .into_iter()
+            .map(|(a, w)| (a.chunks_mut(per * w.max(1)), w))
+            .collect();
+        out.split(per, n)
+            .into_iter()
+            .enumerate()
+            .map(|(p, reward)| TaskPiece {
+                first: p * per,
+                reward,
+                obs: obs
+                    .iter_mut()
+                    .map(|(a, w)| (a.next().unwrap_or_default(), *w))
+                    .collect(),
+                buf: vec![0.0; self.observe.columns()],
+            })
+            .collect()
+    }
+
+    /// Rows `from..to` of `piece`, from the same rows of `raw` (the piece's raw
+    /// observation, written).
+    pub(crate) fn rows(&self, piece: &mut TaskPiece<'_>, raw: &Rows<'_>, from: usize, to: usize) {
+        let raws = raw.floats();
+        let (position, attitude) = (raws[self.observe.position], raws[self.observe.attitude]);
+        for j in from..to {
+            let i = piece.first + j;
+            let row = RawRow {
+                position: &position[3 * j..3 * j + 3],
+                yaw: attitude[3 * j + 2],
+                touched: raw.touched[j],
+                crashed: raw.crashed[j],
+                battery: raw.battery[j],
+            };
+            self.reward.row(i, j, &row, &mut piece.reward);
+            let index = piece.reward.index[j];
+            self.observe
+                .write(&raws, i, j, index, &mut piece.buf, &mut piece.obs);
+        }
+    }
+}
+
+/// A task's arrays for `Batch.step_task` (see there), as Python passes them.
+pub(crate) struct TaskArrays<'a, 'py> {
+    pub(crate) hover: bool,
+    pub(crate) keys: &'a [String],
+    pub(crate) targets: &'a PyReadonlyArray3<'py, f64>,
+    pub(crate) count: &'a PyReadonlyArray1<'py, i64>,
+    pub(crate) index: &'a mut PyReadwriteArray1<'py, i64>,
+    pub(crate) steps: &'a mut PyReadwriteArray1<'py, i64>,
+    pub(crate) prev: &'a mut PyReadwriteArray1<'py, f64>,
+    pub(crate) hold_yaw: &'a PyReadonlyArray1<'py, f64>,
+    pub(crate) radius: f64,
+    pub(crate) max_steps: i64,
+    pub(crate) live: &'a PyReadonlyArray1<'py, bool>,
+    pub(crate) lo: &'a PyReadonlyArray1<'py, f64>,
+    pub(crate) hi: &'a PyReadonlyArray1<'py, f64>,
+    /// The observation's float32 array `(n, columns)` or dict of `(n, width)` arrays.
+    pub(crate) obs: &'a Bound<'py, PyAny>,
+}
+
+/// The task of `a`, checked for a batch of `lengths[k]` values in each raw field (in
+/// [`crate::FIELDS`]' order), handed as a [`TaskPass`] and its outputs to `step` (which
+/// steps the batch with them); returns the rewards as `task_reward` does.
+pub(crate) fn step_task<'py>(
+    py: Python<'py>,
+    a: TaskArrays<'_, 'py>,
+    lengths: [usize; 9],
+    step: impl FnOnce(&TaskPass<'_>, crate::core::TaskOut<'_>) -> PyResult<()>,
+) -> PyResult<Rewards<'py>> {
+    let n = lengths[6];
+    let (hold_yaw, live) = (
+        slice1(a.hold_yaw, n, "hold_yaw")?,
+        slice1(a.live, n, "live")?,
+    );
+    let (Ok(index), Ok(steps), Ok(prev)) = (
+        a.index.as_slice_mut(),
+        a.steps.as_slice_mut(),
+        a.prev.as_slice_mut(),
+    ) else {
+        return Err(bad("tasks: index, steps and prev: not contiguous"));
+    };
+    if index.len() != n || steps.len() != n || prev.len() != n {
+        return Err(bad(format!("tasks: index, steps and prev need {n} rows")));
+    }
+    let targets = Targets::of(a.targets, a.count, n, index)?;
+    let field = |k: &str| {
+        let found = crate::FIELDS.iter().position(|(name, _)| *name == k);
+        match found {
+            Some(f) if lengths[f] == n * crate::FIELDS[f].1 => Ok((f, crate::FIELDS[f].1)),
+            _ => Err(bad(format!("tasks: the batch does not observe {k:?}"))),
+        }
+    };
+    let (lo, hi) = (a.lo.as_slice()?, a.hi.as_slice()?);
+    let observe = Observe::of(a.hover, a.keys, field, targets, hold_yaw, lo, hi)?;
+    let mut arrays = Vec::new();
+    if let Ok(flat) = a.obs.extract::<PyReadwriteArray2<'_, f32>>() {
+        arrays.push((flat, observe.columns(), "out"));
+    } else {
+        let dict = a.obs.cast::<PyDict>().map_err(|_| {
+            bad("tasks: out: expected a float32 (n, columns) array or a dict of them")
+        })?;
+        for (k, (_, w)) in a.keys.iter().zip(&observe.sources) {
+            let array = dict
+                .get_item(k)?
+                .ok_or_else(|| bad(format!("tasks: out has no {k:?}")))?
+                .extract::<PyReadwriteArray2<'_, f32>>()
+                .map_err(|e| {
+                    bad(format!(
+                        "tasks: out[{k:?}]: not a writable 2-D float32 array: {e}"
+                    ))
+                })?;
+            arrays.push((array, *w, k.as_str()));
+        }
+    }
+    for (array, w, k) in &arrays {
+        if array.as_array().dim() != (n, *w) || !array.is_c_contiguous() {
+            return Err(bad(format!(
+                "tasks: {k}: shape {:?}, expected a C-contiguous ({n}, {w})",
+                array.shape()
+            )));
+        }
+    }
+    let obs = arrays
+        .iter_mut()
+        .map(|(array, w, _)| (array.as_slice_mut().unwrap_or_default(), *w))
+        .collect();
+    let reward = Reward {
+        hover: a.hover,
+        targets,
+        hold_yaw,
+        live,
+        radius: a.radius,
+        max_steps: a.max_steps,
+    };
+    let pass = TaskPass { reward, observe };
+    let mut rewards = RewardRows::new(n);
+    step(&pass, (rewards.rows(index, steps, prev), obs))?;
+    Ok(rewards.into_arrays(py))
 }
 
 /// One key's columns `at..` (their bounds `lo`, `hi`) of every row of the flat float32

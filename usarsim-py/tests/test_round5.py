@@ -5,6 +5,7 @@ the map."""
 import pickle
 import warnings
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -264,3 +265,61 @@ def test_a_batchs_arrays_name_the_first_value_not_finite_laid_out_either_way():
             batch.step(actions)
     after = batch.observe()
     assert all(np.array_equal(before[k], after[k]) for k in before)
+
+
+def _unfused(env):
+    """`env` stepping the batch, then working out the task's rewards and observations
+    after the pass (the way before `Batch.step_task`)."""
+
+    def step_task(a, reset, live):
+        raw = env._step_raw(a, reset)
+        return (raw, *env._tasks.reward(raw, live), False)
+
+    env._step_task = step_task
+    return env
+
+
+@pytest.mark.parametrize("task", ["waypoints", "hover"])
+@pytest.mark.parametrize("options", [{"state_only": True, "flat": True}, {},
+                                     {"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP, "flat": True}])
+def test_the_task_worked_out_in_the_steps_pass_equals_it_worked_out_after(task, options):
+    # Short episodes: resets in the pass (NEXT_STEP) and after it (SAME_STEP), waypoints
+    # reached and not; 11 worlds over two threads' pieces.
+    make = lambda: usarsim.vector_env(11, task, max_steps=6, waypoint_radius=1.5, **options)  # noqa: E731
+    fused, after = make(), _unfused(make())
+    rng = np.random.default_rng(3)
+    for env in (fused, after):
+        env.reset(seed=9)
+    for _ in range(40):
+        act = rng.uniform(-1, 1, (11, 4))
+        one, two = fused.step(act), after.step(act)
+        for x, y in zip(one[:4], two[:4]):
+            x, y = (x, y) if isinstance(x, dict) else ({"": x}, {"": y})
+            assert x.keys() == y.keys()
+            for k in x:
+                assert x[k].dtype == y[k].dtype and np.array_equal(x[k], y[k]), k
+        for k in ("touched", "crashed", "reached", "waypoints_reached"):
+            assert np.array_equal(one[4][k], two[4][k]), k
+    assert fused._tasks.index.any() or task == "hover"
+
+
+def test_a_bad_task_array_is_named_and_nothing_steps():
+    venv = usarsim.vector_env(4, state_only=True, flat=True)
+    venv.reset(seed=0)
+    venv.step(np.zeros((4, 4)))
+    batch, tasks, t = venv._batch, venv._tasks, venv._batch.time(0)
+    live = np.ones(4, dtype=bool)
+    spoilt = {
+        "live": (lambda: (np.ones(3, dtype=bool), venv._obs), "live: 3 rows"),
+        "out": (lambda: (live, np.zeros((4, 2), np.float32)), "out: shape"),
+    }
+    for name, (make, message) in spoilt.items():
+        live_arg, out = make()
+        with pytest.raises(ValueError, match=message):
+            tasks.step(batch, np.zeros((4, 4)), None, venv._raw, live_arg, out)
+        assert batch.time(0) == t, name  # checked before anything stepped
+    sonar = dict(venv._raw, sonar=np.zeros((4, 10)))
+    tasks.keys = [*tasks.keys, "sonar"]
+    with pytest.raises(ValueError, match='does not observe "sonar"'):
+        tasks.step(batch, np.zeros((4, 4)), None, sonar, live, np.zeros((4, 29), np.float32))
+    assert batch.time(0) == t

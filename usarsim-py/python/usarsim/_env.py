@@ -391,12 +391,13 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         self._batch.step(a, reset, out=self._raw)
         return self._raw
 
-    def _observe_all(self, raw):
+    def _observe_all(self, raw, observed=False):
         """Every sub-environment's observation, with the cameras' pictures when asked: the
-        env's own arrays, filled in place (copies of them with ``copy=True``)."""
+        env's own arrays, filled in place (copies of them with ``copy=True``); `observed`:
+        already filled by the step (:meth:`_step_task`)."""
         if self._obs is None:
             self._obs = self._tasks.observe(raw)
-        else:
+        elif not observed:
             self._tasks.observe(raw, out=self._obs)
         obs = self._obs
         if self.copy:
@@ -406,6 +407,16 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         out = dict(obs) if isinstance(obs, dict) else {"state": obs}
         out.update(self._batch.images(rgb="rgb" in self._kinds, depth="depth" in self._kinds))
         return out
+
+    def _step_task(self, a, reset, live):
+        """Steps the batch with the task's rewards and observations worked out in the same
+        pass (``Tasks.step``), once the env's arrays exist (else the step, then the task):
+        (raw, reward, terminated, truncated, info, observed)."""
+        if self._raw is None or self._obs is None:
+            raw = self._step_raw(a, reset)
+            return (raw, *self._tasks.reward(raw, live), False)
+        out = self._tasks.step(self._batch, a, reset, self._raw, live, self._obs)
+        return (self._raw, *out, True)
 
     def _record(self, rng_state, options):
         """A fresh record of the run for pickling: the actions since the last reset; once
@@ -451,12 +462,12 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                     replay["reset_step"] -= oldest
                 replay["rng"], replay["options"] = None, None
         reset = (done, *self._new_worlds(done)) if len(done) else None
-        raw = self._step_raw(a, reset)
         live = np.ones(self.num_envs, dtype=bool)
         live[done] = False
-        reward, term, trunc, info = self._tasks.reward(raw, live)  # the reset rows begin there
+        # The reset rows begin their episodes in the rewards.
+        raw, reward, term, trunc, info, observed = self._step_task(a, reset, live)
         self._autoreset = term | trunc
-        return self._observe_all(raw), reward, term, trunc, _with_masks(info, live)
+        return self._observe_all(raw, observed), reward, term, trunc, _with_masks(info, live)
 
     def _resume(self, replay):
         if replay["rng"] is not None:
@@ -475,9 +486,8 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                         "reset_step": steps.copy(), "reset_drawn": drawn.copy()}
 
     def _step_same(self, a):
-        raw = self._step_raw(a)
-        reward, term, trunc, info = self._tasks.reward(raw)
-        obs = self._observe_all(raw)
+        raw, reward, term, trunc, info, observed = self._step_task(a, None, np.ones(self.num_envs, dtype=bool))
+        obs = self._observe_all(raw, observed)
         infos = _with_masks(info, np.ones(self.num_envs, dtype=bool))
         ended = np.flatnonzero(term | trunc)
         if len(ended):

@@ -452,6 +452,21 @@ class Tasks:
         return reward, terminated, truncated, {"touched": touched, "crashed": crashed, "reached": reached,
                                                "waypoints_reached": self.index.copy()}
 
+    def step(self, batch, actions, reset, raw, live, out):
+        """Steps `batch` (actions and resets as ``Batch.step`` takes them) with its raw
+        observation written into `raw`, and returns :meth:`reward`'s results for `live`, the
+        observation :meth:`observe` gives written into `out` (an earlier result) — worked out
+        by the stepping threads, each world's rows as soon as they are written
+        (``Batch.step_task``): the same values, bit for bit."""
+        widths = {"waypoint": 3, "yaw_error": 1}
+        lo, hi, _, _ = self._layout({k: widths.get(k) or raw[k].shape[1] for k in self.keys}, self.n)
+        live = np.ascontiguousarray(live, dtype=bool)
+        reward, terminated, truncated, touched, crashed, reached = batch.step_task(
+            actions, reset, raw, out, self.task == "hover", self.keys, self.targets, self.count, self.index,
+            self.steps, self.prev, self.hold_yaw, self.radius, self.max_steps, live, lo, hi)
+        return reward, terminated, truncated, {"touched": touched, "crashed": crashed, "reached": reached,
+                                               "waypoints_reached": self.index.copy()}
+
     def _reward_numpy(self, raw, live=None):
         """Rewards, terminated and truncated flags and info arrays after one step. Rows not in
         the boolean mask `live` (sub-environments reset in this step) get reward 0, no end and
