@@ -870,6 +870,8 @@ fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
 /// tick's sweep then casting) no longer keeps the others waiting at the end of the step.
 /// Not pieces in turn from one queue either: a world then moved between threads from call
 /// to call, and what a reset freed went back to another thread's heap (resets were slower).
+/// Fewer than `min` items are stepped on the calling thread alone: handing work to a thread
+/// and waiting for it costs tens of microseconds on a VM whose idle cores sleep.
 /// Each piece (consecutive items) has its own state, made by `states(piece length, pieces)`
 /// (one per piece, in order; dropped after the piece): `f` gets each item with its index,
 /// its index in the piece and the piece's state (a Python batch's: the piece's rows of the
@@ -879,6 +881,7 @@ fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
 /// heap, and finding it reads a world's own fields first).
 fn par_each<T: Send, S: Send, F, A>(
     items: &mut [T],
+    min: usize,
     states: impl FnOnce(usize, usize) -> Vec<S>,
     ahead: A,
     f: F,
@@ -900,7 +903,7 @@ fn par_each<T: Send, S: Send, F, A>(
             f(first + j, j, &mut piece[j], state);
         }
     };
-    let pool = (items.len() >= 4).then(pool).flatten();
+    let pool = (items.len() >= min.max(2)).then(pool).flatten();
     let Some(pool) = pool else {
         if let Some(state) = states(items.len(), 1).first_mut() {
             each(0, items, state);
@@ -958,10 +961,30 @@ fn par_each<T: Send, S: Send, F, A>(
 /// and its observation's arrays ([`TaskPass::pieces`]).
 pub(crate) type TaskOut<'a> = (RewardOut<'a>, Vec<(&'a mut [f32], usize)>);
 
+/// The fewest worlds a step shares out among the threads. On the 2-core VM of BENCHMARKS.md
+/// ("Issue 24, twenty-third round") a step's hand-over to the other thread and the wait for
+/// it cost a 16-UAV vector env step more than that thread saved (180 µs against 161 µs on one
+/// core); at 32 UAVs the two threads were ahead (195 µs against 211 µs).
+const PARALLEL_WORLDS: usize = 24;
+
 /// A world to replace by a fresh one: its seed and one start pose per UAV.
 pub(crate) type Reset<'a> = (u64, &'a [Pose]);
 
 impl Batch {
+    /// Wakes the other threads for a step about to come (a no-op job each: a thread that
+    /// just ran one looks for work a while before it sleeps again), so that their wake-up
+    /// (tens of microseconds on a VM whose idle cores sleep) overlaps the step's
+    /// preparation instead of delaying their share of the worlds.
+    pub(crate) fn wake(&self) {
+        if self.worlds.len() >= PARALLEL_WORLDS
+            && let Some(pool) = pool()
+        {
+            for _ in 0..pool.current_num_threads() {
+                pool.spawn(|| {});
+            }
+        }
+    }
+
     /// Total UAVs.
     pub(crate) fn len(&self) -> usize {
         self.worlds.len() * self.uavs_per_world
@@ -1017,6 +1040,7 @@ impl Batch {
         };
         par_each(
             &mut self.worlds,
+            PARALLEL_WORLDS,
             states,
             |w, early| {
                 if early {
@@ -1060,6 +1084,7 @@ impl Batch {
             self.worlds.iter().map(|_| Mutex::default()).collect();
         par_each(
             &mut self.worlds,
+            2,
             |_, n| vec![(); n],
             |_, _| {},
             |i, _, w, ()| {

@@ -498,6 +498,7 @@ impl PyBatch {
         reset: Option<StepReset<'_>>,
         out: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<()> {
+        self.get().wake();
         let actions = self.actions(&actions)?;
         let resets = self.step_resets(reset)?;
         let mut windows = match out {
@@ -540,6 +541,7 @@ impl PyBatch {
         lo: PyReadonlyArray1<'py, f64>,
         hi: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<tasks::Rewards<'py>> {
+        self.get().wake();
         let actions = self.actions(&actions)?;
         let resets = self.step_resets(reset)?;
         let mut windows = self.windows(out, "step_task: out")?;

@@ -167,7 +167,7 @@ def test_every_world_of_a_batch_steps_once_per_step_with_its_own_actions():
     # The threads share the worlds out in pieces (`par_each` in src/core.rs): a piece skipped
     # or stepped twice would leave its worlds at another time than the others, and a piece
     # given another's rows of actions would move other UAVs.
-    n = 37  # pieces of 3 worlds on 2 cores, the last one short
+    n = 37  # shared out on 2 cores or more (at least core::PARALLEL_WORLDS), in pieces
     venv = usarsim.vector_env(n, "hover", max_steps=3, state_only=True)
     one = usarsim.vector_env(1, "hover", max_steps=3, state_only=True)
     venv.reset(seed=5)
@@ -190,10 +190,10 @@ def test_every_world_of_a_batch_steps_once_per_step_with_its_own_actions():
 
 
 def _step_in_child(q):
-    venv = usarsim.vector_env(8, state_only=True, flat=True)
+    venv = usarsim.vector_env(32, state_only=True, flat=True)  # enough worlds for the threads
     venv.reset(seed=0)
     for _ in range(3):
-        venv.step(np.zeros((8, 4)))
+        venv.step(np.zeros((32, 4)))
     q.put(venv._batch.time(7))
 
 
@@ -204,9 +204,9 @@ def test_a_process_forked_after_stepping_steps_its_own_worlds():
     # its own, not wait forever for its parent's.
     import multiprocessing as mp
 
-    parent = usarsim.vector_env(8, state_only=True, flat=True)
+    parent = usarsim.vector_env(32, state_only=True, flat=True)
     parent.reset(seed=0)
-    parent.step(np.zeros((8, 4)))  # the threads exist now
+    parent.step(np.zeros((32, 4)))  # the threads exist now
     ctx = mp.get_context("fork")
     q = ctx.Queue()
     child = ctx.Process(target=_step_in_child, args=(q,))
@@ -218,7 +218,7 @@ def test_a_process_forked_after_stepping_steps_its_own_worlds():
         if child.is_alive():
             child.kill()
     assert child.exitcode == 0
-    parent.step(np.zeros((8, 4)))
+    parent.step(np.zeros((32, 4)))
     assert parent._batch.time(7) == pytest.approx(0.3)
 
 
@@ -284,14 +284,16 @@ def _unfused(env):
                                      {"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP, "flat": True}])
 def test_the_task_worked_out_in_the_steps_pass_equals_it_worked_out_after(task, options):
     # Short episodes: resets in the pass (NEXT_STEP) and after it (SAME_STEP), waypoints
-    # reached and not; 11 worlds over two threads' pieces.
-    make = lambda: usarsim.vector_env(11, task, max_steps=6, waypoint_radius=1.5, **options)  # noqa: E731
+    # reached and not; 130 worlds: shared out among the threads in pieces of several worlds
+    # (of 3 on 2 cores).
+    n = 130
+    make = lambda: usarsim.vector_env(n, task, max_steps=6, waypoint_radius=1.5, **options)  # noqa: E731
     fused, after = make(), _unfused(make())
     rng = np.random.default_rng(3)
     for env in (fused, after):
         env.reset(seed=9)
     for _ in range(40):
-        act = rng.uniform(-1, 1, (11, 4))
+        act = rng.uniform(-1, 1, (n, 4))
         one, two = fused.step(act), after.step(act)
         for x, y in zip(one[:4], two[:4]):
             x, y = (x, y) if isinstance(x, dict) else ({"": x}, {"": y})
