@@ -946,14 +946,33 @@ fn par_each<T: Send, S: Send, F, A>(
             }
         }
     };
+    // Threads done with every share.
+    let finished = AtomicUsize::new(0);
+    let run = |me: usize| {
+        run(me);
+        finished.fetch_add(1, Ordering::Release);
+    };
     // This thread steps the first share, the pool's threads the others; a panic in `f`
-    // reaches the caller once every thread is done.
+    // reaches the caller once every thread is done. Done first, this thread waits for the
+    // others spinning, a while: blocked, it would sleep, and a sleeping core takes tens of
+    // microseconds to wake on a VM (the others finish within a piece of it, as each takes
+    // what is left of the others' shares).
     pool.in_place_scope(|scope| {
         let run = &run;
         for me in 1..threads {
             scope.spawn(move |_| run(me));
         }
         run(0);
+        let start = std::time::Instant::now();
+        while finished.load(Ordering::Acquire) < threads
+            && start.elapsed() < std::time::Duration::from_micros(500)
+        {
+            std::hint::spin_loop();
+        }
+        // The pool marks a job done just after it returns.
+        for _ in 0..256 {
+            std::hint::spin_loop();
+        }
     });
 }
 
