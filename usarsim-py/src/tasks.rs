@@ -612,6 +612,49 @@ impl<'a> Observe<'a> {
     }
 }
 
+/// The observation's output arrays `out`, checked (writable, C-contiguous, `n` rows): one
+/// float32 `(n, columns)` array (flat: `true`) or a dict of one `(n, width)` array per key,
+/// each with its width.
+#[allow(clippy::type_complexity)]
+fn obs_arrays<'py>(
+    out: &Bound<'py, PyAny>,
+    keys: &[String],
+    o: &Observe<'_>,
+    n: usize,
+) -> PyResult<(Vec<(PyReadwriteArray2<'py, f32>, usize)>, bool)> {
+    let mut arrays = Vec::with_capacity(keys.len());
+    let flat = if let Ok(flat) = out.extract::<PyReadwriteArray2<'py, f32>>() {
+        arrays.push((flat, o.columns(), "out".to_string()));
+        true
+    } else {
+        let dict = out.cast::<PyDict>().map_err(|_| {
+            bad("tasks: out: expected a float32 (n, columns) array or a dict of them")
+        })?;
+        for (k, (_, w)) in keys.iter().zip(&o.sources) {
+            let array = dict
+                .get_item(k)?
+                .ok_or_else(|| bad(format!("tasks: out has no {k:?}")))?
+                .extract::<PyReadwriteArray2<'py, f32>>()
+                .map_err(|e| {
+                    bad(format!(
+                        "tasks: out[{k:?}]: not a writable 2-D float32 array: {e}"
+                    ))
+                })?;
+            arrays.push((array, *w, format!("out[{k:?}]")));
+        }
+        false
+    };
+    for (array, w, name) in &arrays {
+        if array.as_array().dim() != (n, *w) || !array.is_c_contiguous() {
+            return Err(bad(format!(
+                "tasks: {name}: shape {:?}, expected a C-contiguous ({n}, {w})",
+                array.shape()
+            )));
+        }
+    }
+    Ok((arrays.into_iter().map(|(a, w, _)| (a, w)).collect(), flat))
+}
+
 /// `Tasks.observe`'s arithmetic: the observation of every row, each key's columns in
 /// `keys`' order, clipped to `lo` and `hi` (one bound per column, float64) and rounded to
 /// float32, written into `out`: one float32 array `(n, columns)` (flat) or a dict of one
@@ -691,16 +734,9 @@ pub(crate) fn task_observe(
     )?;
     let columns = o.columns();
     let mut buf = vec![0.0; columns];
-    if let Ok(mut flat) = out.extract::<PyReadwriteArray2<'_, f32>>() {
-        let shape = flat.shape().to_vec();
-        let dest = match flat.as_slice_mut() {
-            Ok(dest) if shape == [n, columns] => dest,
-            _ => {
-                return Err(bad(format!(
-                    "tasks: out: shape {shape:?}, expected a C-contiguous ({n}, {columns})"
-                )));
-            }
-        };
+    let (mut arrays, flat) = obs_arrays(out, &keys, &o, n)?;
+    if flat {
+        let dest = arrays[0].0.as_slice_mut()?;
         if columns == 0 {
             return Ok(());
         }
@@ -747,28 +783,6 @@ pub(crate) fn task_observe(
             at += w;
         }
         return Ok(());
-    }
-    let out = out
-        .cast::<PyDict>()
-        .map_err(|_| bad("tasks: out: expected a float32 (n, columns) array or a dict of them"))?;
-    let mut arrays = Vec::with_capacity(keys.len());
-    for (k, (_, w)) in keys.iter().zip(&o.sources) {
-        let a = out
-            .get_item(k)?
-            .ok_or_else(|| bad(format!("tasks: out has no {k:?}")))?
-            .extract::<PyReadwriteArray2<'_, f32>>()
-            .map_err(|e| {
-                bad(format!(
-                    "tasks: out[{k:?}]: not a writable 2-D float32 array: {e}"
-                ))
-            })?;
-        if a.as_array().dim() != (n, *w) || !a.is_c_contiguous() {
-            return Err(bad(format!(
-                "tasks: out[{k:?}]: shape {:?}, expected a C-contiguous ({n}, {w})",
-                a.as_array().shape()
-            )));
-        }
-        arrays.push((a, *w));
     }
     let mut dests: Vec<_> = arrays
         .iter_mut()
@@ -903,37 +917,10 @@ pub(crate) fn step_task<'py>(
     };
     let (lo, hi) = (a.lo.as_slice()?, a.hi.as_slice()?);
     let observe = Observe::of(a.hover, a.keys, field, targets, hold_yaw, lo, hi)?;
-    let mut arrays = Vec::new();
-    if let Ok(flat) = a.obs.extract::<PyReadwriteArray2<'_, f32>>() {
-        arrays.push((flat, observe.columns(), "out"));
-    } else {
-        let dict = a.obs.cast::<PyDict>().map_err(|_| {
-            bad("tasks: out: expected a float32 (n, columns) array or a dict of them")
-        })?;
-        for (k, (_, w)) in a.keys.iter().zip(&observe.sources) {
-            let array = dict
-                .get_item(k)?
-                .ok_or_else(|| bad(format!("tasks: out has no {k:?}")))?
-                .extract::<PyReadwriteArray2<'_, f32>>()
-                .map_err(|e| {
-                    bad(format!(
-                        "tasks: out[{k:?}]: not a writable 2-D float32 array: {e}"
-                    ))
-                })?;
-            arrays.push((array, *w, k.as_str()));
-        }
-    }
-    for (array, w, k) in &arrays {
-        if array.as_array().dim() != (n, *w) || !array.is_c_contiguous() {
-            return Err(bad(format!(
-                "tasks: {k}: shape {:?}, expected a C-contiguous ({n}, {w})",
-                array.shape()
-            )));
-        }
-    }
+    let (mut arrays, _) = obs_arrays(a.obs, a.keys, &observe, n)?;
     let obs = arrays
         .iter_mut()
-        .map(|(array, w, _)| (array.as_slice_mut().unwrap_or_default(), *w))
+        .map(|(array, w)| (array.as_slice_mut().unwrap_or_default(), *w))
         .collect();
     let reward = Reward {
         hover: a.hover,
