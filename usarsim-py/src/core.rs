@@ -7,7 +7,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
-use crate::tasks::{RewardOut, TaskPass, TaskPiece};
+use crate::tasks::{TaskOut, TaskPass, TaskPiece};
 use ucc_client::SpeedCommand;
 use ucc_client::uav::UavState;
 use usar_proto::SenData;
@@ -976,10 +976,6 @@ fn par_each<T: Send, S: Send, F, A>(
     });
 }
 
-/// A task's outputs of every row of a step: its rewards (with the task state they update)
-/// and its observation's arrays ([`TaskPass::pieces`]).
-pub(crate) type TaskOut<'a> = (RewardOut<'a>, Vec<(&'a mut [f32], usize)>);
-
 /// The fewest worlds a step shares out among the threads. On the 2-core VM of BENCHMARKS.md
 /// ("Issue 24, twenty-third round") a step's hand-over to the other thread and the wait for
 /// it cost a 16-UAV vector env step more than that thread saved (180 µs against 161 µs on one
@@ -1085,7 +1081,8 @@ impl Batch {
                 if let Some(rows) = rows {
                     w.write(rows, j * per);
                     if let (Some(pass), Some(piece)) = (pass, piece) {
-                        pass.rows(piece, rows, j * per, (j + 1) * per);
+                        let raw = (&rows.floats(), &*rows.touched, &*rows.crashed);
+                        pass.rows(piece, raw, j * per, (j + 1) * per);
                     }
                 }
             },

@@ -17,8 +17,6 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::core::Rows;
-
 /// The streams' increment (`usarsim._task._GOLDEN`).
 const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
 /// 2⁻⁵³: a draw's top 53 bits times this is a uniform double in [0, 1).
@@ -801,7 +799,13 @@ pub(crate) fn task_observe(
 pub(crate) struct TaskPass<'a> {
     reward: Reward<'a>,
     observe: Observe<'a>,
+    /// The battery's raw field ([`crate::FIELDS`]' index).
+    battery: usize,
 }
+
+/// A task's outputs of every row of a step: its rewards (with the task state they update)
+/// and its observation's arrays ([`TaskPass::pieces`]).
+pub(crate) type TaskOut<'a> = (RewardOut<'a>, Vec<(&'a mut [f32], usize)>);
 
 /// The outputs of one piece of rows of a [`TaskPass`], from row `first` on.
 pub(crate) struct TaskPiece<'a> {
@@ -842,24 +846,30 @@ impl<'a> TaskPass<'a> {
             .collect()
     }
 
-    /// Rows `from..to` of `piece`, from the same rows of `raw` (the piece's raw
-    /// observation, written).
-    pub(crate) fn rows(&self, piece: &mut TaskPiece<'_>, raw: &Rows<'_>, from: usize, to: usize) {
-        let raws = raw.floats();
+    /// Rows `from..to` of `piece`, from the same rows of the piece's raw observation, written:
+    /// its float fields `raws` (in [`crate::FIELDS`]' order), `touched` and `crashed`.
+    pub(crate) fn rows(
+        &self,
+        piece: &mut TaskPiece<'_>,
+        (raws, touched, crashed): (&[&[f64]; 9], &[bool], &[bool]),
+        from: usize,
+        to: usize,
+    ) {
         let (position, attitude) = (raws[self.observe.position], raws[self.observe.attitude]);
+        let battery = raws[self.battery];
         for j in from..to {
             let i = piece.first + j;
             let row = RawRow {
                 position: &position[3 * j..3 * j + 3],
                 yaw: attitude[3 * j + 2],
-                touched: raw.touched[j],
-                crashed: raw.crashed[j],
-                battery: raw.battery[j],
+                touched: touched[j],
+                crashed: crashed[j],
+                battery: battery[j],
             };
             self.reward.row(i, j, &row, &mut piece.reward);
             let index = piece.reward.index[j];
             self.observe
-                .write(&raws, i, j, index, &mut piece.buf, &mut piece.obs);
+                .write(raws, i, j, index, &mut piece.buf, &mut piece.obs);
         }
     }
 }
@@ -890,7 +900,7 @@ pub(crate) fn step_task<'py>(
     py: Python<'py>,
     a: TaskArrays<'_, 'py>,
     lengths: [usize; 9],
-    step: impl FnOnce(&TaskPass<'_>, crate::core::TaskOut<'_>) -> PyResult<()>,
+    step: impl FnOnce(&TaskPass<'_>, TaskOut<'_>) -> PyResult<()>,
 ) -> PyResult<Rewards<'py>> {
     let n = lengths[6];
     let (hold_yaw, live) = (
@@ -930,7 +940,12 @@ pub(crate) fn step_task<'py>(
         radius: a.radius,
         max_steps: a.max_steps,
     };
-    let pass = TaskPass { reward, observe };
+    let (battery, _) = field("battery")?;
+    let pass = TaskPass {
+        reward,
+        observe,
+        battery,
+    };
     let mut rewards = RewardRows::new(n);
     step(&pass, (rewards.rows(index, steps, prev), obs))?;
     Ok(rewards.into_arrays(py))
