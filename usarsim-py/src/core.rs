@@ -606,8 +606,7 @@ impl WorldSim {
         }
     }
 
-    /// Writes each UAV's observation into `rows` (this world's rows: UAV `k` of the world is
-    /// row `k`).
+    /// Writes each UAV's observation into `rows`, UAV `k` of the world as row `at + k`.
     pub(crate) fn write(&self, rows: &mut Rows<'_>, at: usize) {
         let time = self.world.time();
         for (k, uav) in (at..).zip(&self.uavs) {
@@ -923,7 +922,6 @@ fn par_each<T: Send, S: Send, F, A>(
         .zip(states(chunk, n))
         .map(|p| Mutex::new(Some(p)))
         .collect();
-    let n = pieces.len();
     let end = |share: usize| (share + 1) * n / threads;
     // The next piece of each share.
     let next: Vec<AtomicUsize> = (0..threads)

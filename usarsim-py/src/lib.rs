@@ -564,7 +564,8 @@ impl PyBatch {
             obs,
         };
         let inner = self.get();
-        tasks::step_task(py, arrays, lengths, |pass, outputs| {
+        let n = inner.len();
+        tasks::step_task(py, arrays, n, lengths, |pass, outputs| {
             let resets = resets.entries();
             py.detach(|| inner.step(Some(&actions), &resets, Some(rows), Some((pass, outputs))))
                 .map_err(PyErr::from)

@@ -257,6 +257,28 @@ fn contiguous<'a>(a: &ArrayView2<'a, f64>, name: &str) -> PyResult<&'a [f64]> {
         .ok_or_else(|| bad(format!("tasks: raw {name:?}: not C-contiguous")))
 }
 
+/// The task state a reward updates (`index`, `steps`, `prev`), checked: contiguous, `n` rows.
+type TaskState<'a> = (&'a mut [i64], &'a mut [i64], &'a mut [f64]);
+
+fn task_state<'a>(
+    index: &'a mut PyReadwriteArray1<'_, i64>,
+    steps: &'a mut PyReadwriteArray1<'_, i64>,
+    prev: &'a mut PyReadwriteArray1<'_, f64>,
+    n: usize,
+) -> PyResult<TaskState<'a>> {
+    let (Ok(index), Ok(steps), Ok(prev)) = (
+        index.as_slice_mut(),
+        steps.as_slice_mut(),
+        prev.as_slice_mut(),
+    ) else {
+        return Err(bad("tasks: index, steps and prev: not contiguous"));
+    };
+    if index.len() != n || steps.len() != n || prev.len() != n {
+        return Err(bad(format!("tasks: index, steps and prev need {n} rows")));
+    }
+    Ok((index, steps, prev))
+}
+
 pub(crate) type Rewards<'py> = (
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<bool>>,
@@ -297,17 +319,7 @@ pub(crate) fn task_reward<'py>(
         slice1(&crashed, n, "crashed")?,
     );
     let (hold_yaw, live) = (slice1(&hold_yaw, n, "hold_yaw")?, slice1(&live, n, "live")?);
-    let (index, steps, prev) = (
-        index.as_slice_mut(),
-        steps.as_slice_mut(),
-        prev.as_slice_mut(),
-    );
-    let (Ok(index), Ok(steps), Ok(prev)) = (index, steps, prev) else {
-        return Err(bad("tasks: index, steps and prev: not contiguous"));
-    };
-    if index.len() != n || steps.len() != n || prev.len() != n {
-        return Err(bad(format!("tasks: index, steps and prev need {n} rows")));
-    }
+    let (index, steps, prev) = task_state(&mut index, &mut steps, &mut prev, n)?;
     let r = Reward {
         hover,
         targets: Targets::of(&targets, &count, n, index)?,
@@ -320,13 +332,7 @@ pub(crate) fn task_reward<'py>(
     {
         let mut rows = out.rows(index, steps, prev);
         for i in 0..n {
-            let raw = RawRow {
-                position: &position[3 * i..3 * i + 3],
-                yaw: attitude[3 * i + 2],
-                touched: touched[i],
-                crashed: crashed[i],
-                battery: battery[i],
-            };
+            let raw = RawRow::at(i, position, attitude, touched, crashed, battery);
             r.row(i, i, &raw, &mut rows);
         }
     }
@@ -351,6 +357,28 @@ struct RawRow<'a> {
     touched: bool,
     crashed: bool,
     battery: f64,
+}
+
+impl<'a> RawRow<'a> {
+    /// Row `j` of the raw arrays (C order: three values a row for `position` and
+    /// `attitude`, one for the others).
+    #[inline(always)]
+    fn at(
+        j: usize,
+        position: &'a [f64],
+        attitude: &[f64],
+        touched: &[bool],
+        crashed: &[bool],
+        battery: &[f64],
+    ) -> Self {
+        Self {
+            position: &position[3 * j..3 * j + 3],
+            yaw: attitude[3 * j + 2],
+            touched: touched[j],
+            crashed: crashed[j],
+            battery: battery[j],
+        }
+    }
 }
 
 /// Some rows' reward outputs, and the task state a reward updates (`index`, `steps`,
@@ -859,13 +887,7 @@ impl<'a> TaskPass<'a> {
         let battery = raws[self.battery];
         for j in from..to {
             let i = piece.first + j;
-            let row = RawRow {
-                position: &position[3 * j..3 * j + 3],
-                yaw: attitude[3 * j + 2],
-                touched: touched[j],
-                crashed: crashed[j],
-                battery: battery[j],
-            };
+            let row = RawRow::at(j, position, attitude, touched, crashed, battery);
             self.reward.row(i, j, &row, &mut piece.reward);
             let index = piece.reward.index[j];
             self.observe
@@ -893,30 +915,21 @@ pub(crate) struct TaskArrays<'a, 'py> {
     pub(crate) obs: &'a Bound<'py, PyAny>,
 }
 
-/// The task of `a`, checked for a batch of `lengths[k]` values in each raw field (in
-/// [`crate::FIELDS`]' order), handed as a [`TaskPass`] and its outputs to `step` (which
-/// steps the batch with them); returns the rewards as `task_reward` does.
+/// The task of `a`, checked for a batch of `n` UAVs with `lengths[k]` values in each raw
+/// field (in [`crate::FIELDS`]' order), handed as a [`TaskPass`] and its outputs to `step`
+/// (which steps the batch with them); returns the rewards as `task_reward` does.
 pub(crate) fn step_task<'py>(
     py: Python<'py>,
     a: TaskArrays<'_, 'py>,
+    n: usize,
     lengths: [usize; 9],
     step: impl FnOnce(&TaskPass<'_>, TaskOut<'_>) -> PyResult<()>,
 ) -> PyResult<Rewards<'py>> {
-    let n = lengths[6];
     let (hold_yaw, live) = (
         slice1(a.hold_yaw, n, "hold_yaw")?,
         slice1(a.live, n, "live")?,
     );
-    let (Ok(index), Ok(steps), Ok(prev)) = (
-        a.index.as_slice_mut(),
-        a.steps.as_slice_mut(),
-        a.prev.as_slice_mut(),
-    ) else {
-        return Err(bad("tasks: index, steps and prev: not contiguous"));
-    };
-    if index.len() != n || steps.len() != n || prev.len() != n {
-        return Err(bad(format!("tasks: index, steps and prev need {n} rows")));
-    }
+    let (index, steps, prev) = task_state(a.index, a.steps, a.prev, n)?;
     let targets = Targets::of(a.targets, a.count, n, index)?;
     let field = |k: &str| {
         let found = crate::FIELDS.iter().position(|(name, _)| *name == k);

@@ -486,9 +486,10 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                         "reset_step": steps.copy(), "reset_drawn": drawn.copy()}
 
     def _step_same(self, a):
-        raw, reward, term, trunc, info, observed = self._step_task(a, None, np.ones(self.num_envs, dtype=bool))
+        live = np.ones(self.num_envs, dtype=bool)
+        raw, reward, term, trunc, info, observed = self._step_task(a, None, live)
         obs = self._observe_all(raw, observed)
-        infos = _with_masks(info, np.ones(self.num_envs, dtype=bool))
+        infos = _with_masks(info, live)
         ended = np.flatnonzero(term | trunc)
         if len(ended):
             mask = term | trunc
