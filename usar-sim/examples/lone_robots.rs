@@ -111,10 +111,18 @@ fn main() {
             for i in 0..sims.len() {
                 // As the Python batch does: the next worlds' memory on its way meanwhile.
                 if let Some((next, _)) = sims.get(i + 2) {
-                    next.prefetch_early();
+                    if resets {
+                        next.prefetch_reset_early();
+                    } else {
+                        next.prefetch_early();
+                    }
                 }
                 if let Some((next, _)) = sims.get(i + 1) {
-                    next.prefetch();
+                    if resets {
+                        next.prefetch_reset();
+                    } else {
+                        next.prefetch();
+                    }
                 }
                 let (world, client) = &mut sims[i];
                 if resets {

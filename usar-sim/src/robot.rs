@@ -480,6 +480,25 @@ impl Robot {
         }
     }
 
+    /// [`crate::World::prefetch_reset`]'s part: what a spawn reusing this robot writes (its
+    /// fields, its parts, their sensors).
+    pub(crate) fn prefetch_reset(&self) {
+        use crate::prefetch::{line, lines};
+        line(&self.name);
+        line(&self.position);
+        line(&self.set);
+        line(&self.status);
+        line(&self.parts);
+        line(&self.notices);
+        line(&self.drawn);
+        line(&self.yaw_trig);
+        lines(&self.parts, 16);
+        for part in self.parts.iter().take(16) {
+            part.sensor.prefetch();
+            line(&part.fault_noise);
+        }
+    }
+
     /// Spawns into `scene`; `None` (logged) when the place is taken. A `spare` robot of the
     /// same model (one a reset took out of the world) lends its sensors' allocations and its
     /// model's reference: the new robot is the same as one built afresh.

@@ -497,6 +497,29 @@ impl Scene {
         crate::prefetch::line(&self.plan);
     }
 
+    /// [`crate::World::prefetch_reset`]'s part: what [`Scene::reset`] and the next bodies'
+    /// insertion write (the scene's own fields, its small tables, the colliders of
+    /// `bodies`, the robots' bodies it parks).
+    pub(crate) fn prefetch_reset(&self, bodies: impl Iterator<Item = ColliderHandle>) {
+        use crate::prefetch::{line, lines};
+        line(&self.colliders);
+        line(&self.bvh);
+        line(&self.clear);
+        line(&self.resting);
+        line(&self.base);
+        line(&self.plan);
+        line(&self.glide_near);
+        line(&self.parked);
+        lines(&self.clear, 2);
+        lines(&self.looks, 2);
+        lines(&self.parked, 1);
+        for handle in bodies {
+            if let Some(c) = self.colliders.get(handle) {
+                line(c);
+            }
+        }
+    }
+
     /// Becomes the scene it was copied from again ([`Scene::copy_of`]: the map as first
     /// built, before any robot) when it is that scene plus the robot `bodies` inserted since:
     /// their colliders are parked (out of the tree; the next bodies of their shape take them

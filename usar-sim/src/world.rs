@@ -281,6 +281,33 @@ impl World {
         self.scene.prefetch_early();
     }
 
+    /// [`World::prefetch`] for a world about to be [`World::reset`] and have its robots
+    /// spawned again: what those write (the robots' own fields and parts, the scene's
+    /// tables). Its own fields first, a world earlier: [`World::prefetch_reset_early`].
+    pub fn prefetch_reset(&self) {
+        use crate::prefetch::lines;
+        lines(&self.robots, 4);
+        lines(&self.due, 1);
+        lines(&self.clients.0, 1);
+        for robot in self.robots.iter().take(4) {
+            robot.prefetch_reset();
+        }
+        self.scene
+            .prefetch_reset(self.robots.iter().take(4).map(|r| r.body));
+    }
+
+    /// The first part of [`World::prefetch_reset`], a world earlier: the world's own fields.
+    pub fn prefetch_reset_early(&self) {
+        use crate::prefetch::line;
+        self.prefetch_early();
+        line(&self.spare);
+        line(&self.speaking);
+        line(&self.complaints);
+        line(&self.next_client);
+        line(&self.randomize);
+        line(&self.models);
+    }
+
     /// Simulated seconds (tick × dt).
     pub fn time(&self) -> f64 {
         self.tick as f64 * self.dt

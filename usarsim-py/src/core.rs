@@ -401,12 +401,14 @@ pub(crate) struct WorldSim {
     uavs: Vec<Uav>,
     /// Clients are numbered 1.. in connection order, so `client.0 - first` is the index.
     first: u64,
-    /// Each UAV's `INIT` (reused: [`WorldSim::populate`]).
+    /// Each UAV's `INIT` (reused: [`WorldSim::spawn`]).
     inits: Vec<Init>,
     /// The cameras' latest pictures (reused).
     frames: Vec<CameraFrame>,
     /// The [`Settings::version`] it was made under.
     version: u64,
+    /// Spawned by [`WorldSim::restart`], not yet settled.
+    unsettled: bool,
 }
 
 impl WorldSim {
@@ -414,6 +416,14 @@ impl WorldSim {
     /// periods until every sensor has read once (at least one period; sensors speak one
     /// interval after the spawn).
     pub(crate) fn new(settings: &Settings, seed: u64, poses: &[Pose]) -> Result<Self, SimError> {
+        let mut sim = Self::empty(settings, seed);
+        sim.spawn(settings, poses)?;
+        sim.settle(settings);
+        Ok(sim)
+    }
+
+    /// A fresh world without UAVs.
+    fn empty(settings: &Settings, seed: u64) -> Self {
         let config = SimConfig {
             seed,
             dt: settings.dt,
@@ -421,41 +431,42 @@ impl WorldSim {
             randomize: settings.randomize.clone(),
             ..SimConfig::default()
         };
-        let world = World::new(settings.map.clone(), settings.catalog.clone(), config);
-        let mut sim = Self {
-            world,
-            uavs: Vec::with_capacity(poses.len()),
+        Self {
+            world: World::new(settings.map.clone(), settings.catalog.clone(), config),
+            uavs: Vec::new(),
             first: 0,
             inits: Vec::new(),
             frames: Vec::new(),
             version: settings.version,
-        };
-        sim.populate(settings, poses)?;
-        Ok(sim)
+            unsettled: false,
+        }
     }
 
-    /// Starts the next episode with `seed` and `poses`: in place (the map's scene is not
-    /// built again: [`World::reset`]) when the settings are those the world was made
-    /// under, else in a new world. Bit for bit what a new world would fly. After an error
-    /// (a start inside a wall) the world must be reset again before it steps.
-    pub(crate) fn reset(
+    /// The first half of a reset (a new episode): the world starts over with `seed` and one UAV spawns per
+    /// pose, in place (the map's scene is not built again: [`World::reset`]) when the
+    /// settings are those the world was made under, else in a new world; then
+    /// [`WorldSim::settle`] hovers them (bit for bit what a new world would fly). A batch
+    /// restarts a piece of worlds, then settles them: the spawn's code and the step's each
+    /// stay in the instruction cache over the piece instead of taking turns in it. After an
+    /// error (a start inside a wall) the world must be reset again before it steps.
+    pub(crate) fn restart(
         &mut self,
         settings: &Settings,
         seed: u64,
         poses: &[Pose],
     ) -> Result<(), SimError> {
         if self.version != settings.version {
-            *self = Self::new(settings, seed, poses)?;
-            return Ok(());
+            *self = Self::empty(settings, seed);
+        } else {
+            self.world.reset(seed);
         }
-        self.world.reset(seed);
         self.uavs.clear();
-        self.populate(settings, poses)
+        self.spawn(settings, poses)
     }
 
-    /// Spawns one UAV per pose in the (empty) world, then hovers until every sensor has
-    /// read once.
-    fn populate(&mut self, settings: &Settings, poses: &[Pose]) -> Result<(), SimError> {
+    /// Spawns one UAV per pose in the (empty) world.
+    fn spawn(&mut self, settings: &Settings, poses: &[Pose]) -> Result<(), SimError> {
+        self.unsettled = false;
         let world = &mut self.world;
         let uavs = &mut self.uavs;
         let mut first = 0;
@@ -495,9 +506,17 @@ impl WorldSim {
             )));
         }
         self.first = first;
-        let periods = first_periods(settings.catalog.get(&settings.robot), settings.period);
-        self.advance(periods * settings.ticks());
+        self.unsettled = true;
         Ok(())
+    }
+
+    /// The second half of a reset (a no-op unless a restart has just spawned the UAVs):
+    /// hovers whole control periods until every sensor has read once.
+    pub(crate) fn settle(&mut self, settings: &Settings) {
+        if std::mem::take(&mut self.unsettled) {
+            let periods = first_periods(settings.catalog.get(&settings.robot), settings.period);
+            self.advance(periods * settings.ticks());
+        }
     }
 
     /// Sends each UAV its normalized command (forward, right, up, yaw in -1..=1), then steps
@@ -571,6 +590,20 @@ impl WorldSim {
     pub(crate) fn prefetch_early(&self) {
         self.world.prefetch_early();
         usar_sim::prefetch::line(&self.uavs);
+    }
+
+    /// [`WorldSim::prefetch`] for a world about to restart ([`World::prefetch_reset`]).
+    pub(crate) fn prefetch_reset(&self) {
+        self.world.prefetch_reset();
+        usar_sim::prefetch::lines(&self.uavs, 16);
+        usar_sim::prefetch::lines(&self.inits, 4);
+    }
+
+    /// The part of [`WorldSim::prefetch_reset`] the batch asks a world earlier.
+    pub(crate) fn prefetch_reset_early(&self) {
+        self.world.prefetch_reset_early();
+        usar_sim::prefetch::line(&self.uavs);
+        usar_sim::prefetch::line(&self.inits);
     }
 
     /// Renders every UAV's camera and appends, per UAV, its R, G, B bytes (`rgb`) and its
@@ -877,14 +910,19 @@ fn pool() -> Option<Arc<rayon_core::ThreadPool>> {
 /// observation arrays). Before each item a thread passes the next of its piece to
 /// `ahead(item, false)` and the one after to `ahead(item, true)` (cache hints, [`WorldSim::prefetch`] and
 /// [`WorldSim::prefetch_early`]: a world's state is scattered over a few kilobytes of the
-/// heap, and finding it reads a world's own fields first).
-fn par_each<T: Send, S: Send, F, A>(
+/// heap, and finding it reads a world's own fields first). `first` has each piece (with the
+/// index of its first item) before `f` has any of its items: work of other code than `f`'s
+/// (a batch's resets' spawns), done in one run so that each code stays in the instruction
+/// cache.
+fn par_each<T: Send, S: Send, B, F, A>(
     items: &mut [T],
     min: usize,
     states: impl FnOnce(usize, usize) -> Vec<S>,
     ahead: A,
+    first: B,
     f: F,
 ) where
+    B: Fn(usize, &mut [T]) + Sync,
     F: Fn(usize, usize, &mut T, &mut S) + Sync,
     A: Fn(&T, bool) + Sync,
 {
@@ -896,10 +934,11 @@ fn par_each<T: Send, S: Send, F, A>(
             ahead(next, false);
         }
     };
-    let each = |first: usize, piece: &mut [T], state: &mut S| {
+    let each = |at: usize, piece: &mut [T], state: &mut S| {
+        first(at, piece);
         for j in 0..piece.len() {
             hint(piece, j);
-            f(first + j, j, &mut piece[j], state);
+            f(at + j, j, &mut piece[j], state);
         }
     };
     let pool = (items.len() >= min.max(2)).then(pool).flatten();
@@ -1062,17 +1101,40 @@ impl Batch {
                     w.prefetch();
                 }
             },
+            |at, piece| {
+                // The piece's resets, each with the next two's memory on its way.
+                let mut due =
+                    (0..piece.len()).filter(|j| resets.get(at + j).is_some_and(Option::is_some));
+                let (mut now, mut next) = (due.next(), due.next());
+                if let Some(j) = now {
+                    piece[j].prefetch_reset_early();
+                }
+                if let Some(j) = next {
+                    piece[j].prefetch_reset_early();
+                }
+                while let Some(j) = now {
+                    let after = due.next();
+                    if let Some(k) = after {
+                        piece[k].prefetch_reset_early();
+                    }
+                    if let Some(k) = next {
+                        piece[k].prefetch_reset();
+                    }
+                    let i = at + j;
+                    if let Some((seed, poses)) = resets.get(i).and_then(Option::as_ref)
+                        && let Err(e) = piece[j].restart(settings, *seed, poses)
+                    {
+                        let mut failed = failed.lock().unwrap_or_else(PoisonError::into_inner);
+                        if failed.as_ref().is_none_or(|(j, _)| i < *j) {
+                            *failed = Some((i, e));
+                        }
+                    }
+                    (now, next) = (next, after);
+                }
+            },
             |i, j, w, (rows, piece)| {
                 match (resets.get(i).and_then(Option::as_ref), actions) {
-                    (Some((seed, poses)), _) => match w.reset(settings, *seed, poses) {
-                        Ok(()) => {}
-                        Err(e) => {
-                            let mut failed = failed.lock().unwrap_or_else(PoisonError::into_inner);
-                            if failed.as_ref().is_none_or(|(j, _)| i < *j) {
-                                *failed = Some((i, e));
-                            }
-                        }
-                    },
+                    (Some(_), _) => w.settle(settings),
                     (None, Some(actions)) => w.step(settings, &actions[i * per..(i + 1) * per]),
                     (None, None) => {}
                 }
@@ -1100,6 +1162,7 @@ impl Batch {
             &mut self.worlds,
             2,
             |_, n| vec![(); n],
+            |_, _| {},
             |_, _| {},
             |i, _, w, ()| {
                 let mut part = parts[i].lock().unwrap_or_else(PoisonError::into_inner);

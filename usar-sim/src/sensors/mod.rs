@@ -188,6 +188,8 @@ pub(crate) trait SensorClone {
     /// type (a robot spawned again in a reset world reuses its sensors), else in a new one.
     fn clone_into_box(&self, target: &mut Box<dyn Sensor>);
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
+    /// A cache hint for the sensor's first line ([`crate::prefetch::line`]).
+    fn prefetch(&self);
 }
 
 impl<T: Sensor + Clone + 'static> SensorClone for T {
@@ -204,6 +206,10 @@ impl<T: Sensor + Clone + 'static> SensorClone for T {
 
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
         self
+    }
+
+    fn prefetch(&self) {
+        crate::prefetch::line(self);
     }
 }
 
