@@ -516,6 +516,7 @@ impl Scene {
         for handle in bodies {
             if let Some(c) = self.colliders.get(handle) {
                 line(c);
+                line(c.position());
             }
         }
     }
