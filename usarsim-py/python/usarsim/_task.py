@@ -291,6 +291,7 @@ class Tasks:
         self.steps = np.zeros(n, dtype=np.int64)
         self.prev = np.zeros(n)
         self._layout_of, self._columns = None, None  # observe()'s layout, made at its first call
+        self._defaults = None  # _default_starts' rows
 
     def default_start(self) -> np.ndarray:
         """The first PlayerStart, or (0, 0, -1)."""
@@ -329,12 +330,10 @@ class Tasks:
             pts = self.map.sample_rows(rng, rows, 1)[:, 0]
             base = np.column_stack([pts, -np.pi + 2 * np.pi * rng.doubles(rows, 1)[:, 0]])
         elif start is None:
-            base = np.empty((m, 4))
-            base[:] = self.default_start()  # np.tile's rows, without its reshapes
+            base = self._default_starts(m)
         else:
             base = np.tile(_pose(start, self.map, "start"), (m, 1))
         base = base.reshape(m, 4)
-        spawns = base.copy()
         self.steps[rows] = 0
         self.index[rows] = 0
         if self.task == "hover":
@@ -343,12 +342,13 @@ class Tasks:
             if shared:
                 self.targets[rows, 0] = base[:, :3]
                 self.hold_yaw[rows] = base[:, 3]
-                spawns = self._hover_spawns_numpy(rng.random((m, 3)), base)
-            else:  # in Rust: what _hover_spawns_numpy gives with the rows' three doubles (and
-                # the targets and yaws to hold written as above, in the same loop)
-                spawns = hover_spawns(rng.keys, rng.drawn, rows, base, _OFFSET_LOW_LIST, _OFFSET_SPAN_LIST,
-                                      self.map.boxes(0.8), -0.5, self.targets, self.hold_yaw)
-        elif waypoints is not None:
+                return self._hover_spawns_numpy(rng.random((m, 3)), base)
+            # In Rust: what _hover_spawns_numpy gives with the rows' three doubles (and the
+            # targets and yaws to hold written as above, in the same loop).
+            return hover_spawns(rng.keys, rng.drawn, rows, base, _OFFSET_LOW_LIST, _OFFSET_SPAN_LIST,
+                                self.map.boxes(0.8), -0.5, self.targets, self.hold_yaw)
+        spawns = base.copy()
+        if waypoints is not None:
             self.targets[rows, :len(waypoints)] = waypoints
             self.count[rows] = len(waypoints)
         elif shared:
@@ -361,6 +361,15 @@ class Tasks:
                                                                          near=base, radius=5.0)
             self.count[rows] = self.n_waypoints
         return spawns
+
+    def _default_starts(self, m: int) -> np.ndarray:
+        """`default_start` in `m` rows (a read-only view of rows made once: an autoreset of
+        every row asks for them at each step)."""
+        if self._defaults is None or len(self._defaults) < m:
+            self._defaults = np.empty((max(m, self.n), 4))
+            self._defaults[:] = self.default_start()
+            self._defaults.flags.writeable = False
+        return self._defaults[:m]
 
     def _hover_spawns_numpy(self, u, base) -> np.ndarray:
         """Hover's spawns: each start `base` moved by low + span × `u` (three uniform doubles
