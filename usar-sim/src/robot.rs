@@ -480,27 +480,17 @@ impl Robot {
         }
     }
 
-    /// [`crate::World::prefetch_reset`]'s part: what a spawn reusing this robot writes (its
-    /// fields, its parts, their sensors).
+    /// [`crate::World::prefetch_reset`]'s part: what a spawn reusing this robot writes (what
+    /// a step reads, [`Robot::prefetch`], and the rest of its fields, parts and sensors).
     pub(crate) fn prefetch_reset(&self) {
         use crate::prefetch::line;
+        self.prefetch();
         line(&self.name);
         line(&self.model);
-        line(&self.position);
         line(&self.rotation);
-        line(&self.set);
         line(&self.dynamics);
-        line(&self.spawn_tick);
-        line(&self.status);
-        line(&self.parts);
         line(&self.actuators);
-        line(&self.notices);
-        line(&self.drawn);
-        line(&self.yaw_trig);
         for part in self.parts.iter().take(16) {
-            line(&part.timer);
-            line(&part.noise);
-            line(&part.fault);
             line(&part.frozen);
             line(&part.fault_noise);
             part.sensor.prefetch();
