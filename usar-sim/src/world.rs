@@ -624,14 +624,7 @@ impl World {
             wind: self.wind,
             randomize: self.randomize.as_ref(),
         };
-        let spare = self.spare.pop();
-        if self.robots.is_empty() && self.spare.is_empty() {
-            // The only spare was the last episode's only robot: the new one goes where it was
-            // (the buffers swapped back), into the memory the spawn just read, not into the
-            // other buffer's, cold since the episode before.
-            std::mem::swap(&mut self.robots, &mut self.spare);
-        }
-        let Some(robot) = Robot::spawn(spawn, &mut self.scene, spare) else {
+        let Some(robot) = Robot::spawn(spawn, &mut self.scene, self.spare.pop()) else {
             if let Some(n) = complain(&mut self.complaints, client) {
                 warn!(
                     ?client,

@@ -442,9 +442,9 @@ impl WorldSim {
         }
     }
 
-    /// The first half of a reset (a new episode): the world starts over with `seed` and one UAV spawns per
-    /// pose, in place (the map's scene is not built again: [`World::reset`]) when the
-    /// settings are those the world was made under, else in a new world; then
+    /// The first half of a reset (a new episode): the world starts over with `seed` and one
+    /// UAV spawns per pose, in place (the map's scene is not built again: [`World::reset`])
+    /// when the settings are those the world was made under, else in a new world; then
     /// [`WorldSim::settle`] hovers them (bit for bit what a new world would fly). A batch
     /// restarts a piece of worlds, then settles them: the spawn's code and the step's each
     /// stay in the instruction cache over the piece instead of taking turns in it. After an
@@ -1104,26 +1104,21 @@ impl Batch {
             |at, piece| {
                 // The piece's resets, each with the next two's memory on its way.
                 let mut due =
-                    (0..piece.len()).filter(|j| resets.get(at + j).is_some_and(Option::is_some));
+                    (0..piece.len()).filter_map(|j| Some((j, resets.get(at + j)?.as_ref()?)));
                 let (mut now, mut next) = (due.next(), due.next());
-                if let Some(j) = now {
-                    piece[j].prefetch_reset_early();
+                for &(k, _) in now.iter().chain(&next) {
+                    piece[k].prefetch_reset_early();
                 }
-                if let Some(j) = next {
-                    piece[j].prefetch_reset_early();
-                }
-                while let Some(j) = now {
+                while let Some((j, (seed, poses))) = now {
                     let after = due.next();
-                    if let Some(k) = after {
+                    if let Some((k, _)) = after {
                         piece[k].prefetch_reset_early();
                     }
-                    if let Some(k) = next {
+                    if let Some((k, _)) = next {
                         piece[k].prefetch_reset();
                     }
-                    let i = at + j;
-                    if let Some((seed, poses)) = resets.get(i).and_then(Option::as_ref)
-                        && let Err(e) = piece[j].restart(settings, *seed, poses)
-                    {
+                    if let Err(e) = piece[j].restart(settings, *seed, poses) {
+                        let i = at + j;
                         let mut failed = failed.lock().unwrap_or_else(PoisonError::into_inner);
                         if failed.as_ref().is_none_or(|(j, _)| i < *j) {
                             *failed = Some((i, e));
