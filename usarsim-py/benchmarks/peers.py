@@ -208,13 +208,13 @@ def usarsim_cases(drones):
         def make():
             venv = usarsim.vector_env(num, task, **options)
             venv.reset(seed=0)
-            rng = np.random.default_rng(0)
-            actions = [rng.uniform(-1, 1, (num, 4)).astype(np.float32) for _ in range(8)]
-            i = [0]
+            # Fresh actions every step, as the other cases sample them (repeating a few fixed
+            # ones flew every UAV into a wall: steps_per_second.py's "pressed" case).
+            space = venv.action_space
+            space.seed(0)
 
             def step():
-                _, _, term, trunc, _ = venv.step(actions[i[0] % 8])
-                i[0] += 1
+                _, _, term, trunc, _ = venv.step(space.sample())
                 return int(np.count_nonzero(term | trunc)), num, None
 
             return step, venv.close, (), options.get("period", 0.1), rate(options)

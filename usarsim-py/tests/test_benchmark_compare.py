@@ -49,3 +49,38 @@ def test_compare_the_package_with_itself():
     assert "A and B imported the same file" in out
     assert "state-256 (vector env, 256 UAVs, state): median UAV-steps/s A " in out
     assert "B/A ratio per pair, min / median / max: " in out
+
+
+def _touched_share(actions, num=128, steps=200):
+    """Share of UAV-steps touching something in the last 100 of `steps` state-only steps."""
+    import numpy as np
+
+    venv = usarsim.vector_env(num, state_only=True, flat=True)
+    venv.reset(seed=0)
+    touched = 0
+    for n in range(steps):
+        info = venv.step(actions(n))[4]
+        if n >= steps - 100:
+            touched += int(np.count_nonzero(info["touched"]))
+    venv.close()
+    return touched / (100 * num)
+
+
+def test_random_actions_are_fresh_and_pressed_ones_fly_into_walls():
+    # The speed cases' "random actions" were 8 fixed arrays taken in turn: every UAV repeated
+    # set-points whose mean is not zero, flew into a wall and slid along it (a third of the
+    # UAV-steps touching after 100 steps), so the figure measured contact, not random flight.
+    import importlib.util
+
+    import numpy as np
+
+    spec = importlib.util.spec_from_file_location("steps_per_second", SCRIPT)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    random = bench._actions(np.random.default_rng(0), 128)
+    first, second = random(0), random(0)
+    assert first.shape == (128, 4) and not np.array_equal(first, second)
+    pressed = bench._actions(np.random.default_rng(0), 128, pressed=True)
+    assert np.array_equal(pressed(3), pressed(11))
+    assert _touched_share(random) < 0.1
+    assert _touched_share(pressed) > 0.25
