@@ -1,8 +1,9 @@
 //! What the Python vector env's worlds cost in Rust alone: `WORLDS` worlds of one
 //! state-only stsAirRobot each (no sonars, no laser) in `empty_room`, stepped one control
-//! period (0.1 s, 20 ticks) at a time on one thread, each period with a new random
-//! normalized `DRIVE` per robot (as the Python benchmark's random actions), or none with
-//! `hover`. Prints the time per robot and tick and a digest of every message, which must not
+//! period (0.1 s, 20 ticks) at a time on one thread, each period with one of 8 random
+//! normalized `DRIVE`s per robot in turn (the Python benchmark's "pressed" case: repeating
+//! them, a robot flies into a wall, the floor or the ceiling and slides along it), or none
+//! with `hover`. Prints the time per robot and tick and a digest of every message, which must not
 //! change when only the speed does. With `resets`, every period is a new episode instead
 //! (the Python env's autoreset with one-step episodes): each world is reset with a new seed,
 //! its robot spawned again and hovered one period; it prints the time per reset.
@@ -75,7 +76,8 @@ fn main() {
         })
         .collect();
     let mut episodes = 0u64;
-    // Eight sets of actions in turn, as the Python benchmark: uniform in -1..=1 (SplitMix64).
+    // Eight sets of actions in turn, as the Python benchmark's pressed case: uniform in -1..=1
+    // (SplitMix64).
     let mut seed = 12_345u64;
     let mut uniform = || {
         let bits = usar_sim::splitmix(&mut seed) >> 11;
@@ -143,7 +145,8 @@ fn main() {
             }
         }
     };
-    // Episodes of some age first, as in the Python benchmark (UAVs against floor and ceiling).
+    // Episodes of some age first, as in the Python benchmark's pressed case (UAVs against
+    // walls, floor and ceiling).
     run(100, Some(&mut digest));
     let started = Instant::now();
     run(periods, None);
