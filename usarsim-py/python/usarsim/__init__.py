@@ -17,6 +17,7 @@ from ._core import Command, State
 from ._env import UsarsimEnv, UsarsimVectorEnv, _register
 from ._task import observation_space, action_space
 from ._scenario import SCORES, ScenarioEnv, ScenarioParallelEnv, scenario_names
+from ._batched import SampleFactoryEnv, puffer_env
 
 
 def multi_uav(n: int = 2, task: str = "waypoints", **options):
@@ -53,6 +54,7 @@ __all__ = [
     "Remote",
     "SCORES",
     "SONARS",
+    "SampleFactoryEnv",
     "ScenarioEnv",
     "ScenarioParallelEnv",
     "UsarsimEnv",
@@ -60,6 +62,7 @@ __all__ = [
     "action_space",
     "multi_uav",
     "observation_space",
+    "puffer_env",
     "scenario_names",
     "vector_env",
 ]
