@@ -33,7 +33,7 @@ def _per_agent_infos(info: dict, n: int) -> list:
     keys = [k for k in info if not k.startswith("_") and k not in _NOT_PER_AGENT]
     if not keys:
         return [{} for _ in range(n)]
-    # One .tolist() per key, then plain Python: indexing the arrays UAV by UAV cost 3x more.
+    # One .tolist() per key, then plain Python: no NumPy scalar made per UAV and key.
     columns = [info[k].tolist() if isinstance(info[k], np.ndarray) else [info[k]] * n for k in keys]
     return [dict(zip(keys, row)) for row in zip(*columns)]
 
