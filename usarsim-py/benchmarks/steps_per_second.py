@@ -10,8 +10,8 @@ stsAirRobot with every sensor (228-beam laser, 10 sonars) and the Dict observati
 set-points drawn uniformly every step, as a random policy gives them; "pressed": every UAV
 repeats the same 8 random set-points, flies into a wall, the floor or the ceiling and slides
 along it (the contact-heavy case; the ``hover-state-1024`` case of --compare: zero actions,
-every UAV hovering); episodes end and autoreset (NEXT_STEP) as they come. "autoreset step": one step in which every
-sub-environment resets (episodes of 1 step, zero actions: the cheapest normal step there is),
+every UAV hovering); episodes end and autoreset (NEXT_STEP) as they come. "autoreset step":
+one step in which every sub-environment resets (episodes of 1 step, zero actions: the cheapest normal step there is),
 against a normal step, full and state-only (a reset flies the world until every sensor has
 read once: three control periods with the 0.3 s laser, one without the range sensors).
 "autoreset in flight": the same in Hover episodes of 50 steps flown with the random actions

@@ -61,12 +61,13 @@ def test_sample_factory_env_infos_as_arrays():
 @pytest.mark.parametrize("kwargs, message", [
     (dict(autoreset_mode=AutoresetMode.NEXT_STEP), "autoreset_mode: a UAV resets in the step that ends"),
     (dict(infos="list"), "infos: expected 'agents' or 'arrays'"),
+    (dict(num_agents=0), "SampleFactoryEnv: num_agents: expected an integer >= 1"),
     (dict(render_mode="human"), "render_mode: SampleFactoryEnv draws nothing"),
     (dict(max_steps=1.5), "max_steps"),
 ])
 def test_sample_factory_env_refuses_what_it_cannot_honour(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        usarsim.SampleFactoryEnv(2, "hover", **kwargs)
+        usarsim.SampleFactoryEnv(kwargs.pop("num_agents", 2), "hover", **kwargs)
 
 
 def _has(module):

@@ -21,11 +21,14 @@ from ._env import UsarsimVectorEnv
 _NOT_PER_AGENT = ("final_obs", "final_info")
 
 
-def _options(name: str, options: dict) -> dict:
+def _vector_env(name: str, num_agents, task: str, options: dict) -> UsarsimVectorEnv:
+    """The adapters' vector env: one world per agent, each reset in the step that ends it."""
+    if not (isinstance(num_agents, (int, np.integer)) and not isinstance(num_agents, bool) and num_agents >= 1):
+        raise ValueError(f"{name}: num_agents: expected an integer >= 1, got {num_agents!r}")
     if "autoreset_mode" in options:
         raise ValueError(f"{name}: autoreset_mode: a UAV resets in the step that ends its episode "
                          "(AutoresetMode.SAME_STEP, the engine's rule); leave it out")
-    return {**options, "autoreset_mode": AutoresetMode.SAME_STEP}
+    return UsarsimVectorEnv(num_agents, task, autoreset_mode=AutoresetMode.SAME_STEP, **options)
 
 
 def _per_agent_infos(info: dict, n: int) -> list:
@@ -71,7 +74,7 @@ class SampleFactoryEnv(gym.Env):
         if infos not in ("agents", "arrays"):
             raise ValueError(f"infos: expected 'agents' or 'arrays', got {infos!r}")
         self._arrays = infos == "arrays"
-        self.venv = UsarsimVectorEnv(num_agents, task, **_options("SampleFactoryEnv", options))
+        self.venv = _vector_env("SampleFactoryEnv", num_agents, task, options)
         self.num_agents = self.venv.num_envs
         self.observation_space = self.venv.single_observation_space
         self.action_space = self.venv.single_action_space
@@ -124,11 +127,12 @@ def _puffer_class():
         __doc__ = puffer_env.__doc__
 
         def __init__(self, num_agents, task="waypoints", *, buf=None, seed=None, **options):
-            options = {"flat": True, **_options("puffer_env", options)}
+            # copy=False: each step's observation is copied into PufferLib's array at once.
+            options = {"flat": True, "copy": False, **options}
             if not options["flat"] or options.get("camera"):
                 raise ValueError("puffer_env: PufferLib's native envs take one Box observation: "
                                  "flat=True and no camera")
-            self.venv = UsarsimVectorEnv(num_agents, task, **options)
+            self.venv = _vector_env("puffer_env", num_agents, task, options)
             self.single_observation_space = self.venv.single_observation_space
             self.single_action_space = self.venv.single_action_space
             self.num_agents = self.venv.num_envs
