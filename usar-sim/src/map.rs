@@ -235,9 +235,9 @@ fn box_color(center: V3, size: V3) -> [u8; 3] {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawMap {
-    level: String,
-    #[serde(default = "default_time_limit")]
-    time_limit: i64,
+    /// Required; only the first section ([`sections`]) can hold it.
+    level: Option<Spanned<String>>,
+    time_limit: Option<i64>,
     #[serde(default)]
     start: Vec<Spanned<RawStart>>,
     #[serde(default, rename = "box")]
@@ -264,10 +264,6 @@ struct RawPlaced {
     #[serde(default)]
     yaw: f64,
     color: Option<[u8; 3]>,
-}
-
-fn default_time_limit() -> i64 {
-    20
 }
 
 #[derive(Deserialize)]
@@ -327,6 +323,139 @@ pub(crate) fn line_of(text: &str, offset: usize) -> usize {
         .filter(|&&b| b == b'\n')
         .count()
         + 1
+}
+
+/// The longest level name, tag, name or class a map or robot file may give (bytes).
+pub const MAX_NAME: usize = 128;
+
+/// Checks a string of a map or robot file that is printed into protocol lines (the level
+/// name, a start tag, a part name, a class): not empty, at most [`MAX_NAME`] bytes, and no
+/// control character (CR, LF, TAB, NUL, ESC, ...) and no brace, by the protocol's rule for
+/// values ([`usar_proto::TextError::check`], the client library's): either would end the
+/// line or the group and forge another. A `word` (every such string but the level name)
+/// holds no space either: GETSTARTPOSES prints tags space-separated, and names are matched
+/// as one token. The error names `what` and the value (escaped).
+pub(crate) fn check_name(what: &str, value: &str, word: bool) -> Result<(), String> {
+    let shown = || {
+        let cut: String = value.chars().take(80).collect();
+        let more = if cut.len() < value.len() { "…" } else { "" };
+        format!("{cut:?}{more}")
+    };
+    if value.is_empty() {
+        return Err(format!("{what} must not be empty"));
+    }
+    if let Err(e) = usar_proto::TextError::check("", what, value) {
+        return Err(format!(
+            "{what} {} holds {}; names may not hold control characters or braces (they would forge protocol lines)",
+            shown(),
+            e.what
+        ));
+    }
+    if word && value.contains(' ') {
+        return Err(format!("{what} {} holds a space; it must be one word", shown()));
+    }
+    if value.starts_with(' ') || value.ends_with(' ') {
+        return Err(format!("{what} {} begins or ends with a space", shown()));
+    }
+    if value.len() > MAX_NAME {
+        return Err(format!(
+            "{what} {} is {} bytes long, more than the limit of {MAX_NAME}",
+            shown(),
+            value.len()
+        ));
+    }
+    Ok(())
+}
+
+/// The most boxes, cylinders and meshes a map may have (each is a collider of the scene).
+pub const MAX_SOLIDS: usize = 200_000;
+
+/// The most victims and objects a map may have together.
+pub const MAX_PLACED: usize = 100_000;
+
+/// The bytes a start adds to the GETSTARTPOSES answer: ` tag x,y,z r,p,y` as
+/// `World`'s answer prints it (the tag, or the name for the default tag `PlayerStart`; a
+/// space before every pose but the first, counted for all here), measured in `scratch`.
+fn pose_len(start: &PlayerStart, scratch: &mut String) -> usize {
+    let name = if start.tag.eq_ignore_ascii_case("PlayerStart") {
+        &start.name
+    } else {
+        &start.tag
+    };
+    scratch.clear();
+    usar_proto::format::push_fixed_list(scratch, &start.location, 4);
+    usar_proto::format::push_fixed_list(scratch, &start.rotation, 4);
+    1 + name.len() + 1 + scratch.len() + 1
+}
+
+/// The length of the GETSTARTPOSES answer with `count` poses of `poses` bytes in all (as
+/// [`pose_len`] counts), its CR LF included: `NFO {StartPoses n} {poses}`.
+fn start_poses_len(count: usize, poses: usize) -> usize {
+    "NFO {StartPoses ".len() + count.to_string().len() + "} {".len() + poses - 1 + "}\r\n".len()
+}
+
+/// How large a section of a TOML file [`sections`] makes before it starts a new one at the
+/// next top-level table (bytes).
+const SECTION: usize = 64 << 10;
+
+/// Splits TOML text into consecutive sections, each starting at a top-level table header
+/// whose key has one part (`[[box]]`, `[wind]`; not `[robot.flight]`, which belongs to the
+/// entry before it), of about [`SECTION`] bytes each: (byte offset, text). Each section is
+/// a TOML document of its own whose tables are the whole text's, so parsing them one at a
+/// time gives the whole text's entries while holding only one section's parse tree (the
+/// `toml` crate's takes some 60 times its text). Found with `toml_parser`'s lexer, which
+/// holds nothing: brackets inside strings, comments or multi-line values do not count.
+pub(crate) fn sections(text: &str) -> Vec<(usize, &str)> {
+    use toml_parser::lexer::TokenKind;
+    let mut cuts = vec![0];
+    let mut line_start = true;
+    let mut in_value = false;
+    let mut depth = 0usize;
+    // A header that may start a section: (its offset, whether its key has a dot so far).
+    let mut header: Option<(usize, bool)> = None;
+    for token in toml_parser::Source::new(text).lex() {
+        let kind = token.kind();
+        let start = token.span().start();
+        match kind {
+            TokenKind::Whitespace | TokenKind::Comment => continue,
+            TokenKind::Newline => {
+                if depth == 0 {
+                    in_value = false;
+                }
+                line_start = true;
+                header = None;
+                continue;
+            }
+            _ => {}
+        }
+        if in_value {
+            match kind {
+                TokenKind::LeftSquareBracket | TokenKind::LeftCurlyBracket => depth += 1,
+                TokenKind::RightSquareBracket | TokenKind::RightCurlyBracket => {
+                    depth = depth.saturating_sub(1);
+                }
+                _ => {}
+            }
+        } else if line_start && kind == TokenKind::LeftSquareBracket {
+            header = Some((start, false));
+        } else if let Some((at, dotted)) = header.as_mut() {
+            match kind {
+                TokenKind::Dot => *dotted = true,
+                TokenKind::RightSquareBracket => {
+                    if !*dotted && *at - cuts[cuts.len() - 1] >= SECTION {
+                        cuts.push(*at);
+                    }
+                    header = None;
+                }
+                _ => {}
+            }
+        } else if kind == TokenKind::Equals {
+            in_value = true;
+        }
+        line_start = false;
+    }
+    cuts.push(text.len());
+    cuts.windows(2).map(|w| (w[0], &text[w[0]..w[1]])).collect()
 }
 
 /// The embedded OBJ file `file`.
@@ -425,9 +554,8 @@ impl Map {
     /// numbers within the map's limits, a positive size), and its body, 2 cm smaller on every
     /// side, must not meet a solid or another placed thing. The error says what is wrong.
     pub fn add_placed(&mut self, p: Placed) -> Result<(), String> {
-        if p.name.trim().is_empty() || p.name.contains(['{', '}', ' ']) {
-            return Err(format!("name {:?} must be one word", p.name));
-        }
+        check_name("name", &p.name, true)?;
+        check_name("class", &p.class, true)?;
         if self.placed.iter().any(|o| o.name == p.name) {
             return Err(format!("duplicate name `{}`", p.name));
         }
@@ -544,135 +672,225 @@ impl Map {
             line: line_of(text, offset),
             message,
         };
-        let raw: RawMap = toml::from_str(text).map_err(|e| {
-            invalid(
-                e.span().map_or(0, |s| s.start),
-                e.message().trim_end().to_string(),
-            )
-        })?;
-        if raw.level.trim().is_empty() {
-            return Err(invalid(0, "`level` must not be empty".into()));
-        }
-        if raw.time_limit < 0 {
-            return Err(invalid(0, "`time_limit` must not be negative".into()));
-        }
+        let mut level: Option<(usize, String)> = None;
+        let mut time_limit = 20;
         let mut starts: Vec<PlayerStart> = Vec::new();
-        for (i, entry) in raw.start.iter().enumerate() {
-            let at = entry.span().start;
-            let s = entry.get_ref();
-            finite(&[&s.location, &s.rotation]).map_err(|m| invalid(at, m))?;
-            within(&[&s.location], LIMIT - EDGE_MARGIN).map_err(|m| invalid(at, m))?;
-            within(&[&s.rotation], 1000.0).map_err(|m| invalid(at, m))?;
-            let name = s.name.clone().unwrap_or_else(|| format!("PlayerStart_{i}"));
-            if let Some(dup) = starts
-                .iter()
-                .find(|o| o.tag.eq_ignore_ascii_case(&s.tag) || o.name.eq_ignore_ascii_case(&name))
-            {
-                return Err(invalid(
-                    at,
-                    format!(
-                        "duplicate start `{}` (already used by `{}`)",
-                        s.tag, dup.tag
-                    ),
-                ));
-            }
-            starts.push(PlayerStart {
-                tag: s.tag.clone(),
-                name,
-                location: s.location,
-                rotation: s.rotation,
-            });
-        }
+        // The length of the GETSTARTPOSES answer's poses so far, and a buffer to measure one.
+        let (mut poses_len, mut scratch) = (0, String::new());
+        let mut tags = std::collections::HashMap::new();
+        let mut names = std::collections::HashSet::new();
         let mut solids = Vec::new();
         let mut colors = Vec::new();
-        for entry in &raw.boxes {
-            let b = entry.get_ref();
-            let at = entry.span().start;
-            finite(&[&b.center, &b.size, &[b.yaw; 3]]).map_err(|m| invalid(at, m))?;
-            within(&[&b.center, &b.size], LIMIT).map_err(|m| invalid(at, m))?;
-            within(&[&[b.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
-            if b.size.iter().any(|&s| s <= 0.0) {
-                return Err(invalid(
-                    at,
-                    format!("box size must be positive, got {:?}", b.size),
-                ));
-            }
-            colors.push(b.color.unwrap_or_else(|| box_color(b.center, b.size)));
-            solids.push(Solid::Box {
-                center: b.center,
-                size: b.size,
-                yaw: b.yaw,
-            });
-        }
-        for entry in &raw.cylinder {
-            let c = entry.get_ref();
-            let at = entry.span().start;
-            finite(&[&c.center, &[c.radius, c.height, 0.0]]).map_err(|m| invalid(at, m))?;
-            within(&[&c.center, &[c.radius, c.height, 0.0]], LIMIT).map_err(|m| invalid(at, m))?;
-            if c.radius <= 0.0 || c.height <= 0.0 {
-                return Err(invalid(
-                    at,
-                    "cylinder radius and height must be positive".into(),
-                ));
-            }
-            colors.push(c.color.unwrap_or(CYLINDER_COLOR));
-            solids.push(Solid::Cylinder {
-                center: c.center,
-                radius: c.radius,
-                height: c.height,
-            });
-        }
-        for entry in &raw.mesh {
-            let m = entry.get_ref();
-            let at = entry.span().start;
-            finite(&[&m.offset, &[m.yaw, m.scale, 0.0]]).map_err(|e| invalid(at, e))?;
-            within(&[&m.offset, &[m.scale, 0.0, 0.0]], LIMIT).map_err(|e| invalid(at, e))?;
-            within(&[&[m.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
-            if m.scale <= 0.0 {
-                return Err(invalid(at, "mesh scale must be positive".into()));
-            }
-            let (obj_path, obj_text) = load_obj(&m.file)?;
-            let mesh = obj::parse(&obj_text).map_err(|(line, message)| ConfigError::Invalid {
-                path: obj_path,
-                line,
-                message,
+        let mut mesh_bytes = 0;
+        let (mut victims, mut objects) = (Vec::new(), Vec::new());
+        let mut wind = None;
+        // One section at a time: only one section's parse tree is ever held.
+        for (offset, section) in sections(text) {
+            let raw: RawMap = toml::from_str(section).map_err(|e| {
+                invalid(
+                    offset + e.span().map_or(0, |s| s.start),
+                    e.message().trim_end().to_string(),
+                )
             })?;
-            let vertices: Vec<V3> = mesh
-                .vertices
-                .iter()
-                .map(|&v| {
-                    let r = yaw_rotate(m.yaw, [v[0] * m.scale, v[1] * m.scale, v[2] * m.scale]);
-                    [r[0] + m.offset[0], r[1] + m.offset[1], r[2] + m.offset[2]]
-                })
-                .collect();
-            if let Some(v) = vertices.iter().find(|v| v.iter().any(|x| x.abs() > LIMIT)) {
-                return Err(invalid(
+            if let Some(entry) = raw.level {
+                level = Some((offset + entry.span().start, entry.into_inner()));
+            }
+            if let Some(t) = raw.time_limit {
+                if t < 0 {
+                    return Err(invalid(offset, "`time_limit` must not be negative".into()));
+                }
+                time_limit = t;
+            }
+            for entry in raw.start {
+                let at = offset + entry.span().start;
+                let s = entry.into_inner();
+                check_name("start tag", &s.tag, true).map_err(|m| invalid(at, m))?;
+                if let Some(name) = &s.name {
+                    check_name("start name", name, true).map_err(|m| invalid(at, m))?;
+                }
+                finite(&[&s.location, &s.rotation]).map_err(|m| invalid(at, m))?;
+                within(&[&s.location], LIMIT - EDGE_MARGIN).map_err(|m| invalid(at, m))?;
+                within(&[&s.rotation], 1000.0).map_err(|m| invalid(at, m))?;
+                let name = s
+                    .name
+                    .unwrap_or_else(|| format!("PlayerStart_{}", starts.len()));
+                // Tags and names are matched case-insensitively; a set each keeps this linear.
+                let tag_key = s.tag.to_ascii_lowercase();
+                let dup = tags.get(&tag_key).copied().or_else(|| {
+                    (!names.insert(name.to_ascii_lowercase()))
+                        .then(|| {
+                            starts
+                                .iter()
+                                .position(|o: &PlayerStart| o.name.eq_ignore_ascii_case(&name))
+                        })
+                        .flatten()
+                });
+                if let Some(dup) = dup {
+                    return Err(invalid(
+                        at,
+                        format!(
+                            "duplicate start `{}` (already used by `{}`)",
+                            s.tag, starts[dup].tag
+                        ),
+                    ));
+                }
+                tags.insert(tag_key, starts.len());
+                let start = PlayerStart {
+                    tag: s.tag,
+                    name,
+                    location: s.location,
+                    rotation: s.rotation,
+                };
+                poses_len += pose_len(&start, &mut scratch);
+                let line = start_poses_len(starts.len() + 1, poses_len);
+                if line > usar_proto::codec::DEFAULT_MAX_LINE {
+                    return Err(invalid(
+                        at,
+                        format!(
+                            "too many starts: with this one, the {}th, the GETSTARTPOSES answer would be a line of {line} bytes, longer than the protocol's line limit of {} bytes (clients skip longer lines)",
+                            starts.len() + 1,
+                            usar_proto::codec::DEFAULT_MAX_LINE
+                        ),
+                    ));
+                }
+                starts.push(start);
+            }
+            let full = |at: usize| {
+                invalid(
                     at,
                     format!(
-                        "mesh `{}` reaches {v:?}, beyond the world's limit of ±{LIMIT} m",
-                        m.file
+                        "more than {MAX_SOLIDS} boxes, cylinders and meshes: a map has at most {MAX_SOLIDS}"
                     ),
-                ));
+                )
+            };
+            for entry in &raw.boxes {
+                let b = entry.get_ref();
+                let at = offset + entry.span().start;
+                if solids.len() >= MAX_SOLIDS {
+                    return Err(full(at));
+                }
+                finite(&[&b.center, &b.size, &[b.yaw; 3]]).map_err(|m| invalid(at, m))?;
+                within(&[&b.center, &b.size], LIMIT).map_err(|m| invalid(at, m))?;
+                within(&[&[b.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
+                if b.size.iter().any(|&s| s <= 0.0) {
+                    return Err(invalid(
+                        at,
+                        format!("box size must be positive, got {:?}", b.size),
+                    ));
+                }
+                colors.push(b.color.unwrap_or_else(|| box_color(b.center, b.size)));
+                solids.push(Solid::Box {
+                    center: b.center,
+                    size: b.size,
+                    yaw: b.yaw,
+                });
             }
-            colors.push(m.color.unwrap_or(MESH_COLOR));
-            solids.push(Solid::Mesh {
-                vertices,
-                triangles: mesh.triangles,
-            });
+            for entry in &raw.cylinder {
+                let c = entry.get_ref();
+                let at = offset + entry.span().start;
+                if solids.len() >= MAX_SOLIDS {
+                    return Err(full(at));
+                }
+                finite(&[&c.center, &[c.radius, c.height, 0.0]]).map_err(|m| invalid(at, m))?;
+                within(&[&c.center, &[c.radius, c.height, 0.0]], LIMIT)
+                    .map_err(|m| invalid(at, m))?;
+                if c.radius <= 0.0 || c.height <= 0.0 {
+                    return Err(invalid(
+                        at,
+                        "cylinder radius and height must be positive".into(),
+                    ));
+                }
+                colors.push(c.color.unwrap_or(CYLINDER_COLOR));
+                solids.push(Solid::Cylinder {
+                    center: c.center,
+                    radius: c.radius,
+                    height: c.height,
+                });
+            }
+            for entry in &raw.mesh {
+                let m = entry.get_ref();
+                let at = offset + entry.span().start;
+                if solids.len() >= MAX_SOLIDS {
+                    return Err(full(at));
+                }
+                finite(&[&m.offset, &[m.yaw, m.scale, 0.0]]).map_err(|e| invalid(at, e))?;
+                within(&[&m.offset, &[m.scale, 0.0, 0.0]], LIMIT).map_err(|e| invalid(at, e))?;
+                within(&[&[m.yaw; 3]], 1000.0).map_err(|m| invalid(at, m))?;
+                if m.scale <= 0.0 {
+                    return Err(invalid(at, "mesh scale must be positive".into()));
+                }
+                let (obj_path, obj_text) = load_obj(&m.file)?;
+                mesh_bytes += obj_text.len() as u64;
+                if mesh_bytes > MAX_OBJ_FILE {
+                    return Err(invalid(
+                        at,
+                        format!(
+                            "the meshes' OBJ files hold more than {MAX_OBJ_FILE} bytes in all (the limit)"
+                        ),
+                    ));
+                }
+                let mesh =
+                    obj::parse(&obj_text).map_err(|(line, message)| ConfigError::Invalid {
+                        path: obj_path,
+                        line,
+                        message,
+                    })?;
+                let vertices: Vec<V3> = mesh
+                    .vertices
+                    .iter()
+                    .map(|&v| {
+                        let r =
+                            yaw_rotate(m.yaw, [v[0] * m.scale, v[1] * m.scale, v[2] * m.scale]);
+                        [r[0] + m.offset[0], r[1] + m.offset[1], r[2] + m.offset[2]]
+                    })
+                    .collect();
+                if let Some(v) = vertices.iter().find(|v| v.iter().any(|x| x.abs() > LIMIT)) {
+                    return Err(invalid(
+                        at,
+                        format!(
+                            "mesh `{}` reaches {v:?}, beyond the world's limit of ±{LIMIT} m",
+                            m.file
+                        ),
+                    ));
+                }
+                colors.push(m.color.unwrap_or(MESH_COLOR));
+                solids.push(Solid::Mesh {
+                    vertices,
+                    triangles: mesh.triangles,
+                });
+            }
+            for (victim, entries) in [(true, raw.victim), (false, raw.object)] {
+                for entry in entries {
+                    if victims.len() + objects.len() >= MAX_PLACED {
+                        return Err(invalid(
+                            offset + entry.span().start,
+                            format!(
+                                "more than {MAX_PLACED} victims and objects: a map has at most {MAX_PLACED}"
+                            ),
+                        ));
+                    }
+                    let list = if victim { &mut victims } else { &mut objects };
+                    list.push((offset + entry.span().start, entry.into_inner()));
+                }
+            }
+            if let Some(entry) = raw.wind {
+                let at = offset + entry.span().start;
+                if wind.is_some() {
+                    return Err(invalid(at, "`[wind]` is given twice".into()));
+                }
+                let w = entry.into_inner();
+                w.check().map_err(|m| invalid(at, m))?;
+                wind = Some(w);
+            }
         }
-        let placed = placed_entries(&raw, &solids, &invalid)?;
-        let wind = match raw.wind {
-            Some(entry) => {
-                let at = entry.span().start;
-                let wind = entry.into_inner();
-                wind.check().map_err(|m| invalid(at, m))?;
-                Some(wind)
-            }
-            None => None,
+        let Some((level_at, level)) = level else {
+            return Err(invalid(0, "missing field `level`".into()));
         };
+        check_name("level", &level, false).map_err(|m| invalid(level_at, m))?;
+        let placed = placed_entries(&victims, &objects, &solids, &invalid)?;
         Ok(Self {
-            level: raw.level,
-            time_limit: raw.time_limit,
+            level,
+            time_limit,
             starts,
             solids,
             colors,
@@ -722,19 +940,20 @@ impl Map {
 /// Checks the `[[victim]]` and `[[object]]` entries: classes, names, numbers, and that no
 /// victim is inside a wall (its box, 2 cm smaller on every side, meets a solid of the map).
 fn placed_entries(
-    raw: &RawMap,
+    victims: &[(usize, RawPlaced)],
+    objects: &[(usize, RawPlaced)],
     solids: &[Solid],
     invalid: &dyn Fn(usize, String) -> ConfigError,
 ) -> Result<Vec<Placed>, ConfigError> {
     let mut walls: Option<Scene> = None;
-    let mut placed: Vec<Placed> = Vec::new();
-    let entries = raw.victim.iter().map(|e| (e, true));
-    for (index, (entry, victim)) in entries
-        .chain(raw.object.iter().map(|e| (e, false)))
+    let mut placed: Vec<Placed> = Vec::with_capacity(victims.len() + objects.len());
+    let mut names = std::collections::HashSet::new();
+    let entries = victims.iter().map(|e| (e, true));
+    for (index, ((at, p), victim)) in entries
+        .chain(objects.iter().map(|e| (e, false)))
         .enumerate()
     {
-        let at = entry.span().start;
-        let p = entry.get_ref();
+        let at = *at;
         let what = if victim { "victim" } else { "object" };
         let class = match (&p.class, victim) {
             (Some(c), true) => VICTIM_CLASSES
@@ -756,20 +975,15 @@ fn placed_entries(
                     "victim needs a `class` (FemaleVictim or MaleVictim)".into(),
                 ));
             }
-            (Some(c), false) if c.trim().is_empty() || c.contains([' ', '{', '}']) => {
-                return Err(invalid(at, format!("object class {c:?} must be one word")));
+            (Some(c), false) => {
+                check_name("object class", c, true).map_err(|m| invalid(at, m))?;
+                c.clone()
             }
-            (Some(c), false) => c.clone(),
             (None, false) => "Object".to_owned(),
         };
         let name = p.name.clone().unwrap_or_else(|| format!("{class}_{index}"));
-        if name.trim().is_empty() || name.contains(['{', '}', ' ']) {
-            return Err(invalid(
-                at,
-                format!("{what} name {name:?} must be one word"),
-            ));
-        }
-        if placed.iter().any(|o| o.name == name) {
+        check_name(&format!("{what} name"), &name, true).map_err(|m| invalid(at, m))?;
+        if !names.insert(name.clone()) {
             return Err(invalid(at, format!("duplicate {what} name `{name}`")));
         }
         let size = p.size.unwrap_or(VICTIM_SIZE);

@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::map::{ConfigError, ConfigFile, line_of, read_text};
+use super::map::{ConfigError, ConfigFile, check_name, line_of, read_text, sections};
 
 /// The largest robot file read (bytes).
 pub const MAX_ROBOT_FILE: u64 = 1 << 20;
@@ -218,7 +218,8 @@ impl RobotClass {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawCatalog {
-    robot: Vec<Spanned<RawRobot>>,
+    /// Required, in one section or another ([`sections`]).
+    robot: Option<Vec<Spanned<RawRobot>>>,
 }
 
 #[derive(Deserialize)]
@@ -358,63 +359,88 @@ impl RobotCatalog {
             line: line_of(text, offset),
             message,
         };
-        let raw: RawCatalog = toml::from_str(text).map_err(|e| {
-            invalid(
-                e.span().map_or(0, |s| s.start),
-                e.message().trim_end().to_string(),
-            )
-        })?;
         let mut robots: Vec<RobotClass> = Vec::new();
-        for entry in raw.robot {
-            let at = entry.span().start;
-            let r = entry.into_inner();
-            if !r.class.contains('.') || r.class.ends_with('.') {
-                return Err(invalid(
-                    at,
-                    format!(
-                        "class `{}` needs a package, e.g. `USARBot.{}`",
-                        r.class, r.class
-                    ),
-                ));
+        let mut classes = std::collections::HashSet::new();
+        let mut any = false;
+        // One section (a `[[robot]]` and its tables) at a time: only one section's parse
+        // tree is ever held.
+        for (offset, section) in sections(text) {
+            let raw: RawCatalog = toml::from_str(section).map_err(|e| {
+                invalid(
+                    offset + e.span().map_or(0, |s| s.start),
+                    e.message().trim_end().to_string(),
+                )
+            })?;
+            let Some(entries) = raw.robot else {
+                continue;
+            };
+            any = true;
+            for entry in entries {
+                let at = offset + entry.span().start;
+                let r = entry.into_inner();
+                Self::add(&mut robots, &mut classes, r, offset)
+                    .map_err(|(o, m)| invalid(o.unwrap_or(at), m))?;
             }
-            if robots
-                .iter()
-                .any(|o| o.class.eq_ignore_ascii_case(&r.class))
-            {
-                return Err(invalid(at, format!("duplicate class `{}`", r.class)));
-            }
-            check_flight(&r).map_err(|m| invalid(at, m))?;
-            let mut parts: Vec<PartConfig> = Vec::new();
-            for part in r.part {
-                let at = part.span().start;
-                let part = part.into_inner();
-                check_part(&part, &parts).map_err(|m| invalid(at, m))?;
-                parts.push(part);
-            }
-            let mut actuators: Vec<ActuatorConfig> = Vec::new();
-            for actuator in r.actuator {
-                let at = actuator.span().start;
-                let a = actuator.into_inner();
-                check_actuator(&a).map_err(|m| invalid(at, m))?;
-                actuators.push(a);
-            }
-            robots.push(RobotClass {
-                class: r.class,
-                flight: r.flight,
-                dynamics: r.dynamics,
-                quadrotor: r.quadrotor.unwrap_or_default(),
-                crash: r.crash,
-                collision: r.collision,
-                battery: r.battery,
-                color: r.color.unwrap_or(ROBOT_COLOR),
-                parts,
-                actuators,
-            });
+        }
+        if !any {
+            return Err(invalid(0, "missing field `robot`".into()));
         }
         Ok(Self {
             robots,
             models: Models::default(),
         })
+    }
+
+    /// Checks a `[[robot]]` entry of the section at `offset` and adds it; an error names
+    /// the offset of the part or actuator at fault (`None`: the entry's).
+    fn add(
+        robots: &mut Vec<RobotClass>,
+        classes: &mut std::collections::HashSet<String>,
+        r: RawRobot,
+        offset: usize,
+    ) -> Result<(), (Option<usize>, String)> {
+        check_name("class", &r.class, true).map_err(|m| (None, m))?;
+        if !r.class.contains('.') || r.class.ends_with('.') {
+            return Err((
+                None,
+                format!(
+                    "class `{}` needs a package, e.g. `USARBot.{}`",
+                    r.class, r.class
+                ),
+            ));
+        }
+        if !classes.insert(r.class.to_ascii_lowercase()) {
+            return Err((None, format!("duplicate class `{}`", r.class)));
+        }
+        check_flight(&r).map_err(|m| (None, m))?;
+        let mut parts: Vec<PartConfig> = Vec::with_capacity(r.part.len());
+        let mut names = std::collections::HashSet::new();
+        for part in r.part {
+            let at = offset + part.span().start;
+            let part = part.into_inner();
+            check_part(&part, &mut names).map_err(|m| (Some(at), m))?;
+            parts.push(part);
+        }
+        let mut actuators: Vec<ActuatorConfig> = Vec::with_capacity(r.actuator.len());
+        for actuator in r.actuator {
+            let at = offset + actuator.span().start;
+            let a = actuator.into_inner();
+            check_actuator(&a).map_err(|m| (Some(at), m))?;
+            actuators.push(a);
+        }
+        robots.push(RobotClass {
+            class: r.class,
+            flight: r.flight,
+            dynamics: r.dynamics,
+            quadrotor: r.quadrotor.unwrap_or_default(),
+            crash: r.crash,
+            collision: r.collision,
+            battery: r.battery,
+            color: r.color.unwrap_or(ROBOT_COLOR),
+            parts,
+            actuators,
+        });
+        Ok(())
     }
 }
 
@@ -497,7 +523,12 @@ fn check_flight(r: &RawRobot) -> Result<(), String> {
     Ok(())
 }
 
-fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
+/// Checks a part; `names` holds the robot's part names so far (lower case).
+fn check_part(
+    part: &PartConfig,
+    names: &mut std::collections::HashSet<String>,
+) -> Result<(), String> {
+    check_name("part name", &part.name, true)?;
     let kind = sensors::find(&part.kind).ok_or_else(|| {
         let known: Vec<&str> = sensors::REGISTRY.iter().map(|k| k.item_type).collect();
         format!(
@@ -506,10 +537,7 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
             known.join(", ")
         )
     })?;
-    if before
-        .iter()
-        .any(|p| p.name.eq_ignore_ascii_case(&part.name))
-    {
+    if !names.insert(part.name.to_ascii_lowercase()) {
         return Err(format!("duplicate part name `{}`", part.name));
     }
     all_finite(
@@ -536,6 +564,7 @@ fn check_part(part: &PartConfig, before: &[PartConfig]) -> Result<(), String> {
 }
 
 fn check_actuator(a: &ActuatorConfig) -> Result<(), String> {
+    check_name("actuator name", &a.name, true)?;
     at_most("interval", a.interval, 1e6)?;
     all_finite(
         "position and direction",
@@ -552,6 +581,7 @@ fn check_actuator(a: &ActuatorConfig) -> Result<(), String> {
         return Err(format!("actuator `{}` needs at least one joint", a.name));
     }
     for j in &a.joints {
+        check_name("joint type", &j.joint_type, true)?;
         all_finite("joint limits", &[j.min, j.max, j.max_torque])?;
         if [j.min, j.max, j.max_torque].iter().any(|x| x.abs() > 1e6) {
             return Err(format!(
