@@ -352,7 +352,10 @@ pub(crate) fn check_name(what: &str, value: &str, word: bool) -> Result<(), Stri
         ));
     }
     if word && value.contains(' ') {
-        return Err(format!("{what} {} holds a space; it must be one word", shown()));
+        return Err(format!(
+            "{what} {} holds a space; it must be one word",
+            shown()
+        ));
     }
     if value.starts_with(' ') || value.ends_with(' ') {
         return Err(format!("{what} {} begins or ends with a space", shown()));
@@ -747,7 +750,7 @@ impl Map {
                     return Err(invalid(
                         at,
                         format!(
-                            "too many starts: with this one, the {}th, the GETSTARTPOSES answer would be a line of {line} bytes, longer than the protocol's line limit of {} bytes (clients skip longer lines)",
+                            "too many starts: with start {}, the GETSTARTPOSES answer would be a line of {line} bytes, longer than the protocol's line limit of {} bytes (clients skip longer lines)",
                             starts.len() + 1,
                             usar_proto::codec::DEFAULT_MAX_LINE
                         ),
@@ -839,8 +842,7 @@ impl Map {
                     .vertices
                     .iter()
                     .map(|&v| {
-                        let r =
-                            yaw_rotate(m.yaw, [v[0] * m.scale, v[1] * m.scale, v[2] * m.scale]);
+                        let r = yaw_rotate(m.yaw, [v[0] * m.scale, v[1] * m.scale, v[2] * m.scale]);
                         [r[0] + m.offset[0], r[1] + m.offset[1], r[2] + m.offset[2]]
                     })
                     .collect();
