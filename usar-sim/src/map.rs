@@ -1313,6 +1313,54 @@ mod tests {
     }
 
     #[test]
+    fn large_files_are_read_in_sections_with_the_same_entries_and_lines() {
+        let mut text = String::from("level = \"x\"\n");
+        let mut boxes = 0;
+        while text.len() < 3 * SECTION {
+            // A header in a comment and a value over several lines: no split there.
+            text.push_str(&format!(
+                "[[box]] # [[start]]\ncenter = [\n{boxes}.0,\n0, -1]\nsize = [1, 1, 1]\n"
+            ));
+            boxes += 1;
+        }
+        assert!(sections(&text).len() >= 3, "{}", sections(&text).len());
+        let rejoined: String = sections(&text).iter().map(|(_, s)| *s).collect();
+        assert_eq!(rejoined, text);
+        for (offset, section) in sections(&text).iter().skip(1) {
+            assert!(section.starts_with("[[box]]"), "{offset}");
+        }
+        let map = parse(&text).unwrap();
+        assert_eq!(map.footprints().len(), boxes);
+        // An error in the last section names its line in the whole file.
+        let line = text.lines().count() + 1;
+        let e = parse(&format!(
+            "{text}[[box]]\ncenter = [0, 0, 0]\nsize = [1, -1, 1]\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(e.starts_with(&format!("test.toml:{line}:")), "{e}");
+        let e = parse(&format!("{text}[[box]]\ncenter = [0, 0\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with(&format!("test.toml:{}:", line + 1)), "{e}");
+        // A table given twice in different sections is refused, as in one document.
+        let e = parse(&format!(
+            "{text}[wind]\ngusts = 0.5\n{}[wind]\ngusts = 0.5\n",
+            &text[12..]
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("`[wind]` is given twice"), "{e}");
+        // Strings over several lines holding headers are not split either.
+        let tricky = format!(
+            "a = \"\"\"\n{}\n[[x]]\n\"\"\"\n[[y]]\n",
+            "#".repeat(SECTION)
+        );
+        let cuts: Vec<usize> = sections(&tricky).iter().map(|(o, _)| *o).collect();
+        assert_eq!(cuts, [0, tricky.find("[[y]]").unwrap()]);
+    }
+
+    #[test]
     fn start_names_default_to_playerstart_index() {
         let map =
             parse("level = \"x\"\n[[start]]\ntag = \"PlayerStart\"\nlocation = [1,2,3]\n").unwrap();
