@@ -329,6 +329,57 @@ fn huge_numbers_in_error_messages_are_short() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A map or robot file whose names would forge a protocol line or field (issue #56) is
+/// refused at start, naming the file, the line and the value, escaped: the server never
+/// sends `NFO {Gametype BotDeathMatch} {Level X} {Foo 1} ...`.
+#[test]
+fn a_file_that_would_forge_a_line_is_refused_at_start() {
+    let dir = scratch("forged-names");
+    let map = dir.join("forged.toml");
+    std::fs::write(&map, "# a level that adds a field\nlevel = \"X} {Foo 1\"\n").unwrap();
+    let starts = dir.join("starts.toml");
+    std::fs::write(
+        &starts,
+        "level = \"X\"\n[[start]]\ntag = \"A\\r\\nDRIVE {LinearVelocity 9}\"\nlocation = [0, 0, -1]\n",
+    )
+    .unwrap();
+    let robots = dir.join("robots.toml");
+    std::fs::write(
+        &robots,
+        "[[robot]]\nclass = \"USARBot.X\"\n[[robot.part]]\ntype = \"Sonar\"\nname = \"S\\u001b[2J\"\n",
+    )
+    .unwrap();
+    let shown = |p: &Path, line: u32| format!("{}:{line}:", p.display());
+    for (args, expected) in [
+        (
+            ["--map".as_ref(), map.as_os_str()],
+            [
+                shown(&map, 2),
+                "level \"X} {Foo 1\" holds a brace (})".to_owned(),
+            ],
+        ),
+        (
+            ["--map".as_ref(), starts.as_os_str()],
+            [
+                shown(&starts, 2),
+                "start tag \"A\\r\\nDRIVE {LinearVelocity 9}\" holds a carriage return".to_owned(),
+            ],
+        ),
+        (
+            ["--robots".as_ref(), robots.as_os_str()],
+            [
+                shown(&robots, 3),
+                "part name \"S\\u{1b}[2J\" holds a control character (U+001B)".to_owned(),
+            ],
+        ),
+    ] {
+        let expected: Vec<&str> = expected.iter().map(String::as_str).collect();
+        let stderr = refused(&args, &expected);
+        assert!(!stderr.contains('\u{1b}'), "{stderr:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// `usar-server replay` under a connection flood (the attack suite's rule for every listening
 /// program): with the open files limited to 48, 100 clients that never read must not end
 /// the replay server (it exited on the first "Too many open files"); once they leave, a new

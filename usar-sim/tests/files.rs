@@ -212,8 +212,9 @@ fn starts_map(count: usize) -> String {
 /// naming the file, the line and the count; a map at the limit loads, and its answer fits.
 #[test]
 fn starts_are_limited_by_the_getstartposes_line_and_load_in_linear_time() {
+    let text = starts_map(100_000);
     let started = Instant::now();
-    let e = map_error(&starts_map(100_000));
+    let e = map_error(&text);
     let refused = started.elapsed();
     assert!(
         e.starts_with("bad.toml:") && e.contains("too many starts: with start "),
@@ -247,11 +248,12 @@ fn starts_are_limited_by_the_getstartposes_line_and_load_in_linear_time() {
     assert!(answer.len() + 2 > 65536 - 40, "{} bytes", answer.len());
     eprintln!(
         "100,000 starts ({} bytes) refused at start {count} in {refused:?}; {} starts loaded in {loaded:?}",
-        starts_map(100_000).len(),
+        text.len(),
         count - 1
     );
-    // Generous: the whole 5.6 MB file is read before the refusal (debug build, loaded machine).
-    assert!(refused.as_secs() < 60, "{refused:?}");
+    // Generous (debug build, loaded machine): the refusal comes as the section holding the
+    // start past the limit is read, after one pass of the lexer over the whole file.
+    assert!(refused.as_secs() < 30, "{refused:?}");
 }
 
 /// A map of `count` objects on a grid and `victims` victims, none touching.
@@ -323,9 +325,11 @@ fn child_loads_a_map() {
         return;
     };
     let before = peak_kib();
+    let started = Instant::now();
     let map = Map::from_file(Path::new(&path)).unwrap_or_else(|e| panic!("{e}"));
+    let elapsed = started.elapsed().as_millis();
     let after = peak_kib();
-    println!("peak {before} {after} {}", map.footprints().len());
+    println!("peak {before} {after} {} {elapsed}", map.footprints().len());
 }
 
 #[test]
@@ -364,11 +368,11 @@ fn loading_a_12_mb_map_takes_a_few_times_its_size_in_memory() {
         .split(' ')
         .map(|n| n.parse().unwrap())
         .collect();
-    let (before, after, footprints) = (numbers[0], numbers[1], numbers[2]);
+    let (before, after, footprints, ms) = (numbers[0], numbers[1], numbers[2], numbers[3]);
     assert_eq!(footprints, boxes);
     let grown = (after - before) * 1024;
     eprintln!(
-        "a {size}-byte map of {boxes} boxes: peak memory {before} KiB before loading, {after} KiB after: {:.1} times the file",
+        "a {size}-byte map of {boxes} boxes: loaded in {ms} ms, peak memory {before} KiB before loading, {after} KiB after: {:.1} times the file",
         grown as f64 / size as f64
     );
     assert!(grown < 4 * size, "{grown} bytes for a {size}-byte file");
