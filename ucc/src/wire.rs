@@ -17,9 +17,10 @@
 //!   all of it: a server line whose typed form prints back to other bytes (`{Range 4.5}`
 //!   would print as `4.5000`), or a command with a key its type does not have (`INIT ...
 //!   {Battery 3600}`), a number or vector that cannot be read, a boolean that is not exactly
-//!   `true`/`false`, or text outside braces, decodes in the generic form (`Other`: the word
-//!   and every key and value as text), which encodes back to the same line (server lines
-//!   byte for byte, commands with canonical spacing).
+//!   `true`/`false`, text outside braces, or a number beyond what UDK's 32-bit floats hold
+//!   (`1e308`, which the printer holds to `f32::MAX`), decodes in the generic form (`Other`:
+//!   the word and every key and value as text), which encodes back to the same line (server
+//!   lines byte for byte, commands with canonical spacing).
 //! * A command value that is not a number where a number belongs (`DRIVE {LinearVelocity
 //!   abc}`) is kept as text and reported (`line N: ...`); so are lines that cannot be read
 //!   or converted. Both functions return the number of lines reported (the program exits
@@ -29,9 +30,18 @@
 //!   lone `\r`, and each output line ends the way its input line did (so `decode | encode`
 //!   gives CRLF lines back as CRLF). A line longer than [`MAX_LINE`] bytes (the server's
 //!   limit; [`MAX_JSON_LINE`] for `encode`) is skipped without being stored and reported
-//!   with its number and length. Bytes that are not UTF-8 are read lossily.
-//! * `encode` refuses a message that would print a control character other than TAB (a
-//!   `\r\n` inside a value would inject a second line), naming the line.
+//!   with its number and length.
+//! * `decode` stops, with exit status 1, where its input stops being the protocol, naming
+//!   the line and the byte offset in the input (`line 3, byte 112: not the protocol: ...`):
+//!   a line that is not UTF-8, holds a control character other than TAB, or does not begin
+//!   with a message word (an ASCII letter, then letters, digits or `_`) followed by nothing
+//!   or a `{` (`hello world`, `x#!`, binary garbage). Unknown message words (`MULTIDRIVE
+//!   {...}`, `TEST`) are the protocol.
+//! * `encode` refuses a message whose text value holds a brace or a control character (it
+//!   would add a field or a line): commands by `Command::check`, server messages by the same
+//!   rule on every text value; and a message that would print a control character other
+//!   than TAB; naming the line and the key. Bytes of `encode`'s input that are not UTF-8 are
+//!   a JSON error of their line.
 
 use std::io::{self, BufRead, Write};
 
@@ -107,6 +117,13 @@ impl WireLine {
         if !lossy
             && !matches!(parsed.message, Command::Other(_))
             && pairs(&Message::parse_udk(&parsed.message.to_string())?.message) != pairs(&generic)
+        {
+            lossy = true;
+        }
+        // A number the printer holds to UDK's range (`1e308`): the typed form would change it.
+        if !lossy
+            && !matches!(parsed.message, Command::Other(_))
+            && Command::parse(&parsed.message.to_string())?.message != parsed.message
         {
             lossy = true;
         }
