@@ -21,21 +21,29 @@ pub fn write_trajectory(path: &Path, points: &[TrajectoryPoint]) -> std::io::Res
     let triple = |v: Option<Coordinates>| {
         v.map_or_else(
             || ",,".to_owned(),
-            |v| format!("{:.4},{:.4},{:.4}", v.x, v.y, v.z),
+            |v| format!("{},{},{}", fixed4(v.x), fixed4(v.y), fixed4(v.z)),
         )
     };
     for p in points {
         writeln!(
             out,
-            "{:.4},{},{},{},{}",
-            p.time,
+            "{},{},{},{},{}",
+            fixed4(p.time),
             triple(Some(p.position)),
             triple(p.orientation),
             triple(p.velocity),
-            p.battery.map_or(String::new(), |b| format!("{b:.4}")),
+            p.battery.map_or(String::new(), fixed4),
         )?;
     }
     out.flush()
+}
+
+/// A number of a CSV file, with 4 decimals as UDK prints it (`usar_proto::format::push_fixed`:
+/// a value beyond UDK's 32-bit range, `1e308` from a hostile server, is never 309 digits).
+pub(crate) fn fixed4(v: f64) -> String {
+    let mut s = String::new();
+    usar_proto::format::push_fixed(&mut s, v, 4);
+    s
 }
 
 /// Writes log lines, one per line.

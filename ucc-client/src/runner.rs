@@ -99,6 +99,10 @@ pub async fn run(
                 status
             }
         };
+        // The files are written on another thread while the next iteration flies: one
+        // iteration's at a time, so the previous one's must be done first (and its row of the
+        // results table waits for them).
+        written(writing.take(), &mut results, &mut summary, observer).await?;
         // Nothing flown and nothing to fly (no server, an unwritable recording): the error
         // alone, without a failed iteration's report or files that would show nothing.
         if summary.flown == 0
@@ -113,9 +117,6 @@ pub async fn run(
         }
         drain(&mut flight, observer);
         let record = flight.into_record();
-        // The files are written on another thread while the next iteration flies: one
-        // iteration's at a time, so the previous one's must be done first.
-        written(writing.take(), observer).await?;
         let iteration_summary = IterationSummary {
             status,
             missions_done: record.missions_done,
@@ -128,9 +129,9 @@ pub async fn run(
             randomized: record.randomized.clone().unwrap_or_default(),
         };
         let shared = Arc::clone(&shared);
-        writing = Some(tokio::task::spawn_blocking(move || {
+        let files = tokio::task::spawn_blocking(move || {
             write_iteration(&shared, &record, &last_line)
-        }));
+        });
         observer.progress(&match &iteration_summary.status {
             IterationStatus::Done => Progress::IterationDone {
                 iteration,
@@ -147,18 +148,18 @@ pub async fn run(
             settings.kept_iterations,
             settings.pictures != Pictures::None && settings.log_dir.is_some(),
         );
-        if let Some(table) = &mut results {
-            table
-                .row(&iteration_summary, deviation)
-                .map_err(|error| RunError::Output {
-                    path: table.path().to_owned(),
-                    error,
-                })?;
-            summary.results = Some(table.path().to_owned());
-        }
+        writing = Some(Writing {
+            iteration,
+            files,
+            row: IterationSummary {
+                trajectory: Vec::new(),
+                ..iteration_summary
+            },
+            deviation,
+        });
         match failure.take() {
             Some(e) if !settings.keep_going || e.is_fatal() => {
-                written(writing.take(), observer).await?;
+                written(writing.take(), &mut results, &mut summary, observer).await?;
                 finish(settings, &mut summary, observer)?;
                 return Err(e);
             }
@@ -166,22 +167,66 @@ pub async fn run(
             _ => {}
         }
     }
-    written(writing.take(), observer).await?;
+    written(writing.take(), &mut results, &mut summary, observer).await?;
     finish(settings, &mut summary, observer)?;
     Ok(summary)
 }
 
-/// Waits for the files of an iteration to be written (see `run`), then announces them.
+/// An iteration whose files are being written, with its row of the results table: the row
+/// waits for the files, so that it never says `ok` for an iteration whose files were not
+/// written.
+struct Writing {
+    iteration: usize,
+    files: JoinHandle<Result<Vec<PathBuf>, RunError>>,
+    /// The iteration (without its trajectory).
+    row: IterationSummary,
+    /// How far its path lies from the first completed iteration's.
+    deviation: Option<f64>,
+}
+
+/// Waits for the files of an iteration to be written (see `run`), writes its row of the
+/// results table (`failed`, with the file that could not be written, if one could not),
+/// then announces them. Returns the first failure: the files', else the table's.
 async fn written(
-    writing: Option<JoinHandle<Result<Vec<PathBuf>, RunError>>>,
+    writing: Option<Writing>,
+    results: &mut Option<ResultsTable>,
+    summary: &mut Summary,
     observer: &mut dyn Observer,
 ) -> Result<(), RunError> {
-    let Some(writing) = writing else {
+    let Some(Writing {
+        iteration,
+        files,
+        mut row,
+        deviation,
+    }) = writing
+    else {
         return Ok(());
     };
-    let files = writing
+    let files = files
         .await
-        .unwrap_or_else(|e| std::panic::resume_unwind(e.into_panic()))?;
+        .unwrap_or_else(|e| std::panic::resume_unwind(e.into_panic()));
+    if let Err(e) = &files {
+        row.status = IterationStatus::Failed(e.to_string());
+    }
+    if let Some(table) = results {
+        let path = table.path().to_owned();
+        match table.row(&row, deviation) {
+            Ok(()) => summary.results = Some(path),
+            Err(error) => {
+                let error = RunError::Output { path, error };
+                if files.is_err() {
+                    // Both are said: the table is incomplete too.
+                    observer.progress(&Progress::Warning {
+                        iteration,
+                        message: error.to_string(),
+                    });
+                } else {
+                    return Err(error);
+                }
+            }
+        }
+    }
+    let files = files?;
     if !files.is_empty() {
         observer.progress(&Progress::Written { files });
     }

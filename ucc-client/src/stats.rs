@@ -5,6 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::geometry::Coordinates;
+use crate::output::fixed4;
 use crate::record::TrajectoryPoint;
 
 /// How an iteration ended.
@@ -261,14 +262,14 @@ impl ResultsTable {
         self.rows += 1;
         writeln!(
             out,
-            "{},{},{},{:.4},{:.4},{},{:.4},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{}",
             self.rows,
             i.status.word(),
             i.missions_done,
-            i.duration,
-            i.distance,
-            deviation.map_or(String::new(), |d| format!("{d:.4}")),
-            i.simulated_seconds,
+            fixed4(i.duration),
+            fixed4(i.distance),
+            deviation.map_or(String::new(), fixed4),
+            fixed4(i.simulated_seconds),
             i.faults,
             i.randomized.replace([',', '\n'], " "),
             i.error().unwrap_or("").replace([',', '\n'], " "),

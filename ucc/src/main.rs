@@ -342,15 +342,15 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Cmd::Decode { print, .. } => wire_exit(wire::decode(
-            std::io::stdin().lock(),
-            std::io::stdout().lock(),
-            std::io::stderr().lock(),
+            wire::Named::new(std::io::stdin().lock(), "standard input"),
+            wire::Named::new(std::io::stdout().lock(), "standard output"),
+            wire::Named::new(std::io::stderr().lock(), "standard error"),
             print,
         )),
         Cmd::Encode => wire_exit(wire::encode(
-            std::io::stdin().lock(),
-            std::io::stdout().lock(),
-            std::io::stderr().lock(),
+            wire::Named::new(std::io::stdin().lock(), "standard input"),
+            wire::Named::new(std::io::stdout().lock(), "standard output"),
+            wire::Named::new(std::io::stderr().lock(), "standard error"),
         )),
         Cmd::Run(args) => runtime().and_then(|rt| rt.block_on(run_command(*args))),
         Cmd::Tap {
@@ -399,12 +399,21 @@ fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
         .context("cannot start the async runtime")
 }
 
+/// The exit status of a program whose output was closed by its reader (`ucc decode | head`):
+/// what a shell reports for one ended by SIGPIPE, as `cat` or `yes` are (128 + 13).
+const CLOSED_PIPE: u8 = 141;
+
 fn wire_exit(failed: std::io::Result<usize>) -> anyhow::Result<ExitCode> {
     let failed = match failed {
         Ok(n) => n,
-        // The reader went away (`ucc decode | head`): that is the end, not an error.
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(ExitCode::SUCCESS),
-        Err(e) => return Err(anyhow::Error::new(e).context("cannot read or write the lines")),
+        // The reader went away (`ucc decode | head`): the conventional quiet end, with the
+        // status of a program ended by SIGPIPE (a pipeline under `set -o pipefail` fails as
+        // it would with `cat`).
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            return Ok(ExitCode::from(CLOSED_PIPE));
+        }
+        // The error names the stream (`cannot write standard output: No space left ...`).
+        Err(e) => return Err(e.into()),
     };
     Ok(if failed > 0 {
         eprintln!("ucc: {failed} line(s) reported above");
@@ -686,8 +695,14 @@ async fn tap(
         "ucc tap: listening on {}, {announce}",
         listener.local_addr()?
     );
-    tap.run(listener, interrupt_token()).await;
-    Ok(ExitCode::SUCCESS)
+    let incomplete = tap.run(listener, interrupt_token()).await;
+    if incomplete.is_empty() {
+        return Ok(ExitCode::SUCCESS);
+    }
+    for file in &incomplete {
+        eprintln!("ucc tap: error: the recording is incomplete: {file}");
+    }
+    Ok(ExitCode::FAILURE)
 }
 
 fn print_summary(summary: &Summary, settings: &RunSettings) {

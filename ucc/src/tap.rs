@@ -11,7 +11,9 @@
 //! the tap); lines longer than [`MAX_LINE`] are forwarded but neither checked nor recorded;
 //! the log shows a peer's text escaped and cut, and each kind of warning about one session
 //! in full 8 times, then at powers of two (`usar_proto::shown`); a recording that cannot be
-//! written is reported once, naming the file, and the session goes on unrecorded.
+//! written is reported once, naming the file, and the session goes on unrecorded; at exit
+//! [`Tap::run`] returns the recordings that are incomplete, and the program names them and
+//! exits with status 1.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -96,9 +98,15 @@ impl Tap {
     }
 
     /// Accepts clients on `listener` and connects each to the upstream server, until
-    /// `shutdown`.
-    pub(crate) async fn run(mut self, listener: TcpListener, shutdown: CancellationToken) {
+    /// `shutdown`. Returns the recordings that are incomplete (a file that could not be
+    /// created or written), each as `FILE: why`.
+    pub(crate) async fn run(
+        mut self,
+        listener: TcpListener,
+        shutdown: CancellationToken,
+    ) -> Vec<String> {
         let tracker = TaskTracker::new();
+        let incomplete = Incomplete::default();
         let open = Arc::new(AtomicUsize::new(0));
         let (mut refused, mut failed_accepts) = (Repeats::default(), Repeats::default());
         let mut connections = 0;
@@ -136,14 +144,20 @@ impl Tap {
             let upstream = self.upstream.clone();
             let token = shutdown.child_token();
             let open = Arc::clone(&open);
+            let incomplete = Arc::clone(&incomplete);
             tracker.spawn(async move {
                 info!(%peer, upstream, record = %path.display(), "tapping");
+                let recording = Arc::new(Mutex::new(Recording::create(&path, first, incomplete)));
                 tokio::select! {
                     _ = token.cancelled() => {}
-                    result = tap_one(client, &upstream, &path, first) => match result {
+                    result = tap_one(client, &upstream, &recording) => match result {
                         Ok(()) => info!(%peer, "connection closed"),
                         Err(error) => warn!(%peer, %error, "connection ended"),
                     },
+                }
+                // Also when stopped: what is buffered is written, or the failure is noted.
+                if let Ok(mut r) = recording.lock() {
+                    r.with(RecordWriter::flush);
                 }
                 open.fetch_sub(1, Ordering::AcqRel);
             });
@@ -157,17 +171,32 @@ impl Tap {
         }
         tracker.close();
         tracker.wait().await;
+        // A session cancelled in the middle of a write has ended by now.
+        let mut incomplete = incomplete.lock().map(|l| l.clone()).unwrap_or_default();
+        if self.first.is_some() {
+            // Never used: an empty recording of its header, flushed now.
+            if let Some(mut first) = self.first.take()
+                && let Err(error) = first.flush()
+            {
+                incomplete.insert(0, format!("{}: {error}", self.record.display()));
+            }
+        }
+        incomplete
     }
 }
 
+/// The recordings that are incomplete, as `FILE: why`.
+type Incomplete = Arc<Mutex<Vec<String>>>;
+
 /// One session's recording: written until the first error, which is reported once (the
-/// file is cut back to whole lines).
+/// file is cut back to whole lines) and noted in `incomplete`.
 struct Recording {
     file: Option<RecordFile>,
+    incomplete: Incomplete,
 }
 
 impl Recording {
-    fn create(path: &Path, first: Option<RecordWriter>) -> Self {
+    fn create(path: &Path, first: Option<RecordWriter>, incomplete: Incomplete) -> Self {
         let file = match first {
             Some(w) => Some(RecordFile::new(w, path)),
             None => match RecordFile::create(path) {
@@ -175,11 +204,14 @@ impl Recording {
                 Err(error) => {
                     warn!(file = %path.display(), %error,
                         "cannot create the recording; this connection is forwarded unrecorded");
+                    if let Ok(mut list) = incomplete.lock() {
+                        list.push(format!("{}: {error}", path.display()));
+                    }
                     None
                 }
             },
         };
-        Self { file }
+        Self { file, incomplete }
     }
 
     /// Runs `write` on the writer; on its first error, says so and stops recording.
@@ -190,6 +222,9 @@ impl Recording {
             warn!(file = %file.path().display(), error = %stopped.error,
                 kept_bytes = stopped.kept.as_ref().ok().copied(),
                 "cannot write the recording; it ends here (whole lines kept), the rest of this connection is not recorded");
+            if let Ok(mut list) = self.incomplete.lock() {
+                list.push(format!("{}: {}", file.path().display(), stopped.error));
+            }
         }
     }
 }
@@ -197,27 +232,22 @@ impl Recording {
 async fn tap_one(
     client: TcpStream,
     upstream: &str,
-    path: &Path,
-    first: Option<RecordWriter>,
+    recording: &Arc<Mutex<Recording>>,
 ) -> std::io::Result<()> {
     let server = TcpStream::connect(upstream)
         .await
         .map_err(|e| std::io::Error::new(e.kind(), format!("cannot connect to {upstream}: {e}")))?;
     let _ = (client.set_nodelay(true), server.set_nodelay(true));
-    let recording = Arc::new(Mutex::new(Recording::create(path, first)));
     let (client_read, client_write) = client.into_split();
     let (server_read, server_write) = server.into_split();
-    let mut up = Checker::new(Direction::Client, recording.clone());
-    let mut down = Checker::new(Direction::Server, recording.clone());
+    let mut up = Checker::new(Direction::Client, Arc::clone(recording));
+    let mut down = Checker::new(Direction::Server, Arc::clone(recording));
     let result = tokio::select! {
         r = pump(client_read, server_write, &mut up) => r,
         r = pump(server_read, client_write, &mut down) => r,
     };
     up.summarise();
     down.summarise();
-    if let Ok(mut r) = recording.lock() {
-        r.with(RecordWriter::flush);
-    }
     result
 }
 
@@ -383,7 +413,7 @@ mod tests {
         // Give the tap a moment to see the close, then stop everything.
         tokio::time::sleep(std::time::Duration::from_millis(200)).await;
         shutdown.cancel();
-        tap.await.unwrap();
+        assert!(tap.await.unwrap().is_empty(), "every recording is whole");
         server.await.unwrap().unwrap();
 
         let text = std::fs::read_to_string(&record).unwrap();

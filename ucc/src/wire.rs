@@ -17,9 +17,10 @@
 //!   all of it: a server line whose typed form prints back to other bytes (`{Range 4.5}`
 //!   would print as `4.5000`), or a command with a key its type does not have (`INIT ...
 //!   {Battery 3600}`), a number or vector that cannot be read, a boolean that is not exactly
-//!   `true`/`false`, or text outside braces, decodes in the generic form (`Other`: the word
-//!   and every key and value as text), which encodes back to the same line (server lines
-//!   byte for byte, commands with canonical spacing).
+//!   `true`/`false`, text outside braces, or a number beyond what UDK's 32-bit floats hold
+//!   (`1e308`, which the printer holds to `f32::MAX`), decodes in the generic form (`Other`:
+//!   the word and every key and value as text), which encodes back to the same line (server
+//!   lines byte for byte, commands with canonical spacing).
 //! * A command value that is not a number where a number belongs (`DRIVE {LinearVelocity
 //!   abc}`) is kept as text and reported (`line N: ...`); so are lines that cannot be read
 //!   or converted. Both functions return the number of lines reported (the program exits
@@ -29,15 +30,23 @@
 //!   lone `\r`, and each output line ends the way its input line did (so `decode | encode`
 //!   gives CRLF lines back as CRLF). A line longer than [`MAX_LINE`] bytes (the server's
 //!   limit; [`MAX_JSON_LINE`] for `encode`) is skipped without being stored and reported
-//!   with its number and length. Bytes that are not UTF-8 are read lossily.
-//! * `encode` refuses a message that would print a control character other than TAB (a
-//!   `\r\n` inside a value would inject a second line), naming the line.
+//!   with its number and length.
+//! * `decode` stops, with exit status 1, where its input stops being the protocol, naming
+//!   the line and the byte offset in the input (`line 3, byte 112: not the protocol: ...`):
+//!   a line that is not UTF-8, holds a control character other than TAB, or does not begin
+//!   with a message word (an ASCII letter, then letters, digits or `_`) followed by nothing
+//!   or a `{` (`hello world`, `x#!`, binary garbage). Unknown message words (`MULTIDRIVE
+//!   {...}`, `TEST`) are the protocol.
+//! * `encode` refuses a message whose text value holds a brace or a control character (it
+//!   would add a field or a line): commands by `Command::check`, server messages by the same
+//!   rule on every text value; and a message that would print a control character other
+//!   than TAB; naming the line and the key. Bytes of `encode`'s input that are not UTF-8 are
+//!   a JSON error of their line.
 
-use std::borrow::Cow;
 use std::io::{self, BufRead, Write};
 
 use serde::{Deserialize, Serialize};
-use usar_proto::{Command, Deviation, Message, ServerMessage};
+use usar_proto::{Command, Deviation, Message, ServerMessage, TextError};
 
 /// The longest protocol line `decode` reads: the server's limit
 /// (`usar_proto::codec::DEFAULT_MAX_LINE`, 64 KiB).
@@ -111,6 +120,13 @@ impl WireLine {
         {
             lossy = true;
         }
+        // A number the printer holds to UDK's range (`1e308`): the typed form would change it.
+        if !lossy
+            && !matches!(parsed.message, Command::Other(_))
+            && Command::parse(&parsed.message.to_string())?.message != parsed.message
+        {
+            lossy = true;
+        }
         let command = if lossy {
             Command::Other(generic)
         } else {
@@ -131,9 +147,9 @@ impl std::fmt::Display for WireLine {
 
 /// One line of input.
 enum Item<'a> {
-    /// A line: its text and its terminator (`"\r\n"`, `"\n"`, `"\r"`, or `""` at the end of
+    /// A line: its bytes and its terminator (`"\r\n"`, `"\n"`, `"\r"`, or `""` at the end of
     /// the input).
-    Line(Cow<'a, str>, &'static str),
+    Line(&'a [u8], &'static str),
     /// A line longer than the limit: how many bytes it had (its text was not kept).
     TooLong(u64),
 }
@@ -147,6 +163,8 @@ struct Lines<R> {
     length: u64,
     /// 1-based number of the last line returned.
     number: usize,
+    /// Bytes of the input consumed so far.
+    consumed: u64,
 }
 
 impl<R: BufRead> Lines<R> {
@@ -157,6 +175,7 @@ impl<R: BufRead> Lines<R> {
             line: Vec::new(),
             length: 0,
             number: 0,
+            consumed: 0,
         }
     }
 
@@ -181,6 +200,11 @@ impl<R: BufRead> Lines<R> {
         }
     }
 
+    /// The offset in the input of the next line's first byte.
+    fn start_of_next(&self) -> u64 {
+        self.consumed
+    }
+
     /// The next line with its 1-based number, `None` at the end of the input.
     fn next(&mut self) -> io::Result<Option<(usize, Item<'_>)>> {
         self.line.clear();
@@ -197,17 +221,20 @@ impl<R: BufRead> Lines<R> {
                 let n = buf.len();
                 Self::keep(&mut self.line, &mut self.length, self.limit, buf);
                 self.input.consume(n);
+                self.consumed += n as u64;
                 continue;
             };
             let ending = buf[i];
             Self::keep(&mut self.line, &mut self.length, self.limit, &buf[..i]);
             self.input.consume(i + 1);
+            self.consumed += i as u64 + 1;
             if ending == b'\n' {
                 break "\n";
             }
             // A CR: one more byte tells CR LF from a lone CR.
             if Self::fill(&mut self.input)?.first() == Some(&b'\n') {
                 self.input.consume(1);
+                self.consumed += 1;
                 break "\r\n";
             }
             break "\r";
@@ -216,36 +243,102 @@ impl<R: BufRead> Lines<R> {
         let item = if self.length > self.limit as u64 {
             Item::TooLong(self.length)
         } else {
-            Item::Line(String::from_utf8_lossy(&self.line), end)
+            Item::Line(&self.line, end)
         };
         Ok(Some((self.number, item)))
     }
 }
 
-/// Calls `each(line_number, text, terminator)` for every non-blank, non-comment line, and
-/// reports on `err` what it returns, and over-long lines. Returns how many were reported.
+/// What a line gave to report.
+enum Report {
+    /// A problem with the line; the next lines go on.
+    Line(String),
+    /// The input stops being the protocol at this byte offset (of the whole input): why.
+    /// Nothing more is read.
+    Stop(u64, String),
+}
+
+/// Calls `each(text, terminator, offset)` for every non-blank, non-comment line (`offset`:
+/// of its first byte in the input), and reports on `err` what it returns, and over-long
+/// lines. Returns how many were reported.
 fn for_each_line(
     input: impl BufRead,
     limit: usize,
     mut err: impl Write,
-    mut each: impl FnMut(&str, &str) -> io::Result<Option<String>>,
+    mut each: impl FnMut(&[u8], &str, u64) -> io::Result<Option<Report>>,
 ) -> io::Result<usize> {
     let mut lines = Lines::new(input, limit);
     let mut reported = 0;
-    while let Some((number, item)) = lines.next()? {
-        let problem = match item {
-            Item::TooLong(length) => Some(format!(
-                "{length} bytes, longer than the limit of {limit}: skipped"
-            )),
-            Item::Line(text, _) if text.trim().is_empty() || text.starts_with('#') => None,
-            Item::Line(text, end) => each(&text, end)?,
+    loop {
+        let start = lines.start_of_next();
+        let Some((number, item)) = lines.next()? else {
+            break;
         };
-        if let Some(problem) = problem {
-            reported += 1;
-            writeln!(err, "line {number}: {problem}")?;
+        let report = match item {
+            Item::TooLong(length) => Some(Report::Line(format!(
+                "{length} bytes, longer than the limit of {limit}: skipped"
+            ))),
+            Item::Line(text, _) if text.trim_ascii().is_empty() || text.starts_with(b"#") => {
+                None
+            }
+            Item::Line(text, end) => each(text, end, start)?,
+        };
+        match report {
+            None => {}
+            Some(Report::Line(problem)) => {
+                reported += 1;
+                writeln!(err, "line {number}: {problem}")?;
+            }
+            Some(Report::Stop(offset, why)) => {
+                writeln!(
+                    err,
+                    "line {number}, byte {offset}: not the protocol: {why}; nothing after it \
+                     was read"
+                )?;
+                return Ok(reported + 1);
+            }
         }
     }
     Ok(reported)
+}
+
+/// The text of a line that is the protocol, or where (the byte offset in the line) and why
+/// it is not (module docs): it must be UTF-8, hold no control character but TAB, and
+/// begin with a message word (an ASCII letter, then letters, digits or `_`) followed by
+/// nothing or a `{`.
+fn protocol_text(line: &[u8]) -> Result<&str, (usize, String)> {
+    let text = std::str::from_utf8(line).map_err(|e| {
+        let at = e.valid_up_to();
+        (at, format!("the byte 0x{:02x} is not UTF-8", line[at]))
+    })?;
+    if let Some((at, c)) = text
+        .char_indices()
+        .find(|(_, c)| c.is_control() && *c != '\t')
+    {
+        return Err((at, format!("the control character {c:?}")));
+    }
+    let begin = text.len() - text.trim_start().len();
+    let word = text[begin..]
+        .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .map_or(text.len(), |n| begin + n);
+    let next = text[word..]
+        .find(|c: char| !c.is_whitespace())
+        .map(|n| word + n);
+    let starts_with_letter = text[begin..].starts_with(|c: char| c.is_ascii_alphabetic());
+    match next {
+        _ if !starts_with_letter => Err((
+            begin,
+            "a line begins with its message word (a letter, then letters, digits or _)".into(),
+        )),
+        Some(at) if !text[at..].starts_with('{') => {
+            let found: String = text[at..].chars().take(20).collect();
+            Err((
+                at,
+                format!("{found:?} where the message word ends or a `{{` begins"),
+            ))
+        }
+        _ => Ok(text),
+    }
 }
 
 /// `ucc decode`: protocol lines to JSON objects (or, with `print`, to printed lines).
@@ -256,10 +349,14 @@ pub(crate) fn decode(
     err: impl Write,
     print: bool,
 ) -> io::Result<usize> {
-    let reported = for_each_line(input, MAX_LINE, err, |line, end| {
+    let reported = for_each_line(input, MAX_LINE, err, |line, end, start| {
+        let line = match protocol_text(line) {
+            Ok(text) => text,
+            Err((at, why)) => return Ok(Some(Report::Stop(start + at as u64, why))),
+        };
         let (m, problems) = match WireLine::parse(line) {
             Ok(parsed) => parsed,
-            Err(e) => return Ok(Some(e.to_string())),
+            Err(e) => return Ok(Some(Report::Line(e.to_string()))),
         };
         if print {
             write!(out, "{m}")?;
@@ -267,10 +364,46 @@ pub(crate) fn decode(
             serde_json::to_writer(&mut out, &m).map_err(io::Error::other)?;
         }
         out.write_all(end.as_bytes())?;
-        Ok((!problems.is_empty()).then(|| problems.join("; ")))
+        Ok((!problems.is_empty()).then(|| Report::Line(problems.join("; "))))
     })?;
     out.flush()?;
     Ok(reported)
+}
+
+/// Why `m` cannot be printed into one line of its own: a text value holding a brace or a
+/// control character (it would add a field or a line). Commands are checked by
+/// [`Command::check`]; server messages by the same rule on every text value (`verbatim`, a
+/// whole line kept as read, may hold braces).
+fn unprintable(m: &WireLine) -> Option<String> {
+    fn walk(word: &str, key: &str, value: &serde_json::Value) -> Result<(), TextError> {
+        match value {
+            serde_json::Value::String(s) if key == "verbatim" => {
+                TextError::check(word, key, &s.replace(['{', '}'], ""))
+            }
+            serde_json::Value::String(s) => TextError::check(word, key, s),
+            serde_json::Value::Array(items) => items.iter().try_for_each(|v| walk(word, key, v)),
+            serde_json::Value::Object(fields) => {
+                fields.iter().try_for_each(|(k, v)| walk(word, k, v))
+            }
+            _ => Ok(()),
+        }
+    }
+    let checked = match m {
+        WireLine::Client(c) => c.check(),
+        WireLine::Server(s) => {
+            let text = s.to_string();
+            let word = Message::word(&text);
+            serde_json::to_value(s)
+                .map_err(|e| TextError {
+                    command: word.to_owned(),
+                    key: String::new(),
+                    value: String::new(),
+                    what: e.to_string(),
+                })
+                .and_then(|v| walk(word, "", &v))
+        }
+    };
+    checked.err().map(|e| e.to_string())
 }
 
 /// `ucc encode`: JSON objects (as written by [`decode`]) to protocol lines. Returns the
@@ -281,20 +414,23 @@ pub(crate) fn encode(
     err: impl Write,
 ) -> io::Result<usize> {
     let mut text = String::new();
-    let reported = for_each_line(input, MAX_JSON_LINE, err, |line, end| {
-        let m = match serde_json::from_str::<WireLine>(line) {
+    let reported = for_each_line(input, MAX_JSON_LINE, err, |line, end, _| {
+        let m = match serde_json::from_slice::<WireLine>(line) {
             Ok(m) => m,
-            Err(e) => return Ok(Some(e.to_string())),
+            Err(e) => return Ok(Some(Report::Line(e.to_string()))),
         };
+        if let Some(problem) = unprintable(&m) {
+            return Ok(Some(Report::Line(format!("{problem}: not written"))));
+        }
         text.clear();
         match &m {
             WireLine::Client(c) => c.write_to(&mut text),
             WireLine::Server(s) => s.write_to(&mut text),
         }
         if let Some(c) = text.chars().find(|c| c.is_control() && *c != '\t') {
-            return Ok(Some(format!(
+            return Ok(Some(Report::Line(format!(
                 "the message would print the control character {c:?} into the line: not written"
-            )));
+            ))));
         }
         out.write_all(text.as_bytes())?;
         out.write_all(end.as_bytes())?;
@@ -302,6 +438,53 @@ pub(crate) fn encode(
     })?;
     out.flush()?;
     Ok(reported)
+}
+
+/// A reader or writer whose errors name what it reads or writes (`standard output`), keeping
+/// their kind (a closed pipe stays [`io::ErrorKind::BrokenPipe`]).
+pub(crate) struct Named<T> {
+    inner: T,
+    name: &'static str,
+}
+
+impl<T> Named<T> {
+    pub(crate) fn new(inner: T, name: &'static str) -> Self {
+        Self { inner, name }
+    }
+
+    fn error(&self, verb: &str, e: io::Error) -> io::Error {
+        io::Error::new(e.kind(), format!("cannot {verb} {}: {e}", self.name))
+    }
+}
+
+impl<W: Write> Write for Named<W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.inner.write(buf).map_err(|e| self.error("write", e))
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.inner.flush().map_err(|e| self.error("write", e))
+    }
+}
+
+impl<R: io::Read> io::Read for Named<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        self.inner.read(buf).map_err(|e| self.error("read", e))
+    }
+}
+
+impl<R: BufRead> BufRead for Named<R> {
+    fn fill_buf(&mut self) -> io::Result<&[u8]> {
+        // Asked twice: the borrow checker cannot see that the error path does not borrow.
+        if let Err(e) = self.inner.fill_buf() {
+            return Err(self.error("read", e));
+        }
+        self.inner.fill_buf()
+    }
+
+    fn consume(&mut self, n: usize) {
+        self.inner.consume(n);
+    }
 }
 
 #[cfg(test)]

@@ -610,7 +610,7 @@ fn no_colour_codes_off_a_terminal() {
     assert!(!log.contains(&0x1b), "escape codes in the log file");
 }
 
-/// The defect: `ucc decode | head` printed a broken-pipe error.
+/// The defect: `ucc decode | head` printed a broken-pipe error (#56: and exited 0).
 #[test]
 fn decode_into_a_closed_pipe_ends_quietly() {
     use std::io::{BufRead, Write};
@@ -637,10 +637,11 @@ fn decode_into_a_closed_pipe_ends_quietly() {
         .read_line(&mut first)
         .unwrap();
     assert!(first.contains("Sta"), "{first}");
-    // The reader (like `head`) is gone now.
+    // The reader (like `head`) is gone now: a quiet end with the status of a program ended
+    // by SIGPIPE (as `cat` would be), never a panic or a message.
     let out = child.wait_with_output().unwrap();
     writer.join().unwrap();
-    assert_eq!(out.status.code(), Some(0));
+    assert_eq!(out.status.code(), Some(141));
     assert!(
         out.stderr.is_empty(),
         "{}",
@@ -916,4 +917,50 @@ fn randomize_draws_per_iteration_and_writes_the_draws() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(stderr.contains("ranges.toml: line 2: key `kf`"), "{stderr}");
+}
+
+/// The defect (#56): on a full disk `ucc run` exited 1, but its results.csv said `ok` for the
+/// iteration whose files were not written (they were written after its row). A file of the
+/// run is made /dev/full here (writing it fails with ENOSPC).
+#[test]
+fn results_never_say_ok_for_an_iteration_whose_files_were_not_written() {
+    for file in ["UCCLOG-01-trajectory.csv", "UCCLOG-01.log", "UCCLOG-01-map.png"] {
+        let dir = scratch("full-file");
+        std::os::unix::fs::symlink("/dev/full", dir.join(file)).unwrap();
+        let out = ucc()
+            .args(["run", "--local", "--start", "0,0,-1", "--goto", "2,0,-1"])
+            .args(["--quiet", "--force", "--log-dir"])
+            .arg(&dir)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{file}: {stderr}");
+        // `cannot write FILE: No space left ...` (`cannot draw` for a picture).
+        let named = format!("{}: No space left", dir.join(file).display());
+        assert!(stderr.contains(&named), "{file}: {stderr}");
+        let results = std::fs::read_to_string(dir.join("UCCLOG-results.csv")).unwrap();
+        let row = results.lines().nth(1).unwrap_or_default();
+        assert!(
+            row.starts_with("1,failed,") && row.contains(&named),
+            "{file}: {results}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+    // The table itself on a full disk: the exit status and the message say so.
+    let dir = scratch("full-results");
+    let results = dir.join("UCCLOG-results.csv");
+    std::os::unix::fs::symlink("/dev/full", &results).unwrap();
+    let out = ucc()
+        .args(["run", "--local", "--start", "0,0,-1", "--goto", "2,0,-1"])
+        .args(["--quiet", "--force", "--pictures", "none", "--log-dir"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!("cannot write {}: No space left", results.display())),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -585,3 +585,212 @@ fn a_full_disk_ends_a_runs_recording_at_a_whole_line_and_the_error_says_it_once(
     );
     assert_whole_lines(&record);
 }
+
+/// Runs `ucc args` with `input` on stdin: exit status, stdout, stderr.
+fn pipe(args: &[&str], input: &[u8]) -> (Option<i32>, String, String) {
+    let mut child = ucc()
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let input = input.to_vec();
+    // A program that stops reading early closes the pipe: not an error here.
+    let writer = std::thread::spawn(move || {
+        let _ = stdin.write_all(&input);
+    });
+    let out = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The defect (#56): `ucc decode` exited 0 on random bytes, reading them lossily as unknown
+/// commands. It stops where the input stops being the protocol, naming the line and the
+/// byte offset; real captures, unknown message words included, still decode.
+#[test]
+fn decode_stops_where_the_input_stops_being_the_protocol() {
+    // Random bytes (a fixed generator: the same bytes every run).
+    let mut x = 0x2545_f491_4f6c_dd1du64;
+    let random: Vec<u8> = (0..100_000)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 24) as u8
+        })
+        .collect();
+    let (code, _, stderr) = pipe(&["decode"], &random);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("not the protocol") && stderr.contains(", byte "),
+        "{stderr}"
+    );
+    for (input, at) in [
+        // Text that parses as nothing: where the message word should end.
+        (&b"STA {Time 1.0000} {Battery 99}\nhello world\n"[..], "line 2, byte 37:"),
+        (b"STA {Time 1.0000} {Battery 99}\r\nDRIVE {Left \xff}\n", "line 2, byte 44:"),
+        (b"GETSTARTPOSES\n\x1b[2J\n", "line 2, byte 14:"),
+        (b"\n  #!x\n", "line 2, byte 3:"),
+    ] {
+        let (code, stdout, stderr) = pipe(&["decode", "--print"], input);
+        assert_eq!(code, Some(1), "{stderr}");
+        assert!(
+            stderr.starts_with(&format!("{at} not the protocol")),
+            "{at}: {stderr}"
+        );
+        // What came before was decoded (the last case has only a blank line before).
+        let before = usize::from(!input.starts_with(b"\n"));
+        assert_eq!(stdout.lines().count(), before, "{stdout}");
+    }
+    // Real captures, with their unknown words (MULTIDRIVE, TEST, Com1), decode with exit 0.
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../usar-proto/tests/data/");
+    let capture = std::fs::read(format!("{data}USARcommandSample.txt")).unwrap();
+    let (code, _, stderr) = pipe(&["decode"], &capture);
+    assert_eq!((code, stderr.as_str()), (Some(0), ""));
+    let examples = std::fs::read_to_string(format!("{data}protocol_examples.txt")).unwrap();
+    let lines: String = examples
+        .lines()
+        .filter_map(|l| l.get(2..).filter(|_| !l.starts_with('#')))
+        .map(|l| format!("{l}\r\n"))
+        .collect();
+    let (code, _, stderr) = pipe(&["decode"], lines.as_bytes());
+    assert_eq!((code, stderr.as_str()), (Some(0), ""));
+}
+
+/// The defect (#56): `ucc encode` printed braces of a value as they were, so that a name
+/// could add a field (`UAV} {Location 9,9,9`) to the line.
+#[test]
+fn encode_refuses_a_value_that_would_add_a_field() {
+    let input = concat!(
+        "{\"client\":{\"Init\":{\"class_name\":\"USARBot.stsAirRobot\",\"name\":\"UAV} {Location 9,9,9\",\"location\":null,\"rotation\":null,\"start\":null}}}\n",
+        "{\"server\":{\"Nfo\":{\"GameInfo\":{\"gametype\":\"BotDeathMatch\",\"level\":\"Map} {TimeLimit 1\",\"time_limit\":20}}}}\n",
+        "{\"client\":{\"Other\":{\"kind\":\"X\",\"groups\":[{\"pairs\":[{\"key\":\"A\",\"value\":\"1}{B 2\"}]}]}}}\n",
+        "{\"client\":\"GetStartPoses\"}\n",
+    );
+    let (code, stdout, stderr) = pipe(&["encode"], input.as_bytes());
+    assert_eq!(code, Some(1), "{stderr}");
+    assert_eq!(stdout, "GETSTARTPOSES\n", "{stderr}");
+    for line in 1..=3 {
+        assert!(stderr.contains(&format!("line {line}: ")), "{stderr}");
+    }
+    assert!(
+        stderr.contains("INIT {Name ..}") && stderr.contains("a brace"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("{level ..}"), "{stderr}");
+}
+
+/// The defect (#56): `1e308` came out of `ucc decode --print` and `ucc encode` as 309 digits.
+/// UDK's floats are 32-bit: nothing longer than f32::MAX (39 digits) is printed.
+#[test]
+fn no_number_comes_out_as_hundreds_of_digits() {
+    let longest_number = |text: &str| {
+        text.split(|c: char| !c.is_ascii_digit())
+            .map(str::len)
+            .max()
+            .unwrap_or(0)
+    };
+    let (code, stdout, stderr) = pipe(
+        &["decode", "--print"],
+        b"DRIVE {Left 1e308} {Right 1}\nINIT {ClassName X} {Location 1e308,0,-1e308}\n",
+    );
+    assert_eq!((code, stderr.as_str()), (Some(0), ""));
+    assert!(longest_number(&stdout) <= 39, "{stdout}");
+    let (code, stdout, stderr) = pipe(
+        &["encode"],
+        concat!(
+            "{\"server\":{\"Sta\":{\"time\":{\"seconds\":1e308,\"decimals\":4},\"battery\":1,\"vehicle\":null,\"layout\":\"Udk\"}}}\n",
+            "{\"client\":{\"Drive\":{\"left\":-1e308,\"right\":5e-324}}}\n",
+        )
+        .as_bytes(),
+    );
+    assert_eq!((code, stderr.as_str()), (Some(0), ""));
+    assert!(longest_number(&stdout) <= 39, "{stdout}");
+    assert!(
+        stdout.starts_with("STA {Time 340282346638528859811704183484516925440.0000}"),
+        "{stdout}"
+    );
+}
+
+/// The defect (#56): a full disk under `ucc decode`'s output said "cannot read or write the
+/// lines", naming nothing.
+#[test]
+fn decode_into_a_full_disk_names_its_output() {
+    for command in ["decode", "encode"] {
+        let input: &[u8] = if command == "decode" {
+            b"STA {Time 1.0000} {Battery 99}\n"
+        } else {
+            b"{\"client\":\"GetStartPoses\"}\n"
+        };
+        let out = ucc()
+            .arg(command)
+            .stdin(Stdio::piped())
+            .stdout(std::fs::File::create("/dev/full").unwrap())
+            .stderr(Stdio::piped())
+            .spawn()
+            .and_then(|mut child| {
+                child.stdin.take().unwrap().write_all(input)?;
+                child.wait_with_output()
+            })
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("cannot write standard output: No space left"),
+            "{command}: {stderr}"
+        );
+    }
+}
+
+/// The defect (#56): `ucc tap` exited 0 after its recording could not be written. It goes on
+/// forwarding, and at exit names the incomplete recording with status 1. The recording is
+/// /dev/full (writing it fails with ENOSPC), so no mount is needed.
+#[tokio::test(flavor = "multi_thread")]
+async fn the_tap_exits_non_zero_naming_a_recording_it_could_not_write() {
+    let server = usar_server::LocalServer::start(usar_server::ServerConfig {
+        time_scale: usar_server::TimeScale::Factor(1.0),
+        ..usar_server::ServerConfig::default()
+    })
+    .await
+    .unwrap();
+    let dir = scratch("tap-dev-full");
+    let record = dir.join("session.usarlog");
+    std::os::unix::fs::symlink("/dev/full", &record).unwrap();
+    let mut tap = Tap::start(server.addr(), &dir, &record, 256, &[]);
+    let rate = healthy_rate(tap.addr, "Full", 0.0).await;
+    assert!(rate > 20.0, "the client gets {rate:.1} lines/s");
+    assert!(tap.alive(), "the tap ended");
+    let term = Command::new("kill")
+        .args(["-TERM", &tap.child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(term.success());
+    let began = Instant::now();
+    let status = loop {
+        if let Some(status) = tap.child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            began.elapsed() < Duration::from_secs(30),
+            "the tap did not end"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let log = std::fs::read_to_string(&tap.log).unwrap();
+    assert_eq!(status.code(), Some(1), "{log}");
+    assert!(
+        log.contains(&format!(
+            "ucc tap: error: the recording is incomplete: {}: No space left",
+            record.display()
+        )),
+        "{log}"
+    );
+    server.stop().await.unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -32,6 +32,17 @@
 //! print Rust's `NaN`/`inf`, FloatString prints what the f32 emulation gives with saturating
 //! conversions (the engine printed `-2147483648`-like garbage).
 //!
+//! # Huge and tiny numbers
+//!
+//! UDK holds every number in a 32-bit float: it cannot hold, so never prints, a number beyond
+//! ±3.4028235e38 (`f32::MAX`, 39 digits); such a value overflows to infinity in the engine.
+//! An f64 can be far larger (`1e308`, 309 digits). The formatters hold a finite value to the
+//! f32 range ([`udk_range`]): `1e308` prints as `f32::MAX` (`340282346638528859811704183484516925440.0000`
+//! with 4 decimals), a number every reader (ours, UDK's `atof`) reads as a number, where
+//! `inf` would read as 0 or an error. [`push_shortest`] also prints a value below the
+//! smallest f32 (1.4e-45) as `0`: no number printed here is longer than about 60 characters.
+//! Values inside the f32 range, every value the simulation prints, are untouched.
+//!
 //! All formatters append to a [`WireBuf`] (a `String`, a `Vec<u8>` or a `bytes::BytesMut`)
 //! without allocating.
 
@@ -299,8 +310,15 @@ fn fixed_decimal(v: f64, d: usize) -> Option<Decimal> {
     })
 }
 
+/// `v` held to the range of UDK's 32-bit floats (module docs): ±`f32::MAX` for a finite
+/// value beyond it; anything else unchanged.
+pub fn udk_range(v: f64) -> f64 {
+    const MAX: f64 = f32::MAX as f64;
+    if v.is_finite() { v.clamp(-MAX, MAX) } else { v }
+}
+
 /// Appends `v` rounded to `decimals` digits (C `%.Nf`): the engine's implicit float→string
-/// with 4 decimals (UT2004 used 2).
+/// with 4 decimals (UT2004 used 2); a finite value beyond the f32 range as ±`f32::MAX`.
 pub fn push_fixed(out: &mut impl WireBuf, v: f64, decimals: u8) {
     push_fixed_after(out, None, v, decimals);
 }
@@ -319,6 +337,7 @@ fn push_fixed_after(out: &mut impl WireBuf, sep: Option<u8>, v: f64, decimals: u
         }
         None => {
             t.push_to(out);
+            let v = udk_range(v);
             out.push_args(format_args!("{v:.d$}"));
         }
     }
@@ -399,8 +418,15 @@ pub fn push_float_string_list(out: &mut impl WireBuf, values: &[f64], p: u8) {
 }
 
 /// Appends Rust's shortest round-trip form (`{}`: never exponent notation), used for the
-/// numbers of client commands so that reading them back gives the same `f64`.
+/// numbers of client commands so that reading them back gives the same `f64`; a finite value
+/// beyond the f32 range as ±`f32::MAX`, one below the smallest f32 (1.4e-45) as `0` (module
+/// docs: UDK reads neither).
 pub fn push_shortest(out: &mut impl WireBuf, v: f64) {
+    let v = if v.abs() < f64::from(f32::from_bits(1)) {
+        0.0f64.copysign(v)
+    } else {
+        udk_range(v)
+    };
     if v.is_finite() && v == v.trunc() && v.abs() < 1e15 {
         if v == 0.0 && v.is_sign_negative() {
             out.push_text("-0");
@@ -466,7 +492,10 @@ mod tests {
         assert_eq!(fixed(80.0, 4), "80.0000");
         assert_eq!(fixed(-0.001, 2), "-0.00");
         assert_eq!(fixed(0.209, 2), "0.21");
-        assert_eq!(fixed(1e300, 2), format!("{:.2}", 1e300));
+        // UDK's floats are 32-bit: nothing beyond f32::MAX (#56: 1e308 printed 309 digits).
+        assert_eq!(fixed(1e300, 2), format!("{:.2}", f32::MAX));
+        assert_eq!(fixed(-1e308, 4), format!("-{:.4}", f32::MAX));
+        assert_eq!(fixed(1e38, 0), "100000000000000000000000000000000000000");
         assert_eq!(fixed(-1e17, 0), "-100000000000000000");
         assert_eq!(
             fs(-1e17, 0),
@@ -526,6 +555,12 @@ mod tests {
                     return decimal(v.is_sign_negative(), n / POW10[d], n % POW10[d], d);
                 }
             }
+            // Since #56: held to the f32 range.
+            let v = if v.is_finite() {
+                v.clamp(-f64::from(f32::MAX), f64::from(f32::MAX))
+            } else {
+                v
+            };
             format!("{v:.d$}")
         }
 
@@ -637,11 +672,38 @@ mod tests {
     #[test]
     fn shortest_never_uses_exponents() {
         let mut s = String::new();
-        for v in [1.0, 0.1, -2.5, 1e21, 1e-7, 0.0] {
+        for v in [1.0, 0.1, -2.5, 1e21, 1e-7, 0.0, 1e38, 1e-44] {
             s.clear();
             push_shortest(&mut s, v);
             assert!(!s.contains('e'), "{s}");
             assert_eq!(s.parse::<f64>().unwrap(), v);
         }
+    }
+
+    /// #56: `1e308` was printed as 309 digits, `5e-324` as 326 characters.
+    #[test]
+    fn no_number_is_printed_longer_than_udk_could() {
+        let mut s = String::new();
+        for v in [1e308, -1e308, f64::MAX, 5e-324, -1e-300, 3.5e38, 1e-46] {
+            for d in [0, 2, 4] {
+                s.clear();
+                push_fixed(&mut s, v, d);
+                assert!(s.len() <= 45, "{v:e}: {s}");
+                s.clear();
+                push_float_string(&mut s, v, d);
+                assert!(s.len() <= 45, "{v:e}: {s}");
+            }
+            s.clear();
+            push_shortest(&mut s, v);
+            assert!(s.len() <= 64, "{v:e}: {s}");
+            let back: f64 = s.parse().unwrap();
+            assert!(back.abs() <= f64::from(f32::MAX), "{v:e}: {s}");
+        }
+        s.clear();
+        push_shortest(&mut s, 1e308);
+        assert_eq!(s, "340282346638528860000000000000000000000");
+        s.clear();
+        push_shortest(&mut s, -1e-300);
+        assert_eq!(s, "-0");
     }
 }
