@@ -12,6 +12,8 @@
 //!   `FloatString`) writing into any [`format::WireBuf`];
 //! * [`codec`] (feature `codec`): the tokio-util line codecs shared by server and client;
 //! * [`image`]: the image server's binary requests and frames (port 5003), sans I/O;
+//! * [`http`]: whether a connection's first line is HTTP (a web page's request), which
+//!   every text port closes;
 //! * [`shown`]: a peer's text as a log shows it (escaped, cut) and a counter that
 //!   summarises repeated warnings;
 //! * [`wss`]: the Wireless Simulation Server's obstacle propagation model ([`wss::PathLoss`]);
@@ -34,6 +36,7 @@
 pub mod codec;
 pub mod error;
 pub mod format;
+pub mod http;
 pub mod image;
 pub mod message;
 pub mod messages;

@@ -23,7 +23,10 @@ use usar_server::{ServerArgs, ServerConfig, TimeScale};
 struct Args {
     #[command(subcommand)]
     command: Option<Sub>,
-    /// Address to listen on.
+    /// Address every port listens on (the Gamebots port, the side services and the WSS's
+    /// relay ports). The default, loopback, serves this machine only; `0.0.0.0` (or `::`)
+    /// exposes the server to the network, with no authentication: firewall it
+    /// (docs/security.md).
     #[arg(long, default_value = "127.0.0.1")]
     bind: String,
     /// TCP port (0 picks a free one).
@@ -58,12 +61,33 @@ struct Args {
     wss_port: Option<SidePort>,
     #[command(flatten)]
     world: ServerArgs,
-    /// Connections served at once; more are closed on accept.
-    #[arg(long, default_value_t = 64)]
-    max_connections: usize,
-    /// Connections served at once from one IP address; more are closed on accept.
-    #[arg(long, default_value_t = 16, value_name = "N")]
-    max_connections_per_address: usize,
+    /// Connections served at once on the Gamebots port (USARSim: 64). At the limit the
+    /// oldest connection that has not sent a complete line is closed to make room; if every
+    /// one has, the new one is closed on accept.
+    #[arg(long, default_value_t = 256, value_name = "N",
+          value_parser = clap::value_parser!(u64).range(1..))]
+    max_connections: u64,
+    /// Connections from one IP address that have not yet sent a complete line (idle); at
+    /// the limit the oldest of them is closed to make room. Connections that have sent a
+    /// line count only against --max-connections: many local clients are served.
+    #[arg(long, default_value_t = 16, value_name = "N",
+          value_parser = clap::value_parser!(u64).range(1..))]
+    max_connections_per_address: u64,
+    /// Connections each side service (image server, USARTruth, robot monitor, WSS control
+    /// port) serves at once. At the limit the oldest that has not completed a request (else
+    /// the one whose unfinished request began first) is closed to make room; if there is
+    /// none, the new one is closed on accept.
+    #[arg(long, default_value_t = 256, value_name = "N",
+          value_parser = clap::value_parser!(u64).range(1..))]
+    max_side_connections: u64,
+    /// Seconds a new connection may take to send its first complete line (request) before it
+    /// is closed: Gamebots port, USARTruth, robot monitor, WSS control port.
+    #[arg(long, default_value_t = 30.0, value_name = "SECONDS", value_parser = seconds)]
+    idle_timeout: f64,
+    /// Seconds a connection may take to finish a line (request) it has begun before it is
+    /// closed, on every port (slow senders); waiting between lines is fine.
+    #[arg(long, default_value_t = 30.0, value_name = "SECONDS", value_parser = seconds)]
+    line_timeout: f64,
     /// Robots one connection may spawn (USARSim: 1); further INITs are ignored.
     #[arg(long, default_value_t = 1, value_name = "N")]
     robots_per_connection: usize,
@@ -127,7 +151,8 @@ enum Sub {
         /// The simulator's robot monitor, HOST:PORT (USARSim: port 7435).
         #[arg(long, default_value = "127.0.0.1:7435", value_name = "HOST:PORT")]
         monitor: String,
-        /// Address to listen on.
+        /// Address to listen on, for the control port and the relay ports
+        /// (docs/security.md).
         #[arg(long, default_value = "127.0.0.1")]
         bind: String,
         /// TCP port (0 picks a free one).
@@ -142,6 +167,17 @@ enum Sub {
         /// Attenuation per wall, dB.
         #[arg(long, default_value_t = 6.325)]
         attenuation: f64,
+        /// Control connections served at once; at the limit the oldest that has not
+        /// completed a request (else the slowest sender) is closed to make room.
+        #[arg(long, default_value_t = 256, value_name = "N",
+              value_parser = clap::value_parser!(u64).range(1..))]
+        max_connections: u64,
+        /// Seconds a control connection may take to send its first complete request.
+        #[arg(long, default_value_t = 30.0, value_name = "SECONDS", value_parser = seconds)]
+        idle_timeout: f64,
+        /// Seconds a control connection may take to finish a request it has begun.
+        #[arg(long, default_value_t = 30.0, value_name = "SECONDS", value_parser = seconds)]
+        line_timeout: f64,
     },
 }
 
@@ -179,9 +215,13 @@ fn main() -> ExitCode {
         poll,
         cutoff,
         attenuation,
+        max_connections,
+        idle_timeout,
+        line_timeout,
     }) = &args.command
     {
-        return match wss(monitor, bind, *port, *poll, *cutoff, *attenuation) {
+        let limits = (*max_connections, *idle_timeout, *line_timeout);
+        return match wss(monitor, bind, *port, *poll, (*cutoff, *attenuation), limits) {
             Ok(()) => ExitCode::SUCCESS,
             Err(error) => {
                 eprintln!("usar-server wss: {error:#}");
@@ -220,9 +260,13 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("--record {}: cannot create the folder", dir.display()))?;
     }
+    let count = |n: u64| usize::try_from(n).unwrap_or(usize::MAX);
     Ok(ServerConfig {
-        max_connections: args.max_connections,
-        max_connections_per_address: args.max_connections_per_address,
+        max_connections: count(args.max_connections),
+        max_connections_per_address: count(args.max_connections_per_address),
+        side_connections: count(args.max_side_connections),
+        idle_timeout: std::time::Duration::from_secs_f64(args.idle_timeout),
+        line_timeout: std::time::Duration::from_secs_f64(args.line_timeout),
         lockstep: args.lockstep,
         lockstep_timeout: std::time::Duration::from_secs_f64(args.lockstep_timeout),
         lockstep_clients: args
@@ -301,14 +345,15 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
     })
 }
 
-/// The standalone WSS against the robot monitor at `monitor`.
+/// The standalone WSS against the robot monitor at `monitor`, with its model's cutoff and
+/// attenuation and its limits (connections, idle and line timeouts in seconds).
 fn wss(
     monitor: &str,
     bind: &str,
     port: u16,
     poll: f64,
-    cutoff: f64,
-    attenuation: f64,
+    (cutoff, attenuation): (f64, f64),
+    (max_connections, idle_timeout, line_timeout): (u64, f64, f64),
 ) -> anyhow::Result<()> {
     use std::net::ToSocketAddrs;
     let at = monitor
@@ -328,6 +373,9 @@ fn wss(
             attenuation,
             ..PathLoss::default()
         },
+        max_connections: usize::try_from(max_connections).unwrap_or(usize::MAX),
+        idle_timeout: std::time::Duration::from_secs_f64(idle_timeout),
+        line_timeout: std::time::Duration::from_secs_f64(line_timeout),
         ..WssConfig::new(at)
     };
     let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;

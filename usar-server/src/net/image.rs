@@ -22,16 +22,17 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use bytes::Bytes;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::io::AsyncWriteExt;
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::watch;
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
-use tracing::{debug, warn};
+use tracing::{debug, info, warn};
 use usar_proto::image::{self, ImageRequest, RequestParser};
 use usar_proto::shown::Repeats;
 
 use super::request::Request;
+use super::side::{Activity, Limits};
 use crate::sim::{CameraFrame, Tiles, World};
 
 /// While the world stands still, the least wall time between two captures.
@@ -50,8 +51,6 @@ pub struct ImageConfig {
     pub bgr: bool,
     /// Simulated seconds between captures while the world runs (USARSim's cameras: 15 Hz).
     pub interval: f64,
-    /// Image clients served at once; more are closed on accept.
-    pub max_clients: usize,
 }
 
 impl Default for ImageConfig {
@@ -61,7 +60,6 @@ impl Default for ImageConfig {
             legacy: true,
             bgr: true,
             interval: 1.0 / 15.0,
-            max_clients: 64,
         }
     }
 }
@@ -207,22 +205,30 @@ fn encode(config: &ImageConfig, width: u16, height: u16, rgb: &[u8]) -> Bytes {
     Bytes::from(out)
 }
 
-/// Accepts image clients until `shutdown`; each is served on its own task.
+/// Accepts image clients until `shutdown` (the side services' limits, without the idle
+/// timeout: a client may only read the frame sent on connect); each is served on its own
+/// task.
 pub(super) async fn accept(
     listener: TcpListener,
     feed: Arc<Feed>,
     wake: std::sync::mpsc::Sender<Request>,
-    config: ImageConfig,
+    (config, limits): (ImageConfig, Limits),
     shutdown: CancellationToken,
     tracker: TaskTracker,
 ) {
+    let limits = Limits {
+        idle: None,
+        ..limits
+    };
     super::side::accept(
         "image server",
         listener,
-        config.max_clients,
+        limits,
         tracker,
         shutdown,
-        move |stream, stop, spoke| serve(stream, feed.clone(), wake.clone(), config, stop, spoke),
+        move |stream, stop, activity| {
+            serve(stream, feed.clone(), wake.clone(), config, stop, activity)
+        },
     )
     .await;
 }
@@ -234,7 +240,7 @@ async fn serve(
     wake: std::sync::mpsc::Sender<Request>,
     config: ImageConfig,
     shutdown: CancellationToken,
-    spoke: Arc<AtomicBool>,
+    activity: Arc<Activity>,
 ) {
     let Ok(peer) = stream.peer_addr() else {
         return;
@@ -260,6 +266,9 @@ async fn serve(
                     }
                     Ok(n) => {
                         parser.push(&buf[..n], &mut requests);
+                        if !requests.is_empty() {
+                            activity.completed();
+                        }
                         pending.extend(requests.drain(..));
                     }
                     Err(_) => {}
@@ -311,7 +320,14 @@ async fn serve(
         }
         let read = tokio::select! {
             _ = shutdown.cancelled() => return,
-            read = stream.read(&mut buf) => read,
+            read = activity.read(&mut stream, &mut buf, parser.is_partial()) => read,
+        };
+        let read = match read {
+            Ok(read) => read,
+            Err(why) => {
+                info!(%peer, "image client: closing: {why}");
+                return;
+            }
         };
         match read {
             Ok(0) => {
@@ -324,7 +340,7 @@ async fn serve(
                 requests.clear();
                 parser.push(&buf[..n], &mut requests);
                 if !requests.is_empty() {
-                    spoke.store(true, Ordering::Relaxed);
+                    activity.completed();
                 }
                 pending.extend(requests.drain(..));
             }

@@ -20,14 +20,13 @@ pub mod wss;
 
 pub(crate) use driver::wait_of;
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::net::IpAddr;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::net::TcpListener;
-use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use tracing::{info, warn};
@@ -91,10 +90,20 @@ pub struct ServerConfig {
     pub sim: SimConfig,
     /// Simulated seconds per wall second.
     pub time_scale: TimeScale,
-    /// Connections served at once (USARSim: 64); more are closed on accept.
+    /// Connections served at once (USARSim: 64; here 256, so that a machine running a
+    /// hundred local clients is served). At the limit the oldest connection that has not
+    /// sent a complete line is closed to make room; if every one has, the new one is closed
+    /// on accept.
     pub max_connections: usize,
-    /// Connections served at once from one IP address; more are closed on accept.
+    /// Connections from one IP address that have not yet sent a complete line (idle); at the
+    /// limit the oldest of them is closed to make room. Connections that have sent a line
+    /// are bounded only by `max_connections`: many clients of one machine (loopback) are
+    /// served, and silent ones cannot lock their address out (docs/limits.md).
     pub max_connections_per_address: usize,
+    /// Connections each side service (image server, USARTruth, robot monitor, WSS control
+    /// port) serves at once; at the limit the oldest that has not completed a request (else
+    /// the slowest sender) is closed to make room, and if there is none the new one is.
+    pub side_connections: usize,
     /// Longest accepted client line in bytes; longer lines are dropped with a warning.
     pub max_line_length: usize,
     /// Chunks of output buffered per client (a tick each; at `TimeScale::Max` several ticks
@@ -109,9 +118,12 @@ pub struct ServerConfig {
     /// next tick, and a client with this many waiting is not read from until they are served
     /// (TCP back-pressure), so no client can hold up the world or grow the server's memory.
     pub requests_per_tick: usize,
-    /// A new connection that has not sent one complete line within this time is closed.
+    /// A new connection that has not sent one complete line within this time is closed (on
+    /// the Gamebots port, USARTruth, the robot monitor and the WSS's control port; an image
+    /// client may only read the frame sent on connect).
     pub idle_timeout: Duration,
-    /// A connection that has started a line and not ended it within this time is closed.
+    /// A connection that has started a line (a request) and not ended it within this time
+    /// is closed, on every port (slow senders).
     pub line_timeout: Duration,
     /// Offer lockstep (`SYNC`, docs/lockstep.md) to clients that ask. Off by default: then a
     /// `SYNC` is an unknown command like any other, and no client can hold the world.
@@ -145,8 +157,9 @@ impl Default for ServerConfig {
             robots: RobotCatalog::embedded(),
             sim: SimConfig::default(),
             time_scale: TimeScale::Factor(1.0),
-            max_connections: 64,
+            max_connections: 256,
             max_connections_per_address: 16,
+            side_connections: 256,
             max_line_length: 64 * 1024,
             client_queue: 256,
             client_buffer: 4 << 20,
@@ -260,9 +273,21 @@ pub async fn run_with(
     let (requests, inbox) = std::sync::mpsc::channel();
     // With lockstep the WSS runs on the simulated clock (docs/wss.md), called by the
     // simulation thread; without, on the wall clock, asking the robot monitor.
-    let radio = match wss_monitor {
-        Some(monitor) if config.lockstep => Some(wss::Clock::new(
-            wss::WssConfig::new(monitor),
+    let wss_config = |monitor| wss::WssConfig {
+        max_connections: config.side_connections,
+        idle_timeout: config.idle_timeout,
+        line_timeout: config.line_timeout,
+        ..wss::WssConfig::new(monitor)
+    };
+    // Relay ports listen where the control port does (`--bind`).
+    let relay_ip = match &side.wss {
+        Some(listener) => Some(listener.local_addr()?.ip()),
+        None => None,
+    };
+    let radio = match (wss_monitor, relay_ip) {
+        (Some(monitor), Some(relay_ip)) if config.lockstep => Some(wss::Clock::new(
+            wss_config(monitor),
+            relay_ip,
             requests.clone(),
             shutdown.child_token(),
         )?),
@@ -305,12 +330,17 @@ pub async fn run_with(
     };
 
     let tracker = TaskTracker::new();
+    let side_limits = side::Limits {
+        max: config.side_connections,
+        idle: Some(config.idle_timeout),
+        line: config.line_timeout,
+    };
     if let (Some(listener), Some(feed)) = (side.image, feed) {
         tracker.spawn(image::accept(
             listener,
             feed,
             requests.clone(),
-            config.image,
+            (config.image, side_limits),
             shutdown.child_token(),
             tracker.clone(),
         ));
@@ -319,7 +349,7 @@ pub async fn run_with(
         tracker.spawn(truth::serve(
             listener,
             requests.clone(),
-            tracker.clone(),
+            (tracker.clone(), side_limits),
             shutdown.child_token(),
         ));
     }
@@ -329,7 +359,7 @@ pub async fn run_with(
     if let (Some(listener), Some(monitor)) = (wall_wss, wss_monitor) {
         tracker.spawn(wss::serve(
             listener,
-            wss::WssConfig::new(monitor),
+            wss_config(monitor),
             shutdown.child_token(),
         ));
     }
@@ -337,13 +367,15 @@ pub async fn run_with(
         tracker.spawn(monitor::serve(
             listener,
             requests.clone(),
-            tracker.clone(),
+            (tracker.clone(), side_limits),
             shutdown.child_token(),
         ));
     }
-    let slots = Arc::new(Semaphore::new(config.max_connections));
-    let per_address: Arc<Mutex<HashMap<IpAddr, usize>>> = Arc::default();
     let registry: Arc<Mutex<Registry>> = Arc::default();
+    let caps = (
+        config.max_connections.max(1),
+        config.max_connections_per_address.max(1),
+    );
     let limits = session::Limits {
         max_line_length: config.max_line_length,
         client_queue: config.client_queue.max(1),
@@ -372,28 +404,11 @@ pub async fn run_with(
                 };
                 // At a limit, the oldest connection that has not sent a complete line makes
                 // room (closed); only without one is the new connection refused.
-                let max_here = config.max_connections_per_address.max(1);
-                let Some(address_slot) = AddressSlot::take(&per_address, peer.ip(), max_here)
-                    .or_else(|| {
-                        Registry::evict_quiet(&registry, Some(peer.ip()))
-                            .then(|| AddressSlot::take(&per_address, peer.ip(), max_here))
-                            .flatten()
-                    })
-                else {
-                    warn!(%peer, max = config.max_connections_per_address,
-                        "too many connections from this address, each has sent a line; closing");
-                    continue;
-                };
-                let Some(permit) = slots.clone().try_acquire_owned().ok().or_else(|| {
-                    Registry::evict_quiet(&registry, None)
-                        .then(|| slots.clone().try_acquire_owned().ok())
-                        .flatten()
-                }) else {
+                let Some(entry) = Registry::admit(&registry, peer.ip(), caps) else {
                     warn!(%peer, max = config.max_connections,
                         "too many connections, each has sent a line; closing");
                     continue;
                 };
-                let entry = Registry::add(&registry, peer.ip(), (permit, address_slot));
                 info!(%peer, "connected");
                 let _ = stream.set_nodelay(true);
                 tracker.spawn(session::serve(
@@ -438,9 +453,8 @@ impl Drop for DeathAlarm {
     }
 }
 
-/// The connections being served, oldest first, holding their shares of the limits: so
-/// that at a limit the oldest connection that has not sent a complete line can give its
-/// share to a new one at once.
+/// The connections being served, oldest first: at a limit, the oldest connection that has
+/// not sent a complete line is closed to make room for a new one (docs/limits.md).
 #[derive(Default)]
 struct Registry {
     next: u64,
@@ -449,58 +463,68 @@ struct Registry {
 
 struct Entry {
     ip: IpAddr,
-    spoke: Arc<AtomicBool>,
+    /// The client has sent a complete line.
+    spoke: bool,
     evicted: CancellationToken,
-    _slots: (OwnedSemaphorePermit, AddressSlot),
 }
 
 /// A connection's place in the [`Registry`]; its session holds it, and leaves with it.
 pub(super) struct Registered {
     registry: Arc<Mutex<Registry>>,
     id: u64,
-    /// Set by the session once the client has sent a complete line.
-    pub(super) spoke: Arc<AtomicBool>,
     /// Cancelled when the connection is closed to make room for a new one.
     pub(super) evicted: CancellationToken,
 }
 
+fn lock(registry: &Mutex<Registry>) -> std::sync::MutexGuard<'_, Registry> {
+    registry.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 impl Registry {
-    fn add(
+    /// A place for a new connection from `ip` under the limits `(max, max_idle)`: at most
+    /// `max` connections in all, at most `max_idle` from one address that have not sent a
+    /// complete line. At either limit the oldest connection that has not sent one (from
+    /// `ip`, for the second) is closed to make room; `None` when every connection has.
+    fn admit(
         registry: &Arc<Mutex<Self>>,
         ip: IpAddr,
-        slots: (OwnedSemaphorePermit, AddressSlot),
-    ) -> Registered {
-        let mut r = registry.lock().unwrap_or_else(|e| e.into_inner());
+        (max, max_idle): (usize, usize),
+    ) -> Option<Registered> {
+        let mut r = lock(registry);
+        let idle_here = r.live.values().filter(|e| e.ip == ip && !e.spoke).count();
+        if idle_here >= max_idle {
+            r.evict_quiet(Some(ip));
+        }
+        if r.live.len() >= max && !r.evict_quiet(None) {
+            return None;
+        }
         let id = r.next;
         r.next += 1;
-        let (spoke, evicted) = (Arc::new(AtomicBool::new(false)), CancellationToken::new());
+        let evicted = CancellationToken::new();
         r.live.insert(
             id,
             Entry {
                 ip,
-                spoke: spoke.clone(),
+                spoke: false,
                 evicted: evicted.clone(),
-                _slots: slots,
             },
         );
-        Registered {
+        Some(Registered {
             registry: registry.clone(),
             id,
-            spoke,
             evicted,
-        }
+        })
     }
 
     /// Closes the oldest connection (from `ip`, if given) that has not sent a complete line,
-    /// giving its shares back at once; `false` if there is none.
-    fn evict_quiet(registry: &Arc<Mutex<Self>>, ip: Option<IpAddr>) -> bool {
-        let mut r = registry.lock().unwrap_or_else(|e| e.into_inner());
-        let oldest = r
+    /// giving its place back at once; `false` if there is none.
+    fn evict_quiet(&mut self, ip: Option<IpAddr>) -> bool {
+        let oldest = self
             .live
             .iter()
-            .find(|(_, e)| ip.is_none_or(|ip| e.ip == ip) && !e.spoke.load(Ordering::SeqCst))
+            .find(|(_, e)| ip.is_none_or(|ip| e.ip == ip) && !e.spoke)
             .map(|(id, _)| *id);
-        let Some(entry) = oldest.and_then(|id| r.live.remove(&id)) else {
+        let Some(entry) = oldest.and_then(|id| self.live.remove(&id)) else {
             return false;
         };
         entry.evicted.cancel();
@@ -508,44 +532,19 @@ impl Registry {
     }
 }
 
+impl Registered {
+    /// The client has sent a complete line: it no longer counts against its address's
+    /// limit of idle connections, and is not closed to make room.
+    pub(super) fn spoke(&self) {
+        if let Some(entry) = lock(&self.registry).live.get_mut(&self.id) {
+            entry.spoke = true;
+        }
+    }
+}
+
 impl Drop for Registered {
     fn drop(&mut self) {
-        let mut r = self.registry.lock().unwrap_or_else(|e| e.into_inner());
-        r.live.remove(&self.id);
-    }
-}
-
-/// One connection's share of its address's limit; given back when dropped.
-#[derive(Debug)]
-struct AddressSlot {
-    counts: Arc<Mutex<HashMap<IpAddr, usize>>>,
-    ip: IpAddr,
-}
-
-impl AddressSlot {
-    fn take(counts: &Arc<Mutex<HashMap<IpAddr, usize>>>, ip: IpAddr, max: usize) -> Option<Self> {
-        let mut map = counts.lock().unwrap_or_else(|e| e.into_inner());
-        let n = map.entry(ip).or_insert(0);
-        if *n >= max {
-            return None;
-        }
-        *n += 1;
-        Some(Self {
-            counts: counts.clone(),
-            ip,
-        })
-    }
-}
-
-impl Drop for AddressSlot {
-    fn drop(&mut self) {
-        let mut map = self.counts.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(n) = map.get_mut(&self.ip) {
-            *n -= 1;
-            if *n == 0 {
-                map.remove(&self.ip);
-            }
-        }
+        lock(&self.registry).live.remove(&self.id);
     }
 }
 

@@ -88,14 +88,14 @@ fn point(text: &str) -> Option<[f64; 3]> {
 pub(super) async fn serve(
     listener: TcpListener,
     requests: Sender<Request>,
-    tracker: TaskTracker,
+    (tracker, limits): (TaskTracker, side::Limits),
     shutdown: CancellationToken,
 ) {
     side::serve_lines(
         "robot monitor",
         listener,
         requests,
-        tracker,
+        (tracker, limits),
         shutdown,
         |world, line| {
             // A blank line gets no answer; an answer ends with CR LF.

@@ -94,17 +94,26 @@ pub(super) async fn serve(
             };
             let item = match tokio::time::timeout(wait, lines.next()).await {
                 Ok(Some(item)) => item,
-                Ok(None) => return "disconnected",
-                Err(_) if first => return "closing: no complete line in time",
+                Ok(None) => return Some("disconnected"),
+                Err(_) if first => return Some("closing: no complete line in time"),
                 // Waiting between lines is fine; a line left half-sent is not.
                 Err(_) if lines.read_buffer().is_empty() && !lines.decoder().skipping() => {
                     continue;
                 }
-                Err(_) => return "closing: line not finished in time",
+                Err(_) => return Some("closing: line not finished in time"),
             };
             if first {
                 first = false;
-                registered.spoke.store(true, Ordering::SeqCst);
+                // A web page's request (docs/security.md): none of its lines is served.
+                if let Ok(Ok(line)) = &item
+                    && usar_proto::http::looks_like_http(line.as_bytes())
+                {
+                    warn!(%peer, line = %Shown(line),
+                        "closing: the first line is HTTP (a web page's request?), not the \
+                         Gamebots protocol; nothing of this connection is served");
+                    return None;
+                }
+                registered.spoke();
             }
             let line = match item {
                 Ok(Ok(line)) => read_line(line, peer, limits, &mut complaints),
@@ -116,12 +125,12 @@ pub(super) async fn serve(
                 }
                 Err(error) => {
                     debug!(%peer, %error, "read failed");
-                    return "disconnected: read failed";
+                    return Some("disconnected: read failed");
                 }
             };
             // Back-pressure: wait until the driver has served enough of this client's lines.
             let Ok(permit) = backlog.clone().acquire_owned().await else {
-                return "disconnected";
+                return Some("disconnected");
             };
             let request = Request::Line {
                 client,
@@ -129,7 +138,7 @@ pub(super) async fn serve(
                 permit,
             };
             if requests.send(request).is_err() {
-                return "closing: simulation stopped";
+                return Some("closing: simulation stopped");
             }
         }
     };
@@ -147,7 +156,9 @@ pub(super) async fn serve(
         _ = registered.evicted.cancelled() => warn!(%peer,
             "closing: a connection limit was reached and this was the oldest connection \
              that had not sent a line"),
-        why = reader => info!(%peer, "{why}"),
+        why = reader => if let Some(why) = why {
+            info!(%peer, "{why}");
+        },
         result = &mut writer => if let Err(error) = result {
             info!(%peer, %error, "disconnected: write failed");
         },

@@ -118,14 +118,14 @@ pub fn reply(world: &World, line: &str) -> String {
 pub(super) async fn serve(
     listener: TcpListener,
     requests: Sender<Request>,
-    tracker: TaskTracker,
+    (tracker, limits): (TaskTracker, side::Limits),
     shutdown: CancellationToken,
 ) {
     side::serve_lines(
         "USARTruth",
         listener,
         requests,
-        tracker,
+        (tracker, limits),
         shutdown,
         |world, line| Some(reply(world, line)),
     )

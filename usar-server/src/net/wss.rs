@@ -36,10 +36,11 @@ use tracing::{debug, info, warn};
 pub use usar_proto::wss::PathLoss;
 
 use super::request::Request;
+use super::side::Activity;
 use crate::sim::World;
 
-/// The WSS's settings: its obstacle propagation model (defaults as the original's) and the
-/// monitor it polls.
+/// The WSS's settings: its obstacle propagation model (defaults as the original's), the
+/// monitor it polls and the limits of its control port (docs/limits.md).
 #[derive(Debug, Clone)]
 pub struct WssConfig {
     /// The robot monitor to ask (USARSim: port 7435).
@@ -49,6 +50,15 @@ pub struct WssConfig {
     /// How often positions are polled and links broken or resumed: wall time for
     /// [`serve`], simulated time for a [`Clock`].
     pub poll: Duration,
+    /// Control connections served at once; at the limit, the oldest that has not completed
+    /// a request (else the slowest sender) is closed to make room.
+    pub max_connections: usize,
+    /// A control connection that has not completed a request this long after connecting
+    /// is closed.
+    pub idle_timeout: Duration,
+    /// A control connection that has begun a request and not ended it within this time is
+    /// closed.
+    pub line_timeout: Duration,
 }
 
 impl WssConfig {
@@ -58,6 +68,9 @@ impl WssConfig {
             monitor,
             model: PathLoss::default(),
             poll: Duration::from_secs(1),
+            max_connections: 256,
+            idle_timeout: Duration::from_secs(30),
+            line_timeout: Duration::from_secs(30),
         }
     }
 }
@@ -215,6 +228,8 @@ fn pair(a: &str, b: &str) -> (String, String) {
 /// The WSS: its state and settings.
 struct Wss {
     config: WssConfig,
+    /// Where relay ports listen: the control port's address (`--bind`).
+    relay_ip: IpAddr,
     state: Mutex<State>,
     relayed: Arc<Semaphore>,
     shutdown: CancellationToken,
@@ -238,9 +253,15 @@ const NEWS: mio::Token = mio::Token(0);
 const STOP: mio::Token = mio::Token(1);
 
 impl Wss {
-    fn new(config: WssConfig, shutdown: CancellationToken, gate: Option<Gate>) -> Self {
+    fn new(
+        config: WssConfig,
+        relay_ip: IpAddr,
+        shutdown: CancellationToken,
+        gate: Option<Gate>,
+    ) -> Self {
         Self {
             config,
+            relay_ip,
             state: Mutex::new(State::default()),
             relayed: Arc::new(Semaphore::new(MAX_RELAYED)),
             shutdown,
@@ -250,27 +271,38 @@ impl Wss {
 }
 
 /// Serves the WSS on the wall clock on `listener` until `shutdown`, asking the robot
-/// monitor `config.monitor` every `config.poll` of wall time.
+/// monitor `config.monitor` every `config.poll` of wall time. Relay ports listen on the
+/// listener's address.
 pub async fn serve(listener: TcpListener, config: WssConfig, shutdown: CancellationToken) {
-    let wss = Arc::new(Wss::new(config, shutdown, None));
+    let relay_ip = match listener.local_addr() {
+        Ok(at) => at.ip(),
+        Err(error) => {
+            warn!(%error, "WSS: the control port has no address; not serving");
+            return;
+        }
+    };
+    let wss = Arc::new(Wss::new(config, relay_ip, shutdown, None));
     tokio::spawn(poll(wss.clone()));
     serve_control(listener, wss).await;
 }
 
 /// Serves the control connections of `wss` on `listener` until its shutdown.
 async fn serve_control(listener: TcpListener, wss: Arc<Wss>) {
-    // The side servers' accept loop: at most 64 control connections, the oldest that has
-    // not completed a request closed to make room.
+    // The side servers' accept loop and limits.
     let tracker = tokio_util::task::TaskTracker::new();
-    let max = super::side::MAX_CONNECTIONS;
+    let limits = super::side::Limits {
+        max: wss.config.max_connections,
+        idle: Some(wss.config.idle_timeout),
+        line: wss.config.line_timeout,
+    };
     let shutdown = wss.shutdown.clone();
     super::side::accept(
         "WSS",
         listener,
-        max,
+        limits,
         tracker,
         shutdown,
-        move |stream, stop, spoke| control(wss.clone(), stream, stop, spoke),
+        move |stream, stop, activity| control(wss.clone(), stream, stop, activity),
     )
     .await;
 }
@@ -289,10 +321,11 @@ pub(super) struct Clock {
 
 impl Clock {
     /// A WSS with `config`'s model whose evaluations come every `config.poll` of simulated
-    /// time; a watcher thread sends `Request::Radio` on `requests` when a relay socket has
-    /// news.
+    /// time, its relay ports on `relay_ip` (the control port's address); a watcher thread
+    /// sends `Request::Radio` on `requests` when a relay socket has news.
     pub(super) fn new(
         config: WssConfig,
+        relay_ip: IpAddr,
         requests: Sender<Request>,
         shutdown: CancellationToken,
     ) -> std::io::Result<Self> {
@@ -307,7 +340,7 @@ impl Clock {
         let seconds = config.poll.as_secs_f64();
         let gate = Gate { registry, woken };
         Ok(Self {
-            wss: Arc::new(Wss::new(config, shutdown, Some(gate))),
+            wss: Arc::new(Wss::new(config, relay_ip, shutdown, Some(gate))),
             poll: seconds,
             next: 0.0,
             stop,
@@ -398,8 +431,9 @@ struct Requests<R> {
 }
 
 impl<R: tokio::io::AsyncRead + Unpin> Requests<R> {
-    /// The next request; `Ok(None)` at the end of the stream, `Err` past [`MAX_LINE`].
-    async fn next(&mut self) -> Result<Option<Vec<u8>>, ()> {
+    /// The next request; `Ok(None)` at the end of the stream, `Err` past [`MAX_LINE`] or at
+    /// a timeout of `activity` (which is told whether a request is unfinished).
+    async fn next(&mut self, activity: &Activity) -> Result<Option<Vec<u8>>, Closing> {
         loop {
             if let Some(at) = self.buffer.windows(2).position(|w| w == b"\r\n") {
                 let line = self.buffer[..at].to_vec();
@@ -407,15 +441,23 @@ impl<R: tokio::io::AsyncRead + Unpin> Requests<R> {
                 return Ok(Some(line));
             }
             if self.buffer.len() > MAX_LINE {
-                return Err(());
+                return Err(Closing::TooLong);
             }
             let mut chunk = [0u8; 2048];
-            match self.read.read(&mut chunk).await {
-                Ok(0) | Err(_) => return Ok(None),
-                Ok(n) => self.buffer.extend_from_slice(&chunk[..n]),
+            let unfinished = !self.buffer.is_empty();
+            match activity.read(&mut self.read, &mut chunk, unfinished).await {
+                Err(why) => return Err(Closing::TimedOut(why)),
+                Ok(Ok(0) | Err(_)) => return Ok(None),
+                Ok(Ok(n)) => self.buffer.extend_from_slice(&chunk[..n]),
             }
         }
     }
+}
+
+/// Why [`Requests::next`] closes the connection.
+enum Closing {
+    TooLong,
+    TimedOut(super::side::TimedOut),
 }
 
 /// One control connection: one reply per request.
@@ -423,7 +465,7 @@ async fn control(
     wss: Arc<Wss>,
     stream: TcpStream,
     stop: CancellationToken,
-    spoke: Arc<AtomicBool>,
+    activity: Arc<Activity>,
 ) {
     let Ok(peer) = stream.peer_addr() else {
         return;
@@ -435,6 +477,7 @@ async fn control(
     };
     let mut me: Option<(String, CancellationToken)> = None;
     let never = CancellationToken::new();
+    let mut first = true;
     loop {
         let kick = me.as_ref().map_or(never.clone(), |m| m.1.clone());
         let got = tokio::select! {
@@ -443,16 +486,24 @@ async fn control(
                 info!(%peer, "WSS: robot kicked (not in the simulation, or its battery is empty)");
                 break;
             }
-            got = requests.next() => got,
+            got = requests.next(&activity) => got,
         };
         let line = match got {
             Ok(Some(line)) => {
-                spoke.store(true, Ordering::Relaxed);
+                let at = peer.to_string();
+                if super::side::refuse_http("WSS", &at, std::mem::take(&mut first), &line) {
+                    break;
+                }
+                activity.completed();
                 line
             }
             Ok(None) => break,
-            Err(()) => {
+            Err(Closing::TooLong) => {
                 warn!(%peer, max = MAX_LINE, "WSS: request line too long; closing");
+                break;
+            }
+            Err(Closing::TimedOut(why)) => {
+                info!(%peer, "WSS: closing: {why}");
                 break;
             }
         };
@@ -711,13 +762,9 @@ async fn relay(wss: &Arc<Wss>, me: &str, other: &str, target: u16, reachable: bo
 }
 
 impl Wss {
-    /// Where relay ports listen: the WSS's own control address family, any interface.
+    /// Where relay ports listen: where the control port does (`--bind`; docs/security.md).
     fn bind_ip(&self) -> IpAddr {
-        if self.config.monitor.is_ipv6() {
-            IpAddr::from([0u16; 8])
-        } else {
-            IpAddr::from([0u8; 4])
-        }
+        self.relay_ip
     }
 
     /// [`relay`] on the simulated clock: the port listens at once if the pair is in range
@@ -1106,6 +1153,7 @@ fn obstacle_count(line: &str) -> Option<f64> {
 pub fn answer_offline(positions_reply: &str, walls: &str, lines: &[(usize, &str)]) -> Vec<String> {
     let wss = Wss::new(
         WssConfig::new(SocketAddr::from(([127, 0, 0, 1], 7435))),
+        IpAddr::from([127, 0, 0, 1]),
         CancellationToken::new(),
         None,
     );
