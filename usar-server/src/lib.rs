@@ -34,6 +34,7 @@
 
 mod args;
 mod local;
+pub mod logging;
 pub mod net;
 pub mod replay;
 

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::Parser;
 use tokio_util::sync::CancellationToken;
+use usar_server::logging::{Log, announce};
 use usar_server::sim::map::Map;
 use usar_server::{ServerArgs, ServerConfig, TimeScale};
 
@@ -17,7 +18,9 @@ use usar_server::{ServerArgs, ServerConfig, TimeScale};
 /// When ready it prints one line per service on stdout: `usar-server listening on
 /// ADDRESS:PORT map LEVEL` (Gamebots), then `usar-server image server listening on
 /// ADDRESS:PORT` and likewise `USARTruth`, `WSS` and `robot monitor` (each unless `off`).
-/// Ctrl-C or SIGTERM shut it down cleanly. Log level: RUST_LOG (default `info`), on stderr.
+/// Ctrl-C or SIGTERM shut it down cleanly. Log level: RUST_LOG (default `info`), on stderr;
+/// output nobody reads never stops the server: log lines that stderr does not take are
+/// dropped, counted and reported (docs/limits.md).
 #[derive(Debug, Parser)]
 #[command(version, about, args_conflicts_with_subcommands = true)]
 struct Args {
@@ -183,15 +186,15 @@ enum Sub {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        // Colours only on a terminal: a log file gets no escape sequences at all.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .init();
+    // The log never blocks serving (a full or closed stderr drops lines, counted), and
+    // neither do the ready lines on stdout (src/logging.rs).
+    let log = usar_server::logging::init();
+    let code = run(args, &log);
+    log.finish();
+    code
+}
+
+fn run(args: Args, log: &Log) -> ExitCode {
     if let Some(Sub::Replay {
         file,
         bind,
@@ -203,7 +206,7 @@ fn main() -> ExitCode {
         return match replay(file, bind, *port, *fast, *speed) {
             Ok(()) => ExitCode::SUCCESS,
             Err(error) => {
-                eprintln!("usar-server replay: {error:#}");
+                log.say(format!("usar-server replay: {error:#}\n"));
                 ExitCode::from(2)
             }
         };
@@ -224,28 +227,31 @@ fn main() -> ExitCode {
         return match wss(monitor, bind, *port, *poll, (*cutoff, *attenuation), limits) {
             Ok(()) => ExitCode::SUCCESS,
             Err(error) => {
-                eprintln!("usar-server wss: {error:#}");
+                log.say(format!("usar-server wss: {error:#}\n"));
                 ExitCode::from(2)
             }
         };
     }
     if args.list_maps {
+        let mut names = String::new();
         for name in Map::embedded_names() {
-            println!("{name}");
+            names.push_str(&format!("{name}\n"));
         }
+        // A reader that closed the pipe (`| head -1`) got what it wanted.
+        let _ = std::io::stdout().write_all(names.as_bytes());
         return ExitCode::SUCCESS;
     }
     let config = match build_config(&args) {
         Ok(config) => config,
         Err(error) => {
-            eprintln!("usar-server: {error:#}");
+            log.say(format!("usar-server: {error:#}\n"));
             return ExitCode::from(2);
         }
     };
     match serve(args, config) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("usar-server: {error:#}");
+            log.say(format!("usar-server: {error:#}\n"));
             ExitCode::FAILURE
         }
     }
@@ -286,8 +292,7 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
 }
 
 fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
-    let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
-    runtime.block_on(async {
+    on_runtime(async {
         let listener = tokio::net::TcpListener::bind((args.bind.as_str(), args.port))
             .await
             .with_context(|| format!("cannot listen on {}:{}", args.bind, args.port))?;
@@ -336,13 +341,19 @@ fn serve(args: Args, config: ServerConfig) -> anyhow::Result<()> {
                 ));
             }
         }
-        let mut stdout = std::io::stdout().lock();
-        stdout.write_all(ready.as_bytes())?;
-        stdout.flush()?;
-        drop(stdout);
+        announce(ready);
         usar_server::run_with(listener, side, config, shutdown).await?;
         Ok(())
     })
+}
+
+/// Runs `work` on a new tokio runtime; then gives the runtime's tasks at most 1 s to end,
+/// so that nothing left blocking (an output nobody reads) keeps the program from exiting.
+fn on_runtime<T>(work: impl Future<Output = anyhow::Result<T>>) -> anyhow::Result<T> {
+    let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
+    let result = runtime.block_on(work);
+    runtime.shutdown_timeout(std::time::Duration::from_secs(1));
+    result
 }
 
 /// The standalone WSS against the robot monitor at `monitor`, with its model's cutoff and
@@ -378,8 +389,7 @@ fn wss(
         line_timeout: std::time::Duration::from_secs_f64(line_timeout),
         ..WssConfig::new(at)
     };
-    let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
-    runtime.block_on(async {
+    on_runtime(async {
         let (listener, shutdown) = listen(bind, port, |at| {
             format!("usar-server WSS listening on {at}")
         })
@@ -401,9 +411,7 @@ async fn listen(
         .with_context(|| format!("cannot listen on {bind}:{port}"))?;
     let shutdown = CancellationToken::new();
     usar_server::cancel_on_signal(shutdown.clone());
-    let mut stdout = std::io::stdout().lock();
-    writeln!(stdout, "{}", line(listener.local_addr()?))?;
-    stdout.flush()?;
+    announce(format!("{}\n", line(listener.local_addr()?)));
     Ok((listener, shutdown))
 }
 
@@ -471,8 +479,7 @@ fn replay(file: &Path, bind: &str, port: u16, fast: bool, speed: f64) -> anyhow:
     } else {
         Pace::Timestamps(speed)
     };
-    let runtime = tokio::runtime::Runtime::new().context("cannot start the runtime")?;
-    runtime.block_on(async {
+    on_runtime(async {
         let lines = recording.lines();
         let (listener, shutdown) = listen(bind, port, |at| {
             format!(
