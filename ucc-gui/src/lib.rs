@@ -9,13 +9,16 @@
 //! guard (`guard.rs`), the WebSocket session (`socket.rs`) and the HTTP API (`api.rs`)
 //! each have a module; the state and its requests live in [`hub`].
 //!
-//! Security: a loopback listener answers only requests whose `Host` names the loopback
-//! (DNS rebinding); the WebSocket refuses an `Origin` other than the page's own; a
-//! non-loopback listener requires a token (`?token=`), printed in the URL at start.
+//! Security (docs/security.md, "The control center page"): a request whose `Host` does not
+//! name this server is refused (DNS rebinding), and so is a request from a page of another
+//! site (`Origin`, `Sec-Fetch-Site`), WebSocket or not; a non-loopback listener requires a
+//! token (`?token=`), printed in the URL at start. A peer that sends slowly, does not read,
+//! or whose page stops answering is dropped after [`GuiConfig::page_timeout`] (`listen.rs`).
 
 mod api;
 mod guard;
 pub mod hub;
+mod listen;
 pub mod runs;
 pub mod scenario;
 mod socket;
@@ -36,7 +39,7 @@ use tokio_util::sync::CancellationToken;
 use ucc_client::Backend;
 use usar_server::ServerConfig;
 
-pub use guard::check_host;
+pub use guard::Hosts;
 pub use socket::{MAX_MESSAGE, MAX_PAGES, REQUESTS_PER_UPDATE};
 
 use crate::hub::{Hub, Shared};
@@ -109,6 +112,9 @@ pub(crate) const CAMERA: ucc_client::backend::Sides = ucc_client::backend::Sides
 /// How often a page gets an update.
 pub const UPDATE_PERIOD: Duration = Duration::from_millis(50);
 
+/// The default of [`GuiConfig::page_timeout`] (`--page-timeout`).
+pub const PAGE_TIMEOUT: Duration = Duration::from_secs(30);
+
 /// Which server the UAVs fly on.
 #[derive(Debug, Clone)]
 pub enum ServerChoice {
@@ -128,6 +134,27 @@ pub struct GuiConfig {
     pub log_dir: PathBuf,
     /// The token every API request must carry; required when listening beyond the loopback.
     pub token: Option<String>,
+    /// Host names the page may be reached by besides this server's address and the
+    /// loopback's (`--allow-host`): a request naming any other host is refused.
+    pub allowed_hosts: Vec<String>,
+    /// How long a peer may take to send a request's headers or body, leave a response or
+    /// its page's updates unread, or (a page) not answer the server's pings: then its
+    /// connection ends, and with it its page's slot (`--page-timeout`, default
+    /// [`PAGE_TIMEOUT`]).
+    pub page_timeout: Duration,
+}
+
+impl Default for GuiConfig {
+    /// `ucc gui`'s defaults: a USARSim at `localhost:3000`, files in `ucc-logs`.
+    fn default() -> Self {
+        Self {
+            server: ServerChoice::Remote("localhost:3000".into()),
+            log_dir: PathBuf::from("ucc-logs"),
+            token: None,
+            allowed_hosts: Vec::new(),
+            page_timeout: PAGE_TIMEOUT,
+        }
+    }
 }
 
 /// Why the control center could not run.
@@ -161,9 +188,12 @@ pub(crate) struct App {
     token: Option<String>,
     /// Cancelled by Quit.
     shutdown: CancellationToken,
-    /// The listener's port, and whether `Host` must name the loopback.
-    port: u16,
-    loopback_only: bool,
+    /// The `Host` values answered.
+    hosts: guard::Hosts,
+    /// Refused requests, for the log.
+    refusals: Arc<std::sync::Mutex<usar_proto::shown::Repeats>>,
+    /// [`GuiConfig::page_timeout`].
+    page_timeout: Duration,
     robots: Vec<String>,
     /// WebSocket pages open.
     pages: Arc<std::sync::atomic::AtomicUsize>,
@@ -275,8 +305,12 @@ pub async fn serve(
         local: Arc::new(tokio::sync::Mutex::new(local)),
         token: config.token,
         shutdown: shutdown.clone(),
-        port: addr.port(),
-        loopback_only,
+        hosts: guard::Hosts {
+            listen: addr,
+            allowed: config.allowed_hosts,
+        },
+        refusals: Arc::default(),
+        page_timeout: config.page_timeout,
         robots,
         pages: Arc::default(),
     };
@@ -300,10 +334,7 @@ pub async fn serve(
         .route("/api/scenario/results.csv", get(api::scenario_csv))
         .layer(middleware::from_fn_with_state(app.clone(), guard::guard))
         .with_state(app.clone());
-    let stop = shutdown.clone();
-    let served = axum::serve(listener, router)
-        .with_graceful_shutdown(async move { stop.cancelled().await })
-        .await;
+    listen::serve(listener, router, shutdown.clone(), config.page_timeout).await;
     // Stop every run and wait (a little) for their files.
     let cancels: Vec<_> = {
         let mut hub = app.shared.lock();
@@ -324,7 +355,6 @@ pub async fn serve(
     {
         tracing::warn!("the local server stopped with an error: {e}");
     }
-    served?;
     Ok(())
 }
 

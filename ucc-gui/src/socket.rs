@@ -4,7 +4,10 @@
 //! Limits (docs/limits.md): a message longer than [`MAX_MESSAGE`] bytes closes the socket
 //! (axum refuses it before it is buffered whole); a page may send at most
 //! [`REQUESTS_PER_UPDATE`] requests per update period — more wait for the next period, so a
-//! flooding page slows only itself, never the runs or the other pages.
+//! flooding page slows only itself, never the runs or the other pages. A page that stops
+//! answering (no message, not even the pong to the server's ping, for the page timeout) is
+//! dropped, and with it its slot among the [`MAX_PAGES`]: a browser answers pings by itself,
+//! a client that does not read (or sends a frame slowly) does not.
 
 use axum::extract::State;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
@@ -79,12 +82,25 @@ async fn page(app: App, mut socket: WebSocket) {
     let mut tick = tokio::time::interval(UPDATE_PERIOD);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut budget = REQUESTS_PER_UPDATE;
+    // A ping a third of the timeout: a page that answers none of three is gone.
+    let mut ping = tokio::time::interval(app.page_timeout / 3);
+    ping.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut heard = tokio::time::Instant::now();
     loop {
         tokio::select! {
             biased;
             () = app.shutdown.cancelled() => {
                 let _ = socket.send(Message::Close(None)).await;
                 return;
+            }
+            _ = ping.tick() => {
+                if heard.elapsed() > app.page_timeout {
+                    tracing::info!("ucc gui: a page answered nothing for {:?}: dropped", app.page_timeout);
+                    return;
+                }
+                if socket.send(Message::Ping(Default::default())).await.is_err() {
+                    return;
+                }
             }
             _ = tick.tick() => {
                 budget = REQUESTS_PER_UPDATE;
@@ -97,10 +113,15 @@ async fn page(app: App, mut socket: WebSocket) {
                 let text = match message {
                     Some(Ok(Message::Text(t))) => t,
                     Some(Ok(Message::Close(_))) | None | Some(Err(_)) => return,
-                    Some(Ok(_)) => continue,
+                    Some(Ok(_)) => {
+                        heard = tokio::time::Instant::now();
+                        continue;
+                    }
                 };
                 budget -= 1;
                 let reply = handle(&app, &mut cursor, text.as_str()).await;
+                // The time this request took (a server restarted) is not the page's silence.
+                heard = tokio::time::Instant::now();
                 if let Some(reply) = reply
                     && socket.send(Message::Text(reply.to_string().into())).await.is_err()
                 {

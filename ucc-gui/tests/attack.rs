@@ -26,6 +26,7 @@ async fn start() -> (std::net::SocketAddr, CancellationToken) {
         server: ServerChoice::Remote("127.0.0.1:1".into()),
         log_dir: std::env::temp_dir().join("ucc-gui-attack-test"),
         token: None,
+        ..GuiConfig::default()
     };
     tokio::spawn(ucc_gui::serve(listener, config, cancel.clone()));
     (addr, cancel)
@@ -251,5 +252,96 @@ async fn thousands_of_uavs_and_pages_stay_bounded() {
     let grown = peak_rss_kib().saturating_sub(before);
     println!("peak RSS grew by {} MiB", grown / 1024);
     assert!(grown < 400 * 1024, "peak RSS grew by {} MiB", grown / 1024);
+    stop.cancel();
+}
+
+/// Issue #56: pages that do not read, and HTTP requests sent slowly, do not hold the
+/// control center: with a 2 s page timeout, 40 WebSocket pages that never read (32 take every
+/// slot, the rest get 503) and 32 slow-loris connections are dropped, and a new page gets
+/// its page and its updates.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pages_that_do_not_read_and_slow_senders_do_not_hold_slots() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let _one = ONE_AT_A_TIME.lock().await;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let stop = CancellationToken::new();
+    let config = GuiConfig {
+        server: ServerChoice::Remote("127.0.0.1:1".into()),
+        log_dir: std::env::temp_dir().join("ucc-gui-attack-test"),
+        page_timeout: Duration::from_secs(2),
+        ..GuiConfig::default()
+    };
+    tokio::spawn(ucc_gui::serve(listener, config, stop.clone()));
+
+    // Pages that never read (not even the server's pings).
+    let mut silent = Vec::new();
+    let mut refused = 0;
+    for _ in 0..ucc_gui::MAX_PAGES + 8 {
+        match page(addr).await {
+            Ok(p) => silent.push(p),
+            Err(e) => {
+                assert!(e.contains("503"), "{e}");
+                refused += 1;
+            }
+        }
+    }
+    assert_eq!(silent.len(), ucc_gui::MAX_PAGES, "{refused} refused");
+    // Slow-loris: a request's headers a byte every half second, never finished.
+    let mut loris = Vec::new();
+    for _ in 0..32 {
+        loris.push(tokio::spawn(async move {
+            let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+            let request = format!("GET / HTTP/1.1\r\nHost: {addr}\r\nX-Slow: ");
+            let started = tokio::time::Instant::now();
+            for b in request.bytes().chain(std::iter::repeat(b'a')) {
+                if s.write_all(&[b]).await.is_err() {
+                    break;
+                }
+                let mut buf = [0u8; 256];
+                match tokio::time::timeout(Duration::from_millis(500), s.read(&mut buf)).await {
+                    Ok(Ok(0)) | Ok(Err(_)) => break,       // closed by the server
+                    Ok(Ok(_)) => {}                        // its 408: read on to the close
+                    Err(_) => {}                           // still open
+                }
+                if started.elapsed() > Duration::from_secs(90) {
+                    return None;
+                }
+            }
+            Some(started.elapsed())
+        }));
+    }
+    // A new page is served within a generous deadline: its page, its hello, its updates.
+    let end = tokio::time::Instant::now() + Duration::from_secs(90);
+    let mut honest = loop {
+        match page(addr).await {
+            Ok(p) => break p,
+            Err(e) => {
+                assert!(e.contains("503"), "{e}");
+                assert!(
+                    tokio::time::Instant::now() < end,
+                    "no slot freed in 90 s: {e}"
+                );
+                tokio::time::sleep(Duration::from_millis(250)).await;
+            }
+        }
+    };
+    assert!(updates_in(&mut honest, 3.0).await >= 5);
+    let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+    s.write_all(format!("GET / HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").as_bytes())
+        .await
+        .unwrap();
+    let mut html = String::new();
+    let _ = tokio::time::timeout(Duration::from_secs(10), s.read_to_string(&mut html)).await;
+    assert!(html.starts_with("HTTP/1.1 200") && html.contains("<html"), "{html}");
+    // Every slow sender was dropped.
+    for l in loris {
+        let took = l.await.unwrap();
+        assert!(took.is_some(), "a slow-loris connection still open after 90 s");
+    }
+    // The honest page, which reads, is still served after several timeouts.
+    tokio::time::sleep(Duration::from_secs(5)).await;
+    assert!(updates_in(&mut honest, 3.0).await >= 5);
+    drop(silent);
     stop.cancel();
 }

@@ -205,6 +205,7 @@ async fn start_gui(speed: TimeScale) -> Result<(String, CancellationToken, PathB
         })),
         log_dir: log_dir.clone(),
         token: None,
+        ..GuiConfig::default()
     };
     let cancel = CancellationToken::new();
     let stop = cancel.clone();
@@ -606,6 +607,7 @@ async fn start_gui_on(server: ServerChoice) -> Result<(String, CancellationToken
         server,
         log_dir: log_dir.clone(),
         token: None,
+        ..GuiConfig::default()
     };
     let cancel = CancellationToken::new();
     let stop = cancel.clone();

@@ -422,3 +422,65 @@ fn a_long_trail_backlog_is_thinned() {
     assert!(trail.len() <= 501, "{}", trail.len());
     assert!((trail.last().unwrap()[0].as_f64().unwrap() - 299.9).abs() < 0.01);
 }
+
+/// Issue #56: two UAVs never write the same files. A second UAV of a name in use, or whose
+/// name makes the same file names (`a.b` and `a_b`), is refused with a message naming both;
+/// so is a file prefix another UAV writes; a default name skips the names taken.
+#[test]
+fn two_uavs_never_share_a_name_or_their_files() {
+    let mut hub = hub();
+    let first = create(&mut hub, "a.b").unwrap();
+    let e = create(&mut hub, "a.b").unwrap_err();
+    assert_eq!(
+        e,
+        format!("name: \"a.b\" is taken by UAV {first} (\"a.b\"): choose another name")
+    );
+    let e = create(&mut hub, "A.B").unwrap_err();
+    assert!(e.starts_with("name: \"A.B\" is taken by UAV"), "{e}");
+    let e = create(&mut hub, "a_b").unwrap_err();
+    assert_eq!(
+        e,
+        format!(
+            "name: \"a_b\" would write over the files of UAV {first} (\"a.b\"), a_b-NN.log…: \
+             choose another name"
+        )
+    );
+    // Another name and prefix: fine; then its prefix set to the first one's is refused.
+    let second = create(&mut hub, "c").unwrap();
+    let options = |uav, prefix: &str| Request::Options {
+        uav,
+        prefix: prefix.into(),
+        pictures: "none".into(),
+        autosave: true,
+    };
+    let e = hub.apply(options(second, "a_b")).unwrap_err().to_string();
+    assert!(
+        e.starts_with("file prefix: \"a_b\" would write over the files of UAV")
+            && e.contains("(\"a.b\")"),
+        "{e}"
+    );
+    hub.apply(options(second, "c2")).unwrap();
+    hub.apply(options(second, "c2")).unwrap(); // its own prefix again
+    // Both fly: their files differ.
+    let mut files = Vec::new();
+    for id in [first, second] {
+        hub.apply(goto(id, "1")).unwrap();
+        let Ok(Action::Start(_, settings, _)) = hub.apply(Request::Start {
+            uav: id,
+            iterations: "1".into(),
+        }) else {
+            panic!("no start")
+        };
+        files.push(settings.file("01.log").unwrap());
+    }
+    assert_ne!(files[0], files[1]);
+    // A default name skips a name the user took.
+    let taken = create(&mut hub, &format!("UAV{}", second + 2)).unwrap();
+    let id = create(&mut hub, "").unwrap();
+    assert_eq!(id, taken + 1);
+    let names: Vec<String> = hub.uavs.iter().map(|u| u.name.clone()).collect();
+    assert_eq!(names.last().unwrap(), &format!("UAV{id}-2"), "{names:?}");
+    // A removed UAV's name is free again.
+    hub.apply(Request::Remove { uav: taken }).unwrap();
+    assert!(create(&mut hub, &format!("UAV{}", second + 2)).is_ok());
+}

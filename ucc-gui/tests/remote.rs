@@ -32,6 +32,7 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
             server: ServerChoice::Remote(server.addr().to_string()),
             log_dir: log_dir.clone(),
             token: None,
+            ..GuiConfig::default()
         },
         shutdown.clone(),
     ));
@@ -286,6 +287,7 @@ async fn speed_and_connect() {
             server: ServerChoice::Local(Box::default()),
             log_dir: std::env::temp_dir(),
             token: None,
+            ..GuiConfig::default()
         },
         shutdown.clone(),
     ));

@@ -45,6 +45,7 @@ async fn start() -> (std::net::SocketAddr, CancellationToken) {
         server: ServerChoice::Remote("127.0.0.1:1".into()),
         log_dir: std::env::temp_dir().join("ucc-gui-scenario-test"),
         token: None,
+        ..GuiConfig::default()
     };
     tokio::spawn(ucc_gui::serve(listener, config, cancel.clone()));
     (addr, cancel)

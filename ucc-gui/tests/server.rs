@@ -25,6 +25,7 @@ async fn start(bind: &str, token: Option<String>) -> (std::net::SocketAddr, Canc
         server: ServerChoice::Remote("127.0.0.1:1".into()),
         log_dir: std::env::temp_dir().join("ucc-gui-server-test"),
         token,
+        ..GuiConfig::default()
     };
     tokio::spawn(ucc_gui::serve(listener, config, cancel.clone()));
     (addr, cancel)
@@ -96,7 +97,7 @@ async fn other_hosts_and_origins_are_refused() {
     )
     .await;
     assert!(
-        r.starts_with("HTTP/1.1 403") && r.contains("not this machine's loopback"),
+        r.starts_with("HTTP/1.1 403") && r.contains("is not this server's address"),
         "{r}"
     );
     let upgrade = "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\n\
@@ -130,6 +131,7 @@ async fn beyond_the_loopback_a_token_is_required() {
         server: ServerChoice::Remote("127.0.0.1:1".into()),
         log_dir: std::env::temp_dir(),
         token: None,
+        ..GuiConfig::default()
     };
     let err = ucc_gui::serve(listener, config, CancellationToken::new())
         .await
@@ -358,4 +360,102 @@ fn updates_carry_only_what_is_new() {
         ucc_gui::UPDATE_PERIOD <= Duration::from_millis(100),
         "at least 10 updates a second"
     );
+}
+
+/// A POST to the scenario API with these extra headers; the response.
+async fn post(addr: std::net::SocketAddr, host: &str, extra: &str) -> String {
+    let body = r#"{"name": "search", "iterations": 1, "speed": "max"}"#;
+    http(
+        addr,
+        &format!(
+            "POST /api/scenario HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\
+             Content-Type: application/json\r\nContent-Length: {}\r\n{extra}\r\n{body}",
+            body.len()
+        ),
+    )
+    .await
+}
+
+/// Issue #56: a page of another site cannot drive the control center — no cross-site POST,
+/// no cross-site WebSocket, no rebound host name — and each refusal is in the log; the same
+/// requests from the page itself (or from no page: curl) are served.
+#[tokio::test]
+async fn cross_site_requests_and_rebound_hosts_are_refused_and_logged() {
+    let (addr, stop) = start("127.0.0.1:0", None).await;
+    let host = addr.to_string();
+    let evil = "Origin: http://evil.example\r\n";
+    let r = post(addr, &host, evil).await;
+    assert!(
+        r.starts_with("HTTP/1.1 403") && r.contains("POST /api/scenario refused"),
+        "{r}"
+    );
+    assert!(r.contains("\"http://evil.example\" (Origin)"), "{r}");
+    let r = post(addr, &host, "Sec-Fetch-Site: cross-site\r\n").await;
+    assert!(r.starts_with("HTTP/1.1 403") && r.contains("cross-site"), "{r}");
+    // Another port of this machine is another site too.
+    let r = post(addr, &host, "Origin: http://127.0.0.1:1\r\n").await;
+    assert!(r.starts_with("HTTP/1.1 403"), "{r}");
+    // DNS rebinding: evil.example resolved to 127.0.0.1, the page's own origin.
+    let rebound = format!("evil.example:{}", addr.port());
+    let r = post(addr, &rebound, &format!("Origin: http://{rebound}\r\n")).await;
+    assert!(
+        r.starts_with("HTTP/1.1 403") && r.contains("is not this server's address"),
+        "{r}"
+    );
+    let upgrade = "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\n\
+                   Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n";
+    let ws = |host: &str, origin: &str| {
+        format!("GET /ws HTTP/1.1\r\nHost: {host}\r\n{upgrade}Origin: {origin}\r\n\r\n")
+    };
+    let r = http(addr, &ws(&rebound, &format!("http://{rebound}"))).await;
+    assert!(r.starts_with("HTTP/1.1 403"), "{r}");
+    let r = http(addr, &ws(&host, "http://evil.example")).await;
+    assert!(r.starts_with("HTTP/1.1 403"), "{r}");
+    // Nothing was started; the refusals are in the page's log.
+    let state = http(addr, &get("/api/state", &host, "")).await;
+    assert!(state.contains("\"uavs\":[]"), "{state}");
+    assert!(
+        state.contains("POST /api/scenario refused")
+            && state.contains("evil.example")
+            && state.contains("is not this server's address"),
+        "{state}"
+    );
+    // The same requests from the page itself, by each of the loopback's names, and from curl.
+    for name in ["127.0.0.1", "localhost", "[::1]"] {
+        let h = format!("{name}:{}", addr.port());
+        let r = http(addr, &ws(&h, &format!("http://{h}"))).await;
+        assert!(r.starts_with("HTTP/1.1 101"), "{name}: {r}");
+    }
+    let r = post(addr, &host, &format!("Origin: http://{host}\r\nSec-Fetch-Site: same-origin\r\n")).await;
+    assert!(r.starts_with("HTTP/1.1 200"), "{r}");
+    let r = http(
+        addr,
+        "POST /api/scenario/stop HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\
+         Content-Type: application/json\r\nContent-Length: 2\r\n\r\n{}"
+            .replace("localhost", &host)
+            .as_str(),
+    )
+    .await;
+    assert!(
+        !r.starts_with("HTTP/1.1 403") && r.starts_with("HTTP/1.1 "),
+        "a request without Origin is served: {r}"
+    );
+    stop.cancel();
+
+    // A name the user allowed.
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let cancel = CancellationToken::new();
+    let config = GuiConfig {
+        log_dir: std::env::temp_dir().join("ucc-gui-server-test"),
+        allowed_hosts: vec!["gui.lab".into()],
+        ..GuiConfig::default()
+    };
+    tokio::spawn(ucc_gui::serve(listener, config, cancel.clone()));
+    let allowed = format!("gui.lab:{}", addr.port());
+    let r = http(addr, &ws(&allowed, &format!("http://{allowed}"))).await;
+    assert!(r.starts_with("HTTP/1.1 101"), "{r}");
+    let r = http(addr, &get("/api/state", "other.lab", "")).await;
+    assert!(r.starts_with("HTTP/1.1 403") && r.contains("--allow-host"), "{r}");
+    cancel.cancel();
 }

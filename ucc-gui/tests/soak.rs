@@ -148,6 +148,7 @@ async fn soak_10000_iterations_with_the_page_open() -> Result<()> {
         })),
         log_dir: log_dir.clone(),
         token: None,
+        ..GuiConfig::default()
     };
     let gui = CancellationToken::new();
     tokio::spawn(ucc_gui::serve(listener, config, gui.clone()));

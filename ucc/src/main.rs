@@ -245,6 +245,17 @@ struct GuiArgs {
     /// Directory for the logs, trajectories, pictures and results of the runs.
     #[arg(long, default_value = "ucc-logs")]
     log_dir: PathBuf,
+    /// A host name the page may also be opened by (repeatable). A request naming any other
+    /// host than this server's address, localhost, 127.0.0.1 or [::1] is refused (DNS
+    /// rebinding).
+    #[arg(long, value_name = "NAME")]
+    allow_host: Vec<String>,
+    /// Seconds a peer may take to send a request, leave a response or its page's updates
+    /// unread, or (a page) not answer the server's pings; then it is dropped, and its page's
+    /// slot (of 32) freed.
+    #[arg(long, default_value_t = 30, value_name = "SECONDS",
+          value_parser = clap::value_parser!(u64).range(1..=3600))]
+    page_timeout: u64,
 }
 
 #[derive(Args)]
@@ -848,6 +859,8 @@ async fn gui(args: GuiArgs) -> anyhow::Result<ExitCode> {
         server,
         log_dir: args.log_dir,
         token,
+        allowed_hosts: args.allow_host,
+        page_timeout: Duration::from_secs(args.page_timeout),
     };
     ucc_gui::serve(listener, config, interrupt_token()).await?;
     Ok(ExitCode::SUCCESS)

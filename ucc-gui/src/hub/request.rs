@@ -405,8 +405,12 @@ impl Hub {
         }
         let id = self.next_id;
         let name = match plain("name", name, MAX_NAME)? {
-            "" => format!("UAV{id}"),
-            n => n.to_owned(),
+            "" => self.free_name(&format!("UAV{id}")),
+            n => {
+                self.check_name(n, &prefix_of(n), None)
+                    .map_err(|e| field("name", e))?;
+                n.to_owned()
+            }
         };
         self.next_id += 1;
         let prefix = prefix_of(&name);
@@ -419,6 +423,56 @@ impl Hub {
             start,
         ));
         Ok(Action::Created(id))
+    }
+
+    /// Whether a UAV named `name` writing its files as `prefix` may join the others (all but
+    /// `except`): no other UAV has that name or that prefix (either without case: a
+    /// file system may not tell `A` from `a`), so no two UAVs overwrite each other's files.
+    /// The reason, naming both, when not.
+    pub(super) fn check_name(
+        &self,
+        name: &str,
+        prefix: &str,
+        except: Option<u32>,
+    ) -> Result<(), String> {
+        let others = self.uavs.iter().filter(|u| Some(u.id) != except);
+        for u in others {
+            if u.name.eq_ignore_ascii_case(name) && except.is_none() {
+                return Err(format!(
+                    "{} is taken by UAV {} ({}): choose another name",
+                    shown(name),
+                    u.id,
+                    shown(&u.name)
+                ));
+            }
+            if u.prefix.eq_ignore_ascii_case(prefix) {
+                let (what, field) = match except {
+                    None => (name, "name"),
+                    Some(_) => (prefix, "prefix"),
+                };
+                return Err(format!(
+                    "{} would write over the files of UAV {} ({}), {}-NN.log…: choose another \
+                     {field}",
+                    shown(what),
+                    u.id,
+                    shown(&u.name),
+                    u.prefix
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// `base`, or `base-2`, `base-3`… the first that no UAV has as name or file prefix.
+    pub(super) fn free_name(&self, base: &str) -> String {
+        let free = |n: &str| self.check_name(n, &prefix_of(n), None).is_ok();
+        if free(base) {
+            return base.to_owned();
+        }
+        (2..)
+            .map(|k| format!("{base}-{k}"))
+            .find(|n| free(n))
+            .unwrap_or_else(|| base.to_owned())
     }
 
     fn remove(&mut self, uav: u32) -> Result<Action, RequestError> {
@@ -509,6 +563,9 @@ impl Hub {
             ));
         }
         let pictures = pictures.parse().map_err(|e: String| field("pictures", e))?;
+        let name = self.uav(uav)?.name.clone();
+        self.check_name(&name, prefix, Some(uav))
+            .map_err(|e| field("file prefix", e))?;
         let u = self.uav(uav)?;
         u.prefix = prefix.to_owned();
         u.pictures = pictures;

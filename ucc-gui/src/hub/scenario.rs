@@ -298,7 +298,7 @@ impl Hub {
                 self.next_id += 1;
                 let at: [f64; 3] =
                     std::array::from_fn(|i| group.start[i] + k as f64 * group.spacing[i]);
-                let name = format!("UAV{index}");
+                let name = self.free_name(&format!("UAV{index}"));
                 let mut u = Uav::new(
                     id,
                     name.clone(),
