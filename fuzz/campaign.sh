@@ -11,7 +11,7 @@
 # `-Z` flags are allowed with RUSTC_BOOTSTRAP=1 and the sanitizer is `none` (the crates
 # fuzzed have no `unsafe` code; libFuzzer still catches panics, overflows checked in debug
 # assertions, stack overflows, timeouts and memory over -rss_limit_mb). SANITIZER=address
-# (or none) overrides the choice.
+# (or none) overrides the choice; TOOLCHAIN=stable uses stable even where nightly is.
 # Corpora are kept compact in the repository: fuzz/corpora/TARGET.tar.xz (minimised with
 # `cargo fuzz cmin` after each run); they are unpacked into fuzz/corpus/ (not committed) to
 # run. Findings (crashes, timeouts, out-of-memory inputs) land in fuzz/artifacts/TARGET/.
@@ -20,7 +20,7 @@ cd "$(dirname "$0")"
 minutes=${1:-10}
 shift || true
 targets=("$@")
-if cargo +nightly --version >/dev/null 2>&1; then
+if [[ "${TOOLCHAIN:-}" != stable ]] && cargo +nightly --version >/dev/null 2>&1; then
   fuzz=(cargo +nightly fuzz)
   sanitizer=${SANITIZER:-address}
 else
