@@ -792,6 +792,13 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
     // room for a new client (issue #56).
     let start = |server: &Server, stop| side_slow_after_a_request(server.side, stop);
     let args: &[&str] = &["--max-side-connections", "64"];
-    judge("side: slow, after one", baseline, &mut failures, start, (true, args)).await;
+    judge(
+        "side: slow, after one",
+        baseline,
+        &mut failures,
+        start,
+        (true, args),
+    )
+    .await;
     assert!(failures.is_empty(), "{failures:#?}");
 }

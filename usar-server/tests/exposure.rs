@@ -95,7 +95,8 @@ async fn open_relay(gamebots: SocketAddr, wss: SocketAddr) -> (u16, Vec<TcpStrea
     let mut held = Vec::new();
     for (name, at) in [("A", "0,0,-1"), ("B", "2,0,-1")] {
         let mut s = TcpStream::connect(gamebots).await.unwrap();
-        let init = format!("INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}\r\n");
+        let init =
+            format!("INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}\r\n");
         s.write_all(init.as_bytes()).await.unwrap();
         held.push(s);
     }
@@ -109,7 +110,10 @@ async fn open_relay(gamebots: SocketAddr, wss: SocketAddr) -> (u16, Vec<TcpStrea
             if ask(&mut a, "INIT {Robot A} {Port 9}").await != "INITREPLY {Status OK}" {
                 continue;
             }
-            assert_eq!(ask(&mut b, "INIT {Robot B} {Port 9}").await, "INITREPLY {Status OK}");
+            assert_eq!(
+                ask(&mut b, "INIT {Robot B} {Port 9}").await,
+                "INITREPLY {Status OK}"
+            );
             registered = true;
         }
         let ss = ask(&mut a, "GETSS {Robot B}").await;
@@ -139,8 +143,16 @@ async fn with_bind_loopback_every_listener_is_on_loopback() {
     std::fs::create_dir_all(&dir).unwrap();
     for extra in [None, Some("--lockstep")] {
         let mut args = vec![
-            "--bind", "127.0.0.1", "--port", "0", "--truth-port", "0", "--monitor-port", "0",
-            "--wss-port", "0",
+            "--bind",
+            "127.0.0.1",
+            "--port",
+            "0",
+            "--truth-port",
+            "0",
+            "--monitor-port",
+            "0",
+            "--wss-port",
+            "0",
         ];
         args.extend(extra);
         let (mut server, ready) = start(&args, 5, &dir.join("server.log"));
@@ -153,12 +165,25 @@ async fn with_bind_loopback_every_listener_is_on_loopback() {
         );
         assert!(sockets.len() >= 6, "{extra:?}: {sockets:?}");
         let wide: Vec<_> = sockets.iter().filter(|s| !loopback(s)).collect();
-        assert!(wide.is_empty(), "{extra:?}: listening beyond loopback: {wide:?}");
+        assert!(
+            wide.is_empty(),
+            "{extra:?}: listening beyond loopback: {wide:?}"
+        );
         drop(held);
         // The standalone WSS against this server's monitor.
         let monitor = at(&ready, "robot monitor listening").to_string();
         let (mut wss, wss_ready) = start(
-            &["wss", "--bind", "127.0.0.1", "--port", "0", "--monitor", &monitor, "--poll", "0.2"],
+            &[
+                "wss",
+                "--bind",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--monitor",
+                &monitor,
+                "--poll",
+                "0.2",
+            ],
             1,
             &dir.join("wss.log"),
         );
@@ -166,7 +191,10 @@ async fn with_bind_loopback_every_listener_is_on_loopback() {
         let sockets = listening(wss.id());
         assert!(sockets.iter().any(|s| port_of(s) == relay), "{sockets:?}");
         let wide: Vec<_> = sockets.iter().filter(|s| !loopback(s)).collect();
-        assert!(wide.is_empty(), "usar-server wss: listening beyond loopback: {wide:?}");
+        assert!(
+            wide.is_empty(),
+            "usar-server wss: listening beyond loopback: {wide:?}"
+        );
         drop(held);
         let _ = (wss.kill(), wss.wait(), server.kill(), server.wait());
     }
@@ -203,7 +231,16 @@ async fn a_connection_whose_first_line_is_http_is_closed_and_nothing_of_it_is_se
     std::fs::create_dir_all(&dir).unwrap();
     let log = dir.join("server.log");
     let (mut server, ready) = start(
-        &["--port", "0", "--truth-port", "0", "--monitor-port", "0", "--wss-port", "0"],
+        &[
+            "--port",
+            "0",
+            "--truth-port",
+            "0",
+            "--monitor-port",
+            "0",
+            "--wss-port",
+            "0",
+        ],
         5,
         &log,
     );
@@ -219,7 +256,9 @@ async fn a_connection_whose_first_line_is_http_is_closed_and_nothing_of_it_is_se
     ] {
         let mut s = TcpStream::connect(gamebots).await.unwrap();
         s.write_all(request.as_bytes()).await.unwrap();
-        let got = until_closed(&mut s).await.expect("the server closes the connection");
+        let got = until_closed(&mut s)
+            .await
+            .expect("the server closes the connection");
         let text = String::from_utf8_lossy(&got);
         assert!(text.starts_with("NFO"), "only the greeting: {text:?}");
         assert!(!text.contains("STA") && !text.contains("SEN"), "{text:?}");
@@ -230,15 +269,30 @@ async fn a_connection_whose_first_line_is_http_is_closed_and_nothing_of_it_is_se
     assert_eq!(ask(&mut m, "GETPOS").await, "POSITIONS {Robots 0}");
     // The text side ports: closed without an answer.
     for (service, request) in [
-        ("USARTruth listening", "GET / HTTP/1.1\r\nHost: x\r\n\r\n{Name x}\r\n".to_owned()),
-        ("robot monitor listening", form_post(monitor.port(), "GETPOS\r\n")),
-        ("WSS listening", form_post(1, "INIT {Robot Evil} {Port 9}\r\nGETSS {Robot A}\r\n")),
+        (
+            "USARTruth listening",
+            "GET / HTTP/1.1\r\nHost: x\r\n\r\n{Name x}\r\n".to_owned(),
+        ),
+        (
+            "robot monitor listening",
+            form_post(monitor.port(), "GETPOS\r\n"),
+        ),
+        (
+            "WSS listening",
+            form_post(1, "INIT {Robot Evil} {Port 9}\r\nGETSS {Robot A}\r\n"),
+        ),
         ("USARTruth listening", "User-Agent: x\r\n\r\n".to_owned()),
     ] {
         let mut s = TcpStream::connect(at(&ready, service)).await.unwrap();
         s.write_all(request.as_bytes()).await.unwrap();
-        let got = until_closed(&mut s).await.expect("the server closes the connection");
-        assert!(got.is_empty(), "{service}: answered {:?}", String::from_utf8_lossy(&got));
+        let got = until_closed(&mut s)
+            .await
+            .expect("the server closes the connection");
+        assert!(
+            got.is_empty(),
+            "{service}: answered {:?}",
+            String::from_utf8_lossy(&got)
+        );
     }
     // A real client's first line is still served everywhere.
     assert!(ask(&mut m, "GETPOS").await.starts_with("POSITIONS"));
@@ -248,5 +302,8 @@ async fn a_connection_whose_first_line_is_http_is_closed_and_nothing_of_it_is_se
         .lines()
         .filter(|l| l.contains("the first line is HTTP"))
         .count();
-    assert_eq!(said, 6, "each closed connection is logged with the reason:\n{log}");
+    assert_eq!(
+        said, 6,
+        "each closed connection is logged with the reason:\n{log}"
+    );
 }
