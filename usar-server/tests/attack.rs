@@ -40,11 +40,11 @@ async fn judge(
     baseline: f64,
     failures: &mut Vec<String>,
     start: impl Fn(&Server, CancellationToken) -> tokio::task::JoinHandle<String>,
-    side_ports: bool,
+    (side_ports, args): (bool, &[&str]),
 ) {
     let mut shares = Vec::new();
     for _ in 0..ATTEMPTS {
-        let mut server = Server::start(&[]);
+        let mut server = Server::start(args);
         let stop = CancellationToken::new();
         let attacker = start(&server, stop.clone());
         tokio::time::sleep(Duration::from_millis(100)).await;
@@ -413,6 +413,119 @@ fn sync_zero(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHand
     })
 }
 
+/// `n` connections from the healthy client's own address (loopback), each active: it has
+/// sent a line and reads its answers (issue #56: 16 locked every local client out).
+fn active_connections(
+    addr: SocketAddr,
+    n: usize,
+    stop: CancellationToken,
+) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let mut readers = Vec::new();
+        let mut writers = Vec::new();
+        for _ in 0..n {
+            let Ok(s) = connect(addr, 1).await else {
+                continue;
+            };
+            let (read, mut write) = s.into_split();
+            if write.write_all(b"GETSTARTPOSES\r\n").await.is_ok() {
+                readers.push(tokio::spawn(drain(read, stop.clone())));
+                writers.push(write);
+            }
+        }
+        let held = readers.len();
+        for r in readers {
+            let _ = r.await;
+        }
+        format!("{n} active connections from the healthy client's address ({held} opened)")
+    })
+}
+
+fn active_16(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    active_connections(addr, 16, stop)
+}
+
+fn active_40(addr: SocketAddr, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    active_connections(addr, 40, stop)
+}
+
+/// 80 connections to each side port that each complete a request, then hold the
+/// connection without reading (issue #56: 64 locked each port).
+fn side_active(side: Side, stop: CancellationToken) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let mut held = Vec::new();
+        for (_, addr, request) in side_ports(side) {
+            for _ in 0..80 {
+                if let Ok(mut s) = connect(addr, 2).await
+                    && s.write_all(request).await.is_ok()
+                {
+                    held.push(s);
+                }
+            }
+        }
+        let opened = held.len();
+        stop.cancelled().await;
+        format!("side ports: 80 active connections each ({opened} opened), not reading")
+    })
+}
+
+/// 100 connections to each side port that each complete a request, read every answer, then
+/// send a byte each 0.5 s that never ends a request (the image server: `U` and its
+/// rectangle, 16 bytes, a byte each 0.5 s).
+fn side_slow_after_a_request(
+    side: Side,
+    stop: CancellationToken,
+) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move {
+        let mut held = Vec::new();
+        let mut readers = Vec::new();
+        for (name, addr, request) in side_ports(side) {
+            for _ in 0..100 {
+                let Ok(s) = connect(addr, 2).await else {
+                    continue;
+                };
+                let (read, mut write) = s.into_split();
+                readers.push(tokio::spawn(drain(read, stop.clone())));
+                if name == "image" {
+                    // After the frame sent on connect.
+                    tokio::time::sleep(Duration::from_millis(5)).await;
+                }
+                if write.write_all(request).await.is_ok() {
+                    held.push((name, write));
+                }
+            }
+        }
+        let opened = held.len();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let mut sent = 0usize;
+        while !stop.is_cancelled() {
+            for (name, s) in &mut held {
+                // The image server: `U`, 15 bytes of its rectangle, then the 16th and the
+                // next `U` at once, so that a request is always unfinished.
+                let byte: &[u8] = match (*name, sent % 15) {
+                    ("image", 0) if sent == 0 => b"U",
+                    ("image", 0) => b"\x7fU",
+                    ("image", _) => b"\x7f",
+                    _ => b"x",
+                };
+                let _ = tokio::time::timeout(Duration::from_millis(10), s.write_all(byte)).await;
+            }
+            sent += 1;
+            tokio::select! {
+                _ = stop.cancelled() => {}
+                _ = tokio::time::sleep(Duration::from_millis(500)) => {}
+            }
+        }
+        for r in readers {
+            let _ = r.await;
+        }
+        format!(
+            "side ports (64 places each): 100 connections each ({opened} opened) complete a \
+             request, then a byte each 0.5 s, never a whole request"
+        )
+    })
+}
+
 /// An attack on the four side ports at once.
 type SideAttack = (
     &'static str,
@@ -650,6 +763,8 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
         ("garbage", garbage),
         ("long lines", long_lines),
         ("SYNC {Time 0}", sync_zero),
+        ("16 active, same addr", active_16),
+        ("40 active, same addr", active_40),
     ];
     let mut failures = Vec::new();
     println!(
@@ -658,7 +773,7 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
     );
     for (name, attack) in attacks {
         let start = |server: &Server, stop| attack(server.addr, stop);
-        judge(name, baseline, &mut failures, start, false).await;
+        judge(name, baseline, &mut failures, start, (false, &[])).await;
     }
     let side_attacks: &[SideAttack] = &[
         ("side: flood, reading", side_flood_reading),
@@ -667,10 +782,23 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
         ("side: garbage", side_garbage),
         ("side: slowloris", side_slowloris),
         ("side: churn", side_churn),
+        ("side: 80 active each", side_active),
     ];
     for (name, attack) in side_attacks {
         let start = |server: &Server, stop| attack(server.side, stop);
-        judge(name, baseline, &mut failures, start, true).await;
+        judge(name, baseline, &mut failures, start, (true, &[])).await;
     }
+    // Slow senders that completed a request first, 100 a port against 64 places: they make
+    // room for a new client (issue #56).
+    let start = |server: &Server, stop| side_slow_after_a_request(server.side, stop);
+    let args: &[&str] = &["--max-side-connections", "64"];
+    judge(
+        "side: slow, after one",
+        baseline,
+        &mut failures,
+        start,
+        (true, args),
+    )
+    .await;
     assert!(failures.is_empty(), "{failures:#?}");
 }

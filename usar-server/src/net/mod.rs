@@ -572,6 +572,44 @@ mod tests {
         assert_eq!("MAX".parse::<TimeScale>().unwrap().to_string(), "max");
     }
 
+    #[test]
+    fn the_per_address_cap_counts_idle_connections_only() {
+        let registry: Arc<Mutex<Registry>> = Arc::default();
+        let local = IpAddr::from([127, 0, 0, 1]);
+        // 40 active connections of one address (cap of idle ones: 16) are all served.
+        let active: Vec<Registered> = (0..40)
+            .map(|_| {
+                let r = Registry::admit(&registry, local, (64, 16)).expect("served");
+                r.spoke();
+                r
+            })
+            .collect();
+        assert!(active.iter().all(|r| !r.evicted.is_cancelled()));
+        // 16 idle ones, then a 17th: the oldest idle one makes room, no active one.
+        let idle: Vec<Registered> = (0..16)
+            .map(|_| Registry::admit(&registry, local, (64, 16)).unwrap())
+            .collect();
+        let newest = Registry::admit(&registry, local, (64, 16)).unwrap();
+        assert!(idle[0].evicted.is_cancelled() && !idle[1].evicted.is_cancelled());
+        assert!(active.iter().all(|r| !r.evicted.is_cancelled()));
+        // At the cap of all connections with every one active, a new one is refused.
+        let other = IpAddr::from([127, 0, 0, 2]);
+        for r in idle.iter().skip(1) {
+            r.spoke();
+        }
+        newest.spoke();
+        assert_eq!(lock(&registry).live.len(), 56);
+        let more: Vec<Registered> = (0..8)
+            .map(|_| {
+                let r = Registry::admit(&registry, other, (64, 16)).unwrap();
+                r.spoke();
+                r
+            })
+            .collect();
+        assert_eq!(more.len(), 8);
+        assert!(Registry::admit(&registry, other, (64, 16)).is_none());
+    }
+
     #[tokio::test]
     async fn the_server_stops_with_an_error_when_the_simulation_dies() {
         let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();

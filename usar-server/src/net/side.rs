@@ -178,7 +178,11 @@ impl Slots {
         let mut s = lock(slots);
         let full = s.live.len() >= limits.max.max(1);
         if full {
-            let quiet = s.live.iter().find(|(_, (a, _))| !a.spoke()).map(|(id, _)| *id);
+            let quiet = s
+                .live
+                .iter()
+                .find(|(_, (a, _))| !a.spoke())
+                .map(|(id, _)| *id);
             let slow = || {
                 s.live
                     .iter()
