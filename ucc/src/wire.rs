@@ -662,7 +662,7 @@ mod tests {
         let (out, err, failed) = run_encode(json);
         assert_eq!((out.as_str(), failed), ("GETSTARTPOSES\n", 1));
         assert!(err.starts_with("line 1: "), "{err}");
-        assert!(err.contains("'\\r'"), "{err}");
+        assert!(err.contains("INIT {Name ..}") && err.contains("carriage return"), "{err}");
     }
 
     #[test]
