@@ -129,9 +129,8 @@ pub async fn run(
             randomized: record.randomized.clone().unwrap_or_default(),
         };
         let shared = Arc::clone(&shared);
-        let files = tokio::task::spawn_blocking(move || {
-            write_iteration(&shared, &record, &last_line)
-        });
+        let files =
+            tokio::task::spawn_blocking(move || write_iteration(&shared, &record, &last_line));
         observer.progress(&match &iteration_summary.status {
             IterationStatus::Done => Progress::IterationDone {
                 iteration,

@@ -278,9 +278,7 @@ fn for_each_line(
             Item::TooLong(length) => Some(Report::Line(format!(
                 "{length} bytes, longer than the limit of {limit}: skipped"
             ))),
-            Item::Line(text, _) if text.trim_ascii().is_empty() || text.starts_with(b"#") => {
-                None
-            }
+            Item::Line(text, _) if text.trim_ascii().is_empty() || text.starts_with(b"#") => None,
             Item::Line(text, end) => each(text, end, start)?,
         };
         match report {
@@ -662,7 +660,10 @@ mod tests {
         let (out, err, failed) = run_encode(json);
         assert_eq!((out.as_str(), failed), ("GETSTARTPOSES\n", 1));
         assert!(err.starts_with("line 1: "), "{err}");
-        assert!(err.contains("'\\r'"), "{err}");
+        assert!(
+            err.contains("INIT {Name ..}") && err.contains("carriage return"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -924,7 +924,11 @@ fn randomize_draws_per_iteration_and_writes_the_draws() {
 /// run is made /dev/full here (writing it fails with ENOSPC).
 #[test]
 fn results_never_say_ok_for_an_iteration_whose_files_were_not_written() {
-    for file in ["UCCLOG-01-trajectory.csv", "UCCLOG-01.log", "UCCLOG-01-map.png"] {
+    for file in [
+        "UCCLOG-01-trajectory.csv",
+        "UCCLOG-01.log",
+        "UCCLOG-01-map.png",
+    ] {
         let dir = scratch("full-file");
         std::os::unix::fs::symlink("/dev/full", dir.join(file)).unwrap();
         let out = ucc()
@@ -959,7 +963,10 @@ fn results_never_say_ok_for_an_iteration_whose_files_were_not_written() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains(&format!("cannot write {}: No space left", results.display())),
+        stderr.contains(&format!(
+            "cannot write {}: No space left",
+            results.display()
+        )),
         "{stderr}"
     );
     std::fs::remove_dir_all(&dir).unwrap();

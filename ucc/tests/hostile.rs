@@ -633,8 +633,14 @@ fn decode_stops_where_the_input_stops_being_the_protocol() {
     );
     for (input, at) in [
         // Text that parses as nothing: where the message word should end.
-        (&b"STA {Time 1.0000} {Battery 99}\nhello world\n"[..], "line 2, byte 37:"),
-        (b"STA {Time 1.0000} {Battery 99}\r\nDRIVE {Left \xff}\n", "line 2, byte 44:"),
+        (
+            &b"STA {Time 1.0000} {Battery 99}\nhello world\n"[..],
+            "line 2, byte 37:",
+        ),
+        (
+            b"STA {Time 1.0000} {Battery 99}\r\nDRIVE {Left \xff}\n",
+            "line 2, byte 44:",
+        ),
         (b"GETSTARTPOSES\n\x1b[2J\n", "line 2, byte 14:"),
         (b"\n  #!x\n", "line 2, byte 3:"),
     ] {
