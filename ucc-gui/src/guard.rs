@@ -26,7 +26,11 @@ pub(crate) async fn guard(State(app): State<App>, request: HttpRequest, next: Ne
     }
     if let Err(why) = same_site(headers, host) {
         let what = format!("{} {}", request.method(), request.uri().path());
-        return refuse(&app, StatusCode::FORBIDDEN, format!("{what} refused: {why}"));
+        return refuse(
+            &app,
+            StatusCode::FORBIDDEN,
+            format!("{what} refused: {why}"),
+        );
     }
     let path = request.uri().path();
     if (path == "/ws" || path.starts_with("/api/"))

@@ -90,7 +90,11 @@ impl<S> Stalled<S> {
 
     /// A write's outcome: progress clears the deadline; waiting starts it, and fails once it
     /// has passed.
-    fn watch<T>(&mut self, cx: &mut Context<'_>, polled: Poll<io::Result<T>>) -> Poll<io::Result<T>> {
+    fn watch<T>(
+        &mut self,
+        cx: &mut Context<'_>,
+        polled: Poll<io::Result<T>>,
+    ) -> Poll<io::Result<T>> {
         if polled.is_ready() {
             self.deadline = None;
             return polled;

@@ -26,6 +26,9 @@ async fn start() -> (std::net::SocketAddr, CancellationToken) {
         server: ServerChoice::Remote("127.0.0.1:1".into()),
         log_dir: std::env::temp_dir().join("ucc-gui-attack-test"),
         token: None,
+        // The pages of these attacks that do not read must stay until counted (the
+        // page timeout has its own test below).
+        page_timeout: Duration::from_secs(600),
         ..GuiConfig::default()
     };
     tokio::spawn(ucc_gui::serve(listener, config, cancel.clone()));
@@ -300,9 +303,9 @@ async fn pages_that_do_not_read_and_slow_senders_do_not_hold_slots() {
                 }
                 let mut buf = [0u8; 256];
                 match tokio::time::timeout(Duration::from_millis(500), s.read(&mut buf)).await {
-                    Ok(Ok(0)) | Ok(Err(_)) => break,       // closed by the server
-                    Ok(Ok(_)) => {}                        // its 408: read on to the close
-                    Err(_) => {}                           // still open
+                    Ok(Ok(0)) | Ok(Err(_)) => break, // closed by the server
+                    Ok(Ok(_)) => {}                  // its 408: read on to the close
+                    Err(_) => {}                     // still open
                 }
                 if started.elapsed() > Duration::from_secs(90) {
                     return None;
@@ -333,11 +336,17 @@ async fn pages_that_do_not_read_and_slow_senders_do_not_hold_slots() {
         .unwrap();
     let mut html = String::new();
     let _ = tokio::time::timeout(Duration::from_secs(10), s.read_to_string(&mut html)).await;
-    assert!(html.starts_with("HTTP/1.1 200") && html.contains("<html"), "{html}");
+    assert!(
+        html.starts_with("HTTP/1.1 200") && html.contains("<html"),
+        "{html}"
+    );
     // Every slow sender was dropped.
     for l in loris {
         let took = l.await.unwrap();
-        assert!(took.is_some(), "a slow-loris connection still open after 90 s");
+        assert!(
+            took.is_some(),
+            "a slow-loris connection still open after 90 s"
+        );
     }
     // The honest page, which reads, is still served after several timeouts.
     tokio::time::sleep(Duration::from_secs(5)).await;
