@@ -193,7 +193,10 @@ pub fn init() -> Log {
 pub fn announce(text: String) {
     let print = move || {
         let mut stdout = std::io::stdout().lock();
-        if let Err(error) = stdout.write_all(text.as_bytes()).and_then(|()| stdout.flush()) {
+        if let Err(error) = stdout
+            .write_all(text.as_bytes())
+            .and_then(|()| stdout.flush())
+        {
             tracing::warn!(%error, "cannot print the ready lines on stdout; serving anyway");
         }
     };

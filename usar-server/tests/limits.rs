@@ -61,34 +61,48 @@ async fn a_flood_of_valid_commands_does_not_stop_the_world() {
 
 #[tokio::test]
 async fn connections_per_address_are_limited() {
+    // The per-address cap counts connections that have not sent a line (issue #56: 16 active
+    // loopback clients locked every other local client out).
     let server = TestServer::with(ServerConfig {
         max_connections_per_address: 3,
         ..config()
     })
     .await;
-    let mut mine = Vec::new();
+    let mut talkers = Vec::new();
+    for _ in 0..8 {
+        let mut c = Client::connect_from(server.addr, 2).await;
+        assert!(c.raw_line().await.unwrap().starts_with("NFO "));
+        c.send("GETSTARTPOSES").await;
+        assert!(c.raw_line().await.unwrap().starts_with("NFO {StartPoses"));
+        talkers.push(c);
+    }
+    // Eight active clients of one address, then three silent ones: all served.
+    let mut silent = Vec::new();
     for _ in 0..3 {
         let mut c = Client::connect_from(server.addr, 2).await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO "));
-        // Each has sent a line: none of them makes room for a newer one.
+        silent.push(c);
+    }
+    // A fourth silent one: the address's oldest silent connection makes room.
+    let mut fourth = Client::connect_from(server.addr, 2).await;
+    assert!(fourth.raw_line().await.unwrap().starts_with("NFO "));
+    assert_eq!(
+        silent[0].raw_line().await,
+        None,
+        "the oldest silent is closed"
+    );
+    silent.remove(0);
+    for c in talkers
+        .iter_mut()
+        .chain(silent.iter_mut())
+        .chain([&mut fourth])
+    {
         c.send("GETSTARTPOSES").await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO {StartPoses"));
-        mine.push(c);
     }
-    let mut fourth = Client::connect_from(server.addr, 2).await;
-    assert_eq!(
-        fourth.raw_line().await,
-        None,
-        "the 4th from one address is closed"
-    );
     // Another address is served.
     let mut other = Client::connect_from(server.addr, 3).await;
     assert!(other.raw_line().await.unwrap().starts_with("NFO "));
-    // A freed slot is reused.
-    drop(mine.pop());
-    tokio::time::sleep(Duration::from_millis(100)).await;
-    let mut again = Client::connect_from(server.addr, 2).await;
-    assert!(again.raw_line().await.unwrap().starts_with("NFO "));
     server.stop().await;
 }
 
@@ -98,7 +112,7 @@ async fn at_a_limit_the_oldest_connection_without_a_line_makes_room() {
     // the 30 s idle timeout.
     let server = TestServer::with(ServerConfig {
         max_connections_per_address: 3,
-        max_connections: 5,
+        max_connections: 6,
         ..config()
     })
     .await;
@@ -113,12 +127,13 @@ async fn at_a_limit_the_oldest_connection_without_a_line_makes_room() {
             .starts_with("NFO {StartPoses")
     );
     let mut silent = Vec::new();
-    for _ in 0..2 {
+    for _ in 0..3 {
         let mut c = Client::connect_from(server.addr, 2).await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO "));
         silent.push(c);
     }
-    // The address is at its limit: the newcomer is served, the oldest silent one closed.
+    // The address is at its limit of silent connections: the newcomer is served, the oldest
+    // silent one closed.
     let mut newcomer = Client::connect_from(server.addr, 2).await;
     assert!(newcomer.raw_line().await.unwrap().starts_with("NFO "));
     assert_eq!(
@@ -126,12 +141,13 @@ async fn at_a_limit_the_oldest_connection_without_a_line_makes_room() {
         None,
         "the oldest silent is closed"
     );
-    // The others stay.
-    for c in [&mut talker, &mut silent[1], &mut newcomer] {
+    silent.remove(0);
+    // The others stay; every kept client speaks.
+    for c in silent.iter_mut().chain([&mut talker, &mut newcomer]) {
         c.send("GETSTARTPOSES").await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO {StartPoses"));
     }
-    // The server's limit (5) works the same way, across addresses.
+    // The server's limit (6) works the same way, across addresses.
     let mut quiet = Client::connect_from(server.addr, 3).await;
     assert!(quiet.raw_line().await.unwrap().starts_with("NFO "));
     let mut other = Client::connect_from(server.addr, 4).await;
@@ -139,11 +155,11 @@ async fn at_a_limit_the_oldest_connection_without_a_line_makes_room() {
     let mut fifth = Client::connect_from(server.addr, 5).await;
     assert!(fifth.raw_line().await.unwrap().starts_with("NFO "));
     assert_eq!(quiet.raw_line().await, None, "the oldest silent is closed");
-    for c in [&mut silent[1], &mut other, &mut fifth] {
+    for c in [&mut other, &mut fifth] {
         c.send("GETSTARTPOSES").await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO {StartPoses"));
     }
-    // All five have spoken: the next is refused.
+    // All six have spoken: the next is refused.
     let mut sixth = Client::connect_from(server.addr, 6).await;
     assert_eq!(sixth.raw_line().await, None, "refused: everyone has spoken");
     server.stop().await;

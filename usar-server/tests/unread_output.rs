@@ -55,7 +55,10 @@ fn stop(child: &mut Child, what: &str) -> std::process::ExitStatus {
     let sent = Instant::now();
     loop {
         if let Some(status) = child.try_wait().unwrap() {
-            println!("{what}: exited {:.3} s after SIGTERM", sent.elapsed().as_secs_f64());
+            println!(
+                "{what}: exited {:.3} s after SIGTERM",
+                sent.elapsed().as_secs_f64()
+            );
             return status;
         }
         if sent.elapsed() > EXIT_DEADLINE {
@@ -142,7 +145,14 @@ fn closed_stdout_and_stderr_never_stop_the_server_nor_its_shutdown() {
     };
     let mut child = program()
         .args(["--port", &port.to_string(), "--image-port", "off"])
-        .args(["--truth-port", "off", "--wss-port", "off", "--monitor-port", "off"])
+        .args([
+            "--truth-port",
+            "off",
+            "--wss-port",
+            "off",
+            "--monitor-port",
+            "off",
+        ])
         .env("RUST_LOG", "debug")
         .stdout(closed())
         .stderr(closed())
@@ -154,13 +164,19 @@ fn closed_stdout_and_stderr_never_stop_the_server_nor_its_shutdown() {
         if let Some(status) = child.try_wait().unwrap() {
             panic!("the server ended ({status}) instead of serving");
         }
-        assert!(started.elapsed() < Duration::from_secs(60), "never listened");
+        assert!(
+            started.elapsed() < Duration::from_secs(60),
+            "never listened"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
     let served = churn(addr, CONNECTIONS);
     let alive = child.try_wait().unwrap();
     let status = stop(&mut child, "closed stdout and stderr");
     served.unwrap();
-    assert!(alive.is_none(), "the server ended ({alive:?}) before SIGTERM");
+    assert!(
+        alive.is_none(),
+        "the server ended ({alive:?}) before SIGTERM"
+    );
     assert!(status.success(), "{status}");
 }
