@@ -504,12 +504,14 @@ async fn a_client_that_never_reads_does_not_slow_the_others() {
 }
 
 #[tokio::test]
-async fn sixty_four_connections_are_served_and_the_next_is_refused() {
+async fn the_default_connection_limit_serves_its_clients_and_refuses_the_next() {
     let server = TestServer::start().await;
+    let max = usar_server::ServerConfig::default().max_connections;
+    assert_eq!(max, 256, "the documented default (docs/limits.md)");
     let mut clients = Vec::new();
-    for i in 0..64 {
-        // 16 connections per address is the default limit.
-        let mut c = Client::connect_from(server.addr, 2 + i / 16).await;
+    for i in 0..max {
+        // Active connections do not count against the per-address cap (limits.rs).
+        let mut c = Client::connect_from(server.addr, 2 + (i % 4) as u8).await;
         assert!(c.raw_line().await.unwrap().starts_with("NFO "));
         // Each has sent a line: none makes room for a newcomer (limits.rs).
         c.send("GETSTARTPOSES").await;
@@ -520,9 +522,9 @@ async fn sixty_four_connections_are_served_and_the_next_is_refused() {
     assert_eq!(
         extra.raw_line().await,
         None,
-        "connection 65 is closed at once"
+        "the connection past the limit is closed at once"
     );
-    // All 64 keep being served.
+    // All of them keep being served.
     for c in &mut clients {
         c.send("GETSTARTPOSES").await;
     }
