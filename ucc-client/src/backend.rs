@@ -22,8 +22,8 @@ pub enum Backend {
 }
 
 /// Connections an in-process server accepts in all: two per UAV for the browser's 4096
-/// (a UAV may hold two for a moment between iterations); the public server's default is 64,
-/// and 16 per address.
+/// (a UAV may hold two for a moment between iterations); the public server's default is 256,
+/// and 16 idle connections per address (docs/limits.md).
 #[cfg(feature = "local")]
 pub const LOCAL_CONNECTIONS: usize = 8192;
 
