@@ -14,6 +14,18 @@ use std::time::Duration;
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpStream;
 
+/// Every service of the server on a free port.
+const FREE_PORTS: [&str; 8] = [
+    "--port",
+    "0",
+    "--truth-port",
+    "0",
+    "--monitor-port",
+    "0",
+    "--wss-port",
+    "0",
+];
+
 /// The program with `args`, its ready lines read (`lines` of them), its stderr into `log`.
 fn start(args: &[&str], lines: usize, log: &std::path::Path) -> (Child, String) {
     let mut child = common::program()
@@ -142,18 +154,8 @@ async fn with_bind_loopback_every_listener_is_on_loopback() {
     let dir = std::env::temp_dir().join(format!("usar-exposure-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     for extra in [None, Some("--lockstep")] {
-        let mut args = vec![
-            "--bind",
-            "127.0.0.1",
-            "--port",
-            "0",
-            "--truth-port",
-            "0",
-            "--monitor-port",
-            "0",
-            "--wss-port",
-            "0",
-        ];
+        let mut args = vec!["--bind", "127.0.0.1"];
+        args.extend(FREE_PORTS);
         args.extend(extra);
         let (mut server, ready) = start(&args, 5, &dir.join("server.log"));
         let gamebots: SocketAddr = ready.split_whitespace().nth(3).unwrap().parse().unwrap();
@@ -230,20 +232,7 @@ async fn a_connection_whose_first_line_is_http_is_closed_and_nothing_of_it_is_se
     let dir = std::env::temp_dir().join(format!("usar-http-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let log = dir.join("server.log");
-    let (mut server, ready) = start(
-        &[
-            "--port",
-            "0",
-            "--truth-port",
-            "0",
-            "--monitor-port",
-            "0",
-            "--wss-port",
-            "0",
-        ],
-        5,
-        &log,
-    );
+    let (mut server, ready) = start(&FREE_PORTS, 5, &log);
     let gamebots: SocketAddr = ready.split_whitespace().nth(3).unwrap().parse().unwrap();
     let monitor = at(&ready, "robot monitor listening");
     // The Gamebots port: a POST whose body spawns and drives a robot; and a first line that
