@@ -111,6 +111,13 @@ struct Args {
     /// leaves the barrier for good, with a warning (1: off).
     #[arg(long, default_value_t = 0.5, value_name = "SHARE", value_parser = share)]
     lockstep_share: f64,
+    /// While anyone else is connected: the share of wall time (0.01 to 1, over 10 s) the
+    /// world may wait for clients that joined the barrier less than 10 s ago, all of them
+    /// together; past it, until the window ends, their SYNCs are answered when the world
+    /// reaches their time instead of holding it (a client reconnecting in a loop cannot
+    /// hold the others; 1: off).
+    #[arg(long, default_value_t = 0.05, value_name = "SHARE", value_parser = share)]
+    lockstep_join_share: f64,
     /// With `--time-scale max`: wall-clock seconds the world waits for a client that reads
     /// nothing (it paces itself to its slowest reader) before it goes on without that client,
     /// dropping its output until it reads again. Each time a reader stops, everyone waits
@@ -279,6 +286,7 @@ fn build_config(args: &Args) -> anyhow::Result<ServerConfig> {
             .lockstep_clients
             .map_or(usize::MAX, |n| usize::try_from(n).unwrap_or(usize::MAX)),
         lockstep_share: args.lockstep_share,
+        lockstep_join_share: args.lockstep_join_share,
         reader_timeout: std::time::Duration::from_secs_f64(args.reader_timeout),
         record: args.record.clone(),
         image: usar_server::ImageConfig {

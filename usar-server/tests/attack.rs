@@ -802,3 +802,130 @@ async fn no_attack_slows_a_healthy_client_or_grows_the_server() {
     .await;
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// A lockstep member from `127.0.0.n`: spawns, then syncs one step (0.05 s) ahead each time
+/// it is answered, at once. Sends the simulated time of each answer until `stop`.
+fn lockstep_member(
+    addr: SocketAddr,
+    n: u8,
+    answers: tokio::sync::mpsc::UnboundedSender<(Instant, f64)>,
+    stop: CancellationToken,
+) -> tokio::task::JoinHandle<()> {
+    tokio::spawn(async move {
+        let stream = connect(addr, n).await.expect("the member connects");
+        let (read, mut write) = stream.into_split();
+        let mut lines = BufReader::new(read);
+        let mut line = String::new();
+        let init = format!(
+            "INIT {{ClassName USARBot.stsAirRobot}} {{Name Member{n}}} {{Location {n},0,-1}}\r\n"
+        );
+        write.write_all(init.as_bytes()).await.unwrap();
+        let mut barrier = 0.05;
+        while !stop.is_cancelled() {
+            let sync = format!("SYNC {{Time {barrier:.2}}}\r\n");
+            if write.write_all(sync.as_bytes()).await.is_err() {
+                return;
+            }
+            // Read up to the answer; its time is where the world stands.
+            let answered = loop {
+                match read_line(&mut lines, &mut line).await {
+                    Ok(Ok(n)) if n > 0 => {}
+                    _ => return,
+                }
+                if let Some(t) = line
+                    .strip_prefix("SYNC {Time ")
+                    .and_then(|rest| rest.split('}').next())
+                    .and_then(|t| t.parse::<f64>().ok())
+                {
+                    break t;
+                }
+            };
+            let _ = answers.send((Instant::now(), answered));
+            barrier = answered + 0.05;
+        }
+    })
+}
+
+/// Simulated seconds per wall second seen by a member's answers over `span`.
+async fn member_rate(
+    answers: &mut tokio::sync::mpsc::UnboundedReceiver<(Instant, f64)>,
+    span: Duration,
+) -> f64 {
+    while answers.try_recv().is_ok() {}
+    let Some((t0, s0)) = answers.recv().await else {
+        return 0.0;
+    };
+    let (mut t1, mut s1) = (t0, s0);
+    let end = t0 + span;
+    loop {
+        match tokio::time::timeout_at(end.into(), answers.recv()).await {
+            Ok(Some((t, s))) => (t1, s1) = (t, s),
+            _ => break,
+        }
+    }
+    // A world that stood still until the end: nothing was answered after t1.
+    let wall = Instant::now().max(t1) - t0;
+    (s1 - s0) / wall.as_secs_f64()
+}
+
+/// Issue #56: one client that reconnects again and again, each time joining the lockstep
+/// barrier and then holding the world (here: `SYNC {Time 0}`, 300 ms of silence, close),
+/// gave the established members 0-0.5 % of their rate. New members now hold the world
+/// only within a budget (`--lockstep-join-share`, 5 % by default): the members keep at
+/// least 90 % of the rate they had before the attack.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_reconnecting_into_the_lockstep_barrier_leaves_the_members_their_rate() {
+    let server = Server::start(&["--lockstep"]);
+    let stop = CancellationToken::new();
+    let (tx, mut answers) = tokio::sync::mpsc::unbounded_channel();
+    let members = [
+        lockstep_member(server.addr, 1, tx.clone(), stop.clone()),
+        lockstep_member(server.addr, 3, tx, stop.clone()),
+    ];
+    // Members are new for 10 s after they join; then they are the established ones.
+    tokio::time::sleep(Duration::from_millis(10_500)).await;
+    let baseline = member_rate(&mut answers, ATTACK).await;
+    println!("lockstep members: {baseline:.3} simulated s per wall s before the attack");
+    assert!(baseline > 0.5, "the members' world runs ({baseline:.3})");
+    let attacker = {
+        let (addr, stop) = (server.addr, stop.clone());
+        tokio::spawn(async move {
+            let mut connections = 0u32;
+            while !stop.is_cancelled() {
+                let Ok(mut s) = connect(addr, 2).await else {
+                    continue;
+                };
+                connections += 1;
+                let hold =
+                    b"INIT {ClassName USARBot.AirRobot} {Location 5,5,-1}\r\nSYNC {Time 0}\r\n";
+                if s.write_all(hold).await.is_ok() {
+                    tokio::time::sleep(Duration::from_millis(300)).await;
+                }
+            }
+            connections
+        })
+    };
+    tokio::time::sleep(HEAD_START).await;
+    let mut shares = Vec::new();
+    for _ in 0..ATTEMPTS {
+        let rate = member_rate(&mut answers, ATTACK).await;
+        shares.push(rate / baseline);
+        println!(
+            "under attack: {rate:.3} simulated s per wall s ({:.0} %)",
+            rate / baseline * 100.0
+        );
+        if rate / baseline >= MIN_SHARE {
+            break;
+        }
+    }
+    stop.cancel();
+    let connections = attacker.await.unwrap();
+    for m in members {
+        m.await.unwrap();
+    }
+    assert!(connections >= 5, "the attacker reconnected ({connections})");
+    assert!(
+        shares.iter().any(|s| *s >= MIN_SHARE),
+        "the members kept {shares:?} of their rate"
+    );
+}

@@ -76,6 +76,17 @@ const SPAWN_GRACE: Duration = Duration::from_secs(2);
 /// The wall-clock window over which the lockstep barrier's share of the time is measured.
 const SHARE_WINDOW: Duration = Duration::from_secs(10);
 
+/// A lockstep member that joined the barrier less than this long ago is *new*: while
+/// anyone else is connected, the world waits for new members only within a budget, so a
+/// client that reconnects again and again, each time a new member, cannot hold the others'
+/// world (issue #56). The budget is a bucket of [`NEW_BURST`] of wall time, refilled at
+/// `Settings::lockstep_join_share` seconds per second; once empty, the world does not wait
+/// for new members until it is full again.
+const PROBATION: Duration = SHARE_WINDOW;
+
+/// The most wall time the world waits for new members in one go (see [`PROBATION`]).
+const NEW_BURST: Duration = Duration::from_millis(100);
+
 /// Loop turns between checks of the shutdown token when no request arrives (a request, such
 /// as the `Wake` sent on shutdown, makes the driver check at once).
 const SHUTDOWN_CHECK_TURNS: u32 = 256;
@@ -92,6 +103,9 @@ pub(super) struct Settings {
     pub(super) lockstep_clients: usize,
     /// The share of wall time the barrier may hold the world while clients outside it wait.
     pub(super) lockstep_share: f64,
+    /// While anyone else is connected: the share of each window the world may wait for
+    /// members that joined less than [`PROBATION`] ago, all of them together (1: no limit).
+    pub(super) lockstep_join_share: f64,
     /// At `TimeScale::Max`: how long the world waits for a client whose queue has no room.
     pub(super) reader_timeout: Duration,
 }
@@ -137,6 +151,8 @@ struct Client {
     backlog: VecDeque<(Line, OwnedSemaphorePermit)>,
     /// Lockstep target time, once the client has joined the barrier.
     barrier: Option<f64>,
+    /// When the client joined the barrier (it is new for [`PROBATION`] after that).
+    joined_at: Option<Instant>,
     /// Whether the client has been told that the world reached its barrier.
     answered: bool,
     /// When the world reached the barrier (the lockstep timeout runs from then).
@@ -168,6 +184,7 @@ impl Client {
             stalled: false,
             backlog: VecDeque::new(),
             barrier: None,
+            joined_at: None,
             answered: false,
             answered_at: None,
             record: None,
@@ -241,6 +258,19 @@ impl Client {
     fn holds_at(&self, time: f64, dt: f64) -> bool {
         self.barrier.is_some_and(|b| time + dt > b + TIME_EPSILON)
     }
+
+    /// Whether the client joined the barrier less than [`PROBATION`] before `now`.
+    fn is_new(&self, now: Instant) -> bool {
+        self.joined_at
+            .is_some_and(|at| now.saturating_duration_since(at) < PROBATION)
+    }
+
+    /// Leaves the barrier (the caller counts it out of `joined`).
+    fn leave_barrier(&mut self) {
+        self.barrier = None;
+        self.answered_at = None;
+        self.joined_at = None;
+    }
 }
 
 /// The driver's state: the world and the clients' outbound sides.
@@ -264,6 +294,12 @@ pub(super) struct Driver {
     parked: usize,
     /// Start of the current window of the barrier's share, and the time it held the world.
     window: (Instant, Duration),
+    /// What is left of new members' budget ([`PROBATION`]), as of `new_refilled`...
+    new_tokens: Duration,
+    new_refilled: Instant,
+    /// ... and, once it ran out, until when new members do not hold the world (their
+    /// `SYNC`s are answered when the world reaches their time): when it is full again.
+    new_spent_until: Option<Instant>,
     /// The image server's captures (`None`: no image server).
     capture: Option<super::image::Capture>,
     /// The WSS on the simulated clock (`None`: none, or on the wall clock).
@@ -293,6 +329,9 @@ impl Driver {
             incomplete: Vec::new(),
             parked: 0,
             window: (Instant::now(), Duration::ZERO),
+            new_tokens: NEW_BURST,
+            new_refilled: Instant::now(),
+            new_spent_until: None,
             capture,
             radio,
             radio_due: false,
@@ -366,7 +405,10 @@ impl Driver {
                 };
                 // A share of 1 is the rule off (in-process servers): nothing to count, and no
                 // walk over every client per message while the barrier waits.
-                if self.joined > 0 && self.settings.lockstep_share < 1.0 {
+                if self.joined > 0
+                    && (self.settings.lockstep_share < 1.0
+                        || self.settings.lockstep_join_share < 1.0)
+                {
                     self.note_held(waited.elapsed());
                 }
                 match request {
@@ -551,17 +593,27 @@ impl Driver {
                     .min()
             })
             .flatten();
-        match (self.barrier_deadline(), parked) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        }
+        [self.barrier_deadline(), parked, self.new_budget_end()]
+            .into_iter()
+            .flatten()
+            .min()
+    }
+
+    /// Whether the world waits for this client: it holds the world, and it is not a new
+    /// member whose budget this window is spent.
+    fn waits_for(&self, c: &Client, time: f64, dt: f64) -> bool {
+        c.holds_at(time, dt)
+            && !(self.new_spent_until.is_some() && {
+                let now = Instant::now();
+                c.is_new(now) && self.new_spent_until.is_some_and(|until| now < until)
+            })
     }
 
     /// The world steps only when it holds a robot and no lockstep client holds it back.
     fn may_step(&self) -> bool {
         let (time, dt) = (self.world.time(), self.world.dt());
         self.world.robot_count() > 0
-            && (self.joined == 0 || !self.clients.values().any(|c| c.holds_at(time, dt)))
+            && (self.joined == 0 || !self.clients.values().any(|c| self.waits_for(c, time, dt)))
     }
 
     /// When the earliest lockstep client that holds the world runs out of time.
@@ -569,16 +621,77 @@ impl Driver {
         let (time, dt) = (self.world.time(), self.world.dt());
         self.clients
             .values()
-            .filter(|c| c.holds_at(time, dt))
+            .filter(|c| self.waits_for(c, time, dt))
             .filter_map(|c| c.answered_at)
             .min()
             .map(|at| at.checked_add(self.settings.lockstep_timeout).unwrap_or(at))
     }
 
+    /// Whether, at `now`, the world waits only for new members while someone else (an
+    /// established member, or a client outside the barrier) is connected.
+    fn held_by_new_members(&self, now: Instant) -> bool {
+        let (time, dt) = (self.world.time(), self.world.dt());
+        let mut new = false;
+        for c in self.clients.values() {
+            if c.holds_at(time, dt) {
+                if !c.is_new(now) {
+                    return false;
+                }
+                new = true;
+            }
+        }
+        new && self.clients.values().any(|c| !c.is_new(now))
+    }
+
+    /// While the world waits only for new members: when their budget runs out.
+    fn new_budget_end(&self) -> Option<Instant> {
+        if self.joined == 0 || self.settings.lockstep_join_share >= 1.0 {
+            return None;
+        }
+        let now = Instant::now();
+        if let Some(until) = self.new_spent_until {
+            // The world does not wait for new members until then, so it may step then.
+            return (now < until).then_some(until);
+        }
+        self.held_by_new_members(now).then(|| now + self.new_tokens)
+    }
+
     /// Counts `waited` against the lockstep clients that held the world meanwhile; at the end
     /// of each window, if clients outside the barrier were held for more than the allowed
     /// share of it, the member that held longest leaves the barrier for good (warning).
+    /// New members ([`PROBATION`]) have a budget of their own, charged here too.
     fn note_held(&mut self, waited: Duration) {
+        let now = Instant::now();
+        let share = self.settings.lockstep_join_share;
+        if share < 1.0 {
+            if self.new_spent_until.is_some_and(|until| now >= until) {
+                self.new_spent_until = None;
+                (self.new_tokens, self.new_refilled) = (NEW_BURST, now);
+            }
+            if self.new_spent_until.is_none() {
+                let refill = now
+                    .saturating_duration_since(self.new_refilled)
+                    .mul_f64(share);
+                let mut tokens = (self.new_tokens + refill).min(NEW_BURST);
+                if self.held_by_new_members(now) {
+                    tokens = tokens.saturating_sub(waited);
+                    if tokens.is_zero() {
+                        let until = now + NEW_BURST.div_f64(share);
+                        self.new_spent_until = Some(until);
+                        warn!(
+                            burst_s = NEW_BURST.as_secs_f64(),
+                            max_share = share,
+                            "lockstep clients that joined in the last 10 s held the world for \
+                             their budget while others are connected; for the next {:.1} s the \
+                             world does not wait for them (their SYNCs are answered when it \
+                             reaches their time)",
+                            (until - now).as_secs_f64()
+                        );
+                    }
+                }
+                (self.new_tokens, self.new_refilled) = (tokens, now);
+            }
+        }
         let (time, dt) = (self.world.time(), self.world.dt());
         let mut holding = false;
         for c in self.clients.values_mut() {
@@ -590,7 +703,6 @@ impl Driver {
         if holding {
             self.window.1 += waited;
         }
-        let now = Instant::now();
         let window = now.duration_since(self.window.0);
         if window < SHARE_WINDOW {
             return;
@@ -609,8 +721,7 @@ impl Driver {
                     window_s = window.as_secs_f64(), max_share = self.settings.lockstep_share,
                     "lockstep client held the world too long while others wait; it leaves the \
                      barrier, and its SYNCs are ignored from now on");
-                c.barrier = None;
-                c.answered_at = None;
+                c.leave_barrier();
                 c.expelled = true;
                 self.joined -= 1;
             }
@@ -634,8 +745,7 @@ impl Driver {
             if late && c.holds_at(time, dt) && c.backlog.is_empty() {
                 warn!(peer = %c.peer, barrier = c.barrier, timeout_s = timeout.as_secs_f64(),
                     "lockstep client sent no SYNC in time; it leaves the barrier");
-                c.barrier = None;
-                c.answered_at = None;
+                c.leave_barrier();
                 self.joined -= 1;
             }
         }
@@ -778,6 +888,7 @@ impl Driver {
                     }
                     if c.barrier.is_none() {
                         self.joined += 1;
+                        c.joined_at = Some(Instant::now());
                     }
                     c.barrier = Some(time);
                     c.answered = false;

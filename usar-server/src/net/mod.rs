@@ -140,6 +140,12 @@ pub struct ServerConfig {
     /// in-process servers serve one program's clients) turns the rule off; the
     /// `usar-server` program, a shared server, uses 0.5.
     pub lockstep_share: f64,
+    /// While anyone else is connected, the share of wall time (0 to 1, measured over 10 s)
+    /// the world may wait for members that joined the barrier less than 10 s ago, all of
+    /// them together; past it, until the window ends, the world does not wait for them (a
+    /// client that reconnects again and again cannot hold the others, issue #56). 1 (the
+    /// library's default) turns the rule off; the `usar-server` program uses 0.05.
+    pub lockstep_join_share: f64,
     /// At `time_scale: Max` the world waits for its slowest reader instead of dropping
     /// output; a client whose queue has had no room for this long (wall clock) is left
     /// behind: its output is dropped, as at real time, until it reads again.
@@ -170,6 +176,7 @@ impl Default for ServerConfig {
             lockstep_timeout: Duration::from_secs(10),
             lockstep_clients: usize::MAX,
             lockstep_share: 1.0,
+            lockstep_join_share: 1.0,
             reader_timeout: Duration::from_secs(10),
             record: None,
             image: image::ImageConfig::default(),
@@ -314,6 +321,7 @@ pub async fn run_with(
                 lockstep_timeout: config.lockstep_timeout,
                 lockstep_clients: config.lockstep_clients.max(1),
                 lockstep_share: config.lockstep_share,
+                lockstep_join_share: config.lockstep_join_share,
                 reader_timeout: config.reader_timeout,
             },
             wants_room.clone(),
