@@ -857,11 +857,8 @@ async fn member_rate(
     };
     let (mut t1, mut s1) = (t0, s0);
     let end = t0 + span;
-    loop {
-        match tokio::time::timeout_at(end.into(), answers.recv()).await {
-            Ok(Some((t, s))) => (t1, s1) = (t, s),
-            _ => break,
-        }
+    while let Ok(Some((t, s))) = tokio::time::timeout_at(end.into(), answers.recv()).await {
+        (t1, s1) = (t, s);
     }
     // A world that stood still until the end: nothing was answered after t1.
     let wall = Instant::now().max(t1) - t0;
