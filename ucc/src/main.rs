@@ -26,6 +26,48 @@ use ucc_client::{
 use usar_server::sim::map::Map;
 use usar_server::{ServerArgs, ServerConfig, TimeScale};
 
+/// The first error writing a status line to standard output (`None`: none so far). Status
+/// lines are not the job: a closed or full standard output does not stop a run, but the
+/// exit status says so at the end (see [`stdout_exit`]).
+static STDOUT_ERROR: std::sync::Mutex<Option<std::io::Error>> = std::sync::Mutex::new(None);
+
+/// `println!` for status lines that never panics: a failed write is kept in
+/// [`STDOUT_ERROR`] and later lines are skipped.
+macro_rules! say {
+    ($($arg:tt)*) => { status_line(format_args!($($arg)*)) };
+}
+
+fn status_line(line: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    let mut failed = STDOUT_ERROR.lock().unwrap_or_else(|e| e.into_inner());
+    if failed.is_none()
+        && let Err(e) = writeln!(std::io::stdout().lock(), "{line}")
+    {
+        *failed = Some(e);
+    }
+}
+
+/// The exit status once the job is done: `code`, unless the job succeeded and a status line
+/// could not be written
+/// (a reader that went away: [`CLOSED_PIPE`], quietly; another error, such as a full disk:
+/// a message and failure).
+fn stdout_exit(code: ExitCode) -> ExitCode {
+    let failed = STDOUT_ERROR
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .take();
+    match failed {
+        // The job's own failure says more.
+        _ if code != ExitCode::SUCCESS => code,
+        None => code,
+        Some(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::from(CLOSED_PIPE),
+        Some(e) => {
+            eprintln!("ucc: error: cannot write standard output: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
 #[derive(Parser)]
 #[command(
     name = "ucc",
@@ -378,7 +420,7 @@ fn main() -> ExitCode {
         Cmd::Gui(args) => runtime().and_then(|rt| rt.block_on(gui(args))),
     };
     match result {
-        Ok(code) => code,
+        Ok(code) => stdout_exit(code),
         Err(e) => {
             eprintln!("ucc: error: {}", error_chain(&e));
             ExitCode::FAILURE
@@ -603,7 +645,7 @@ async fn run(
                 lockstep: false,
                 ..
             } => bar.suspend(|| {
-                println!(
+                say!(
                     "ucc: running on sensor time: results depend on timing (with usar-server, \
                      start it with --lockstep and pass --lockstep for repeatable runs)"
                 );
@@ -618,7 +660,7 @@ async fn run(
                     | Progress::Warning { .. }
             );
         if show && p.is_loggable() && !matches!(p, Progress::Written { .. }) {
-            bar.suspend(|| println!("{p}"));
+            bar.suspend(|| say!("{p}"));
         }
     };
     let cancel = interrupt_token();
@@ -664,24 +706,27 @@ fn progress_bar(iterations: usize) -> indicatif::ProgressBar {
 
 fn print_statistics(summary: &Summary, wall: f64) {
     let s = summary.statistics();
-    println!("iterations: {} done, {} failed", s.completed, s.failed);
+    say!("iterations: {} done, {} failed", s.completed, s.failed);
     if s.completed > 0 {
-        println!(
+        say!(
             "completion time: {:.2} s mean, {:.3} s spread (simulated)",
-            s.duration.0, s.duration.1
+            s.duration.0,
+            s.duration.1
         );
-        println!(
+        say!(
             "path length: {:.2} m mean, {:.3} m spread; largest distance from the first path: {:.3} m",
-            s.distance.0, s.distance.1, s.max_deviation
+            s.distance.0,
+            s.distance.1,
+            s.max_deviation
         );
     }
-    println!(
+    say!(
         "wall time {wall:.2} s for {:.1} simulated s: real-time factor {:.1}",
         s.simulated_seconds,
         s.simulated_seconds / wall.max(1e-9)
     );
     if let Some(results) = &summary.results {
-        println!("results: {}", results.display());
+        say!("results: {}", results.display());
     }
 }
 
@@ -702,7 +747,7 @@ async fn tap(
     let listener = tokio::net::TcpListener::bind((bind, port))
         .await
         .with_context(|| format!("cannot listen on {bind}:{port}"))?;
-    println!(
+    say!(
         "ucc tap: listening on {}, {announce}",
         listener.local_addr()?
     );
@@ -717,7 +762,7 @@ async fn tap(
 }
 
 fn print_summary(summary: &Summary, settings: &RunSettings) {
-    println!(
+    say!(
         "{}: {} iteration(s), {} mission(s) completed",
         if summary.interrupted {
             "interrupted"
@@ -728,12 +773,12 @@ fn print_summary(summary: &Summary, settings: &RunSettings) {
         summary.missions_done
     );
     if let Some(dir) = &settings.log_dir {
-        println!("files are in {}", dir.display());
+        say!("files are in {}", dir.display());
         // Name every file of a short run; for a long one only the overlay and the table.
         let listed: Vec<&PathBuf> = if summary.flown <= 3 {
             summary.iterations.iter().flat_map(|i| &i.files).collect()
         } else {
-            println!("  ({} files of the iterations)", summary.files_written);
+            say!("  ({} files of the iterations)", summary.files_written);
             Vec::new()
         };
         for file in listed
@@ -741,7 +786,7 @@ fn print_summary(summary: &Summary, settings: &RunSettings) {
             .chain(&summary.overlay)
             .chain(&summary.results)
         {
-            println!("  {}", file.display());
+            say!("  {}", file.display());
         }
     }
 }
@@ -764,7 +809,7 @@ async fn demo(args: DemoArgs) -> anyhow::Result<ExitCode> {
         ..ServerConfig::default()
     };
     let server = Backend::Local(Box::new(config)).start().await?;
-    println!(
+    say!(
         "ucc demo: usar-server started on {} with its embedded map",
         server.addr()
     );
@@ -782,7 +827,7 @@ async fn demo(args: DemoArgs) -> anyhow::Result<ExitCode> {
         .iter()
         .find(|p| p.extension().is_some_and(|e| e == "png"));
     if let Some(png) = png {
-        println!("open {} to see the flight", png.display());
+        say!("open {} to see the flight", png.display());
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -798,7 +843,7 @@ async fn fly_demo(
         bail!("the demo map has no PlayerStart");
     };
     let origin = Coordinates::new(pose.location.x, pose.location.y, pose.location.z);
-    println!(
+    say!(
         "ucc demo: spawning a stsAirRobot at start {} ({:.2},{:.2},{:.2}), flying {} waypoints with the {} agent",
         pose.name,
         origin.x,
@@ -822,7 +867,7 @@ async fn fly_demo(
     let cancel = interrupt_token();
     let mut print = |p: &Progress| {
         if p.is_loggable() {
-            println!("{p}");
+            say!("{p}");
         }
     };
     let summary = ucc_client::run(&settings, &args.agent.create, &mut print, &cancel).await?;
@@ -849,9 +894,9 @@ async fn gui(args: GuiArgs) -> anyhow::Result<ExitCode> {
         .with_context(|| format!("cannot listen on {}", args.listen))?;
     let addr = listener.local_addr()?;
     let token = (!addr.ip().is_loopback()).then(ucc_gui::new_token);
-    println!("ucc gui: open {}", ucc_gui::url(addr, token.as_deref()));
+    say!("ucc gui: open {}", ucc_gui::url(addr, token.as_deref()));
     if token.is_some() {
-        println!(
+        say!(
             "ucc gui: listening beyond the loopback; the page and its API need the token in that URL"
         );
     }

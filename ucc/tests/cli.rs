@@ -649,6 +649,34 @@ fn decode_into_a_closed_pipe_ends_quietly() {
     );
 }
 
+/// The defect (#56): `ucc run` into a closed pipe (`ucc run ... | head -1`) panicked at its
+/// first status line and flew nothing more. Now the run is done and its files written, and
+/// the exit status says that the output was cut short, as for `cat` (141).
+#[test]
+fn a_run_into_a_closed_pipe_flies_writes_its_files_and_says_so() {
+    let dir = scratch("closed-stdout");
+    let mut child = ucc()
+        .args(["run", "--local", "--lockstep", "--start", "0,0,-1"])
+        .args(["--goto", "1,0,-1", "--iterations", "2", "--log-dir"])
+        .arg(&dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The reader is gone before the first line.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(141), "{err}");
+    let results = std::fs::read_to_string(dir.join("UCCLOG-results.csv")).unwrap();
+    assert_eq!(
+        results.lines().filter(|l| l.contains(",ok")).count(),
+        2,
+        "{results}"
+    );
+}
+
 /// The defect: `ucc run --local` without `--lockstep` ran a full-speed server against a
 /// wall-clock client, and eight runs of one command flew 1.4 to 30.7 m. A local run is in
 /// lockstep: the same command gives the same flight.
