@@ -480,7 +480,54 @@ fn two_uavs_never_share_a_name_or_their_files() {
     assert_eq!(id, taken + 1);
     let names: Vec<String> = hub.uavs.iter().map(|u| u.name.clone()).collect();
     assert_eq!(names.last().unwrap(), &format!("UAV{id}-2"), "{names:?}");
-    // A removed UAV's name is free again.
+    // A removed UAV's name is free again, when it wrote no file.
     hub.apply(Request::Remove { uav: taken }).unwrap();
     assert!(create(&mut hub, &format!("UAV{}", second + 2)).is_ok());
+}
+
+/// Issue #56: the files a UAV wrote are never written over in the same session, not after
+/// it was removed (a new UAV of its name), nor after it took another prefix.
+#[test]
+fn files_of_a_removed_uav_or_an_old_prefix_are_kept() {
+    let mut hub = hub();
+    let gone = create(&mut hub, "Scout").unwrap();
+    hub.written(gone, &[std::path::PathBuf::from("/logs/Scout-01.log")]);
+    hub.apply(Request::Remove { uav: gone }).unwrap();
+    let e = create(&mut hub, "scout").unwrap_err();
+    assert_eq!(
+        e,
+        format!(
+            "name: \"scout\" would write over the files that UAV {gone} (\"Scout\") wrote \
+             earlier, Scout-NN.log…: choose another name"
+        )
+    );
+    // A default name skips it too.
+    let id = create(&mut hub, "").unwrap();
+    let names: Vec<String> = hub.uavs.iter().map(|u| u.name.clone()).collect();
+    assert_eq!(names, [format!("UAV{id}")]);
+    // A UAV that wrote files and takes another prefix keeps its old files: another UAV may
+    // not take the old prefix, it may go back to it.
+    hub.written(
+        id,
+        &[std::path::PathBuf::from(format!("/logs/UAV{id}-01.log"))],
+    );
+    let options = |uav, prefix: &str| Request::Options {
+        uav,
+        prefix: prefix.into(),
+        pictures: "none".into(),
+        autosave: true,
+    };
+    hub.apply(options(id, "second")).unwrap();
+    let other = create(&mut hub, "Other").unwrap();
+    let e = hub
+        .apply(options(other, &format!("uav{id}")))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with(&format!(
+            "file prefix: \"uav{id}\" would write over the files that UAV {id}"
+        )),
+        "{e}"
+    );
+    hub.apply(options(id, &format!("UAV{id}"))).unwrap();
 }

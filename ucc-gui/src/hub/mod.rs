@@ -240,6 +240,10 @@ pub struct Hub {
     pub map: String,
     /// The UAVs.
     pub uavs: Vec<Uav>,
+    /// File prefixes that UAVs wrote files under and no longer use (the UAV was removed or
+    /// took another prefix): (UAV id, its name, the prefix). No UAV may take them, so no
+    /// file of this session is written over.
+    retired: Vec<(u32, String, String)>,
     /// Where runs write their files.
     pub log_dir: PathBuf,
     /// The robot classes of a local server (`None`: not known, any class may be asked for).
@@ -293,6 +297,7 @@ impl Hub {
             geometry: None,
             map: String::new(),
             uavs: Vec::new(),
+            retired: Vec::new(),
             log_dir,
             robot_classes: None,
             log: Default::default(),

@@ -460,6 +460,22 @@ impl Hub {
                 ));
             }
         }
+        // Files of a removed UAV, or of an earlier prefix of a UAV, stay as they are (a UAV
+        // may go back to a prefix of its own).
+        for (id, owner, old) in &self.retired {
+            if Some(*id) != except && old.eq_ignore_ascii_case(prefix) {
+                let (what, field) = match except {
+                    None => (name, "name"),
+                    Some(_) => (prefix, "prefix"),
+                };
+                return Err(format!(
+                    "{} would write over the files that UAV {id} ({}) wrote earlier, \
+                     {old}-NN.log…: choose another {field}",
+                    shown(what),
+                    shown(owner),
+                ));
+            }
+        }
         Ok(())
     }
 
@@ -480,6 +496,11 @@ impl Hub {
             return Err(RequestError::State(
                 "stop the UAV before removing it".into(),
             ));
+        }
+        if let Some(u) = self.uavs.iter().find(|u| u.id == uav)
+            && !u.files.is_empty()
+        {
+            self.retired.push((u.id, u.name.clone(), u.prefix.clone()));
         }
         self.uavs.retain(|u| u.id != uav);
         Ok(Action::None)
@@ -567,10 +588,13 @@ impl Hub {
         self.check_name(&name, prefix, Some(uav))
             .map_err(|e| field("file prefix", e))?;
         let u = self.uav(uav)?;
+        let retired = (!u.files.is_empty() && !u.prefix.eq_ignore_ascii_case(prefix))
+            .then(|| (u.id, u.name.clone(), u.prefix.clone()));
         u.prefix = prefix.to_owned();
         u.pictures = pictures;
         u.autosave = autosave;
         u.touch();
+        self.retired.extend(retired);
         Ok(Action::None)
     }
 
