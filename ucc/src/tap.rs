@@ -6,6 +6,12 @@
 //! line that does not parse, or that only parses by tolerating a deviation, is logged as a
 //! warning.
 //!
+//! The client's bytes go upstream only once its first line is known not to be HTTP (a
+//! request line or a header, `usar_proto::http`): a web page that sends a form POST to the
+//! tap's port is closed and logged, so its body's INIT and DRIVE lines never reach a USARSim
+//! server, which would run them (docs/security.md). Real clients wait for the server's `NFO`
+//! before they write, so holding their first line back costs them nothing.
+//!
 //! Limits (docs/limits.md): at most `max_connections` sessions at once (more are closed on
 //! accept, and a failing accept — out of file descriptors — is waited out, never the end of
 //! the tap); lines longer than [`MAX_LINE`] are forwarded but neither checked nor recorded;
@@ -238,12 +244,18 @@ async fn tap_one(
         .await
         .map_err(|e| std::io::Error::new(e.kind(), format!("cannot connect to {upstream}: {e}")))?;
     let _ = (client.set_nodelay(true), server.set_nodelay(true));
-    let (client_read, client_write) = client.into_split();
-    let (server_read, server_write) = server.into_split();
+    let (mut client_read, client_write) = client.into_split();
+    let (server_read, mut server_write) = server.into_split();
     let mut up = Checker::new(Direction::Client, Arc::clone(recording));
     let mut down = Checker::new(Direction::Server, Arc::clone(recording));
+    let upward = async {
+        let first = first_line_not_http(&mut client_read).await?;
+        server_write.write_all(&first).await?;
+        up.bytes(&first);
+        pump(client_read, server_write, &mut up).await
+    };
     let result = tokio::select! {
-        r = pump(client_read, server_write, &mut up) => r,
+        r = upward => r,
         r = pump(server_read, client_write, &mut down) => r,
     };
     up.summarise();
@@ -348,6 +360,37 @@ impl Checker {
 }
 
 /// Forwards bytes from `from` to `to` unchanged, checking and recording each line.
+/// Reads the client's bytes up to the end of its first line (or [`MAX_LINE`] bytes, or the
+/// end of the stream) and returns them, unless that line looks like HTTP: then an error
+/// that says so, and nothing of it is forwarded.
+async fn first_line_not_http(from: &mut (impl AsyncReadExt + Unpin)) -> std::io::Result<Vec<u8>> {
+    let mut held = Vec::new();
+    let mut buffer = [0; 4096];
+    loop {
+        let end = held.iter().position(|&b| b == b'\n' || b == b'\r');
+        if let Some(end) = end
+            && usar_proto::http::looks_like_http(&held[..end])
+        {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!(
+                    "the first line looks like HTTP ({}), as a web page's request would: \
+                     closed, nothing of it forwarded",
+                    Shown(&String::from_utf8_lossy(&held[..end]))
+                ),
+            ));
+        }
+        if end.is_some() || held.len() >= MAX_LINE {
+            return Ok(held);
+        }
+        let n = from.read(&mut buffer).await?;
+        if n == 0 {
+            return Ok(held);
+        }
+        held.extend_from_slice(&buffer[..n]);
+    }
+}
+
 async fn pump(
     mut from: impl AsyncReadExt + Unpin,
     mut to: impl AsyncWriteExt + Unpin,
@@ -434,6 +477,55 @@ mod tests {
             .filter_map(|l| l.split_once(" S ").map(|(_, line)| line))
             .collect();
         assert_eq!(&recorded[..received.len()], &received[..]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Issue #56: a web page's form POST to the tap's port carried INIT and DRIVE lines in
+    /// its body to the USARSim server (which runs them). The tap now closes a connection
+    /// whose first line is HTTP before anything of it goes upstream.
+    #[tokio::test]
+    async fn an_http_request_is_closed_and_nothing_of_it_reaches_the_server() {
+        let upstream = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let upstream_addr = upstream.local_addr().unwrap().to_string();
+        // A server that greets, then keeps what it receives until the tap closes.
+        let server = tokio::spawn(async move {
+            let (mut s, _) = upstream.accept().await.unwrap();
+            s.write_all(b"NFO {Gametype BotDeathMatch}\r\n")
+                .await
+                .unwrap();
+            let mut got = Vec::new();
+            let _ = s.read_to_end(&mut got).await;
+            got
+        });
+        let dir = std::env::temp_dir().join(format!("ucc-tap-http-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let front = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let front_addr = front.local_addr().unwrap();
+        let shutdown = CancellationToken::new();
+        let tap = Tap::check(upstream_addr, dir.join("s.usarlog"), MAX_CONNECTIONS.into())
+            .await
+            .unwrap();
+        let tap = tokio::spawn(tap.run(front, shutdown.clone()));
+        let mut page = tokio::net::TcpStream::connect(front_addr).await.unwrap();
+        page.write_all(
+            b"POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: text/plain\r\n\r\n\
+              INIT {ClassName USARBot.AirRobot} {Location 0,0,-1}\r\nDRIVE {AltitudeVelocity 1}\r\n",
+        )
+        .await
+        .unwrap();
+        // The tap closes the page's connection (after the server's greeting, if it came)
+        // and the server's; the server got nothing. (Without the check both stay open: the
+        // generous deadline turns that into a failure, not a hang.)
+        let deadline = std::time::Duration::from_secs(20);
+        let mut back = Vec::new();
+        let closed = tokio::time::timeout(deadline, page.read_to_end(&mut back)).await;
+        assert!(closed.is_ok(), "the page's connection stays open");
+        drop(page);
+        let got = tokio::time::timeout(deadline, server).await;
+        let got = got.expect("the server's connection stays open").unwrap();
+        assert!(got.is_empty(), "{}", String::from_utf8_lossy(&got));
+        shutdown.cancel();
+        tap.await.unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
