@@ -381,7 +381,8 @@ pub(crate) struct Quadrotor {
     payload: f64,
     /// Rotor disk area, m².
     disk: f64,
-    /// Fraction of each rotor's thrust and torque left (motor faults).
+    /// Fraction of each rotor's thrust and torque left (motor faults): the motor turns at
+    /// √health of the speed asked, so `speeds` are the rotors' true speeds.
     health: [f64; 4],
 }
 
@@ -794,9 +795,8 @@ impl Quadrotor {
         let shaft: f64 = self
             .speeds
             .iter()
-            .zip(self.health)
-            .map(|(w, health)| {
-                let thrust = c.thrust_coefficient * w * w * health;
+            .map(|w| {
+                let thrust = c.thrust_coefficient * w * w;
                 // (In ground effect the same power gives more thrust: the power is that of
                 // the thrust out of it.)
                 rotor_power(thrust, climb, self.disk, c.air_density, c.figure_of_merit)
@@ -841,7 +841,14 @@ impl Quadrotor {
         for _ in 0..self.substeps {
             let r = quat_matrix(self.q);
             let command = self.control(p, v, &r, h);
-            for (speed, target) in self.speeds.iter_mut().zip(command) {
+            for ((speed, target), health) in self.speeds.iter_mut().zip(command).zip(self.health) {
+                // A motor at a fraction `health` of its thrust turns at √health of the speed
+                // asked (thrust ∝ ω²): a failed one spins down to a stop with its lag.
+                let target = if health < 1.0 {
+                    target * health.sqrt()
+                } else {
+                    target
+                };
                 let alpha = if target > *speed {
                     self.motor_alpha.0
                 } else {
@@ -938,7 +945,7 @@ impl Quadrotor {
         let mut thrust = 0.0;
         let mut torque = [0.0; 3];
         for (i, &(x, y, spin)) in self.rotors.iter().enumerate() {
-            let w2 = self.speeds[i] * self.speeds[i] * self.health[i];
+            let w2 = self.speeds[i] * self.speeds[i];
             let t = kf * w2 * self.ground[i];
             thrust += t;
             // r × (0, 0, -t) = (-y·t, x·t, 0); the reaction torque turns the body against

@@ -1314,11 +1314,12 @@ fn a_motor_failure_at_hover_yaw_spins_and_falls_as_the_torque_balance_predicts()
         thrust: 0.0,
     };
     assert!(dynamics::Dynamics::fault(&mut rig.quad, &dead));
-    let health = [0.0, 1.0, 1.0, 1.0];
+    // The rotors' speeds are their true speeds: the dead one's spins down with the motor's
+    // lag, and its drag torque with it.
     let spin = [1.0, -1.0, 1.0, -1.0];
     let yaw_torque = |w: [f64; 4]| -> f64 {
         (0..4)
-            .map(|i| spin[i] * health[i] * q.torque_coefficient * w[i] * w[i])
+            .map(|i| spin[i] * q.torque_coefficient * w[i] * w[i])
             .sum()
     };
     let state = |rig: &Rig| {
@@ -1354,6 +1355,13 @@ fn a_motor_failure_at_hover_yaw_spins_and_falls_as_the_torque_balance_predicts()
     // rotor 1, so at most the clockwise pair lifts: less than the weight. It falls.
     let top = speeds.iter().fold(0.0f64, |a, &b| a.max(b));
     assert!(2.0 * q.thrust_coefficient * top * top < q.mass * GRAVITY * 1.02);
+    // Issue #54: the dead rotor reports that it stands still (it said about 990 rad/s).
+    assert!(
+        speeds[0] < 1.0,
+        "the dead rotor turns at {:.1} rad/s",
+        speeds[0]
+    );
+    assert!(speeds[1] > 100.0, "the others turn: {speeds:?}");
     assert!(
         rig.v[2] > 0.5 && rig.p[2] > -39.0,
         "falling: {:?} {:?}",
