@@ -802,12 +802,9 @@ impl Quadrotor {
                 rotor_power(thrust, climb, self.disk, c.air_density, c.figure_of_merit)
             })
             .sum();
-        let power = if self.mode == Mode::Off && shaft == 0.0 {
-            0.0
-        } else {
-            battery.electrical(shaft)
-        };
-        battery.draw(power, h);
+        // The avionics (autopilot, radio, sensors) draw their power whatever the motors do:
+        // landed, crashed or with its motors stopped, a vehicle still reports.
+        battery.draw(battery.electrical(shaft), h);
         self.top_speed = c.rotor_speed_max * battery.voltage_ratio();
         if battery.empty() {
             self.mode = Mode::Off;

@@ -1108,6 +1108,37 @@ fn a_battery_at_its_reserve_lands_the_quadrotor_and_reads_empty() {
     assert!(!w.crashed(c), "a landing, not a crash");
 }
 
+/// Issue #54: a crashed vehicle, its motors stopped, still powers its avionics, which
+/// still report: it drew 0 W once its rotors had spun down.
+#[test]
+fn crashed_its_avionics_still_draw_their_power() {
+    let catalog = with_gauges(1.0);
+    let q = catalog.get(QUAD).expect("class").quadrotor.clone();
+    let mut w = world_with(catalog, None, 0);
+    let c = spawn(&mut w, [0.0, 0.0, -3.0], 0.0);
+    // The rotors stop: it falls 3 m onto the floor.
+    command(&mut w, c, "QUAD {Rotors 0,0,0,0}");
+    run(&mut w, 3.0);
+    assert!(w.crashed(c), "a fall from 3 m is a crash");
+    let out = run(&mut w, 60.0);
+    assert!(
+        last_value(&out, "Rotors", "Speeds")
+            .iter()
+            .all(|s| *s < 1e-6),
+        "the rotors stand still"
+    );
+    let (v, i) = (
+        last_value(&out, "Battery", "Voltage")[0],
+        last_value(&out, "Battery", "Current")[0],
+    );
+    let power = v * i;
+    assert!(
+        (power / q.battery.avionics_power - 1.0).abs() < 0.05,
+        "{power:.2} W drawn, the avionics take {} W",
+        q.battery.avionics_power
+    );
+}
+
 // ---- rotor aerodynamics ----
 
 #[test]
