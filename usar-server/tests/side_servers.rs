@@ -277,6 +277,98 @@ fn walls_map() -> Map {
     Map::from_toml(&text, std::path::Path::new("walls.toml")).unwrap()
 }
 
+/// Issue #55: right after `INITREPLY`, `GETSS` answered `{Strength NaN}` and the relay port
+/// refused connections until the next poll (about a second). The WSS now evaluates a robot's
+/// links when it registers: here the periodic poll is an hour apart, and both work at once.
+#[tokio::test]
+async fn getss_and_dns_work_from_the_moment_init_is_answered() {
+    use usar_server::net::wss::{self, WssConfig};
+    let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let (main, monitor, wss_listener) = (bind().await, bind().await, bind().await);
+    let (gamebots, monitor_at, wss_at) = (
+        main.local_addr().unwrap(),
+        monitor.local_addr().unwrap(),
+        wss_listener.local_addr().unwrap(),
+    );
+    let shutdown = CancellationToken::new();
+    let config = ServerConfig {
+        map: walls_map(),
+        ..ServerConfig::default()
+    };
+    let side = SideListeners {
+        image: None,
+        truth: None,
+        monitor: Some(monitor),
+        wss: None,
+    };
+    tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
+    let wss_config = WssConfig {
+        poll: Duration::from_secs(3600),
+        ..WssConfig::new(monitor_at)
+    };
+    // Its first poll comes at once, before any robot exists; the next one an hour later.
+    tokio::spawn(wss::serve(wss_listener, wss_config, shutdown.clone()));
+    let mut robots = Vec::new();
+    for (name, at) in [("Robot1", "0,0,-1"), ("BaseStation", "0,6,-5")] {
+        let mut s = TcpStream::connect(gamebots).await.unwrap();
+        let init =
+            format!("INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}\r\n");
+        s.write_all(init.as_bytes()).await.unwrap();
+        robots.push(s);
+    }
+    // Both robots are in the simulation (the monitor lists them).
+    let (read, mut write) = TcpStream::connect(monitor_at).await.unwrap().into_split();
+    let mut read = BufReader::new(read);
+    for _ in 0..600 {
+        write.write_all(b"GETPOS\r\n").await.unwrap();
+        let mut line = String::new();
+        read.read_line(&mut line).await.unwrap();
+        if line.starts_with("POSITIONS {Robots 2}") {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let base_listener = bind().await;
+    let base_port = base_listener.local_addr().unwrap().port();
+    let mut a = Control::connect(wss_at).await;
+    let mut b = Control::connect(wss_at).await;
+    assert_eq!(
+        a.ask("INIT {Robot Robot1} {Port 8001}").await,
+        "INITREPLY {Status OK}"
+    );
+    assert_eq!(
+        b.ask(&format!("INIT {{Robot BaseStation}} {{Port {base_port}}}"))
+            .await,
+        "INITREPLY {Status OK}"
+    );
+    // At once: a finite strength (4 walls at 7.2 m, about -80.5 dBm), both ways...
+    for (c, other) in [(&mut a, "BaseStation"), (&mut b, "Robot1")] {
+        let reply = c.ask(&format!("GETSS {{Robot {other}}}")).await;
+        let s: f64 = reply
+            .strip_prefix(&format!("SS {{Robot {other}}} {{Strength "))
+            .and_then(|r| r.strip_suffix('}'))
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("not a strength: {reply}"));
+        assert!((-93.0..-70.0).contains(&s), "in range: {reply}");
+    }
+    // ... and a relay port that accepts.
+    let reply = a.ask("DNS {Robot BaseStation}").await;
+    let port: u16 = reply
+        .strip_prefix("DNSREPLY {Robot BaseStation} {Port ")
+        .and_then(|r| r.strip_suffix('}'))
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("{reply}"));
+    let mut link = TcpStream::connect(("127.0.0.1", port))
+        .await
+        .expect("the relay port accepts at once");
+    let (mut accepted, _) = base_listener.accept().await.unwrap();
+    link.write_all(b"hello").await.unwrap();
+    let mut got = [0u8; 5];
+    accepted.read_exact(&mut got).await.unwrap();
+    assert_eq!(&got, b"hello");
+    shutdown.cancel();
+}
+
 /// The reference's example session: two robots register, ask the signal and a relay port,
 /// talk through it; the link breaks when one flies down behind eight walls and resumes when
 /// it climbs back.

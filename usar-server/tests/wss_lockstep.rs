@@ -476,3 +476,76 @@ async fn a_flood_over_a_lockstep_link_is_bounded_and_does_not_hold_the_world() {
     shutdown.cancel();
     drop((a, b, base));
 }
+
+/// Issue #55, in lockstep: robots that register with the WSS at a barrier between two
+/// evaluations (here at 0.5 s; evaluations come at whole seconds) get a finite `GETSS` and
+/// a relay port that accepts from their `INITREPLY` on (they waited for the next
+/// evaluation).
+#[tokio::test]
+async fn in_lockstep_getss_and_dns_work_from_the_moment_init_is_answered() {
+    let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let (main, monitor, wss) = (bind().await, bind().await, bind().await);
+    let (gamebots, wss_at) = (main.local_addr().unwrap(), wss.local_addr().unwrap());
+    let shutdown = CancellationToken::new();
+    let config = ServerConfig {
+        map: walls_map(),
+        lockstep: true,
+        time_scale: TimeScale::Max,
+        ..ServerConfig::default()
+    };
+    let side = SideListeners {
+        image: None,
+        truth: None,
+        monitor: Some(monitor),
+        wss: Some(wss),
+    };
+    let server = tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
+    let mut robots = Vec::new();
+    for (name, at) in [("Robot1", "0,0,-1"), ("BaseStation", "0,6,-5")] {
+        let mut c = Lines::connect(gamebots).await;
+        c.line().await; // NFO
+        c.sync(0.0).await;
+        c.answered().await;
+        c.send(&format!(
+            "INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}"
+        ))
+        .await;
+        robots.push(c);
+    }
+    for c in &mut robots {
+        c.sync(0.5).await;
+    }
+    for c in &mut robots {
+        c.answered().await;
+    }
+    // The world stands at 0.5 s.
+    let base = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let base_port = base.local_addr().unwrap().port();
+    let (mut a, mut b) = (Lines::connect(wss_at).await, Lines::connect(wss_at).await);
+    assert_eq!(
+        a.ask("INIT {Robot Robot1} {Port 8001}").await,
+        "INITREPLY {Status OK}"
+    );
+    assert_eq!(
+        b.ask(&format!("INIT {{Robot BaseStation}} {{Port {base_port}}}"))
+            .await,
+        "INITREPLY {Status OK}"
+    );
+    let reply = a.ask("GETSS {Robot BaseStation}").await;
+    let s: f64 = reply
+        .strip_prefix("SS {Robot BaseStation} {Strength ")
+        .and_then(|r| r.strip_suffix('}'))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("not a strength: {reply}"));
+    assert!((-93.0..-70.0).contains(&s), "in range: {reply}");
+    let reply = a.ask("DNS {Robot BaseStation}").await;
+    let port: u16 = reply
+        .strip_prefix("DNSREPLY {Robot BaseStation} {Port ")
+        .and_then(|r| r.strip_suffix('}'))
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("{reply}"));
+    // The relay port listens at once (its connection is taken at the next barrier).
+    std::net::TcpStream::connect(("127.0.0.1", port)).expect("the relay port accepts");
+    shutdown.cancel();
+    let _ = server.await;
+}

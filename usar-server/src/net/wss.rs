@@ -185,6 +185,9 @@ struct State {
     positions: HashMap<String, [f64; 3]>,
     /// Robots whose radio is off (the monitor's `Radio Off`, a fault; docs/wss.md).
     radio_off: std::collections::HashSet<String>,
+    /// Wall clock: robots registered since the poll task last looked (it evaluates them at
+    /// once).
+    registered: Vec<String>,
     /// Wall counts per unordered pair, with the positions they were counted at.
     walls: HashMap<(String, String), Walls>,
     /// Relayed connections: the WSS's outgoing local port → (from, to).
@@ -235,7 +238,15 @@ struct Wss {
     shutdown: CancellationToken,
     /// The simulated clock's watch over the relay sockets (`None`: wall clock).
     gate: Option<Gate>,
+    /// Wall clock: tells the poll task to poll at once (a robot registered)...
+    poll_now: tokio::sync::Notify,
+    /// ... which counts its polls here, done or failed.
+    polled: tokio::sync::watch::Sender<u64>,
 }
+
+/// The longest a registration waits for its evaluation (the monitor's answer, or the
+/// simulation thread) before `INITREPLY` goes out anyway.
+const REFRESH_WAIT: Duration = Duration::from_secs(2);
 
 /// What the WSS on the simulated clock needs to hear from its relay sockets.
 struct Gate {
@@ -244,6 +255,8 @@ struct Gate {
     registry: mio::Registry,
     /// Set by the watcher when it has asked for a take, cleared by each take.
     woken: Arc<AtomicBool>,
+    /// The simulation thread's requests: an evaluation at once when a robot registers.
+    requests: Sender<Request>,
 }
 
 /// The token of every watched relay socket (the watcher only needs to know that one has
@@ -266,6 +279,35 @@ impl Wss {
             relayed: Arc::new(Semaphore::new(MAX_RELAYED)),
             shutdown,
             gate,
+            poll_now: tokio::sync::Notify::new(),
+            polled: tokio::sync::watch::Sender::new(0),
+        }
+    }
+
+    /// Evaluates the links at once (a robot has just registered): so that its `GETSS` and
+    /// `DNS` are answered from the positions of now from its `INITREPLY` on, not after the
+    /// next poll. On the simulated clock the simulation thread evaluates between two ticks
+    /// (at the world's current time); on the wall clock the poll task asks the monitor.
+    /// Waits at most [`REFRESH_WAIT`].
+    async fn refresh(self: &Arc<Self>, name: &str) {
+        match &self.gate {
+            Some(gate) => {
+                let (done, evaluated) = tokio::sync::oneshot::channel();
+                let (wss, name) = (Arc::clone(self), name.to_owned());
+                let ask = super::request::Ask(Box::new(move |world: &World| {
+                    wss.evaluate(world, Some(&name));
+                    let _ = done.send(());
+                }));
+                if gate.requests.send(Request::Ask(ask)).is_ok() {
+                    let _ = tokio::time::timeout(REFRESH_WAIT, evaluated).await;
+                }
+            }
+            None => {
+                let mut polled = self.polled.subscribe();
+                self.lock().registered.push(name.to_owned());
+                self.poll_now.notify_one();
+                let _ = tokio::time::timeout(REFRESH_WAIT, polled.changed()).await;
+            }
         }
     }
 }
@@ -334,11 +376,16 @@ impl Clock {
         let stop = mio::Waker::new(poll.registry(), STOP)?;
         let woken = Arc::new(AtomicBool::new(false));
         let watched = woken.clone();
+        let asks = requests.clone();
         std::thread::Builder::new()
             .name("usar-wss".into())
             .spawn(move || watch(poll, watched, requests))?;
         let seconds = config.poll.as_secs_f64();
-        let gate = Gate { registry, woken };
+        let gate = Gate {
+            registry,
+            woken,
+            requests: asks,
+        };
         Ok(Self {
             wss: Arc::new(Wss::new(config, relay_ip, shutdown, Some(gate))),
             poll: seconds,
@@ -364,7 +411,7 @@ impl Clock {
         if time + EPSILON < self.next {
             return;
         }
-        self.wss.evaluate(world);
+        self.wss.evaluate(world, None);
         self.next = if self.poll > 0.0 {
             (((time + EPSILON) / self.poll).floor() + 1.0) * self.poll
         } else {
@@ -557,7 +604,14 @@ async fn request(
     ip: IpAddr,
     line: &str,
 ) -> String {
+    let registering = me.is_none();
     match answer(wss, me, ip, line) {
+        // Registered: its links are evaluated before it is told so.
+        Answer::Reply(text) if registering && me.is_some() => {
+            let name = me.as_ref().map(|m| m.0.clone()).unwrap_or_default();
+            wss.refresh(&name).await;
+            text
+        }
         Answer::Reply(text) => text,
         Answer::Relay {
             other,
@@ -912,13 +966,13 @@ impl Wss {
 
     /// Simulated clock: positions and wall counts from the world; kicks; breaks and
     /// resumes.
-    fn evaluate(&self, world: &World) {
+    fn evaluate(&self, world: &World, only: Option<&str>) {
         let found: Vec<Found> = world
             .robots_truth()
             .into_iter()
             .map(|r| (r.name, r.location, r.battery_empty, r.radio_off))
             .collect();
-        let (names, stale) = self.observe(&found);
+        let (names, stale) = self.observe(&found, only);
         let counted = stale
             .into_iter()
             .map(|(key, pa, pb)| {
@@ -1070,26 +1124,35 @@ async fn poll(wss: Arc<Wss>) {
     let mut ticker = tokio::time::interval(wss.config.poll);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
-        tokio::select! {
+        // A tick evaluates every robot (and kicks); a registration only the robots that
+        // registered since (their places and walls now).
+        let only = tokio::select! {
             _ = wss.shutdown.cancelled() => return,
-            _ = ticker.tick() => {}
-        }
+            _ = ticker.tick() => None,
+            _ = wss.poll_now.notified() => Some(std::mem::take(&mut wss.lock().registered)),
+        };
         if monitor.is_none() {
             match TcpStream::connect(wss.config.monitor).await {
                 Ok(s) => monitor = Some(BufReader::new(s)),
                 Err(error) => {
                     warn!(monitor = %wss.config.monitor, %error, "WSS: cannot reach the robot monitor");
-                    continue;
                 }
             }
         }
-        let Some(m) = monitor.as_mut() else {
-            continue;
-        };
-        if update(&wss, m).await.is_err() {
-            warn!(monitor = %wss.config.monitor, "WSS: the robot monitor stopped answering");
-            monitor = None;
+        if let Some(m) = monitor.as_mut() {
+            let names = match &only {
+                None => vec![None],
+                Some(names) => names.iter().map(|n| Some(n.as_str())).collect(),
+            };
+            for name in names {
+                if update(&wss, m, name).await.is_err() {
+                    warn!(monitor = %wss.config.monitor, "WSS: the robot monitor stopped answering");
+                    monitor = None;
+                    break;
+                }
+            }
         }
+        wss.polled.send_modify(|n| *n += 1);
     }
 }
 
@@ -1206,20 +1269,39 @@ impl Wss {
     /// Takes the simulator's robots: kicks registered robots it does not have (or whose
     /// battery is empty); returns the registered robots it has and the pairs whose wall
     /// count is missing or was counted more than 1 m (squared) away.
-    fn observe(&self, found: &[Found]) -> (Vec<String>, Vec<Stale>) {
+    fn observe(&self, found: &[Found], only: Option<&str>) -> (Vec<String>, Vec<Stale>) {
         let mut state = self.lock();
-        state.positions = found
-            .iter()
-            .filter(|f| !f.2)
-            .map(|f| (f.0.clone(), f.1))
-            .collect();
-        state.radio_off = found.iter().filter(|f| f.3).map(|f| f.0.clone()).collect();
-        let (names, kicked): (Vec<String>, Vec<String>) = state
+        match only {
+            None => {
+                state.positions = found
+                    .iter()
+                    .filter(|f| !f.2)
+                    .map(|f| (f.0.clone(), f.1))
+                    .collect();
+                state.radio_off = found.iter().filter(|f| f.3).map(|f| f.0.clone()).collect();
+            }
+            // A robot that has just registered: its own place only; the others' stay as the
+            // last evaluation saw them.
+            Some(name) => {
+                if let Some(f) = found.iter().find(|f| f.0 == name && !f.2) {
+                    state.positions.insert(f.0.clone(), f.1);
+                    if f.3 {
+                        state.radio_off.insert(f.0.clone());
+                    }
+                }
+            }
+        }
+        let (names, mut kicked): (Vec<String>, Vec<String>) = state
             .robots
             .keys()
             .cloned()
             .partition(|name| state.positions.contains_key(name));
         drop(state);
+        if only.is_some() {
+            // Kicks come at the evaluations only: a robot may register just before the
+            // simulation has it.
+            kicked.clear();
+        }
         for name in &kicked {
             warn!(robot = %name, "WSS: no such robot in the simulation (or its battery is empty); kicked");
             // Unregistered now (its links break, others are told it does not exist); its
@@ -1290,9 +1372,13 @@ impl Wss {
 }
 
 /// Wall clock: one evaluation, asking the robot monitor `m`.
-async fn update(wss: &Arc<Wss>, m: &mut BufReader<TcpStream>) -> Result<(), ()> {
+async fn update(
+    wss: &Arc<Wss>,
+    m: &mut BufReader<TcpStream>,
+    only: Option<&str>,
+) -> Result<(), ()> {
     let reply = ask(m, "GETPOS").await?;
-    let (names, stale) = wss.observe(&positions(&reply));
+    let (names, stale) = wss.observe(&positions(&reply), only);
     let mut counted = Vec::new();
     for ((a, b), pa, pb) in stale {
         let reply = ask(m, &format!("GETOBS {{From {a}}} {{To {b}}}")).await?;
