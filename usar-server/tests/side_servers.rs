@@ -277,11 +277,19 @@ fn walls_map() -> Map {
     Map::from_toml(&text, std::path::Path::new("walls.toml")).unwrap()
 }
 
-/// Issue #55: right after `INITREPLY`, `GETSS` answered `{Strength NaN}` and the relay port
-/// refused connections until the next poll (about a second). The WSS now evaluates a robot's
-/// links when it registers: here the periodic poll is an hour apart, and both work at once.
-#[tokio::test]
-async fn getss_and_dns_work_from_the_moment_init_is_answered() {
+/// The reference's session set up: the walls map served with a robot monitor, the WSS as
+/// its own server against the monitor (as `usar-server wss` runs it) polling every `poll`,
+/// and two robots, Robot1 on the ground's near side and BaseStation 6 m east above the
+/// walls' tops, in the simulation (the monitor lists both: the WSS kicks names it does not
+/// have; UsarCommander waits 3 s after spawning for this reason).
+struct WssRig {
+    robot1: TcpStream,
+    base: TcpStream,
+    wss_at: std::net::SocketAddr,
+    shutdown: CancellationToken,
+}
+
+async fn wss_rig(poll: Duration) -> WssRig {
     use usar_server::net::wss::{self, WssConfig};
     let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
     let (main, monitor, wss_listener) = (bind().await, bind().await, bind().await);
@@ -303,10 +311,9 @@ async fn getss_and_dns_work_from_the_moment_init_is_answered() {
     };
     tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
     let wss_config = WssConfig {
-        poll: Duration::from_secs(3600),
+        poll,
         ..WssConfig::new(monitor_at)
     };
-    // Its first poll comes at once, before any robot exists; the next one an hour later.
     tokio::spawn(wss::serve(wss_listener, wss_config, shutdown.clone()));
     let mut robots = Vec::new();
     for (name, at) in [("Robot1", "0,0,-1"), ("BaseStation", "0,6,-5")] {
@@ -316,7 +323,6 @@ async fn getss_and_dns_work_from_the_moment_init_is_answered() {
         s.write_all(init.as_bytes()).await.unwrap();
         robots.push(s);
     }
-    // Both robots are in the simulation (the monitor lists them).
     let (read, mut write) = TcpStream::connect(monitor_at).await.unwrap().into_split();
     let mut read = BufReader::new(read);
     for _ in 0..600 {
@@ -328,7 +334,42 @@ async fn getss_and_dns_work_from_the_moment_init_is_answered() {
         }
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
-    let base_listener = bind().await;
+    let base = robots.pop().unwrap();
+    WssRig {
+        robot1: robots.pop().unwrap(),
+        base,
+        wss_at,
+        shutdown,
+    }
+}
+
+/// The strength of a `GETSS {Robot other}` reply (NaN when it gives none).
+fn strength_of(reply: &str, other: &str) -> f64 {
+    reply
+        .strip_prefix(&format!("SS {{Robot {other}}} {{Strength "))
+        .and_then(|r| r.strip_suffix('}'))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(f64::NAN)
+}
+
+/// The port of a `DNSREPLY {Robot other} {Port p}` reply.
+fn relay_port(reply: &str, other: &str) -> u16 {
+    reply
+        .strip_prefix(&format!("DNSREPLY {{Robot {other}}} {{Port "))
+        .and_then(|r| r.strip_suffix('}'))
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("{reply}"))
+}
+
+/// Issue #55: right after `INITREPLY`, `GETSS` answered `{Strength NaN}` and the relay port
+/// refused connections until the next poll (about a second). The WSS now evaluates a robot's
+/// links when it registers: here the periodic poll is an hour apart, and both work at once.
+#[tokio::test]
+async fn getss_and_dns_work_from_the_moment_init_is_answered() {
+    // Its first poll comes at once, before any robot exists; the next one an hour later.
+    let rig = wss_rig(Duration::from_secs(3600)).await;
+    let wss_at = rig.wss_at;
+    let base_listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
     let base_port = base_listener.local_addr().unwrap().port();
     let mut a = Control::connect(wss_at).await;
     let mut b = Control::connect(wss_at).await;
@@ -344,20 +385,11 @@ async fn getss_and_dns_work_from_the_moment_init_is_answered() {
     // At once: a finite strength (4 walls at 7.2 m, about -80.5 dBm), both ways...
     for (c, other) in [(&mut a, "BaseStation"), (&mut b, "Robot1")] {
         let reply = c.ask(&format!("GETSS {{Robot {other}}}")).await;
-        let s: f64 = reply
-            .strip_prefix(&format!("SS {{Robot {other}}} {{Strength "))
-            .and_then(|r| r.strip_suffix('}'))
-            .and_then(|s| s.parse().ok())
-            .unwrap_or_else(|| panic!("not a strength: {reply}"));
+        let s = strength_of(&reply, other);
         assert!((-93.0..-70.0).contains(&s), "in range: {reply}");
     }
     // ... and a relay port that accepts.
-    let reply = a.ask("DNS {Robot BaseStation}").await;
-    let port: u16 = reply
-        .strip_prefix("DNSREPLY {Robot BaseStation} {Port ")
-        .and_then(|r| r.strip_suffix('}'))
-        .and_then(|p| p.parse().ok())
-        .unwrap_or_else(|| panic!("{reply}"));
+    let port = relay_port(&a.ask("DNS {Robot BaseStation}").await, "BaseStation");
     let mut link = TcpStream::connect(("127.0.0.1", port))
         .await
         .expect("the relay port accepts at once");
@@ -366,7 +398,7 @@ async fn getss_and_dns_work_from_the_moment_init_is_answered() {
     let mut got = [0u8; 5];
     accepted.read_exact(&mut got).await.unwrap();
     assert_eq!(&got, b"hello");
-    shutdown.cancel();
+    rig.shutdown.cancel();
 }
 
 /// The reference's example session: two robots register, ask the signal and a relay port,
@@ -374,66 +406,14 @@ async fn getss_and_dns_work_from_the_moment_init_is_answered() {
 /// it climbs back.
 #[tokio::test]
 async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
-    use usar_server::net::wss::{self, WssConfig};
-    let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let (main, monitor, wss_listener) = (bind().await, bind().await, bind().await);
-    let (gamebots, monitor_at, wss_at) = (
-        main.local_addr().unwrap(),
-        monitor.local_addr().unwrap(),
-        wss_listener.local_addr().unwrap(),
-    );
-    let shutdown = CancellationToken::new();
-    let config = ServerConfig {
-        map: walls_map(),
-        ..ServerConfig::default()
-    };
-    let side = SideListeners {
-        image: None,
-        truth: None,
-        monitor: Some(monitor),
-        wss: None,
-    };
-    tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
-    // The WSS as its own server against the monitor (as `usar-server wss` runs it).
-    let wss_config = WssConfig {
-        poll: Duration::from_millis(100),
-        ..WssConfig::new(monitor_at)
-    };
-    tokio::spawn(wss::serve(wss_listener, wss_config, shutdown.clone()));
-    let servers = Servers {
-        gamebots,
-        truth: gamebots,
-        monitor: monitor_at,
-        shutdown: shutdown.clone(),
-    };
-    // Robot1 on the ground's near side; BaseStation 6 m east, above the walls' tops.
-    let init = |name: &str, at: &str| {
-        format!("INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}\r\n")
-    };
-    let mut robot1 = TcpStream::connect(servers.gamebots).await.unwrap();
-    robot1
-        .write_all(init("Robot1", "0,0,-1").as_bytes())
-        .await
-        .unwrap();
-    let mut base = TcpStream::connect(servers.gamebots).await.unwrap();
-    base.write_all(init("BaseStation", "0,6,-5").as_bytes())
-        .await
-        .unwrap();
-    // Register only once the simulation has both robots (the WSS kicks names it does not
-    // have; UsarCommander waits 3 s after spawning for this reason).
-    let (read, mut write) = TcpStream::connect(monitor_at).await.unwrap().into_split();
-    let mut read = BufReader::new(read);
-    for _ in 0..600 {
-        write.write_all(b"GETPOS\r\n").await.unwrap();
-        let mut line = String::new();
-        read.read_line(&mut line).await.unwrap();
-        if line.starts_with("POSITIONS {Robots 2}") {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
+    let WssRig {
+        robot1: _robot1,
+        mut base,
+        wss_at,
+        shutdown,
+    } = wss_rig(Duration::from_millis(100)).await;
     // Each robot's own listener (UsarCommander: 8000 + its number).
-    let base_listener = bind().await;
+    let base_listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
     let base_port = base_listener.local_addr().unwrap().port();
 
     let mut a = Control::connect(wss_at).await;
@@ -490,12 +470,7 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
 
     // In range over the walls' tops: 4 walls at 7.2 m, about -80.5 dBm.
     let strength = async |a: &mut Control| -> f64 {
-        let reply = a.ask("GETSS {Robot BaseStation}").await;
-        reply
-            .strip_prefix("SS {Robot BaseStation} {Strength ")
-            .and_then(|r| r.strip_suffix('}'))
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(f64::NAN)
+        strength_of(&a.ask("GETSS {Robot BaseStation}").await, "BaseStation")
     };
     let mut s = f64::NAN;
     for _ in 0..300 {
@@ -507,11 +482,7 @@ async fn a_wss_session_relays_while_in_range_and_breaks_behind_walls() {
     }
     assert!((-93.0..-70.0).contains(&s), "in range: {s}");
     let reply = a.ask("DNS {Robot BaseStation}").await;
-    let port: u16 = reply
-        .strip_prefix("DNSREPLY {Robot BaseStation} {Port ")
-        .and_then(|r| r.strip_suffix('}'))
-        .and_then(|p| p.parse().ok())
-        .unwrap_or_else(|| panic!("{reply}"));
+    let port = relay_port(&reply, "BaseStation");
     assert_eq!(
         a.ask("DNS {Robot BaseStation}").await,
         reply,

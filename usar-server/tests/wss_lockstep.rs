@@ -100,6 +100,54 @@ impl Delays {
     }
 }
 
+/// An in-process server in lockstep at full speed on the walls map, with its robot monitor
+/// and WSS: (Gamebots address, WSS address, its shutdown, its task).
+async fn lockstep_server() -> (
+    SocketAddr,
+    SocketAddr,
+    CancellationToken,
+    tokio::task::JoinHandle<Result<(), usar_server::ServerError>>,
+) {
+    let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let (main, monitor, wss) = (bind().await, bind().await, bind().await);
+    let (gamebots, wss_at) = (main.local_addr().unwrap(), wss.local_addr().unwrap());
+    let shutdown = CancellationToken::new();
+    let config = ServerConfig {
+        map: walls_map(),
+        lockstep: true,
+        time_scale: TimeScale::Max,
+        ..ServerConfig::default()
+    };
+    let side = SideListeners {
+        image: None,
+        truth: None,
+        monitor: Some(monitor),
+        wss: Some(wss),
+    };
+    let server = tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
+    (gamebots, wss_at, shutdown, server)
+}
+
+/// Robot1 on the near side of the walls and BaseStation 6 m east above their tops, each
+/// joining the barrier at 0 s, then spawning.
+async fn two_robots(gamebots: SocketAddr) -> (Lines, Lines) {
+    let mut robot1 = Lines::connect(gamebots).await;
+    let mut base = Lines::connect(gamebots).await;
+    for (c, name, at) in [
+        (&mut robot1, "Robot1", "0,0,-1"),
+        (&mut base, "BaseStation", "0,6,-5"),
+    ] {
+        c.line().await; // NFO
+        c.sync(0.0).await;
+        c.answered().await;
+        c.send(&format!(
+            "INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}"
+        ))
+        .await;
+    }
+    (robot1, base)
+}
+
 /// What a run shows: Robot1's view at each barrier after it asked for the relay port
 /// (`"<time> <signal> <what happened>"`), every byte the BaseStation received, and what
 /// Robot1 is told of a registration no robot has (`"<time> <GETSS reply>"`, barriers 3 to
@@ -127,38 +175,9 @@ impl Outcome {
 /// near side of eight walls writes `t=<time>;` at every barrier to the BaseStation, which
 /// flies down behind the walls (out of range) and climbs back.
 async fn session(delays: Delays) -> Outcome {
-    let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let (main, monitor, wss) = (bind().await, bind().await, bind().await);
-    let (gamebots, wss_at) = (main.local_addr().unwrap(), wss.local_addr().unwrap());
-    let shutdown = CancellationToken::new();
-    let config = ServerConfig {
-        map: walls_map(),
-        lockstep: true,
-        time_scale: TimeScale::Max,
-        ..ServerConfig::default()
-    };
-    let side = SideListeners {
-        image: None,
-        truth: None,
-        monitor: Some(monitor),
-        wss: Some(wss),
-    };
-    let server = tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
+    let (gamebots, wss_at, shutdown, server) = lockstep_server().await;
 
-    let mut robot1 = Lines::connect(gamebots).await;
-    let mut base = Lines::connect(gamebots).await;
-    for (c, name, at) in [
-        (&mut robot1, "Robot1", "0,0,-1"),
-        (&mut base, "BaseStation", "0,6,-5"),
-    ] {
-        c.line().await; // NFO
-        c.sync(0.0).await;
-        c.answered().await;
-        c.send(&format!(
-            "INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}"
-        ))
-        .await;
-    }
+    let (mut robot1, mut base) = two_robots(gamebots).await;
     // The BaseStation's own listener (non-blocking: read at barriers).
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     listener.set_nonblocking(true).unwrap();
@@ -403,23 +422,7 @@ async fn a_byte_sent_just_before_a_break_is_delivered_by_the_rule() {
 /// keeps stepping for both robots.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_flood_over_a_lockstep_link_is_bounded_and_does_not_hold_the_world() {
-    let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let (main, monitor, wss) = (bind().await, bind().await, bind().await);
-    let (gamebots, wss_at) = (main.local_addr().unwrap(), wss.local_addr().unwrap());
-    let shutdown = CancellationToken::new();
-    let config = ServerConfig {
-        map: walls_map(),
-        lockstep: true,
-        time_scale: TimeScale::Max,
-        ..ServerConfig::default()
-    };
-    let side = SideListeners {
-        image: None,
-        truth: None,
-        monitor: Some(monitor),
-        wss: Some(wss),
-    };
-    tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
+    let (gamebots, wss_at, shutdown, _server) = lockstep_server().await;
     let mut robot1 = Lines::connect(gamebots).await;
     robot1.line().await;
     robot1.sync(0.0).await;
@@ -483,41 +486,12 @@ async fn a_flood_over_a_lockstep_link_is_bounded_and_does_not_hold_the_world() {
 /// evaluation).
 #[tokio::test]
 async fn in_lockstep_getss_and_dns_work_from_the_moment_init_is_answered() {
-    let bind = async || TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let (main, monitor, wss) = (bind().await, bind().await, bind().await);
-    let (gamebots, wss_at) = (main.local_addr().unwrap(), wss.local_addr().unwrap());
-    let shutdown = CancellationToken::new();
-    let config = ServerConfig {
-        map: walls_map(),
-        lockstep: true,
-        time_scale: TimeScale::Max,
-        ..ServerConfig::default()
-    };
-    let side = SideListeners {
-        image: None,
-        truth: None,
-        monitor: Some(monitor),
-        wss: Some(wss),
-    };
-    let server = tokio::spawn(usar_server::run_with(main, side, config, shutdown.clone()));
-    let mut robots = Vec::new();
-    for (name, at) in [("Robot1", "0,0,-1"), ("BaseStation", "0,6,-5")] {
-        let mut c = Lines::connect(gamebots).await;
-        c.line().await; // NFO
-        c.sync(0.0).await;
-        c.answered().await;
-        c.send(&format!(
-            "INIT {{ClassName USARBot.AirRobot}} {{Name {name}}} {{Location {at}}}"
-        ))
-        .await;
-        robots.push(c);
-    }
-    for c in &mut robots {
-        c.sync(0.5).await;
-    }
-    for c in &mut robots {
-        c.answered().await;
-    }
+    let (gamebots, wss_at, shutdown, server) = lockstep_server().await;
+    let (mut robot1, mut base) = two_robots(gamebots).await;
+    robot1.sync(0.5).await;
+    base.sync(0.5).await;
+    robot1.answered().await;
+    base.answered().await;
     // The world stands at 0.5 s.
     let base = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let base_port = base.local_addr().unwrap().port();
