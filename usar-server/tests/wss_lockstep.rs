@@ -148,6 +148,22 @@ async fn two_robots(gamebots: SocketAddr) -> (Lines, Lines) {
     (robot1, base)
 }
 
+/// Robot1 and BaseStation (whose own listener is on `base_port`) register with the WSS:
+/// their control connections.
+async fn register(wss_at: SocketAddr, base_port: u16) -> (Lines, Lines) {
+    let (mut a, mut b) = (Lines::connect(wss_at).await, Lines::connect(wss_at).await);
+    assert_eq!(
+        a.ask("INIT {Robot Robot1} {Port 8001}").await,
+        "INITREPLY {Status OK}"
+    );
+    assert_eq!(
+        b.ask(&format!("INIT {{Robot BaseStation}} {{Port {base_port}}}"))
+            .await,
+        "INITREPLY {Status OK}"
+    );
+    (a, b)
+}
+
 /// What a run shows: Robot1's view at each barrier after it asked for the relay port
 /// (`"<time> <signal> <what happened>"`), every byte the BaseStation received, and what
 /// Robot1 is told of a registration no robot has (`"<time> <GETSS reply>"`, barriers 3 to
@@ -228,16 +244,7 @@ async fn session(delays: Delays) -> Outcome {
         base.answered().await;
         // The world stands at `time` until both sync again.
         if barrier == 2 {
-            let (mut a, mut b) = (Lines::connect(wss_at).await, Lines::connect(wss_at).await);
-            assert_eq!(
-                a.ask("INIT {Robot Robot1} {Port 8001}").await,
-                "INITREPLY {Status OK}"
-            );
-            assert_eq!(
-                b.ask(&format!("INIT {{Robot BaseStation}} {{Port {base_port}}}"))
-                    .await,
-                "INITREPLY {Status OK}"
-            );
+            let (a, b) = register(wss_at, base_port).await;
             (control1, control2) = (Some(a), Some(b));
             // A name the simulation does not have: kicked at the next evaluation.
             let mut g = Lines::connect(wss_at).await;
@@ -495,16 +502,7 @@ async fn in_lockstep_getss_and_dns_work_from_the_moment_init_is_answered() {
     // The world stands at 0.5 s.
     let base = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let base_port = base.local_addr().unwrap().port();
-    let (mut a, mut b) = (Lines::connect(wss_at).await, Lines::connect(wss_at).await);
-    assert_eq!(
-        a.ask("INIT {Robot Robot1} {Port 8001}").await,
-        "INITREPLY {Status OK}"
-    );
-    assert_eq!(
-        b.ask(&format!("INIT {{Robot BaseStation}} {{Port {base_port}}}"))
-            .await,
-        "INITREPLY {Status OK}"
-    );
+    let (mut a, _b) = register(wss_at, base_port).await;
     let reply = a.ask("GETSS {Robot BaseStation}").await;
     let s: f64 = reply
         .strip_prefix("SS {Robot BaseStation} {Strength ")
