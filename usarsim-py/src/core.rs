@@ -1013,7 +1013,7 @@ fn par_each<T: Send, S: Send, B, F, A>(
     });
 }
 
-/// The fewest worlds a step shares out among the threads. On the 2-core VM of BENCHMARKS.md
+/// The fewest worlds a step shares out among the threads. On the 2-core VM of docs/benchmarks-history.md
 /// ("Issue 24, twenty-third round") a step's hand-over to the other thread and the wait for
 /// it cost a 16-UAV vector env step more than that thread saved (180 µs against 161 µs on one
 /// core); at 32 UAVs the two threads were ahead (195 µs against 211 µs).

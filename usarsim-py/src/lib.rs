@@ -13,7 +13,7 @@
 
 /// mimalloc instead of the C library's allocator, for the extension's own (Rust) memory: a
 /// reset drops and builds a few dozen small allocations per world on the worker threads,
-/// where glibc's malloc and free took a third of the time (BENCHMARKS.md, issue 24).
+/// where glibc's malloc and free took a third of the time (docs/benchmarks-history.md, issue 24).
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

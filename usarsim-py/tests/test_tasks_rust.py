@@ -133,7 +133,7 @@ def test_waypoints_and_random_starts_drawn_in_rust_follow_their_python_definitio
 @pytest.mark.parametrize("start", [None, "random"])
 def test_each_row_draws_its_own_waypoints_whoever_resets_with_it(start):
     # The rows' waypoints are drawn in Rust now (a NumPy generator each and a Python loop
-    # cost 0.3-0.45 s per 1024 resets: BENCHMARKS.md, fifteenth round). A row's draws do
+    # cost 0.3-0.45 s per 1024 resets: docs/benchmarks-history.md, fifteenth round). A row's draws do
     # not depend on who else resets with it, and its waypoints keep their spacing.
     env = usarsim.vector_env(64, task="waypoints", state_only=True, start=start)
     env.reset(seed=4)
