@@ -111,11 +111,11 @@ struct Args {
     /// leaves the barrier for good, with a warning (1: off).
     #[arg(long, default_value_t = 0.5, value_name = "SHARE", value_parser = share)]
     lockstep_share: f64,
-    /// While anyone else is connected: the share of wall time (0.01 to 1, over 10 s) the
-    /// world may wait for clients that joined the barrier less than 10 s ago, all of them
-    /// together; past it, until the window ends, their SYNCs are answered when the world
-    /// reaches their time instead of holding it (a client reconnecting in a loop cannot
-    /// hold the others; 1: off).
+    /// While anyone else is connected: the share of wall time (0.01 to 1) the world may wait
+    /// for clients that joined the barrier less than 10 s ago, all of them together (their
+    /// first step, and any later step past 25 ms; a bucket of 0.1 s); once it is spent, for
+    /// the next 0.1 s / SHARE their SYNCs are answered when the world reaches their time
+    /// instead of holding it (a client reconnecting in a loop cannot hold the others; 1: off).
     #[arg(long, default_value_t = 0.05, value_name = "SHARE", value_parser = share)]
     lockstep_join_share: f64,
     /// With `--time-scale max`: wall-clock seconds the world waits for a client that reads

@@ -402,3 +402,61 @@ async fn a_faulty_run_is_reproduced_from_its_recording_alone() {
     assert_eq!(again, server_lines, "the same bytes");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue #56's rule for new members (`lockstep_join_share`) does not touch a well-behaved
+/// agent: one that joins next to an established member and thinks 5 ms a step, at full
+/// speed (where waiting for the agents is nearly all the wall time), is answered at the
+/// time of every barrier it asks for: the world always waits for it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_new_member_that_thinks_a_few_milliseconds_a_step_keeps_its_lockstep() {
+    let server = TestServer::with(ServerConfig {
+        time_scale: TimeScale::Max,
+        lockstep: true,
+        lockstep_join_share: 0.05,
+        ..ServerConfig::default()
+    })
+    .await;
+    // The established member: syncs one step ahead as soon as it is answered, from the
+    // start, for the whole test.
+    let mut old = server.client().await;
+    old.raw_line().await.unwrap();
+    old.spawn_at([0.0, 0.0, -1.0], 0.0).await;
+    let stop = tokio_util::sync::CancellationToken::new();
+    let established = {
+        let stop = stop.clone();
+        tokio::spawn(async move {
+            let mut barrier = 0.05;
+            while !stop.is_cancelled() {
+                old.send(&format!("SYNC {{Time {barrier:.2}}}")).await;
+                let (_, t) = until_sync(&mut old).await;
+                barrier = t + 0.05;
+            }
+        })
+    };
+    // New members are new for 10 s.
+    tokio::time::sleep(std::time::Duration::from_millis(10_500)).await;
+    let mut new = server.client().await;
+    new.raw_line().await.unwrap();
+    new.spawn_at([3.0, 0.0, -1.0], 0.0).await;
+    new.send("SYNC {Time 0}").await;
+    let (_, mut t) = until_sync(&mut new).await;
+    let mut late = Vec::new();
+    for _ in 0..200 {
+        tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+        let barrier = t + 0.05;
+        new.send(&format!("SYNC {{Time {barrier:.2}}}")).await;
+        (_, t) = until_sync(&mut new).await;
+        if (t - barrier).abs() > 1e-6 {
+            late.push((barrier, t));
+        }
+    }
+    stop.cancel();
+    established.await.unwrap();
+    assert!(
+        late.is_empty(),
+        "{} of 200 answers past their barrier (barrier, answer): {:?}",
+        late.len(),
+        &late[..late.len().min(5)]
+    );
+    server.stop().await;
+}

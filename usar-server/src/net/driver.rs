@@ -77,15 +77,21 @@ const SPAWN_GRACE: Duration = Duration::from_secs(2);
 const SHARE_WINDOW: Duration = Duration::from_secs(10);
 
 /// A lockstep member that joined the barrier less than this long ago is *new*: while
-/// anyone else is connected, the world waits for new members only within a budget, so a
-/// client that reconnects again and again, each time a new member, cannot hold the others'
-/// world (issue #56). The budget is a bucket of [`NEW_BURST`] of wall time, refilled at
+/// anyone else is connected, the world waits for new members within a budget, so a client
+/// that reconnects again and again, each time a new member, cannot hold the others' world
+/// (issue #56). What the budget pays for: the whole wait for a new member's first step (up
+/// to its second `SYNC`), and the part of any later step's wait past [`FREE_STEP`] (an
+/// agent that thinks a few milliseconds a step never touches it, at any time scale). The
+/// budget is a bucket of [`NEW_BURST`] of wall time, refilled at
 /// `Settings::lockstep_join_share` seconds per second; once empty, the world does not wait
 /// for new members until it is full again.
 const PROBATION: Duration = SHARE_WINDOW;
 
 /// The most wall time the world waits for new members in one go (see [`PROBATION`]).
 const NEW_BURST: Duration = Duration::from_millis(100);
+
+/// How long a new member's step after its first holds the world before its budget pays.
+const FREE_STEP: Duration = Duration::from_millis(25);
 
 /// Loop turns between checks of the shutdown token when no request arrives (a request, such
 /// as the `Wake` sent on shutdown, makes the driver check at once).
@@ -151,8 +157,10 @@ struct Client {
     backlog: VecDeque<(Line, OwnedSemaphorePermit)>,
     /// Lockstep target time, once the client has joined the barrier.
     barrier: Option<f64>,
-    /// When the client joined the barrier (it is new for [`PROBATION`] after that).
+    /// When the client joined the barrier (it is new for [`PROBATION`] after that)...
     joined_at: Option<Instant>,
+    /// ... and the `SYNC`s it sent since (1: its first step).
+    syncs: u32,
     /// Whether the client has been told that the world reached its barrier.
     answered: bool,
     /// When the world reached the barrier (the lockstep timeout runs from then).
@@ -185,6 +193,7 @@ impl Client {
             backlog: VecDeque::new(),
             barrier: None,
             joined_at: None,
+            syncs: 0,
             answered: false,
             answered_at: None,
             record: None,
@@ -628,19 +637,25 @@ impl Driver {
     }
 
     /// Whether, at `now`, the world waits only for new members while someone else (an
-    /// established member, or a client outside the barrier) is connected.
-    fn held_by_new_members(&self, now: Instant) -> bool {
+    /// established member, or a client outside the barrier) is connected; if so, `each` is
+    /// told, for each new member holding it, from when its wait is paid by the budget
+    /// (`None`: all of it, its first step; see [`PROBATION`]).
+    fn new_holds(&self, now: Instant, mut each: impl FnMut(Option<Instant>)) -> bool {
         let (time, dt) = (self.world.time(), self.world.dt());
-        let mut new = false;
-        for c in self.clients.values() {
-            if c.holds_at(time, dt) {
-                if !c.is_new(now) {
-                    return false;
-                }
-                new = true;
-            }
+        let holding = || self.clients.values().filter(|c| c.holds_at(time, dt));
+        if holding().any(|c| !c.is_new(now))
+            || holding().next().is_none()
+            || self.clients.values().all(|c| c.is_new(now))
+        {
+            return false;
         }
-        new && self.clients.values().any(|c| !c.is_new(now))
+        for c in holding() {
+            each(match c.answered_at {
+                Some(at) if c.syncs > 1 => Some(at + FREE_STEP),
+                _ => None,
+            });
+        }
+        true
     }
 
     /// While the world waits only for new members: when their budget runs out.
@@ -653,7 +668,13 @@ impl Driver {
             // The world does not wait for new members until then, so it may step then.
             return (now < until).then_some(until);
         }
-        self.held_by_new_members(now).then(|| now + self.new_tokens)
+        let mut end: Option<Instant> = None;
+        let tokens = self.new_tokens;
+        self.new_holds(now, |from| {
+            let at = from.map_or(now, |from| from.max(now)) + tokens;
+            end = Some(end.map_or(at, |end| end.min(at)));
+        });
+        end
     }
 
     /// Counts `waited` against the lockstep clients that held the world meanwhile; at the end
@@ -673,8 +694,16 @@ impl Driver {
                     .saturating_duration_since(self.new_refilled)
                     .mul_f64(share);
                 let mut tokens = (self.new_tokens + refill).min(NEW_BURST);
-                if self.held_by_new_members(now) {
-                    tokens = tokens.saturating_sub(waited);
+                // The wait that ends now, as far as the budget pays for it.
+                let mut charge = Duration::ZERO;
+                let paid = self.new_holds(now, |from| {
+                    let this = from.map_or(waited, |from| {
+                        now.saturating_duration_since(from).min(waited)
+                    });
+                    charge = charge.max(this);
+                });
+                if paid {
+                    tokens = tokens.saturating_sub(charge);
                     if tokens.is_zero() {
                         let until = now + NEW_BURST.div_f64(share);
                         self.new_spent_until = Some(until);
@@ -889,7 +918,9 @@ impl Driver {
                     if c.barrier.is_none() {
                         self.joined += 1;
                         c.joined_at = Some(Instant::now());
+                        c.syncs = 0;
                     }
+                    c.syncs = c.syncs.saturating_add(1);
                     c.barrier = Some(time);
                     c.answered = false;
                     c.answered_at = None;

@@ -140,11 +140,13 @@ pub struct ServerConfig {
     /// in-process servers serve one program's clients) turns the rule off; the
     /// `usar-server` program, a shared server, uses 0.5.
     pub lockstep_share: f64,
-    /// While anyone else is connected, the share of wall time (0 to 1, measured over 10 s)
-    /// the world may wait for members that joined the barrier less than 10 s ago, all of
-    /// them together; past it, until the window ends, the world does not wait for them (a
-    /// client that reconnects again and again cannot hold the others, issue #56). 1 (the
-    /// library's default) turns the rule off; the `usar-server` program uses 0.05.
+    /// While anyone else is connected, the share of wall time (0 to 1) the world may wait
+    /// for members that joined the barrier less than 10 s ago, all of them together: their
+    /// first step, and any later step's wait past 25 ms, from a bucket of 0.1 s refilled at
+    /// this rate; once it is empty the world does not wait for them until it is full again
+    /// (a client that reconnects again and again cannot hold the others, issue #56;
+    /// docs/lockstep.md). 1 (the library's default) turns the rule off; the `usar-server`
+    /// program uses 0.05.
     pub lockstep_join_share: f64,
     /// At `time_scale: Max` the world waits for its slowest reader instead of dropping
     /// output; a client whose queue has had no room for this long (wall clock) is left
