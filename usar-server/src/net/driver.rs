@@ -109,8 +109,8 @@ pub(super) struct Settings {
     pub(super) lockstep_clients: usize,
     /// The share of wall time the barrier may hold the world while clients outside it wait.
     pub(super) lockstep_share: f64,
-    /// While anyone else is connected: the share of each window the world may wait for
-    /// members that joined less than [`PROBATION`] ago, all of them together (1: no limit).
+    /// While anyone else is connected: the rate (seconds per second) at which the budget of
+    /// the members that joined less than [`PROBATION`] ago refills (1: no limit).
     pub(super) lockstep_join_share: f64,
     /// At `TimeScale::Max`: how long the world waits for a client whose queue has no room.
     pub(super) reader_timeout: Duration,
@@ -609,7 +609,7 @@ impl Driver {
     }
 
     /// Whether the world waits for this client: it holds the world, and it is not a new
-    /// member whose budget this window is spent.
+    /// member while the new members' budget is spent.
     fn waits_for(&self, c: &Client, time: f64, dt: f64) -> bool {
         c.holds_at(time, dt)
             && !(self.new_spent_until.is_some() && {
