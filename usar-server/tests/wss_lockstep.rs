@@ -148,6 +148,15 @@ async fn two_robots(gamebots: SocketAddr) -> (Lines, Lines) {
     (robot1, base)
 }
 
+/// The port of a `DNSREPLY {Robot BaseStation} {Port p}` reply.
+fn dns_port(reply: &str) -> u16 {
+    reply
+        .strip_prefix("DNSREPLY {Robot BaseStation} {Port ")
+        .and_then(|r| r.strip_suffix('}'))
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("{reply}"))
+}
+
 /// Robot1 and BaseStation (whose own listener is on `base_port`) register with the WSS:
 /// their control connections.
 async fn register(wss_at: SocketAddr, base_port: u16) -> (Lines, Lines) {
@@ -264,11 +273,7 @@ async fn session(delays: Delays) -> Outcome {
                 .unwrap()
                 .ask("DNS {Robot BaseStation}")
                 .await;
-            let port: u16 = reply
-                .strip_prefix("DNSREPLY {Robot BaseStation} {Port ")
-                .and_then(|r| r.strip_suffix('}'))
-                .and_then(|p| p.parse().ok())
-                .unwrap_or_else(|| panic!("{reply}"));
+            let port = dns_port(&reply);
             relay_port = Some(port);
         }
         if let Some(port) = relay_port {
@@ -459,11 +464,7 @@ async fn a_flood_over_a_lockstep_link_is_bounded_and_does_not_hold_the_world() {
         barrier(&mut robot1, &mut time).await;
     }
     let reply = a.ask("DNS {Robot BaseStation}").await;
-    let port: u16 = reply
-        .strip_prefix("DNSREPLY {Robot BaseStation} {Port ")
-        .and_then(|r| r.strip_suffix('}'))
-        .and_then(|p| p.parse().ok())
-        .unwrap_or_else(|| panic!("{reply}"));
+    let port = dns_port(&reply);
     let mut link = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
     let flood = std::thread::spawn(move || {
         let chunk = vec![0u8; 1 << 20];
@@ -500,8 +501,8 @@ async fn in_lockstep_getss_and_dns_work_from_the_moment_init_is_answered() {
     robot1.answered().await;
     base.answered().await;
     // The world stands at 0.5 s.
-    let base = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    let base_port = base.local_addr().unwrap().port();
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let base_port = listener.local_addr().unwrap().port();
     let (mut a, _b) = register(wss_at, base_port).await;
     let reply = a.ask("GETSS {Robot BaseStation}").await;
     let s: f64 = reply
@@ -511,11 +512,7 @@ async fn in_lockstep_getss_and_dns_work_from_the_moment_init_is_answered() {
         .unwrap_or_else(|| panic!("not a strength: {reply}"));
     assert!((-93.0..-70.0).contains(&s), "in range: {reply}");
     let reply = a.ask("DNS {Robot BaseStation}").await;
-    let port: u16 = reply
-        .strip_prefix("DNSREPLY {Robot BaseStation} {Port ")
-        .and_then(|r| r.strip_suffix('}'))
-        .and_then(|p| p.parse().ok())
-        .unwrap_or_else(|| panic!("{reply}"));
+    let port = dns_port(&reply);
     // The relay port listens at once (its connection is taken at the next barrier).
     std::net::TcpStream::connect(("127.0.0.1", port)).expect("the relay port accepts");
     shutdown.cancel();

@@ -1291,18 +1291,15 @@ impl Wss {
                 }
             }
         }
-        let (names, mut kicked): (Vec<String>, Vec<String>) = state
+        let (names, kicked): (Vec<String>, Vec<String>) = state
             .robots
             .keys()
             .cloned()
             .partition(|name| state.positions.contains_key(name));
         drop(state);
-        if only.is_some() {
-            // Kicks come at the evaluations only: a robot may register just before the
-            // simulation has it.
-            kicked.clear();
-        }
-        for name in &kicked {
+        // Kicks come at the evaluations only, not at a registration: a robot may register
+        // just before the simulation has it.
+        for name in kicked.iter().filter(|_| only.is_none()) {
             warn!(robot = %name, "WSS: no such robot in the simulation (or its battery is empty); kicked");
             // Unregistered now (its links break, others are told it does not exist); its
             // control connection closes when its task sees the cancel.
