@@ -443,9 +443,12 @@ async fn a_new_member_that_thinks_a_few_milliseconds_a_step_keeps_its_lockstep()
     let mut late = Vec::new();
     for _ in 0..200 {
         tokio::time::sleep(std::time::Duration::from_millis(5)).await;
-        let barrier = t + 0.05;
-        new.send(&format!("SYNC {{Time {barrier:.2}}}")).await;
+        // The barrier asked for is the one on the wire (answer times are multiples of the
+        // 5 ms tick, so three decimals are exact; two would round half a tick away).
+        let asked = format!("{:.3}", t + 0.05);
+        new.send(&format!("SYNC {{Time {asked}}}")).await;
         (_, t) = until_sync(&mut new).await;
+        let barrier: f64 = asked.parse().unwrap();
         if (t - barrier).abs() > 1e-6 {
             late.push((barrier, t));
         }
