@@ -132,6 +132,12 @@ struct Args {
     /// 100 UAVs at real time on 2 cores).
     #[arg(long, value_name = "N", requires = "camera", value_parser = at_least_one)]
     camera_fleet: Option<usize>,
+    /// Flight figures instead (docs/quadrotor.md, issue #54): the `base` agent flies a 1 m
+    /// step, a 60 s hover and a 2 m square with stsAirRobot and stsQuadrotor against an
+    /// in-process lockstep server; prints overshoot, settling time, hold error and the
+    /// square's error against their targets. Exit status 1 when one misses its target.
+    #[arg(long)]
+    flight: bool,
 }
 
 impl Args {
@@ -258,6 +264,9 @@ fn bench(args: &Args) -> anyhow::Result<()> {
     if args.camera {
         return camera(&args);
     }
+    if args.flight {
+        return flight();
+    }
     if let Some(names) = &args.scenarios {
         return scenarios(names, args.threads.unwrap_or(1));
     }
@@ -295,6 +304,31 @@ fn bench(args: &Args) -> anyhow::Result<()> {
         }
     }
     say!("largest N holding real time: {good}");
+    Ok(())
+}
+
+/// `--flight`: the figures of both robots and their targets.
+fn flight() -> anyhow::Result<()> {
+    let runtime = tokio::runtime::Runtime::new()?;
+    let robots = ["stsAirRobot", "stsQuadrotor"];
+    let figures = runtime
+        .block_on(ucc_client::figures::measure_local(&robots))
+        .map_err(anyhow::Error::msg)?;
+    let t = ucc_client::figures::TARGETS;
+    say!(
+        "targets: overshoot <= {} m of the 1 m step, settled within 0.1 m in <= {} s, hover within {} m and {} rad, square within {} m",
+        t.overshoot,
+        t.settling,
+        t.hold,
+        t.hold_yaw,
+        t.square
+    );
+    let mut missed = Vec::new();
+    for f in &figures {
+        say!("{f}");
+        missed.extend(f.misses().into_iter().map(|m| format!("{}: {m}", f.robot)));
+    }
+    anyhow::ensure!(missed.is_empty(), "missed: {}", missed.join("; "));
     Ok(())
 }
 

@@ -613,6 +613,15 @@ impl Quadrotor {
                 // pushing down).
                 let mut force = [m * accel[0], m * accel[1], m * (accel[2] - GRAVITY)];
                 force[2] = force[2].min(-0.2 * m * GRAVITY);
+                // The tilt limit holds whatever the vertical demand: a descent lightens the
+                // vertical thrust, and the same horizontal force would tilt the body further
+                // (issue #54: 41° at a 25° limit).
+                let horizontal = force[0].hypot(force[1]);
+                let widest = -force[2] * self.limits.max_tilt.tan();
+                if horizontal > widest {
+                    force[0] *= widest / horizontal;
+                    force[1] *= widest / horizontal;
+                }
                 // Thrust runs out: the horizontal part (the attitude) wins, the climb gets
                 // what is left (a climb demand must not starve the forward motion).
                 let most = THRUST_MARGIN * 4.0 * c.thrust_coefficient * top * top;

@@ -1816,3 +1816,39 @@ fn randomised_noise_scales_every_sensor_error_and_wind_drifts() {
     let (_, p) = gyro_std(Some("wind = [2.0, 2.0]\n"));
     assert!(p[0].hypot(p[1]) > 1.0, "drifted: {p:?}");
 }
+
+/// Issue #54: the horizontal acceleration was limited to g·tan(max_tilt), but a descent
+/// lightens the vertical thrust, so the same horizontal force tilted the body to 41° at a 25°
+/// limit. The limit now holds on the thrust vector itself: within the attitude loop's half
+/// degree of overshoot.
+#[test]
+fn the_tilt_limit_holds_while_descending_and_reversing() {
+    let mut rig = rig(
+        quadrotor::QuadrotorConfig::default(),
+        [0.0, 0.0, -40.0],
+        [0.0; 3],
+    );
+    let limit = 0.44f64; // the rig's max_tilt
+    rig.run(1.0);
+    let mut tilt = 0.0f64;
+    for linear in [2.0, -2.0] {
+        dynamics::Dynamics::drive(
+            &mut rig.quad,
+            &dynamics::SetPoints {
+                linear,
+                altitude: -2.0,
+                ..dynamics::SetPoints::default()
+            },
+        );
+        for _ in 0..(3.0 / DT) as u64 {
+            rig.step();
+            tilt = tilt.max((rig.r[0].cos() * rig.r[1].cos()).acos());
+        }
+    }
+    assert!(
+        tilt > limit - 0.02 && tilt < limit + 1f64.to_radians(),
+        "tilted up to {:.1}° at a limit of {:.1}°",
+        tilt.to_degrees(),
+        limit.to_degrees()
+    );
+}

@@ -115,6 +115,11 @@ impl Avoid {
         let sector = std::f64::consts::TAU / HORIZONTAL_SONARS as f64;
 
         let (mut push_forward, mut push_right) = (0.0, 0.0);
+        if clear.iter().any(|range| *range < c.influence) {
+            // The way back to the straight line (the waypoint law's sideways part) waits
+            // until nothing is near: it would lead into what is being avoided.
+            command.right = 0.0;
+        }
         for (i, range) in clear.iter().enumerate() {
             if *range < c.influence {
                 let strength = 100.0 * (c.influence - range.max(0.0)) / c.influence;
@@ -292,7 +297,11 @@ mod tests {
         });
         let c = agent.step(&uav, 0.0).command.unwrap();
         assert_eq!(c.up, 0.0);
-        assert_eq!(c.forward, 100.0);
+        // The straight line's horizontal part: 5 m of its 5.83.
+        assert!(
+            (c.forward - 100.0 * 5.0 / 34f64.sqrt()).abs() < 1e-9,
+            "{c:?}"
+        );
     }
 
     /// Distance along a horizontal ray from `p` to an axis-aligned box (x0, x1, y0, y1).

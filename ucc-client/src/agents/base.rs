@@ -10,10 +10,21 @@
 //! * no lateral speed.
 //!
 //! One tie is broken on purpose: a target exactly behind (cos α = 0, sin α < 0) would leave
-//! the UAV still forever, so it turns right at full speed. A GotoXyz mission is reached when
-//! the UAV is within [`WaypointConfig::tolerance`] (default 0.3 m, 3D distance); then the next
-//! mission is taken. A Hover mission holds its start position for its duration, flying back
-//! with the same law when the UAV drifted beyond the tolerance.
+//! the UAV still forever, so it turns right at full speed.
+//!
+//! The thesis's law flies arcs: it moves forward while it turns, so even with imposed
+//! velocities (stsAirRobot) a 2 m square strays 0.35 m from its sides; and at full speed up to
+//! the waypoint it makes a vehicle with momentum (the stsQuadrotor, a real AR-100B) overshoot
+//! and orbit its waypoints. So `base` keeps the law's heading (the yaw command above: it turns
+//! to face the target) but moves as an autopilot's position loop does ([`hold_law`]): a
+//! straight line to the target, sideways as needed, at a speed proportional to the distance
+//! ([`WaypointConfig::gain`]) and at most full speed; within [`WaypointConfig::near`] of the
+//! target it holds its heading too. The `thesis` agent flies the law alone
+//! ([`WaypointConfig::original`]), as the original program did.
+//!
+//! A GotoXyz mission is reached when the UAV is within [`WaypointConfig::tolerance`] (default
+//! 0.3 m, 3D distance); then the next mission is taken. A Hover mission holds, for its
+//! duration, the waypoint of the GotoXyz before it (or where it starts, when it comes first).
 
 use super::AgentInfo;
 use crate::agent::{Agent, AgentEvent, MissionRefused, SpeedCommand, Step};
@@ -24,8 +35,20 @@ use crate::uav::UavState;
 /// The registry entry.
 pub const INFO: AgentInfo = AgentInfo {
     name: "base",
-    description: "waypoint flight with the original control law (no obstacle avoidance)",
+    description: "waypoint flight: straight lines, turning to face each waypoint as the original law does, holding the point near it (no obstacle avoidance)",
     create: || Box::new(Base::new(WaypointConfig::default())),
+};
+
+/// The registry entry of the original law alone.
+pub const THESIS: AgentInfo = AgentInfo {
+    name: "thesis",
+    description: "the original control law alone, as the thesis flew it (arcs; a vehicle with momentum orbits its waypoints)",
+    create: || {
+        Box::new(Base::new(WaypointConfig {
+            original: true,
+            ..WaypointConfig::default()
+        }))
+    },
 };
 
 /// Tunables of the waypoint flight.
@@ -35,11 +58,47 @@ pub struct WaypointConfig {
     /// 10 position readings per second the UAV moves 0.2 m between readings, so this must
     /// stay above about 0.15 m.
     pub tolerance: f64,
+    /// Metres: within this distance of the target the agent holds the point ([`hold_law`])
+    /// instead of flying the thesis's law.
+    pub near: f64,
+    /// 1/s: the hold's speed per metre of distance (the position loop's gain).
+    pub gain: f64,
+    /// Fly the thesis's law alone, as the original program did (the `thesis` agent).
+    pub original: bool,
 }
 
 impl Default for WaypointConfig {
     fn default() -> Self {
-        Self { tolerance: 0.3 }
+        Self {
+            tolerance: 0.3,
+            near: 1.5,
+            gain: 1.5,
+            original: false,
+        }
+    }
+}
+
+/// m/s at a speed command of 100 % (the AirRobot's maximum, protocol.md §2.3).
+pub const FULL_SPEED: f64 = 2.0;
+
+/// deg/s at a yaw command of 100 % (the AirRobot's maximum).
+pub const FULL_TURN: f64 = 100.0;
+
+/// The position loop: the speed command that takes a UAV at `position` with heading `yaw`
+/// towards `target` (world frame, z down) at `gain` metres per second per metre of distance,
+/// at most full speed, in a straight line (sideways and backwards as needed), heading held.
+pub fn hold_law(position: &Coordinates, yaw: f64, target: &Coordinates, gain: f64) -> SpeedCommand {
+    let d = world_to_heading(&(target - position), yaw);
+    let distance = d.norm();
+    if distance < 1e-9 {
+        return SpeedCommand::STOP;
+    }
+    let percent = 100.0 * (gain * distance).min(FULL_SPEED) / FULL_SPEED;
+    SpeedCommand {
+        forward: percent * d.x / distance,
+        right: percent * d.y / distance,
+        up: -percent * d.z / distance,
+        yaw: 0.0,
     }
 }
 
@@ -78,6 +137,10 @@ pub struct Base {
     running: bool,
     /// Time and position at which the current mission started.
     mission_start: Option<(f64, Coordinates)>,
+    /// The waypoint of the last GotoXyz reached (where a Hover after it holds).
+    last_waypoint: Option<Coordinates>,
+    /// Time of the last step that sent a command.
+    last_step: Option<f64>,
 }
 
 impl Base {
@@ -102,7 +165,11 @@ impl Base {
 
 impl Agent for Base {
     fn name(&self) -> &str {
-        INFO.name
+        if self.config.original {
+            THESIS.name
+        } else {
+            INFO.name
+        }
     }
 
     fn add_mission(&mut self, mission: Mission) -> Result<(), MissionRefused> {
@@ -141,16 +208,38 @@ impl Agent for Base {
                     let target = mission.target().unwrap_or(position);
                     (target, (target - position).norm() <= self.config.tolerance)
                 }
-                Mission::Hover { seconds } => (start_position, time - start_time >= *seconds),
+                Mission::Hover { seconds } => (
+                    self.last_waypoint.unwrap_or(start_position),
+                    time - start_time >= *seconds,
+                ),
             };
             if !done {
                 let distance = (target - position).norm();
-                step.command = Some(if distance <= self.config.tolerance {
-                    SpeedCommand::STOP
+                let (yaw, c) = (uav.yaw(), &self.config);
+                step.command = Some(if c.original {
+                    waypoint_law(&position, yaw, &target)
+                } else if distance <= c.near {
+                    hold_law(&position, yaw, &target, c.gain)
                 } else {
-                    waypoint_law(&position, uav.yaw(), &target)
+                    // The command holds until the next step while the heading turns: the
+                    // straight line is aimed from the heading halfway there.
+                    let turn = waypoint_law(&position, yaw, &target).yaw;
+                    let period = self.last_step.map_or(0.1, |t| (time - t).clamp(0.0, 0.5));
+                    let lead = if turn.abs() < 0.01 {
+                        0.0 // below what a DRIVE line resolves
+                    } else {
+                        (turn / 100.0 * FULL_TURN).to_radians() * period / 2.0
+                    };
+                    SpeedCommand {
+                        yaw: turn,
+                        ..hold_law(&position, yaw + lead, &target, c.gain)
+                    }
                 });
+                self.last_step = Some(time);
                 return step;
+            }
+            if let Some(target) = mission.target() {
+                self.last_waypoint = Some(target);
             }
             let distance = mission.target().map(|t| (t - position).norm());
             step.events.push(AgentEvent::MissionDone {
@@ -289,11 +378,13 @@ pub(crate) mod tests {
             }
             other => panic!("unexpected events {other:?}"),
         }
-        assert_eq!(step.command, Some(SpeedCommand::STOP));
+        // The hover holds the waypoint, not where the mission was reached: 0.2 m short, it
+        // moves on at 1.5 m/s per metre (0.3 m/s, 15 %).
+        assert_command(step.command.unwrap(), 15.0, 0.0, 0.0);
 
-        // Drifted while hovering: fly back.
+        // Drifted while hovering: flies back straight, backwards, heading held.
         let step = agent.step(&uav_at(Coordinates::new(2.8, 0.0, 0.0), 0.0), 1.5);
-        assert_command(step.command.unwrap(), 0.0, 100.0, 0.0);
+        assert_command(step.command.unwrap(), -60.0, 0.0, 0.0);
 
         let step = agent.step(&uav_at(Coordinates::new(1.8, 0.0, 0.0), 0.0), 2.0);
         assert!(step.all_done);

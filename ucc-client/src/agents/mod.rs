@@ -24,7 +24,7 @@ pub struct AgentInfo {
 }
 
 /// Every agent the `ucc` program knows.
-pub const AGENTS: &[AgentInfo] = &[base::INFO, avoid::INFO];
+pub const AGENTS: &[AgentInfo] = &[base::INFO, avoid::INFO, base::THESIS];
 
 /// The registry entry of `name`; its `create` is an [`AgentFactory`](crate::AgentFactory).
 pub fn info(name: &str) -> Option<&'static AgentInfo> {
@@ -49,6 +49,6 @@ mod tests {
             assert_eq!((info.create)().name(), info.name);
         }
         assert!(super::create("nope").is_none());
-        assert_eq!(super::names(), "base, avoid");
+        assert_eq!(super::names(), "base, avoid, thesis");
     }
 }
