@@ -14,6 +14,9 @@
 //! line = "FAULT {Sensor Position} {Mode Silent} {Duration 3}"
 //! ```
 //!
+//! `robot = "each"` gives every robot spawned the fault, its `time` (`from`, `until`) counted
+//! from the robot's spawn: every iteration of a loop (a new spawn each) gets its fault.
+//!
 //! A recording (docs/recording.md) is a faults file too: the `FAULT` lines the server sent
 //! when it applied its faults are read back as fixed-time faults, so a faulty run is
 //! reproducible from its recording alone.
@@ -29,6 +32,34 @@ use super::noise::Noise;
 pub struct FaultPlan {
     pub(crate) faults: Vec<PlannedFault>,
     random: Vec<RandomFault>,
+    /// `robot = "each"`: times from each robot's spawn (`serial` unused).
+    each: Vec<PlannedFault>,
+    each_random: Vec<RandomFault>,
+}
+
+/// Whom an entry's fault is for: a robot by spawn number (from 1), or each robot spawned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Whom {
+    Number(u64),
+    Each,
+}
+
+impl<'de> Deserialize<'de> for Whom {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Number(u64),
+            Word(String),
+        }
+        match Raw::deserialize(d)? {
+            Raw::Number(n) => Ok(Self::Number(n)),
+            Raw::Word(w) if w.eq_ignore_ascii_case("each") => Ok(Self::Each),
+            Raw::Word(w) => Err(serde::de::Error::custom(format!(
+                "robot must be a spawn number (1 = the first spawned) or \"each\", got {w:?}"
+            ))),
+        }
+    }
 }
 
 /// One fault: when, to whom, what.
@@ -69,7 +100,7 @@ struct File {
 #[serde(deny_unknown_fields)]
 struct Entry {
     time: f64,
-    robot: u64,
+    robot: Whom,
     line: String,
 }
 
@@ -77,7 +108,7 @@ struct Entry {
 #[serde(deny_unknown_fields)]
 struct RandomEntry {
     probability: f64,
-    robot: u64,
+    robot: Whom,
     line: String,
     #[serde(default)]
     from: f64,
@@ -85,8 +116,8 @@ struct RandomEntry {
 }
 
 /// The `FAULT` line's message and fault; the error names `at`.
-fn fault_line(at: &str, robot: u64, line: &str) -> Result<(Message, Fault), String> {
-    if robot == 0 {
+fn fault_line(at: &str, robot: Whom, line: &str) -> Result<(Message, Fault), String> {
+    if robot == Whom::Number(0) {
         return Err(format!("{at}: robot counts from 1 (the first spawned)"));
     }
     let message = match usar_proto::Command::parse(line) {
@@ -104,22 +135,27 @@ impl FaultPlan {
     /// Parses a faults file; the error names the entry and the problem.
     pub fn from_toml(text: &str) -> Result<Self, String> {
         let file: File = toml::from_str(text).map_err(|e| e.to_string())?;
-        let mut faults = Vec::new();
+        let (mut faults, mut each) = (Vec::new(), Vec::new());
         for (i, e) in file.fault.iter().enumerate() {
             let at = format!("fault {} (line {:?})", i + 1, e.line);
             if !(e.time.is_finite() && e.time >= 0.0) {
                 return Err(format!("{at}: time must be >= 0 s, got {}", e.time));
             }
             let (line, fault) = fault_line(&at, e.robot, &e.line)?;
-            faults.push(PlannedFault {
+            let (list, serial) = match e.robot {
+                Whom::Number(n) => (&mut faults, n - 1),
+                Whom::Each => (&mut each, 0),
+            };
+            list.push(PlannedFault {
                 time: e.time,
-                serial: e.robot - 1,
+                serial,
                 fault,
                 line,
             });
         }
         faults.sort_by(|a, b| a.time.total_cmp(&b.time));
-        let mut random = Vec::new();
+        each.sort_by(|a, b| a.time.total_cmp(&b.time));
+        let (mut random, mut each_random) = (Vec::new(), Vec::new());
         for (i, e) in file.random.iter().enumerate() {
             let at = format!("random {} (line {:?})", i + 1, e.line);
             if !(e.probability.is_finite() && (0.0..=1.0).contains(&e.probability)) {
@@ -136,16 +172,25 @@ impl FaultPlan {
                 ));
             }
             let (line, fault) = fault_line(&at, e.robot, &e.line)?;
-            random.push(RandomFault {
+            let (list, serial) = match e.robot {
+                Whom::Number(n) => (&mut random, n - 1),
+                Whom::Each => (&mut each_random, 0),
+            };
+            list.push(RandomFault {
                 probability: e.probability,
                 from: e.from,
                 until,
-                serial: e.robot - 1,
+                serial,
                 fault,
                 line,
             });
         }
-        Ok(Self { faults, random })
+        Ok(Self {
+            faults,
+            random,
+            each,
+            each_random,
+        })
     }
 
     /// The `FAULT` lines a server sent in a recording (`FAULT {Time t} {Robot n} ...`, S
@@ -190,7 +235,7 @@ impl FaultPlan {
         faults.sort_by(|a, b| a.time.total_cmp(&b.time));
         Ok(Self {
             faults,
-            random: Vec::new(),
+            ..Self::default()
         })
     }
 
@@ -205,7 +250,10 @@ impl FaultPlan {
 
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
-        self.faults.is_empty() && self.random.is_empty()
+        self.faults.is_empty()
+            && self.random.is_empty()
+            && self.each.is_empty()
+            && self.each_random.is_empty()
     }
 
     /// Every fault at its time, the random ones drawn from `seed`: a random fault of
@@ -215,26 +263,52 @@ impl FaultPlan {
     pub(crate) fn schedule(&self, seed: u64) -> Vec<PlannedFault> {
         let mut out = self.faults.clone();
         for (i, r) in self.random.iter().enumerate() {
-            let mut rng = Noise::new(seed, r.serial, RANDOM_STREAM + i as u64, 0.0);
-            let u = rng.uniform();
-            let time = if r.probability >= 1.0 {
-                r.from
-            } else if r.probability <= 0.0 {
-                continue;
-            } else {
-                r.from + (1.0 - u).ln() / (1.0 - r.probability).ln()
-            };
-            if time <= r.until {
-                out.push(PlannedFault {
-                    time,
-                    serial: r.serial,
-                    fault: r.fault.clone(),
-                    line: r.line.clone(),
-                });
-            }
+            out.extend(r.draw(seed, i, r.serial, 0.0));
         }
         out.sort_by(|a, b| a.time.total_cmp(&b.time));
         out
+    }
+
+    /// The `robot = "each"` faults of the robot `serial` spawned at `time`, drawn from
+    /// `seed` and its serial, in time order.
+    pub(crate) fn for_spawn(&self, seed: u64, serial: u64, time: f64) -> Vec<PlannedFault> {
+        let mut out: Vec<_> = self
+            .each
+            .iter()
+            .map(|f| PlannedFault {
+                time: time + f.time,
+                serial,
+                ..f.clone()
+            })
+            .collect();
+        for (i, r) in self.each_random.iter().enumerate() {
+            // Streams apart from the numbered random faults'.
+            out.extend(r.draw(seed, self.random.len() + i, serial, time));
+        }
+        out.sort_by(|a, b| a.time.total_cmp(&b.time));
+        out
+    }
+}
+
+impl RandomFault {
+    /// When it happens to `serial` (times from `start`), if it does: with probability `p` per
+    /// second at `from + E`, `E` exponential with the rate `−ln(1 − p)`, unless after `until`.
+    fn draw(&self, seed: u64, index: usize, serial: u64, start: f64) -> Option<PlannedFault> {
+        let mut rng = Noise::new(seed, serial, RANDOM_STREAM + index as u64, 0.0);
+        let u = rng.uniform();
+        let time = if self.probability >= 1.0 {
+            self.from
+        } else if self.probability <= 0.0 {
+            return None;
+        } else {
+            self.from + (1.0 - u).ln() / (1.0 - self.probability).ln()
+        };
+        (time <= self.until).then(|| PlannedFault {
+            time: start + time,
+            serial,
+            fault: self.fault.clone(),
+            line: self.line.clone(),
+        })
     }
 }
 

@@ -1852,3 +1852,48 @@ fn the_tilt_limit_holds_while_descending_and_reversing() {
         limit.to_degrees()
     );
 }
+
+/// Issue #54: faults were keyed by spawn number, so in a loop (a new spawn each iteration)
+/// only the first iteration got its fault. `robot = "each"` gives every robot spawned the
+/// fault, its time counted from the spawn.
+#[test]
+fn a_fault_for_each_robot_comes_at_its_time_after_every_spawn() {
+    let plan = faults::FaultPlan::from_toml(
+        "[[fault]]\ntime = 1.0\nrobot = \"each\"\nline = \"FAULT {Motor 1} {Thrust 0}\"\n",
+    )
+    .expect("plan");
+    let mut w = World::new(
+        floor_map(1000.0),
+        RobotCatalog::embedded(),
+        SimConfig {
+            faults: plan,
+            ..SimConfig::default()
+        },
+    );
+    let falls = |w: &mut World, c: ClientId| {
+        run(w, 0.95);
+        let hovering = state(w, c).0[2];
+        run(w, 1.5);
+        let after = state(w, c).0[2];
+        (hovering, after)
+    };
+    // The first iteration at t = 0, the second at t = 2.45 s (after the first one's fault).
+    let first = spawn(&mut w, [0.0, 0.0, -30.0], 0.0);
+    let (hovering, after) = falls(&mut w, first);
+    assert!(
+        (hovering + 30.0).abs() < 0.05 && after > -29.0,
+        "first: {hovering} then {after}"
+    );
+    w.disconnect(first);
+    let second = spawn(&mut w, [5.0, 0.0, -30.0], 0.0);
+    let (hovering, after) = falls(&mut w, second);
+    assert!(
+        (hovering + 30.0).abs() < 0.05 && after > -29.0,
+        "the second spawn gets its fault too, 1 s after it: {hovering} then {after}"
+    );
+    let bad = faults::FaultPlan::from_toml(
+        "[[fault]]\ntime = 1.0\nrobot = \"every\"\nline = \"FAULT {Motor 1}\"\n",
+    )
+    .unwrap_err();
+    assert!(bad.contains("\"each\"") && bad.contains("every"), "{bad}");
+}

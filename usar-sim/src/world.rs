@@ -636,6 +636,15 @@ impl World {
             return;
         };
         self.next_serial += 1;
+        let each = self
+            .fault_plan
+            .for_spawn(self.seed, robot.serial, self.tick as f64 * self.dt);
+        if !each.is_empty() {
+            self.faults.extend(each);
+            self.faults
+                .make_contiguous()
+                .sort_by(|a, b| a.time.total_cmp(&b.time));
+        }
         let mut robot = robot;
         self.assign_tiles(&mut robot);
         let previous = self.clients.insert(client, Some(robot.serial)).flatten();
