@@ -366,15 +366,24 @@ fn server_message() -> impl Strategy<Value = ServerMessage> {
                 rear_steer,
             },
         );
-    let geo_item = (word(), v3(), v3(), word(), prop::option::of(int())).prop_map(
-        |(name, location, orientation, mount, mount_link)| GeoItem {
-            name,
-            location,
-            orientation,
-            mount,
-            mount_link,
-        },
-    );
+    let geo_item = (
+        word(),
+        v3(),
+        v3(),
+        word(),
+        prop::option::of(int()),
+        prop_oneof![Just(GeoLayout::Glued), Just(GeoLayout::Spaced)],
+    )
+        .prop_map(
+            |(name, location, orientation, mount, mount_link, layout)| GeoItem {
+                name,
+                location,
+                orientation,
+                mount,
+                mount_link,
+                layout,
+            },
+        );
     prop_oneof![
         (word(), word(), int()).prop_map(|(gametype, level, time_limit)| {
             ServerMessage::Nfo(Nfo::GameInfo {

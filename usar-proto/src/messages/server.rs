@@ -553,6 +553,22 @@ pub struct GeoItem {
     pub mount: String,
     /// Actuator link when mounted on an actuator.
     pub mount_link: Option<i64>,
+    /// Whether `{Mount ..}` is glued to the group before it or follows a space.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub layout: GeoLayout,
+}
+
+/// Spacing of a GEO item's `{Mount ..}` group: both are real UDK output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum GeoLayout {
+    /// `{Orientation ..}{Mount m}[{MountLink k}]`, as `Sensor.uc`'s `GetGeoData` prints it
+    /// (and our server).
+    #[default]
+    Glued,
+    /// `{Orientation ..} {Mount m}[{MountLink k}]`: a space before `{Mount` (UDK lines of
+    /// 2012 captures).
+    Spaced,
 }
 
 /// `ASTA {Time t} {Name n} {Link 1} {Value v} ...`.
