@@ -277,7 +277,16 @@ fn every_valid_server_line_reads_and_prints_back_exactly() {
 
 /// Real UDK GEO lines with a space before `{Mount ..}` (issue #55: the GEO lines of the
 /// capture as other UDK builds print them), and one with both spacings.
-const SPACED_GEO: &[(&str, &str, [f64; 3], &str, Option<i64>)] = &[
+/// A line and what it must read as: name, location, mount, mount link.
+type GeoCase = (
+    &'static str,
+    &'static str,
+    [f64; 3],
+    &'static str,
+    Option<i64>,
+);
+
+const SPACED_GEO: &[GeoCase] = &[
     (
         "GEO {Type RangeScanner} {Name lms200} {Location 0.21,-0.00,-0.20} {Orientation 0.00,-0.00,-0.00} {Mount P3AT}",
         "lms200",
