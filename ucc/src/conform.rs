@@ -404,7 +404,13 @@ impl Watch {
         for (word, (count, problem)) in &self.words {
             let check = format!("{}-format{suffix}", word.to_ascii_lowercase());
             match problem {
-                None => report.pass(check, format!("{count} lines in the documented layout")),
+                None => report.pass(
+                    check,
+                    format!(
+                        "{count} line{} in the documented layout",
+                        if *count == 1 { "" } else { "s" }
+                    ),
+                ),
                 Some((problem, line)) => report.fail(check, problem.clone(), Some(line)),
             }
         }

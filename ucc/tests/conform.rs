@@ -93,7 +93,13 @@ async fn our_server_passes_every_check() {
         .as_array()
         .unwrap()
         .iter()
-        .filter(|c| c["result"] != "pass")
+        // Only the robots without a camera skip a check: SET {Type Camera}.
+        .filter(|c| {
+            c["result"] == "fail"
+                || (c["result"] == "skip"
+                    && !(c["check"].as_str().unwrap().starts_with("set-camera")
+                        && c["detail"] == "no camera"))
+        })
         .collect();
     assert!(failed.is_empty(), "not passed: {failed:#?}");
     assert_eq!(out.status.code(), Some(0), "{report:#}");
@@ -130,6 +136,7 @@ async fn our_server_passes_every_check() {
     assert_eq!(out.status.code(), Some(0), "{table}");
     assert!(table.starts_with("check "), "{table}");
     assert!(table.contains("conforms"), "{table}");
+    println!("{table}");
     shutdown.cancel();
 }
 
