@@ -211,6 +211,23 @@ struct Received {
     message: ServerMessage,
 }
 
+impl Received {
+    /// Whether this is an STA line, typed or not (a server whose STA does not fit the layout
+    /// still streams): its time, 0 when unreadable.
+    fn sta_time(&self) -> Option<f64> {
+        if Message::word(&self.line) != "STA" {
+            return None;
+        }
+        Some(match &self.message {
+            ServerMessage::Sta(sta) => sta.time.seconds,
+            _ => Message::parse(&self.line)
+                .ok()
+                .and_then(|p| p.message.get("Time")?.trim().parse().ok())
+                .unwrap_or(0.0),
+        })
+    }
+}
+
 /// A control-port connection: usar_proto reads every line, ucc_client's line framing.
 struct Conn {
     lines: LineReader<OwnedReadHalf>,
@@ -368,13 +385,15 @@ impl Watch {
             entry.1 = Some((problem, got.line.clone()));
         }
         match &got.message {
-            ServerMessage::Sta(sta) => {
-                if self.sta_times.last().is_some_and(|t| sta.time.seconds < *t)
-                    && self.sta_backwards.is_none()
+            _ if word == "STA" => {
+                let Some(time) = got.sta_time() else {
+                    return;
+                };
+                if self.sta_times.last().is_some_and(|t| time < *t) && self.sta_backwards.is_none()
                 {
                     self.sta_backwards = Some(got.line.clone());
                 }
-                self.sta_times.push(sta.time.seconds);
+                self.sta_times.push(time);
             }
             _ if word == "SEN" && self.counting => {
                 let generic = Message::parse(&got.line).ok().map(|p| p.message);
@@ -438,14 +457,10 @@ impl Session {
         Ok(got)
     }
 
-    /// Lines until one that `want` accepts (returned), `None` when the deadline passes.
-    async fn until(
-        &mut self,
-        deadline: Instant,
-        want: impl Fn(&ServerMessage) -> bool,
-    ) -> Result<Option<Received>, String> {
+    /// Lines until an STA (returned, typed or not), `None` when the deadline passes.
+    async fn next_sta(&mut self, deadline: Instant) -> Result<Option<Received>, String> {
         while let Some(got) = self.next(deadline).await? {
-            if want(&got.message) {
+            if got.sta_time().is_some() {
                 return Ok(Some(got));
             }
         }
@@ -467,10 +482,7 @@ impl Session {
     /// Whether the connection still streams: the next STA arrives.
     async fn streams(&mut self) -> Result<bool, String> {
         let deadline = self.deadline();
-        Ok(self
-            .until(deadline, |m| matches!(m, ServerMessage::Sta(_)))
-            .await?
-            .is_some())
+        Ok(self.next_sta(deadline).await?.is_some())
     }
 }
 
@@ -675,11 +687,7 @@ async fn robot_session(
     } else {
         Duration::from_secs_f64(args.spawn_wait)
     };
-    let first = s
-        .until(Instant::now() + wait, |m| {
-            matches!(m, ServerMessage::Sta(_))
-        })
-        .await?;
+    let first = s.next_sta(Instant::now() + wait).await?;
     let Some(first) = first else {
         let why = format!("no STA within {wait:?} after {init}");
         if named {
@@ -692,7 +700,7 @@ async fn robot_session(
     report.pass(check("spawn"), format!("STA after {init}"));
 
     // The stream over a window of simulated time: STA and SEN rates.
-    let start = first.message.time().unwrap_or(0.0);
+    let start = first.sta_time().unwrap_or(0.0);
     s.watch.sta_times.clear();
     s.watch.counting = true;
     let deadline = s.deadline();
@@ -700,8 +708,8 @@ async fn robot_session(
     while end < start + args.window {
         match s.next(deadline).await? {
             Some(got) => {
-                if let ServerMessage::Sta(sta) = &got.message {
-                    end = sta.time.seconds;
+                if let Some(time) = got.sta_time() {
+                    end = time;
                 }
             }
             None => break,
@@ -1236,7 +1244,7 @@ mod tests {
         );
         assert!(line_problem(&got("STA {Time 12.3456}")).is_some());
         assert!(line_problem(&got("STA {Battery 99999} {Time 12.3456}")).is_some());
-        assert!(line_problem(&got("STA {Time 12.3} {Battery 99999}")).is_some());
+        assert!(line_problem(&got("STA {Time 12.3456} {Battery 99999.5}")).is_some());
         let geo = "GEO {Type Sonar} {Name F1} {Location 0.19,-0.12,0.00} {Orientation 0.00,0.00,-0.87}{Mount P3AT}";
         assert_eq!(line_problem(&got(geo)), None);
         // Unreal units where metres belong.

@@ -145,10 +145,10 @@ const GOOD_GEO: &str = "GEO {Type IMU} {Name IMU} {Location 0.00,0.00,0.00} {Ori
 /// The same without its `{Orientation ..}`.
 const BAD_GEO: &str = "GEO {Type IMU} {Name IMU} {Location 0.00,0.00,0.00}{Mount FakeBot}";
 
-/// A tiny USARSim: NFO on connect, one start pose, a FakeBot streaming STA and an IMU at
-/// 10 per simulated second (faster than real time), CONF and GEO answers with `geo` for
-/// the IMU.
-async fn fake_server(geo: &'static str) -> u16 {
+/// A tiny USARSim: NFO on connect, one start pose, a FakeBot streaming STA (with `battery`
+/// as its Battery value) and an IMU at 10 per simulated second (faster than real time), CONF
+/// and GEO answers with `geo` for the IMU.
+async fn fake_server(geo: &'static str, battery: &'static str) -> u16 {
     let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
     let port = listener.local_addr().unwrap().port();
     tokio::spawn(async move {
@@ -188,7 +188,7 @@ async fn fake_server(geo: &'static str) -> u16 {
                         _ = tick.tick(), if spawned => {
                             time += 0.1;
                             out = format!(
-                                "STA {{Time {time:.4}}} {{Battery 99999}}\r\nSEN {{Time {time:.4}}} {{Type IMU}} {{Name IMU}} {{XYZAcceleration 0.0000,0.0000,0.0000}} {{AngularVel 0.0000,0.0000,0.0000}} {{AngularAccel 0.0000,0.0000,0.0000}} {{Rotation 0.0000,0.0000,0.0000}}\r\n"
+                                "STA {{Time {time:.4}}} {{Battery {battery}}}\r\nSEN {{Time {time:.4}}} {{Type IMU}} {{Name IMU}} {{XYZAcceleration 0.0000,0.0000,0.0000}} {{AngularVel 0.0000,0.0000,0.0000}} {{AngularAccel 0.0000,0.0000,0.0000}} {{Rotation 0.0000,0.0000,0.0000}}\r\n"
                             );
                         }
                     }
@@ -199,8 +199,11 @@ async fn fake_server(geo: &'static str) -> u16 {
     port
 }
 
-async fn against_fake(geo: &'static str) -> (Option<i32>, serde_json::Value) {
-    let port = fake_server(geo).await;
+async fn against_fake(
+    geo: &'static str,
+    battery: &'static str,
+) -> (Option<i32>, serde_json::Value) {
+    let port = fake_server(geo, battery).await;
     let mut args = vec![
         format!("127.0.0.1:{port}"),
         "--robot".into(),
@@ -217,7 +220,7 @@ async fn against_fake(geo: &'static str) -> (Option<i32>, serde_json::Value) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_wrong_answer_fails_its_check_with_the_line() {
     // The fake server as it should be passes (side ports refused: skipped).
-    let (code, report) = against_fake(GOOD_GEO).await;
+    let (code, report) = against_fake(GOOD_GEO, "99999").await;
     assert_eq!(code, Some(0), "{report:#}");
     assert_eq!(check(&report, "geo-format FakeBot").0, "pass");
     assert_eq!(check(&report, "conf-geo FakeBot").0, "pass");
@@ -225,7 +228,7 @@ async fn a_wrong_answer_fails_its_check_with_the_line() {
     assert_eq!(check(&report, "wss").0, "skip");
 
     // A GEO without its Orientation: that check fails, naming the line.
-    let (code, report) = against_fake(BAD_GEO).await;
+    let (code, report) = against_fake(BAD_GEO, "99999").await;
     assert_eq!(code, Some(1), "{report:#}");
     assert_eq!(report["passed"], false);
     let (result, detail, line) = check(&report, "geo-format FakeBot");
@@ -234,6 +237,18 @@ async fn a_wrong_answer_fails_its_check_with_the_line() {
     // The others still pass.
     assert_eq!(check(&report, "sta-format FakeBot").0, "pass");
     assert_eq!(check(&report, "malformed-lines FakeBot").0, "pass");
+
+    // An STA whose Battery is not a number: sta-format fails, naming the first such line.
+    let (code, report) = against_fake(GOOD_GEO, "full").await;
+    assert_eq!(code, Some(1), "{report:#}");
+    let (result, detail, line) = check(&report, "sta-format FakeBot");
+    assert_eq!(result, "fail", "{report:#}");
+    assert!(detail.contains("Battery"), "{detail}");
+    assert!(
+        line.is_some_and(|l| l.starts_with("STA {Time ") && l.ends_with("{Battery full}")),
+        "{line:?}"
+    );
+    assert_eq!(check(&report, "geo-format FakeBot").0, "pass");
 }
 
 #[test]
