@@ -215,7 +215,7 @@ impl Received {
     /// Whether this is an STA line, typed or not (a server whose STA does not fit the layout
     /// still streams): its time, 0 when unreadable.
     fn sta_time(&self) -> Option<f64> {
-        if Message::word(&self.line) != "STA" {
+        if !Message::word(&self.line).eq_ignore_ascii_case("STA") {
             return None;
         }
         Some(match &self.message {
@@ -295,7 +295,7 @@ fn line_problem(got: &Received) -> Option<String> {
         return Some(format!("{word:?} is not a server message word"));
     }
     let known = ["NFO", "STA", "SEN", "CONF", "GEO", "ASTA", "EFF", "DIE"];
-    if known.contains(&word) {
+    if known.iter().any(|w| w.eq_ignore_ascii_case(word)) {
         if let ServerMessage::Other(_) = got.message {
             return Some(match ServerMessage::parse_strict(&got.line) {
                 Err(e) => format!("does not fit the documented layout: {e}"),
@@ -376,7 +376,13 @@ struct Watch {
 
 impl Watch {
     fn see(&mut self, got: &Received) {
-        let word = Message::word(&got.line).to_owned();
+        // Rows are named after server words only (a server sending anything else is one row).
+        let word = Message::word(&got.line);
+        let word = if ServerMessage::is_server_word(word) {
+            word.to_ascii_uppercase()
+        } else {
+            "unknown-word".to_owned()
+        };
         let entry = self.words.entry(word.clone()).or_default();
         entry.0 += 1;
         if entry.1.is_none()
@@ -525,17 +531,16 @@ pub(crate) async fn conform(args: ConformArgs) -> anyhow::Result<ExitCode> {
     };
     let mut sides_done = false;
     for (i, class) in classes.iter().enumerate() {
-        let spawned = robot_checks(
+        robot_checks(
             &args,
             &mut report,
             class,
             i + 1,
             &starts,
             named,
-            !sides_done,
+            &mut sides_done,
         )
         .await;
-        sides_done |= spawned;
     }
     if !sides_done {
         side_checks(&args, &mut report, None).await;
@@ -609,7 +614,8 @@ fn short(class: &str) -> &str {
     class.rsplit('.').next().unwrap_or(class)
 }
 
-/// Spawns `class` and checks everything about it; whether it spawned.
+/// Spawns `class` and checks everything about it; checks the side ports too while it is in
+/// the world, unless `sides_done`.
 async fn robot_checks(
     args: &ConformArgs,
     report: &mut Report,
@@ -617,8 +623,8 @@ async fn robot_checks(
     index: usize,
     starts: &[String],
     named: bool,
-    sides: bool,
-) -> bool {
+    sides_done: &mut bool,
+) {
     let timeout = Duration::from_secs_f64(args.timeout);
     let addr = args.target.at(args.target.port);
     let suffix = format!(" {}", short(class));
@@ -626,7 +632,7 @@ async fn robot_checks(
         Ok(conn) => conn,
         Err(e) => {
             report.fail(format!("spawn{suffix}"), e, None);
-            return false;
+            return;
         }
     };
     let mut session = Session {
@@ -643,7 +649,7 @@ async fn robot_checks(
         &name,
         starts,
         named,
-        sides,
+        sides_done,
     )
     .await;
     let spawned = match result {
@@ -657,7 +663,6 @@ async fn robot_checks(
         session.watch.report(report, &suffix);
     }
     session.conn.close().await;
-    spawned
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -669,7 +674,7 @@ async fn robot_session(
     name: &str,
     starts: &[String],
     named: bool,
-    sides: bool,
+    sides_done: &mut bool,
 ) -> Result<bool, String> {
     let suffix = format!(" {}", short(class));
     let check = |what: &str| format!("{what}{suffix}");
@@ -924,8 +929,9 @@ async fn robot_session(
     }
 
     // Side ports while the robot is in the world.
-    if sides {
+    if !*sides_done {
         side_checks(args, report, Some(name)).await;
+        *sides_done = true;
     }
 
     // Malformed lines: the connection must stay usable.
@@ -1244,6 +1250,7 @@ mod tests {
         );
         assert!(line_problem(&got("STA {Time 12.3456}")).is_some());
         assert!(line_problem(&got("STA {Battery 99999} {Time 12.3456}")).is_some());
+        assert!(line_problem(&got("sta {Time 12.3456} {Battery 99999}")).is_some());
         assert!(line_problem(&got("STA {Time 12.3456} {Battery 99999.5}")).is_some());
         let geo = "GEO {Type Sonar} {Name F1} {Location 0.19,-0.12,0.00} {Orientation 0.00,0.00,-0.87}{Mount P3AT}";
         assert_eq!(line_problem(&got(geo)), None);
