@@ -547,9 +547,11 @@ pub(crate) async fn conform(args: ConformArgs) -> anyhow::Result<ExitCode> {
     }
     report.passed = !report.failed();
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        // Never a panic on a closed standard output (`ucc conform ... | head`): main's
+        // status lines say how it ended.
+        crate::status_line(format_args!("{}", serde_json::to_string_pretty(&report)?));
     } else {
-        print!("{}", table(&report));
+        crate::status_line(format_args!("{}", table(&report).trim_end()));
     }
     Ok(if report.passed {
         ExitCode::SUCCESS
