@@ -322,6 +322,13 @@ const SPACED_GEO: &[GeoCase] = &[
         "cam",
         Some(1),
     ),
+    (
+        "GEO {Type Camera} {Name cams} {Location 0.10,-0.00,0.05} {Orientation 0.00,-0.79,0.00} {Mount cam} {MountLink 1}",
+        "cams",
+        [0.1, 0.0, 0.05],
+        "cam",
+        Some(1),
+    ),
 ];
 
 #[test]

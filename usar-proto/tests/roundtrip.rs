@@ -372,7 +372,11 @@ fn server_message() -> impl Strategy<Value = ServerMessage> {
         v3(),
         word(),
         prop::option::of(int()),
-        prop_oneof![Just(GeoLayout::Glued), Just(GeoLayout::Spaced)],
+        prop_oneof![
+            Just(GeoLayout::Glued),
+            Just(GeoLayout::Spaced),
+            Just(GeoLayout::SpacedLink)
+        ],
     )
         .prop_map(
             |(name, location, orientation, mount, mount_link, layout)| GeoItem {
@@ -380,8 +384,12 @@ fn server_message() -> impl Strategy<Value = ServerMessage> {
                 location,
                 orientation,
                 mount,
+                // Without a MountLink, SpacedLink prints (and reads) as Spaced.
+                layout: match (layout, mount_link) {
+                    (GeoLayout::SpacedLink, None) => GeoLayout::Spaced,
+                    (layout, _) => layout,
+                },
                 mount_link,
-                layout,
             },
         );
     prop_oneof![

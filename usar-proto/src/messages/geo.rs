@@ -31,9 +31,14 @@ impl Geo {
                             orientation: it.vec3("Orientation")?,
                             mount: it.string("Mount")?,
                             mount_link: it.opt_i64("MountLink")?,
-                            layout: match find(it.pairs, "Mount") {
-                                Some(p) if spaced(line, p) => GeoLayout::Spaced,
-                                _ => GeoLayout::Glued,
+                            layout: {
+                                let spaced =
+                                    |key| find(it.pairs, key).is_some_and(|p| spaced(line, p));
+                                match (spaced("Mount"), spaced("MountLink")) {
+                                    (true, true) => GeoLayout::SpacedLink,
+                                    (true, false) => GeoLayout::Spaced,
+                                    (false, _) => GeoLayout::Glued,
+                                }
                             },
                         })
                     })
@@ -93,7 +98,10 @@ impl Geo {
                     }
                     w.text("Mount", &it.mount);
                     if let Some(k) = it.mount_link {
-                        w.glue().int("MountLink", k);
+                        if it.layout != GeoLayout::SpacedLink {
+                            w.glue();
+                        }
+                        w.int("MountLink", k);
                     }
                 }
             }
@@ -145,16 +153,18 @@ mod tests {
         round_trip(
             "GEO {Type Camera} {Name cams} {Location 0.10,-0.00,0.05} {Orientation 0.00,-0.79,0.00}{Mount cam}{MountLink 1}",
         );
-        // A space before `{Mount`, per item; `{MountLink` stays glued to it.
+        // A space before `{Mount` (and `{MountLink`), or none, per item.
         let m = round_trip(
-            "GEO {Type Sonar} {Name F1} {Location 0.19,-0.12,0.00} {Orientation 0.00,0.00,-0.87} {Mount P3AT} {Name F2} {Location 0.19,0.12,0.00} {Orientation 0.00,0.00,0.87}{Mount cam}{MountLink 2}",
+            "GEO {Type Sonar} {Name F1} {Location 0.19,-0.12,0.00} {Orientation 0.00,0.00,-0.87} {Mount P3AT} {Name F2} {Location 0.19,0.12,0.00} {Orientation 0.00,0.00,0.87}{Mount cam}{MountLink 2} {Name F3} {Location 0.19,0.12,0.00} {Orientation 0.00,0.00,0.87} {Mount cam}{MountLink 3} {Name F4} {Location 0.19,0.12,0.00} {Orientation 0.00,0.00,0.87} {Mount cam} {MountLink 4}",
         );
         let ServerMessage::Geo(Geo::Items { items, .. }) = m else {
             panic!()
         };
         let layouts: Vec<GeoLayout> = items.iter().map(|it| it.layout).collect();
-        assert_eq!(layouts, [GeoLayout::Spaced, GeoLayout::Glued]);
+        use GeoLayout::*;
+        assert_eq!(layouts, [Spaced, Glued, Spaced, SpacedLink]);
         assert_eq!(items[1].mount_link, Some(2));
+        assert_eq!(items[3].mount_link, Some(4));
         let m = ServerMessage::parse("GEO {Type Sonar} {Name F2 Location 0.1850,-0.1150,0.0000 Orientation 0.0000,0.0000,-0.8727 Mount HARD}").unwrap().message;
         assert_eq!(
             m.to_string(),

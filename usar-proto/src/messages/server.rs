@@ -553,12 +553,14 @@ pub struct GeoItem {
     pub mount: String,
     /// Actuator link when mounted on an actuator.
     pub mount_link: Option<i64>,
-    /// Whether `{Mount ..}` is glued to the group before it or follows a space.
+    /// Whether `{Mount ..}` (and `{MountLink ..}`) are glued to the group before them or
+    /// follow a space.
     #[cfg_attr(feature = "serde", serde(default))]
     pub layout: GeoLayout,
 }
 
-/// Spacing of a GEO item's `{Mount ..}` group: both are real UDK output.
+/// Spacing of a GEO item's `{Mount ..}` and `{MountLink ..}` groups: real UDK lines have
+/// `{Mount` glued (today's `Sensor.uc` `GetGeoData`) or after a space (older builds).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum GeoLayout {
@@ -566,9 +568,11 @@ pub enum GeoLayout {
     /// (and our server).
     #[default]
     Glued,
-    /// `{Orientation ..} {Mount m}[{MountLink k}]`: a space before `{Mount` (UDK lines of
-    /// 2012 captures).
+    /// `{Orientation ..} {Mount m}[{MountLink k}]`: a space before `{Mount`.
     Spaced,
+    /// `{Orientation ..} {Mount m} {MountLink k}`: a space before both (only with a
+    /// `MountLink`; without one it is [`GeoLayout::Spaced`]).
+    SpacedLink,
 }
 
 /// `ASTA {Time t} {Name n} {Link 1} {Value v} ...`.
