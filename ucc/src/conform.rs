@@ -42,6 +42,9 @@ pub(crate) const DEFAULT_ROBOTS: [&str; 6] = [
     "Kenaf",
 ];
 
+/// The row of lines that start with no server word (`unknown-word-format`).
+const UNKNOWN_WORD: &str = "UNKNOWN-WORD";
+
 /// STA rate UDK sends (`StatusTimer=0.1`), and the plausible band around it, per simulated
 /// second.
 const STA_HZ: (f64, f64) = (5.0, 20.0);
@@ -381,7 +384,7 @@ impl Watch {
         let word = if ServerMessage::is_server_word(word) {
             word.to_ascii_uppercase()
         } else {
-            "unknown-word".to_owned()
+            UNKNOWN_WORD.to_owned()
         };
         let entry = self.words.entry(word.clone()).or_default();
         entry.0 += 1;
@@ -436,6 +439,14 @@ impl Watch {
                         if *count == 1 { "" } else { "s" }
                     ),
                 ),
+                // Lines of no server word: clients ignore them (UDK sends none; a server may
+                // send an error line), so they are reported, not counted in the exit status.
+                Some((problem, line)) if word == UNKNOWN_WORD => {
+                    report.fail(check, format!("{problem} (advisory)"), Some(line));
+                    if let Some(last) = report.checks.last_mut() {
+                        last.mandatory = false;
+                    }
+                }
                 Some((problem, line)) => report.fail(check, problem.clone(), Some(line)),
             }
         }
@@ -1197,14 +1208,24 @@ fn table(report: &Report) -> String {
             let _ = writeln!(out, "{:<width$}  {:<6}  > {line}", "", "");
         }
     }
-    let count = |o: Outcome| report.checks.iter().filter(|c| c.result == o).count();
+    let count = |o: Outcome, mandatory: bool| {
+        report
+            .checks
+            .iter()
+            .filter(|c| c.result == o && c.mandatory == mandatory)
+            .count()
+    };
+    let advisory = match count(Outcome::Fail, false) {
+        0 => String::new(),
+        n => format!(" (and {n} advisory)"),
+    };
     let _ = writeln!(
         out,
-        "{}: {} passed, {} failed, {} skipped ({})",
+        "{}: {} passed, {} failed{advisory}, {} skipped ({})",
         report.target,
-        count(Outcome::Pass),
-        count(Outcome::Fail),
-        count(Outcome::Skip),
+        count(Outcome::Pass, true),
+        count(Outcome::Fail, true),
+        count(Outcome::Skip, true),
         if report.passed {
             "conforms"
         } else {

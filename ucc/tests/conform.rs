@@ -179,6 +179,8 @@ async fn fake_server(geo: &'static str, battery: &'static str) -> u16 {
                                 "GETGEO {Type Robot}" if spawned => "GEO {Name FakeBot}",
                                 "GETCONF {Type IMU}" if spawned => "CONF {Type IMU} {Name IMU}",
                                 "GETGEO {Type IMU}" if spawned => geo,
+                                // A clear error line: no server word (advisory only).
+                                "NOSUCHCOMMAND {Foo 1}" => "ERROR {Reason Unknown.Command}",
                                 _ => "",
                             };
                             if !reply.is_empty() {
@@ -226,6 +228,19 @@ async fn a_wrong_answer_fails_its_check_with_the_line() {
     assert_eq!(check(&report, "conf-geo FakeBot").0, "pass");
     assert_eq!(check(&report, "image").0, "skip");
     assert_eq!(check(&report, "wss").0, "skip");
+    // Its error line for an unknown command is reported, but not counted.
+    let (result, _, line) = check(&report, "unknown-word-format FakeBot");
+    assert_eq!(
+        (result, line),
+        ("fail", Some("ERROR {Reason Unknown.Command}"))
+    );
+    let advisory = report["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["check"] == "unknown-word-format FakeBot")
+        .unwrap();
+    assert_eq!(advisory["mandatory"], false);
 
     // A GEO without its Orientation: that check fails, naming the line.
     let (code, report) = against_fake(BAD_GEO, "99999").await;
