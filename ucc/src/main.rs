@@ -1,6 +1,7 @@
 //! `ucc`, the UAV Control Center: fly missions with an agent against a USARSim server, run a
 //! self-contained demo, or decode/encode protocol lines.
 
+mod conform;
 mod scenario;
 mod tap;
 mod wire;
@@ -123,6 +124,31 @@ enum Cmd {
                       overlay.svg/.png         every iteration on one map, the metrics' means"
     )]
     Scenario(scenario::ScenarioArgs),
+    /// Check that a USARSim-protocol server (ours or anyone's) speaks the protocol: spawn each
+    /// robot class, send every command family, check every answer; exit 0 only when every
+    /// mandatory check passes.
+    #[command(
+        long_about = "Check that a USARSim-protocol server (ours or anyone's) speaks the protocol.\n\n\
+                      Connects to HOST:PORT, checks the NFO sent on connect and the GETSTARTPOSES \
+                      answer, then for each robot class (--robot, or a default list: classes the \
+                      server does not offer are skipped) spawns one robot at the first start pose, \
+                      watches its STA/SEN stream (rates per simulated second, time order), asks \
+                      GETCONF and GETGEO for the robot and each sensor type it reports (the same \
+                      parts must be named), drives, sets the camera where there is one, sends \
+                      malformed lines (the connection must stay usable), and checks every line \
+                      against UDK's layout (field names, order, number formats) and plausible \
+                      units. While the first robot is in the world the side ports on HOST are \
+                      tried: the image server, USARTruth and the WSS; one that refuses the \
+                      connection is skipped unless --require names it.\n\n\
+                      Prints a table (check, result, detail, the offending line) or, with \
+                      --json, one JSON object. Exit status: 0 when every mandatory check passed, \
+                      1 when one failed, 2 for bad input (an address that does not parse, a \
+                      server that cannot be reached). What each check means: docs/conformance.md.",
+        after_help = "Examples:\n  ucc conform 127.0.0.1:3000\n  \
+                      ucc conform usarsim-host:3000 --robot P3AT --robot AirRobot --require image\n  \
+                      ucc conform 127.0.0.1:3000 --json > conformance.json"
+    )]
+    Conform(conform::ConformArgs),
     /// Read protocol lines on stdin and print them as JSON (or re-printed); exit 1 if any failed.
     Decode {
         /// Print JSON, one object per line (the default).
@@ -417,6 +443,7 @@ fn main() -> ExitCode {
         }),
         Cmd::Demo(args) => runtime().and_then(|rt| rt.block_on(demo(args))),
         Cmd::Scenario(args) => scenario::scenario(args),
+        Cmd::Conform(args) => runtime().and_then(|rt| rt.block_on(conform::conform(args))),
         Cmd::Gui(args) => runtime().and_then(|rt| rt.block_on(gui(args))),
     };
     match result {

@@ -568,6 +568,22 @@ mod tests {
         assert_eq!(text, input);
     }
 
+    #[test]
+    fn geo_lines_with_a_space_before_mount_decode_typed_and_print_back_exactly() {
+        // Real UDK lines (issue #55): typed, with the space kept.
+        let input = "GEO {Type RangeScanner} {Name lms200} {Location 0.21,-0.00,-0.20} {Orientation 0.00,-0.00,-0.00} {Mount P3AT}\r\nGEO {Type Camera} {Name cams} {Location 0.10,-0.00,0.05} {Orientation 0.00,-0.79,0.00} {Mount cam}{MountLink 1}\r\n";
+        let (json, err, failed) = run_decode(input, false);
+        assert_eq!((err.as_str(), failed), ("", 0));
+        for line in json.lines() {
+            assert!(line.starts_with("{\"server\":{\"Geo\""), "{line}");
+            assert!(line.contains("\"mount\":\""), "{line}");
+        }
+        let (text, err, failed) = run_encode(&json);
+        assert_eq!((err.as_str(), failed), ("", 0));
+        assert_eq!(text, input);
+        assert_eq!(run_decode(input, true).0, input);
+    }
+
     /// Decodes, checks the report, encodes back.
     fn through(input: &str, reported: usize) -> (String, String) {
         let (json, err, failed) = run_decode(input, false);

@@ -274,3 +274,97 @@ fn every_valid_server_line_reads_and_prints_back_exactly() {
     let e = ServerMessage::parse_strict("SEN {Time 12.5000} {Type IMU}").unwrap_err();
     assert!(e.to_string().contains("Name"), "{e}");
 }
+
+/// Real UDK GEO lines with a space before `{Mount ..}` (issue #55: the GEO lines of the
+/// capture as other UDK builds print them), and one with both spacings.
+/// A line and what it must read as: name, location, mount, mount link.
+type GeoCase = (
+    &'static str,
+    &'static str,
+    [f64; 3],
+    &'static str,
+    Option<i64>,
+);
+
+const SPACED_GEO: &[GeoCase] = &[
+    (
+        "GEO {Type RangeScanner} {Name lms200} {Location 0.21,-0.00,-0.20} {Orientation 0.00,-0.00,-0.00} {Mount P3AT}",
+        "lms200",
+        [0.21, 0.0, -0.2],
+        "P3AT",
+        None,
+    ),
+    (
+        "GEO {Type INS} {Name InsTest} {Location -0.00,-0.00,-0.20} {Orientation 0.00,-0.00,-0.00} {Mount P3AT}",
+        "InsTest",
+        [0.0, 0.0, -0.2],
+        "P3AT",
+        None,
+    ),
+    (
+        "GEO {Type Camera} {Name Camera} {Location 0.10,-0.00,-0.42} {Orientation 0.00,-0.00,-0.00} {Mount P3AT}",
+        "Camera",
+        [0.1, 0.0, -0.42],
+        "P3AT",
+        None,
+    ),
+    (
+        "GEO {Type GroundTruth} {Name GndTruth} {Location 0.00,0.00,-0.00} {Orientation 0.00,-0.00,-0.00} {Mount P3AT}",
+        "GndTruth",
+        [0.0, 0.0, 0.0],
+        "P3AT",
+        None,
+    ),
+    (
+        "GEO {Type Camera} {Name cams} {Location 0.10,-0.00,0.05} {Orientation 0.00,-0.79,0.00} {Mount cam}{MountLink 1}",
+        "cams",
+        [0.1, 0.0, 0.05],
+        "cam",
+        Some(1),
+    ),
+    (
+        "GEO {Type Camera} {Name cams} {Location 0.10,-0.00,0.05} {Orientation 0.00,-0.79,0.00} {Mount cam} {MountLink 1}",
+        "cams",
+        [0.1, 0.0, 0.05],
+        "cam",
+        Some(1),
+    ),
+];
+
+#[test]
+fn geo_lines_with_a_space_before_mount_read_typed_and_print_back_exactly() {
+    for &(line, name, location, mount, mount_link) in SPACED_GEO {
+        let m = server(line);
+        let ServerMessage::Geo(Geo::Items { items, .. }) = &m else {
+            panic!("{line}: {m:?}")
+        };
+        let it = &items[0];
+        assert_eq!(
+            (
+                it.name.as_str(),
+                it.location,
+                it.mount.as_str(),
+                it.mount_link
+            ),
+            (
+                name,
+                Vec3::new(location[0], location[1], location[2]),
+                mount,
+                mount_link
+            ),
+            "{line}"
+        );
+        assert_eq!(m.to_string(), line);
+        // Strict reading agrees: nothing is missing.
+        assert!(ServerMessage::parse_strict(line).is_ok(), "{line}");
+    }
+    // The layout is per item: one glued, one spaced, in one line.
+    let line = "GEO {Type Sonar} {Name F1} {Location 0.19,-0.12,0.00} {Orientation 0.00,0.00,-0.87}{Mount P3AT} {Name F2} {Location 0.19,0.12,0.00} {Orientation 0.00,0.00,0.87} {Mount P3AT}";
+    let m = server(line);
+    assert!(matches!(&m, ServerMessage::Geo(Geo::Items { items, .. }) if items.len() == 2));
+    assert_eq!(m.to_string(), line);
+    // Our own (glued) lines still print back exactly.
+    for line in capture_lines().filter(|l| l.starts_with("GEO")) {
+        assert_eq!(server(line).to_string(), line);
+    }
+}

@@ -366,15 +366,32 @@ fn server_message() -> impl Strategy<Value = ServerMessage> {
                 rear_steer,
             },
         );
-    let geo_item = (word(), v3(), v3(), word(), prop::option::of(int())).prop_map(
-        |(name, location, orientation, mount, mount_link)| GeoItem {
-            name,
-            location,
-            orientation,
-            mount,
-            mount_link,
-        },
-    );
+    let geo_item = (
+        word(),
+        v3(),
+        v3(),
+        word(),
+        prop::option::of(int()),
+        prop_oneof![
+            Just(GeoLayout::Glued),
+            Just(GeoLayout::Spaced),
+            Just(GeoLayout::SpacedLink)
+        ],
+    )
+        .prop_map(
+            |(name, location, orientation, mount, mount_link, layout)| GeoItem {
+                name,
+                location,
+                orientation,
+                mount,
+                // Without a MountLink, SpacedLink prints (and reads) as Spaced.
+                layout: match (layout, mount_link) {
+                    (GeoLayout::SpacedLink, None) => GeoLayout::Spaced,
+                    (layout, _) => layout,
+                },
+                mount_link,
+            },
+        );
     prop_oneof![
         (word(), word(), int()).prop_map(|(gametype, level, time_limit)| {
             ServerMessage::Nfo(Nfo::GameInfo {

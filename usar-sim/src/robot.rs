@@ -1338,6 +1338,7 @@ impl Robot {
             orientation: direction.into(),
             mount: self.class_name().to_string(),
             mount_link: None,
+            layout: Default::default(),
         };
         let mut items: Vec<GeoItem> = self
             .matching_parts(kind, name)

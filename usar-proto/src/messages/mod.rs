@@ -98,7 +98,7 @@ impl ServerMessage {
         } else if is("CONF") {
             Conf::read(r("conf")).map(|m| m.map(Self::Conf))
         } else if is("GEO") {
-            Geo::read(r("geo")).map(|m| m.map(Self::Geo))
+            Geo::read(r("geo"), line).map(|m| m.map(Self::Geo))
         } else if is("ASTA") {
             Asta::read(r("asta")).map(|m| Some(Self::Asta(m)))
         } else if is("EFF") {

@@ -553,6 +553,26 @@ pub struct GeoItem {
     pub mount: String,
     /// Actuator link when mounted on an actuator.
     pub mount_link: Option<i64>,
+    /// Whether `{Mount ..}` (and `{MountLink ..}`) are glued to the group before them or
+    /// follow a space.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub layout: GeoLayout,
+}
+
+/// Spacing of a GEO item's `{Mount ..}` and `{MountLink ..}` groups: real UDK lines have
+/// `{Mount` glued (today's `Sensor.uc` `GetGeoData`) or after a space (older builds).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum GeoLayout {
+    /// `{Orientation ..}{Mount m}[{MountLink k}]`, as `Sensor.uc`'s `GetGeoData` prints it
+    /// (and our server).
+    #[default]
+    Glued,
+    /// `{Orientation ..} {Mount m}[{MountLink k}]`: a space before `{Mount`.
+    Spaced,
+    /// `{Orientation ..} {Mount m} {MountLink k}`: a space before both (only with a
+    /// `MountLink`; without one it is [`GeoLayout::Spaced`]).
+    SpacedLink,
 }
 
 /// `ASTA {Time t} {Name n} {Link 1} {Value v} ...`.
