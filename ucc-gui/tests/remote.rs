@@ -61,7 +61,7 @@ async fn a_page_flies_two_iterations_against_a_plain_server() {
         Value::Null,
         "a plain server reports no geometry"
     );
-    assert_eq!(hello["agents"], json!(["base", "avoid"]));
+    assert_eq!(hello["agents"], json!(["base", "avoid", "thesis"]));
 
     let send = |v: Value| Message::Text(v.to_string().into());
     ws.send(send(

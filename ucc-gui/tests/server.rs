@@ -210,7 +210,7 @@ fn bad_input_gets_a_clear_message() {
     );
     assert_eq!(
         e,
-        "agent type: unknown agent \"nope\" (known agents: base, avoid)"
+        "agent type: unknown agent \"nope\" (known agents: base, avoid, thesis)"
     );
     let e = err(
         &mut hub,
