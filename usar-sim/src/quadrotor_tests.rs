@@ -1320,7 +1320,9 @@ fn the_imu_errors_are_seeded_per_part_and_average_out_to_the_truth() {
     let z: Vec<f64> = a.iter().skip(20).map(|(acc, _)| acc.z).collect();
     let mean = z.iter().sum::<f64>() / z.len() as f64;
     let std = (z.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / z.len() as f64).sqrt();
-    assert!((mean - GRAVITY).abs() < 0.2, "mean {mean}");
+    // The turn-on bias: σ 0.16 m/s² (a third of the datasheet's ±50 mg).
+    let bias = mean - GRAVITY;
+    assert!(bias.abs() < 0.48 && bias.abs() > 0.0024, "mean {mean}");
     assert!(
         (std / 0.04 - 1.0).abs() < 0.3,
         "noise std {std}, configured 0.04"
