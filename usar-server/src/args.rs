@@ -82,8 +82,9 @@ pub enum ArgsError {
     /// `--randomize FILE` did not load.
     #[error("--randomize {0}")]
     Randomize(String),
-    /// `--physics-rate` or `--sensor-rate` out of range, or a sensor rate the physics rate
-    /// cannot give (the text names the robot, the sensor and the value).
+    /// `--physics-rate` or `--sensor-rate` out of range, a sensor rate the physics rate
+    /// cannot give, or a GPS on a map without an origin (the text names the robot, the
+    /// sensor and the value).
     #[error("{0}")]
     Rates(String),
 }
@@ -118,6 +119,9 @@ impl ServerArgs {
         robots.check_rates(dt).map_err(|e| {
             ArgsError::Rates(format!("{e} (--physics-rate, --sensor-rate, --robots)"))
         })?;
+        robots
+            .check_map(&map)
+            .map_err(|e| ArgsError::Rates(format!("{e} (--map, --robots)")))?;
         let wind = WindConfig::overridden(map.wind(), self.wind, self.gusts, self.gust_length)
             .map_err(ArgsError::Wind)?;
         let mut config = ServerConfig {

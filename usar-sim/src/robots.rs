@@ -276,6 +276,30 @@ impl RobotClass {
     }
 }
 
+impl RobotClass {
+    /// Checks the parts that need something of the map: a `GPS` needs the map's origin
+    /// (`[geo]` latitude and longitude). The error names the robot, the sensor and the map.
+    pub fn check_map(&self, map: &crate::map::Map) -> Result<(), String> {
+        if map.geo().and_then(|g| g.origin()).is_some() {
+            return Ok(());
+        }
+        match self
+            .parts
+            .iter()
+            .find(|p| p.kind.eq_ignore_ascii_case("GPS"))
+        {
+            Some(p) => Err(format!(
+                "robot {}: sensor {}: a GPS needs the map's origin (`[geo]` latitude and \
+                 longitude, docs/maps.md#geo); map {} has none",
+                self.class,
+                p.name,
+                map.level()
+            )),
+            None => Ok(()),
+        }
+    }
+}
+
 /// The seconds between readings of a part: its `interval`, else its type's default (0 for
 /// an unknown type).
 pub fn interval_of(p: &PartConfig) -> f64 {
@@ -479,6 +503,11 @@ impl RobotCatalog {
                 "sensor {part}: no robot class has a sensor of that name"
             ))
         }
+    }
+
+    /// [`RobotClass::check_map`] of every class.
+    pub fn check_map(&self, map: &crate::map::Map) -> Result<(), String> {
+        self.robots.iter().try_for_each(|r| r.check_map(map))
     }
 
     /// [`RobotClass::check_rates`] of every class.

@@ -167,6 +167,9 @@ impl Settings {
         class
             .check_rates(dt)
             .map_err(|e| invalid(format!("sensor_rates: {e} (physics_rate=)")))?;
+        class
+            .check_map(&map)
+            .map_err(|e| invalid(format!("map: {e}")))?;
         if let Some(noise) = noise {
             if !(noise.is_finite() && (0.0..=MAX_NOISE).contains(&noise)) {
                 return Err(invalid(format!(
