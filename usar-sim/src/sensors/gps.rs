@@ -136,7 +136,7 @@ mod tests {
             (lat - 46.0).abs() < 1e-4 && (lon - 8.0).abs() < 1e-4,
             "{lat} {lon}"
         );
-        assert_eq!(geodetic(10.0, 179.9999, 0.0, 100.0).1 < -179.0, true);
+        assert!(geodetic(10.0, 179.9999, 0.0, 100.0).1 < -179.0, "wrapped");
     }
 
     #[test]
