@@ -73,6 +73,9 @@ fn an_imu_at_500_hz_gives_50_readings_per_tenth_of_a_second() {
     // 1 kHz, one reading per 1 ms tick.
     let times = imu_times(imu_at(1000.0), 1000.0, 0.1);
     assert_eq!(times.len(), 100);
+    // What the checks refuse: unchecked, a 500 Hz IMU on 200 Hz ticks reads every tick,
+    // 20 readings per 0.1 s instead of 50 (the rate silently becomes the physics rate).
+    assert_eq!(imu_times(imu_at(500.0), 200.0, 0.1).len(), 20);
     // The default: 10 Hz on 200 Hz ticks.
     let times = imu_times(RobotCatalog::embedded(), 200.0, 1.0);
     assert_eq!(times.len(), 10);
