@@ -113,12 +113,13 @@ impl Settings {
         period: f64,
         noise: Option<f64>,
     ) -> Result<Self, SimError> {
-        Self::with_rates(map, robot, period, noise, None, &[])
+        Self::with_rates(map, robot, period, noise, None, &[], None)
     }
 
-    /// [`Settings::new`] with a physics rate (Hz, `None`: 200) and sensor rates (part name,
-    /// Hz): every rate is checked against the physics rate (a sensor reads at most once a
-    /// tick, on whole ticks); errors name the robot, the sensor and the value.
+    /// [`Settings::new`] with a physics rate (Hz, `None`: 200), sensor rates (part name,
+    /// Hz) and a robot file (`None`: the embedded catalog): every rate is checked against
+    /// the physics rate (a sensor reads at most once a tick, on whole ticks), and a GPS
+    /// needs the map's origin; errors name the robot, the sensor and the value.
     pub(crate) fn with_rates(
         map: &str,
         robot: &str,
@@ -126,6 +127,7 @@ impl Settings {
         noise: Option<f64>,
         physics_rate: Option<f64>,
         sensor_rates: &[(String, f64)],
+        robots: Option<&str>,
     ) -> Result<Self, SimError> {
         let map = match Map::embedded(map) {
             Some(m) => m,
@@ -139,7 +141,11 @@ impl Settings {
                 )));
             }
         };
-        let mut catalog = RobotCatalog::embedded();
+        let mut catalog = match robots {
+            None => RobotCatalog::embedded(),
+            Some(path) => RobotCatalog::from_file(Path::new(path))
+                .map_err(|e| invalid(format!("robots: {e}")))?,
+        };
         let full = usar_proto::Init::qualified_class(robot);
         if let Err(unknown) = catalog.class(&full) {
             return Err(invalid(format!("robot: {unknown}")));

@@ -367,7 +367,7 @@ impl Resets {
 impl PyBatch {
     #[new]
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false, action_mode = "velocity", camera = None, physics_rate = None, sensor_rates = Vec::new()))]
+    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false, action_mode = "velocity", camera = None, physics_rate = None, sensor_rates = Vec::new(), robots = None))]
     fn new(
         py: Python<'_>,
         map: &str,
@@ -382,15 +382,23 @@ impl PyBatch {
         camera: Option<(u32, u32)>,
         physics_rate: Option<f64>,
         sensor_rates: Vec<(String, f64)>,
+        robots: Option<&str>,
     ) -> PyResult<Self> {
         if seeds.is_empty() || uavs_per_world == 0 {
             return Err(PyValueError::new_err(
                 "Batch: needs at least one world (seed) and one UAV per world",
             ));
         }
-        let mut settings =
-            Settings::with_rates(map, robot, period, noise, physics_rate, &sensor_rates)?
-                .action_mode(action_mode)?;
+        let mut settings = Settings::with_rates(
+            map,
+            robot,
+            period,
+            noise,
+            physics_rate,
+            &sensor_rates,
+            robots,
+        )?
+        .action_mode(action_mode)?;
         if state_only {
             settings = settings.state_only();
         }

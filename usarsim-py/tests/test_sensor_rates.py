@@ -72,3 +72,49 @@ def test_an_imu_at_500_hz_gives_50_readings_per_tenth_of_a_second():
 def test_bad_rates_name_the_robot_the_sensor_and_the_value(options, message):
     with pytest.raises(ValueError, match=message):
         gymnasium.make("usarsim/Hover-v0", robot="stsQuadrotor", **options)
+
+
+NAV = """
+[[robot]]
+class = "USARBot.NavQuad"
+dynamics = "quadrotor"
+battery = 1200.0
+[[robot.part]]
+type = "Position"
+name = "Position"
+[[robot.part]]
+type = "Velocity"
+name = "Velocity"
+[[robot.part]]
+type = "IMU"
+name = "IMU"
+[[robot.part]]
+type = "GPS"
+name = "GPS"
+interval = 0.2
+error = { noise = 1.0, latency = 0.2 }
+[[robot.part]]
+type = "Magnetometer"
+name = "Mag"
+error = { noise = 0.2 }
+"""
+
+
+def test_a_robot_file_with_gps_and_magnetometer_needs_a_map_origin(tmp_path):
+    robots = tmp_path / "nav.toml"
+    robots.write_text(NAV)
+    with pytest.raises(ValueError, match=r"map: robot USARBot.NavQuad: sensor GPS: a GPS needs the map's origin "
+                                         r"\(`\[geo\]` latitude and longitude, docs/maps.md#geo\); map EmptyRoom has none"):
+        gymnasium.make("usarsim/Hover-v0", robot="NavQuad", robots=str(robots))
+    root = __import__("pathlib").Path(__file__).resolve().parents[2]
+    geo_map = tmp_path / "geo_room.toml"
+    geo_map.write_text((root / "usar-sim/maps/empty_room.toml").read_text()
+                       + "\n[geo]\nlatitude = 47.5\nlongitude = -122.25\n")
+    env = gymnasium.make("usarsim/Hover-v0", robot="NavQuad", robots=str(robots), map=str(geo_map),
+                         action_mode="rotors", physics_rate=1000, sensor_rates={"IMU": 1000, "GPS": 5})
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(np.full(4, 0.346, np.float32))
+        assert env.unwrapped.imu_readings().shape == (100, 7)
+    with pytest.raises(ValueError, match=r"robots: .*nowhere.toml"):
+        gymnasium.make("usarsim/Hover-v0", robots=str(tmp_path / "nowhere.toml"))

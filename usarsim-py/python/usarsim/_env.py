@@ -38,8 +38,8 @@ def _actions(action, n: int) -> np.ndarray:
     return a
 
 
-def _rates(physics_rate, sensor_rates) -> dict:
-    """The ``physics_rate`` and ``sensor_rates`` options as the core takes them (keyword
+def _rates(physics_rate, sensor_rates, robots=None) -> dict:
+    """The ``physics_rate``, ``sensor_rates`` and ``robots`` options as the core takes them (keyword
     arguments of ``_core.Batch``); a value that is not a number is a ValueError naming the
     sensor and the value (the core checks the numbers: positive, within the physics rate)."""
     out = {}
@@ -61,6 +61,8 @@ def _rates(physics_rate, sensor_rates) -> dict:
             except (TypeError, ValueError):
                 raise ValueError(f"sensor_rates: sensor {name}: the rate {hz!r} is not a number of Hz") from None
         out["sensor_rates"] = rates
+    if robots is not None:
+        out["robots"] = str(robots)
     return out
 
 
@@ -163,20 +165,21 @@ class UsarsimEnv(Realism, Replay, gym.Env):
                  server: str | None = None, render_mode: str | None = None, state_only: bool = False,
                  flat: bool = False, action_mode: str = "velocity", camera: str | None = None,
                  camera_size=(64, 64), physics_rate: float | None = None,
-                 sensor_rates: dict | None = None) -> None:
+                 sensor_rates: dict | None = None, robots: str | None = None) -> None:
         self._recipe = dict(task=task, map=map, robot=robot, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, period=period,
                             noise=noise, max_steps=max_steps, server=server, render_mode=render_mode,
                             state_only=state_only, flat=flat, action_mode=action_mode, camera=camera,
-                            camera_size=camera_size, physics_rate=physics_rate, sensor_rates=sensor_rates)
+                            camera_size=camera_size, physics_rate=physics_rate, sensor_rates=sensor_rates,
+                            robots=robots)
         self.render_mode = _render_mode(render_mode)
         if state_only and server is not None:
             raise ValueError("state_only: only for the in-process world (the server's robot has its sensors)")
         if action_mode != "velocity" and server is not None:
             raise ValueError("action_mode: only 'velocity' for a remote server")
-        if (physics_rate is not None or sensor_rates) and server is not None:
-            raise ValueError("physics_rate, sensor_rates: only for the in-process world (start the server with "
-                             "--physics-rate and --sensor-rate)")
+        if (physics_rate is not None or sensor_rates or robots is not None) and server is not None:
+            raise ValueError("physics_rate, sensor_rates, robots: only for the in-process world (start the server "
+                             "with --physics-rate, --sensor-rate and --robots)")
         self._kinds = camera_kinds(camera)
         size = image_size(camera_size)
         if self._kinds and server is not None:
@@ -187,7 +190,7 @@ class UsarsimEnv(Realism, Replay, gym.Env):
         # The in-process world (also the map geometry for a remote server running the same map).
         self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise, bool(state_only),
                                   action_mode, size if self._kinds else None,
-                                  **_rates(physics_rate, sensor_rates))
+                                  **_rates(physics_rate, sensor_rates, robots))
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, 1, self.map, start=start, waypoints=waypoints, n_waypoints=n_waypoints,
                             waypoint_radius=waypoint_radius, max_steps=max_steps, state_only=state_only, flat=flat)
@@ -349,7 +352,8 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                  max_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP,
                  state_only: bool = False, flat: bool = False, action_mode: str = "velocity",
                  camera: str | None = None, camera_size=(64, 64), copy: bool = True,
-                 physics_rate: float | None = None, sensor_rates: dict | None = None) -> None:
+                 physics_rate: float | None = None, sensor_rates: dict | None = None,
+                 robots: str | None = None) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
         if not isinstance(copy, (bool, np.bool_)):
@@ -359,7 +363,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                             period=period, noise=noise, max_steps=max_steps, autoreset_mode=autoreset_mode,
                             state_only=state_only, flat=flat, action_mode=action_mode, camera=camera,
                             camera_size=camera_size, copy=copy, physics_rate=physics_rate,
-                            sensor_rates=sensor_rates)
+                            sensor_rates=sensor_rates, robots=robots)
         self.metadata = {**type(self).metadata, "autoreset_mode": _autoreset_mode(autoreset_mode)}
         self.copy = bool(copy)
         # The env's own arrays: Rust writes the raw observation into `_raw` and the task its
@@ -376,7 +380,7 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         first = _first(map)
         self._batch = _core.Batch(map, _robot(robot), [0] * self.num_envs, np.repeat(first, self.num_envs, 0),
                                   1, period, noise, bool(state_only), action_mode, size if self._kinds else None,
-                                  **_rates(physics_rate, sensor_rates))
+                                  **_rates(physics_rate, sensor_rates, robots))
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, self.num_envs, self.map, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, max_steps=max_steps,

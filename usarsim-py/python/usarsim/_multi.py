@@ -41,7 +41,7 @@ class MultiUavEnv(Replay, ParallelEnv):
                  max_steps: int | None = None, render_mode: str | None = None, state_only: bool = False,
                  flat: bool = False, action_mode: str = "velocity", camera: str | None = None,
                  camera_size=(64, 64), radio: bool = False, physics_rate: float | None = None,
-                 sensor_rates: dict | None = None) -> None:
+                 sensor_rates: dict | None = None, robots: str | None = None) -> None:
         if ParallelEnv is object:
             raise ImportError("usarsim.multi_uav needs pettingzoo: pip install pettingzoo")
         if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1):
@@ -50,13 +50,13 @@ class MultiUavEnv(Replay, ParallelEnv):
                             waypoint_radius=waypoint_radius, period=period, noise=noise, max_steps=max_steps,
                             render_mode=render_mode, state_only=state_only, flat=flat, action_mode=action_mode,
                             camera=camera, camera_size=camera_size, radio=radio, physics_rate=physics_rate,
-                            sensor_rates=sensor_rates)
+                            sensor_rates=sensor_rates, robots=robots)
         self.n = int(n)
         self.render_mode = _render_mode(render_mode)
         self.possible_agents = [f"uav_{i}" for i in range(self.n)]
         self.agents = []
         first = _first(map)
-        rates = _rates(physics_rate, sensor_rates)
+        rates = _rates(physics_rate, sensor_rates, robots)
         probe = _core.Batch(map, _robot(robot), [0], first, 1, period, noise, bool(state_only), action_mode,
                             **rates)
         self.map = MapInfo(probe)
