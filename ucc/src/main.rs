@@ -372,6 +372,8 @@ fn local_only(run: &ArgMatches) {
         "wind",
         "gusts",
         "gust_length",
+        "physics_rate",
+        "sensor_rate",
     ]
     .into_iter()
     .find(|id| run.value_source(id) == Some(ValueSource::CommandLine));

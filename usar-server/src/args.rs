@@ -50,6 +50,15 @@ pub struct ServerArgs {
     /// noise from these ranges, seeded by --seed and its spawn number.
     #[arg(long, value_name = "FILE")]
     pub randomize: Option<PathBuf>,
+    /// Physics ticks per simulated second (default 200: a 5 ms step; at most 1000). A
+    /// sensor reads at most once a tick: a 500 Hz IMU needs 500 or 1000 (docs/robots.md#sensor-rates).
+    #[arg(long, value_name = "HZ")]
+    pub physics_rate: Option<f64>,
+    /// A sensor's rate, `NAME=HZ` (e.g. `IMU=500`): the part named NAME of every robot class
+    /// that has one reads HZ times a simulated second; repeatable. The rate must be a whole
+    /// number of physics ticks (docs/robots.md#sensor-rates).
+    #[arg(long, value_name = "NAME=HZ", value_parser = crate::sim::robots::parse_sensor_rate)]
+    pub sensor_rate: Vec<(String, f64)>,
 }
 
 /// Options that do not make a world: a map or catalog that does not load, or wind out of
@@ -73,6 +82,11 @@ pub enum ArgsError {
     /// `--randomize FILE` did not load.
     #[error("--randomize {0}")]
     Randomize(String),
+    /// `--physics-rate` or `--sensor-rate` out of range, a sensor rate the physics rate
+    /// cannot give, or a GPS on a map without an origin (the text names the robot, the
+    /// sensor and the value).
+    #[error("{0}")]
+    Rates(String),
 }
 
 impl ServerArgs {
@@ -85,13 +99,29 @@ impl ServerArgs {
                 error,
             })?,
         };
-        let robots = match &self.robots {
+        let mut robots = match &self.robots {
             None => RobotCatalog::embedded(),
             Some(path) => RobotCatalog::from_file(path).map_err(|error| ArgsError::File {
                 option: format!("--robots {}", path.display()),
                 error,
             })?,
         };
+        for (part, hz) in &self.sensor_rate {
+            robots
+                .set_sensor_rate(part, *hz)
+                .map_err(|e| ArgsError::Rates(format!("--sensor-rate {part}={hz}: {e}")))?;
+        }
+        let dt = match self.physics_rate {
+            None => crate::sim::SimConfig::default().dt,
+            Some(hz) => crate::sim::robots::physics_step(hz)
+                .map_err(|e| ArgsError::Rates(format!("--physics-rate: {e}")))?,
+        };
+        robots.check_rates(dt).map_err(|e| {
+            ArgsError::Rates(format!("{e} (--physics-rate, --sensor-rate, --robots)"))
+        })?;
+        robots
+            .check_map(&map)
+            .map_err(|e| ArgsError::Rates(format!("{e} (--map, --robots)")))?;
         let wind = WindConfig::overridden(map.wind(), self.wind, self.gusts, self.gust_length)
             .map_err(ArgsError::Wind)?;
         let mut config = ServerConfig {
@@ -101,6 +131,7 @@ impl ServerArgs {
             ..ServerConfig::default()
         };
         config.sim.seed = self.seed;
+        config.sim.dt = dt;
         config.sim.threads = self.threads.map_or_else(default_threads, usize::from);
         config.sim.wind = wind;
         if let Some(path) = &self.faults {
@@ -143,6 +174,36 @@ mod tests {
                 .to_string()
                 .starts_with("--map nowhere.toml: ")
         );
+        let args = Program::parse_from(["p", "--physics-rate", "1000", "--sensor-rate", "IMU=500"]);
+        let config = args.server.config().unwrap();
+        assert_eq!(config.sim.dt, 0.001);
+        let imu = &config.robots.get("USARBot.stsQuadrotor").unwrap().parts;
+        let imu = imu.iter().find(|p| p.name == "IMU").unwrap();
+        assert_eq!(imu.interval, Some(0.002));
+        for (args, shows) in [
+            (
+                &["p", "--sensor-rate", "IMU=500"][..],
+                "robot USARBot.stsAirRobot: sensor IMU: rate 500 Hz (interval 0.002 s) is \
+                 above the physics rate of 200 Hz",
+            ),
+            (
+                &["p", "--physics-rate", "5000"][..],
+                "--physics-rate: the physics rate must be a number of Hz from 1 to 1000, got 5000",
+            ),
+            (
+                &["p", "--sensor-rate", "Nothing=5"][..],
+                "--sensor-rate Nothing=5: sensor Nothing: no robot class has a sensor",
+            ),
+        ] {
+            let e = Program::parse_from(args).server.config().unwrap_err();
+            assert!(e.to_string().starts_with(shows), "{e}");
+        }
+        for bad in ["IMU=-5", "IMU=0", "IMU=fast"] {
+            let e = Program::try_parse_from(["p", "--sensor-rate", bad])
+                .err()
+                .unwrap();
+            assert!(e.to_string().contains("sensor IMU: the rate"), "{e}");
+        }
         let bad = Program::parse_from(["p", "--gusts", "-1"]).server.config();
         assert!(
             bad.unwrap_err()

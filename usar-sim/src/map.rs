@@ -189,6 +189,8 @@ pub struct Map {
     colors: Vec<[u8; 3]>,
     placed: Vec<Placed>,
     wind: Option<WindConfig>,
+    /// Where the map is on the Earth (`[geo]`).
+    geo: Option<GeoConfig>,
     /// The scene the map builds ([`Map::scene`]).
     built: Built,
 }
@@ -252,6 +254,84 @@ struct RawMap {
     object: Vec<Spanned<RawPlaced>>,
     #[serde(default)]
     wind: Option<Spanned<WindConfig>>,
+    #[serde(default)]
+    geo: Option<Spanned<GeoConfig>>,
+}
+
+/// Where a map is on the Earth (`[geo]`, docs/maps.md#geo): the geodetic position of its
+/// origin (x = y = 0), which a GPS needs, and the Earth's magnetic field a magnetometer
+/// measures.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeoConfig {
+    /// Latitude of the origin, degrees, + north (WGS-84); with `longitude`.
+    pub latitude: Option<f64>,
+    /// Longitude of the origin, degrees, + east (WGS-84); with `latitude`.
+    pub longitude: Option<f64>,
+    /// The Earth's magnetic field over the map, µT, in the map frame: north (x), east (y),
+    /// down (z).
+    #[serde(default = "default_field")]
+    pub magnetic_field: V3,
+}
+
+/// The field a map without `[geo] magnetic_field` has, µT north, east, down: a mid-latitude
+/// field (about 20 µT horizontal, 45 µT down: inclination 66°, total 49 µT, as in central
+/// Europe or the northern United States; no declination).
+pub const DEFAULT_MAGNETIC_FIELD: V3 = [20.0, 0.0, 45.0];
+
+fn default_field() -> V3 {
+    DEFAULT_MAGNETIC_FIELD
+}
+
+impl Default for GeoConfig {
+    fn default() -> Self {
+        Self {
+            latitude: None,
+            longitude: None,
+            magnetic_field: DEFAULT_MAGNETIC_FIELD,
+        }
+    }
+}
+
+impl GeoConfig {
+    /// The origin's latitude and longitude, degrees, when the map gives both.
+    pub fn origin(&self) -> Option<(f64, f64)> {
+        self.latitude.zip(self.longitude)
+    }
+
+    fn check(&self) -> Result<(), String> {
+        let shown = |v: f64| usar_proto::shown::Number(v).to_string();
+        match (self.latitude, self.longitude) {
+            (Some(lat), Some(lon)) => {
+                if !(lat.is_finite() && lat.abs() <= 89.0) {
+                    return Err(format!(
+                        "`[geo]` latitude must be a number of degrees within ±89 (the GPS's \
+                         flat-Earth origin is undefined at the poles), got {}",
+                        shown(lat)
+                    ));
+                }
+                if !(lon.is_finite() && lon.abs() <= 180.0) {
+                    return Err(format!(
+                        "`[geo]` longitude must be a number of degrees within ±180, got {}",
+                        shown(lon)
+                    ));
+                }
+            }
+            (None, None) => {}
+            _ => return Err("`[geo]` gives latitude and longitude together, or neither".into()),
+        }
+        if !self
+            .magnetic_field
+            .iter()
+            .all(|b| b.is_finite() && b.abs() <= 1000.0)
+        {
+            return Err(format!(
+                "`[geo]` magnetic_field must be three numbers of µT within ±1000, got {:?}",
+                self.magnetic_field
+            ));
+        }
+        Ok(())
+    }
 }
 
 #[derive(Deserialize)]
@@ -548,6 +628,7 @@ impl Map {
             colors: Vec::new(),
             placed: Vec::new(),
             wind: None,
+            geo: None,
             built: Built::default(),
         })
     }
@@ -594,6 +675,11 @@ impl Map {
     /// The victims and objects, victims first, each in file order.
     pub fn placed(&self) -> &[Placed] {
         &self.placed
+    }
+
+    /// Where the map is on the Earth (`[geo]`), if it says.
+    pub fn geo(&self) -> Option<GeoConfig> {
+        self.geo
     }
 
     /// The map's wind (`[wind]`), if it sets one.
@@ -687,6 +773,7 @@ impl Map {
         let mut mesh_bytes = 0;
         let (mut victims, mut objects) = (Vec::new(), Vec::new());
         let mut wind = None;
+        let mut geo = None;
         // One section at a time: only one section's parse tree is ever held.
         for (offset, section) in sections(text) {
             let raw: RawMap = toml::from_str(section).map_err(|e| {
@@ -884,6 +971,15 @@ impl Map {
                 w.check().map_err(|m| invalid(at, m))?;
                 wind = Some(w);
             }
+            if let Some(entry) = raw.geo {
+                let at = offset + entry.span().start;
+                if geo.is_some() {
+                    return Err(invalid(at, "`[geo]` is given twice".into()));
+                }
+                let g = entry.into_inner();
+                g.check().map_err(|m| invalid(at, m))?;
+                geo = Some(g);
+            }
         }
         let Some((level_at, level)) = level else {
             return Err(invalid(0, "missing field `level`".into()));
@@ -898,6 +994,7 @@ impl Map {
             colors,
             placed,
             wind,
+            geo,
             built: Built::default(),
         })
     }
@@ -921,6 +1018,7 @@ impl Map {
     /// (1, 2, ... in the file's order of boxes, then cylinders, then meshes), then its
     /// victims and objects (ids after the solids', in the file's order).
     pub(crate) fn build(&self, scene: &mut Scene) {
+        scene.geo = self.geo.unwrap_or_default();
         for (index, handle) in build_solids(&self.solids, scene) {
             let segment = u32::try_from(index + 1).unwrap_or(u32::MAX);
             let color = self.colors.get(index).copied().unwrap_or(WALL_COLOR);

@@ -249,6 +249,7 @@ fn perturb(data: &mut usar_proto::SenData, mut offset: impl FnMut() -> f64) {
             v3(relative);
         }
         D::Position { location: v, .. }
+        | D::Magnetometer { field: v, .. }
         | D::Odometry { pose: v, .. }
         | D::Accel {
             acceleration: v, ..

@@ -205,14 +205,150 @@ impl RobotClass {
     /// sensor's timer starts at the spawn (docs/protocol.md), so this is the longest
     /// interval of its parts (0 without parts).
     pub fn first_readings(&self) -> f64 {
-        self.parts
-            .iter()
-            .map(|p| {
-                p.interval
-                    .unwrap_or_else(|| sensors::find(&p.kind).map_or(0.0, |k| k.default_interval))
-            })
-            .fold(0.0, f64::max)
+        self.parts.iter().map(interval_of).fold(0.0, f64::max)
     }
+
+    /// Sets the rate of the part named `part` (case-insensitive) to `hz` readings per
+    /// simulated second (its `interval` becomes `1 / hz`). A rate that is not a positive
+    /// number, or a part the class does not have, is an error naming the robot, the sensor
+    /// and the value. Whether the physics step can give the rate is [`RobotClass::check_rates`]'s.
+    pub fn set_sensor_rate(&mut self, part: &str, hz: f64) -> Result<(), String> {
+        let class = &self.class;
+        if !(hz.is_finite() && hz > 0.0) {
+            return Err(format!(
+                "robot {class}: sensor {part}: the rate must be a positive number of Hz, got {}",
+                usar_proto::shown::Number(hz)
+            ));
+        }
+        let names: Vec<&str> = self.parts.iter().map(|p| p.name.as_str()).collect();
+        let known = names.join(", ");
+        let Some(p) = self
+            .parts
+            .iter_mut()
+            .find(|p| p.name.eq_ignore_ascii_case(part))
+        else {
+            return Err(format!(
+                "robot {class}: no sensor named {part:?} (its sensors: {known})"
+            ));
+        };
+        p.interval = Some(1.0 / hz);
+        Ok(())
+    }
+
+    /// Checks that a physics step of `dt` seconds can give every part's rate: a sensor reads
+    /// on physics ticks, at most once a tick, so its interval must be a whole number of ticks
+    /// (a rate above the physics rate, or 150 Hz on 200 Hz ticks, would silently become
+    /// another rate). The error names the robot, the sensor and the rate.
+    pub fn check_rates(&self, dt: f64) -> Result<(), String> {
+        let physics = 1.0 / dt;
+        for p in &self.parts {
+            let interval = interval_of(p);
+            let rate = 1.0 / interval;
+            let ticks = interval / dt;
+            let shown = |x: f64| usar_proto::shown::Number(x).to_string();
+            let what = format!(
+                "robot {}: sensor {}: rate {} Hz (interval {} s)",
+                self.class,
+                p.name,
+                shown(rate),
+                shown(interval)
+            );
+            if ticks < 1.0 - 1e-6 {
+                return Err(format!(
+                    "{what} is above the physics rate of {} Hz (a {} s step): raise the physics \
+                     rate (at most {MAX_PHYSICS_RATE} Hz) or lower the sensor's",
+                    shown(physics),
+                    shown(dt)
+                ));
+            }
+            if (ticks - ticks.round()).abs() > 1e-6 * ticks {
+                let (slow, fast) = (ticks.floor(), ticks.ceil());
+                return Err(format!(
+                    "{what} is not a whole number of {} s physics steps: a sensor reads on \
+                     physics ticks (nearest rates: {} or {} Hz)",
+                    shown(dt),
+                    shown(physics / fast),
+                    shown(physics / slow)
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl RobotClass {
+    /// Checks the parts that need something of the map: a `GPS` needs the map's origin
+    /// (`[geo]` latitude and longitude). The error names the robot, the sensor and the map.
+    pub fn check_map(&self, map: &crate::map::Map) -> Result<(), String> {
+        if map.geo().and_then(|g| g.origin()).is_some() {
+            return Ok(());
+        }
+        match self
+            .parts
+            .iter()
+            .find(|p| p.kind.eq_ignore_ascii_case("GPS"))
+        {
+            Some(p) => Err(format!(
+                "robot {}: sensor {}: a GPS needs the map's origin (`[geo]` latitude and \
+                 longitude, docs/maps.md#geo); map {} has none",
+                self.class,
+                p.name,
+                map.level()
+            )),
+            None => Ok(()),
+        }
+    }
+}
+
+/// The seconds between readings of a part: its `interval`, else its type's default (0 for
+/// an unknown type).
+pub fn interval_of(p: &PartConfig) -> f64 {
+    p.interval
+        .unwrap_or_else(|| sensors::find(&p.kind).map_or(0.0, |k| k.default_interval))
+}
+
+/// The fastest physics rate, Hz (a 1 ms step). Sensors read at most once a physics tick, so
+/// it is also the fastest sensor rate: a 1 kHz IMU needs `--physics-rate 1000`.
+pub const MAX_PHYSICS_RATE: f64 = 1000.0;
+
+/// The physics step, s, of a physics rate in Hz: `1 / hz` for a number in
+/// 1..=[`MAX_PHYSICS_RATE`], else an error naming the value.
+pub fn physics_step(hz: f64) -> Result<f64, String> {
+    if hz.is_finite() && (1.0..=MAX_PHYSICS_RATE).contains(&hz) {
+        Ok(1.0 / hz)
+    } else {
+        Err(format!(
+            "the physics rate must be a number of Hz from 1 to {MAX_PHYSICS_RATE}, got {}",
+            usar_proto::shown::Number(hz)
+        ))
+    }
+}
+
+/// A `NAME=HZ` sensor rate (`IMU=500`): the part name and the rate, or an error naming the
+/// text (a missing `=`, an empty name, a rate that is not a positive number of Hz).
+pub fn parse_sensor_rate(text: &str) -> Result<(String, f64), String> {
+    let Some((name, hz)) = text.split_once('=') else {
+        return Err(format!("{text:?}: expected NAME=HZ, e.g. IMU=500"));
+    };
+    let name = name.trim();
+    if name.is_empty() {
+        return Err(format!(
+            "{text:?}: the sensor name is empty (expected NAME=HZ)"
+        ));
+    }
+    let rate: f64 = hz.trim().parse().map_err(|_| {
+        format!(
+            "sensor {name}: the rate {:?} is not a number of Hz",
+            hz.trim()
+        )
+    })?;
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(format!(
+            "sensor {name}: the rate must be a positive number of Hz, got {}",
+            hz.trim()
+        ));
+    }
+    Ok((name.to_string(), rate))
 }
 
 #[derive(Deserialize)]
@@ -345,6 +481,40 @@ impl RobotCatalog {
         })
     }
 
+    /// Sets the rate of the part named `part` in every class that has one
+    /// ([`RobotClass::set_sensor_rate`]); an error when no class has such a part.
+    pub fn set_sensor_rate(&mut self, part: &str, hz: f64) -> Result<(), String> {
+        self.models = Models::default();
+        let mut found = false;
+        for class in &mut self.robots {
+            if class
+                .parts
+                .iter()
+                .any(|p| p.name.eq_ignore_ascii_case(part))
+            {
+                class.set_sensor_rate(part, hz)?;
+                found = true;
+            }
+        }
+        if found {
+            Ok(())
+        } else {
+            Err(format!(
+                "sensor {part}: no robot class has a sensor of that name"
+            ))
+        }
+    }
+
+    /// [`RobotClass::check_map`] of every class.
+    pub fn check_map(&self, map: &crate::map::Map) -> Result<(), String> {
+        self.robots.iter().try_for_each(|r| r.check_map(map))
+    }
+
+    /// [`RobotClass::check_rates`] of every class.
+    pub fn check_rates(&self, dt: f64) -> Result<(), String> {
+        self.robots.iter().try_for_each(|r| r.check_rates(dt))
+    }
+
     /// The class, for changing it (tests, programs that tune robots).
     pub fn get_mut(&mut self, class: &str) -> Option<&mut RobotClass> {
         self.models = Models::default();
@@ -418,7 +588,7 @@ impl RobotCatalog {
         for part in r.part {
             let at = offset + part.span().start;
             let part = part.into_inner();
-            check_part(&part, &mut names).map_err(|m| (Some(at), m))?;
+            check_part(&r.class, &part, &mut names).map_err(|m| (Some(at), m))?;
             parts.push(part);
         }
         let mut actuators: Vec<ActuatorConfig> = Vec::with_capacity(r.actuator.len());
@@ -525,6 +695,7 @@ fn check_flight(r: &RawRobot) -> Result<(), String> {
 
 /// Checks a part; `names` holds the robot's part names so far (lower case).
 fn check_part(
+    class: &str,
     part: &PartConfig,
     names: &mut std::collections::HashSet<String>,
 ) -> Result<(), String> {
@@ -552,7 +723,8 @@ fn check_part(
         return Err(format!("position and direction must be within ±{MAX_SIZE}"));
     }
     if let Some(interval) = part.interval {
-        at_most("interval", interval, 1e6)?;
+        at_most("interval", interval, 1e6)
+            .map_err(|m| format!("robot {class}: sensor {}: {m}", part.name))?;
     }
     if !(part.noise.is_finite() && (0.0..=100.0).contains(&part.noise)) {
         return Err(format!(

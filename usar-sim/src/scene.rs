@@ -178,6 +178,8 @@ pub(crate) struct Scene {
     removed: bool,
     /// The map's victims: their colliders and boxes (the VictSensor's targets).
     pub(crate) victims: Vec<VictimBody>,
+    /// Where the map is on the Earth (the GPS's origin, the magnetometer's field).
+    pub(crate) geo: crate::map::GeoConfig,
     /// The scene this one was copied from (the map's, shared by the worlds of the map):
     /// its colliders, the map's, are this scene's first ones, and queries read them there —
     /// one copy in the caches for a thousand worlds ([`Scene::collider_at`]).
@@ -458,6 +460,7 @@ impl Scene {
             looks: Vec::new(),
             removed: false,
             victims: Vec::new(),
+            geo: crate::map::GeoConfig::default(),
             base: None,
             body_count: 0,
             plan: None,

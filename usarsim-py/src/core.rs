@@ -113,6 +113,22 @@ impl Settings {
         period: f64,
         noise: Option<f64>,
     ) -> Result<Self, SimError> {
+        Self::with_rates(map, robot, period, noise, None, &[], None)
+    }
+
+    /// [`Settings::new`] with a physics rate (Hz, `None`: 200), sensor rates (part name,
+    /// Hz) and a robot file (`None`: the embedded catalog): every rate is checked against
+    /// the physics rate (a sensor reads at most once a tick, on whole ticks), and a GPS
+    /// needs the map's origin; errors name the robot, the sensor and the value.
+    pub(crate) fn with_rates(
+        map: &str,
+        robot: &str,
+        period: f64,
+        noise: Option<f64>,
+        physics_rate: Option<f64>,
+        sensor_rates: &[(String, f64)],
+        robots: Option<&str>,
+    ) -> Result<Self, SimError> {
         let map = match Map::embedded(map) {
             Some(m) => m,
             None if Path::new(map).is_file() => {
@@ -125,7 +141,11 @@ impl Settings {
                 )));
             }
         };
-        let mut catalog = RobotCatalog::embedded();
+        let mut catalog = match robots {
+            None => RobotCatalog::embedded(),
+            Some(path) => RobotCatalog::from_file(Path::new(path))
+                .map_err(|e| invalid(format!("robots: {e}")))?,
+        };
         let full = usar_proto::Init::qualified_class(robot);
         if let Err(unknown) = catalog.class(&full) {
             return Err(invalid(format!("robot: {unknown}")));
@@ -133,14 +153,29 @@ impl Settings {
         let Some(class) = catalog.get_mut(&full) else {
             return Err(invalid(format!("robot: unknown robot class {full:?}")));
         };
-        let dt = SimConfig::default().dt;
+        let dt = match physics_rate {
+            None => SimConfig::default().dt,
+            Some(hz) => usar_sim::robots::physics_step(hz)
+                .map_err(|e| invalid(format!("physics_rate: {e}")))?,
+        };
         let ticks = period / dt;
         if !(period.is_finite() && period >= dt && (ticks - ticks.round()).abs() < 1e-6) {
             return Err(invalid(format!(
                 "period: the control period must be a whole multiple of the {dt} s physics \
-                 step (0.005, 0.01, ..., 0.1, ...), got {period}"
+                 step (at 200 Hz: 0.005, 0.01, ..., 0.1, ...), got {period}"
             )));
         }
+        for (part, hz) in sensor_rates {
+            class
+                .set_sensor_rate(part, *hz)
+                .map_err(|e| invalid(format!("sensor_rates: {e}")))?;
+        }
+        class
+            .check_rates(dt)
+            .map_err(|e| invalid(format!("sensor_rates: {e} (physics_rate=)")))?;
+        class
+            .check_map(&map)
+            .map_err(|e| invalid(format!("map: {e}")))?;
         if let Some(noise) = noise {
             if !(noise.is_finite() && (0.0..=MAX_NOISE).contains(&noise)) {
                 return Err(invalid(format!(
@@ -386,6 +421,9 @@ struct Uav {
     touched: bool,
     /// The latest rotor speeds, rad/s (with `Settings::rotors`).
     rotors: [f64; 4],
+    /// The IMU readings of the last control period: time, acceleration x, y, z (m/s²),
+    /// body rates x, y, z (rad/s).
+    imu: Vec<[f64; 7]>,
 }
 
 /// The UAV of connection `client` (clients are numbered from `first` in the UAVs' order).
@@ -495,6 +533,7 @@ impl WorldSim {
                 state: UavState::new(),
                 touched: false,
                 rotors: [0.0; 4],
+                imu: Vec::new(),
             });
         }
         if world.robot_count() != poses.len() {
@@ -541,6 +580,9 @@ impl WorldSim {
             out.clear(); // (empty unless a panic left it so)
             self.world.run(ticks as u64, out);
             let (uavs, first) = (&mut self.uavs, self.first);
+            for uav in uavs.iter_mut() {
+                uav.imu.clear();
+            }
             self.world.take_touched(|client, touched| {
                 if let Some(uav) = uav_of(uavs, first, client) {
                     uav.touched = touched;
@@ -567,10 +609,25 @@ impl WorldSim {
                     }
                     continue;
                 }
+                if let ServerMessage::Sen(sen) = message
+                    && let SenData::Imu {
+                        acceleration: a,
+                        angular_vel: w,
+                        ..
+                    } = &sen.data
+                {
+                    let t = sen.time.map_or(f64::NAN, |t| t.seconds);
+                    uav.imu.push([t, a.x, a.y, a.z, w.x, w.y, w.z]);
+                }
                 uav.state.apply(message);
             }
             out.clear();
         });
+    }
+
+    /// The IMU readings of UAV `index` in the last control period (`None`: no such UAV).
+    pub(crate) fn imu_readings(&self, index: usize) -> Option<&[[f64; 7]]> {
+        self.uavs.get(index).map(|u| u.imu.as_slice())
     }
 
     /// Simulated seconds.

@@ -367,7 +367,7 @@ impl Resets {
 impl PyBatch {
     #[new]
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false, action_mode = "velocity", camera = None))]
+    #[pyo3(signature = (map, robot, seeds, starts, uavs_per_world = 1, period = 0.1, noise = None, state_only = false, action_mode = "velocity", camera = None, physics_rate = None, sensor_rates = Vec::new(), robots = None))]
     fn new(
         py: Python<'_>,
         map: &str,
@@ -380,13 +380,25 @@ impl PyBatch {
         state_only: bool,
         action_mode: &str,
         camera: Option<(u32, u32)>,
+        physics_rate: Option<f64>,
+        sensor_rates: Vec<(String, f64)>,
+        robots: Option<&str>,
     ) -> PyResult<Self> {
         if seeds.is_empty() || uavs_per_world == 0 {
             return Err(PyValueError::new_err(
                 "Batch: needs at least one world (seed) and one UAV per world",
             ));
         }
-        let mut settings = Settings::new(map, robot, period, noise)?.action_mode(action_mode)?;
+        let mut settings = Settings::with_rates(
+            map,
+            robot,
+            period,
+            noise,
+            physics_rate,
+            &sensor_rates,
+            robots,
+        )?
+        .action_mode(action_mode)?;
         if state_only {
             settings = settings.state_only();
         }
@@ -631,6 +643,31 @@ impl PyBatch {
         let (worlds, per) = (self.get().worlds.len(), self.get().uavs_per_world);
         let a = numpy::ndarray::Array3::from_shape_vec((worlds, per, per), self.get().signals())
             .map_err(|e| PyValueError::new_err(format!("signals: {e}")))?;
+        Ok(a.into_pyarray(py).into_any())
+    }
+
+    /// The IMU readings of UAV `uav` of world `index` in the last control period, float64
+    /// `(k, 7)`: time (s), acceleration x, y, z (m/s², body frame), body rates x, y, z
+    /// (rad/s); as many rows as the IMU read (its rate times the period).
+    #[pyo3(signature = (index, uav = 0))]
+    fn imu_readings<'py>(
+        &mut self,
+        py: Python<'py>,
+        index: usize,
+        uav: usize,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let rows = self
+            .get()
+            .worlds
+            .get(index)
+            .and_then(|w| w.imu_readings(uav))
+            .ok_or_else(|| {
+                PyValueError::new_err(format!("world {index}, UAV {uav}: out of range"))
+            })?
+            .to_vec();
+        let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+        let a = numpy::ndarray::Array2::from_shape_vec((rows.len(), 7), flat)
+            .map_err(|e| PyValueError::new_err(format!("imu_readings: {e}")))?;
         Ok(a.into_pyarray(py).into_any())
     }
 

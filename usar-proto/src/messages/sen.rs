@@ -39,6 +39,7 @@ impl SenData {
             Self::Camera => "Camera",
             Self::Empty { kind } => kind,
             Self::Position { .. } => "Position",
+            Self::Magnetometer { .. } => "Magnetometer",
             Self::Velocity { .. } => "Velocity",
             Self::VictSensor { .. } => "VictSensor",
             Self::Other { kind, .. } => kind,
@@ -173,6 +174,11 @@ impl SenData {
             }
         } else if is("Camera") && d.pairs.is_empty() {
             Self::Camera
+        } else if is("Magnetometer") {
+            Self::Magnetometer {
+                name: name()?,
+                field: d.vec3("Field")?,
+            }
         } else if is("Position") {
             Self::Position {
                 name: name()?,
@@ -347,6 +353,9 @@ impl SenData {
                 w.text("Name", name).int("Minutes", *minutes);
             }
             Self::Camera | Self::Empty { .. } => {}
+            Self::Magnetometer { name, field } => {
+                w.text("Name", name).fs_vec("Field", *field, P);
+            }
             Self::Position { name, location } => {
                 w.text("Name", name).fs_vec("Location", *location, P);
             }
@@ -525,6 +534,33 @@ mod tests {
         );
         data("SEN {Time 12.3456} {Type MagneticCompass} {Name Compass} {MagneticAngle -0.0002}");
         data("SEN {Time 12.3456} {Type MissionTime} {Name Time} {Minutes 0}");
+    }
+
+    #[test]
+    fn magnetometer_and_gps_are_typed() {
+        let (_, d) = data(
+            "SEN {Time 1.0000} {Type Magnetometer} {Name Mag} {Field 20.1234,-0.5000,45.0000}",
+        );
+        assert_eq!(
+            d,
+            SenData::Magnetometer {
+                name: "Mag".into(),
+                field: Vec3::new(20.1234, -0.5, 45.0)
+            }
+        );
+        let (_, d) = data(
+            "SEN {Time 1.0000} {Type GPS} {Name GPS} {Latitude 47,40.3323,N} {Longitude 122,18.5977,W} {Fix 1} {Satellites 8}",
+        );
+        let SenData::Gps {
+            fix: Some(f),
+            satellites: 8,
+            ..
+        } = d
+        else {
+            panic!("{d:?}");
+        };
+        assert_eq!((f.latitude_degrees, f.longitude_hemisphere), (47, 'W'));
+        data("SEN {Time 1.0000} {Type GPS} {Name GPS} {Fix 0} {Satellites 3}");
     }
 
     #[test]

@@ -255,6 +255,13 @@ pub enum SenData {
         /// The type.
         kind: String,
     },
+    /// Ours: `{Type Magnetometer} {Name n} {Field x,y,z}`, a 3-axis magnetometer.
+    Magnetometer {
+        /// Part name.
+        name: String,
+        /// The magnetic field in the body frame (x forward, y right, z down), µT.
+        field: Vec3,
+    },
     /// stsAirRobot `{Type Position} {Name n} {Location x,y,z}` (§9).
     Position {
         /// Part name.

@@ -21,6 +21,9 @@ pub struct ImuConfig {
     pub accel: ErrorModel,
     /// Gyro errors (on `AngularVel`).
     pub gyro: ErrorModel,
+    /// Attitude errors, rad (on `Rotation`: roll, pitch, yaw as an attitude estimator would
+    /// give them; GroundTruth keeps the truth).
+    pub attitude: ErrorModel,
 }
 
 #[derive(Debug, Clone)]
@@ -29,16 +32,20 @@ struct Imu {
     last: Option<(f64, V3, V3, V3)>,
     accel: Errors<3>,
     gyro: Errors<3>,
+    attitude: Errors<3>,
 }
 
 pub(super) fn build(part: &PartConfig) -> Result<Box<dyn Sensor>, String> {
     let c: ImuConfig = settings(part)?;
     c.accel.check(&format!("part `{}`: accel", part.name))?;
     c.gyro.check(&format!("part `{}`: gyro", part.name))?;
+    c.attitude
+        .check(&format!("part `{}`: attitude", part.name))?;
     Ok(Box::new(Imu {
         last: None,
         accel: Errors::new(c.accel),
         gyro: Errors::new(c.gyro),
+        attitude: Errors::new(c.attitude),
     }))
 }
 
@@ -71,6 +78,7 @@ impl Sensor for Imu {
     fn scale_noise(&mut self, k: f64) {
         self.accel.scale(k);
         self.gyro.scale(k);
+        self.attitude.scale(k);
     }
 
     fn read(&mut self, at: &Reading<'_>, noise: &mut Noise) -> SenData {
@@ -78,6 +86,7 @@ impl Sensor for Imu {
         if let SenData::Imu {
             acceleration,
             angular_vel,
+            rotation,
             ..
         } = &mut data
         {
@@ -93,6 +102,11 @@ impl Sensor for Imu {
             );
             *acceleration = a.into();
             *angular_vel = w.into();
+            // Off by default: no draws, the line stays byte-identical.
+            *rotation = self
+                .attitude
+                .apply([rotation.x, rotation.y, rotation.z], at.time, noise)
+                .into();
         }
         data
     }
@@ -135,6 +149,35 @@ impl Imu {
 mod tests {
     use super::super::testing::*;
     use super::*;
+
+    #[test]
+    fn an_attitude_error_model_makes_the_rotation_noisy() {
+        let (scene, me) = scene_with_wall(2.0);
+        let mut imu = make("IMU", "attitude = { noise = 0.01 }");
+        let mut rng = crate::noise::Noise::new(5, 1, 2, 0.0);
+        let n = 2000;
+        let rolls: Vec<f64> = (0..n)
+            .map(
+                |i| match imu.read(&reading(&scene, me, 0.1 * f64::from(i)), &mut rng) {
+                    SenData::Imu { rotation, .. } => rotation.x,
+                    other => panic!("{other:?}"),
+                },
+            )
+            .collect();
+        let sd = (rolls.iter().map(|x| x * x).sum::<f64>() / f64::from(n)).sqrt();
+        assert!((sd - 0.01).abs() < 0.001, "{sd}");
+        // Off by default: the truth.
+        let SenData::Imu { rotation, .. } = make("IMU", "").read(
+            &Reading {
+                rotation: [0.1, 0.2, 0.3],
+                ..reading(&scene, me, 0.1)
+            },
+            &mut rng,
+        ) else {
+            panic!()
+        };
+        assert_eq!(rotation, Vec3::new(0.1, 0.2, 0.3));
+    }
 
     #[test]
     fn differences_over_the_interval() {

@@ -10,9 +10,11 @@ mod barometer;
 mod battery;
 pub(crate) mod camera;
 mod compass;
+mod gps;
 mod ground_truth;
 mod imu;
 mod ins;
+mod magnetometer;
 mod mission_time;
 mod position;
 mod range_scanner;
@@ -25,9 +27,11 @@ mod victim;
 pub use altitude::AltitudeConfig;
 pub use camera::{CameraConfig, MAX_CAMERA_SIDE};
 pub use compass::CompassConfig;
+pub use gps::GpsConfig;
 pub use ground_truth::GroundTruthConfig;
 pub use imu::ImuConfig;
 pub use ins::InsConfig;
+pub use magnetometer::MagnetometerConfig;
 pub use mission_time::MissionTimeConfig;
 pub use position::PositionConfig;
 pub use range_scanner::RangeScannerConfig;
@@ -281,6 +285,8 @@ pub(crate) const REGISTRY: &[SensorKind] = &[
     kind("Rotors", 0.1, rotors::build),
     kind("Barometer", 0.05, barometer::build),
     kind("VictSensor", 0.8, victim::build),
+    kind("GPS", 0.1, gps::build),
+    kind("Magnetometer", 0.1, magnetometer::build),
 ];
 
 const fn kind(

@@ -38,6 +38,34 @@ def _actions(action, n: int) -> np.ndarray:
     return a
 
 
+def _rates(physics_rate, sensor_rates, robots=None) -> dict:
+    """The ``physics_rate``, ``sensor_rates`` and ``robots`` options as the core takes them (keyword
+    arguments of ``_core.Batch``); a value that is not a number is a ValueError naming the
+    sensor and the value (the core checks the numbers: positive, within the physics rate)."""
+    out = {}
+    if physics_rate is not None:
+        try:
+            out["physics_rate"] = float(physics_rate)
+        except (TypeError, ValueError):
+            raise ValueError(f"physics_rate: expected a number of Hz, got {physics_rate!r}") from None
+    if sensor_rates:
+        if not isinstance(sensor_rates, dict):
+            raise ValueError(f"sensor_rates: expected a dict of sensor name to Hz, e.g. {{'IMU': 500}}, "
+                             f"got {sensor_rates!r}")
+        rates = []
+        for name, hz in sensor_rates.items():
+            if isinstance(hz, bool):
+                hz = str(hz)
+            try:
+                rates.append((str(name), float(hz)))
+            except (TypeError, ValueError):
+                raise ValueError(f"sensor_rates: sensor {name}: the rate {hz!r} is not a number of Hz") from None
+        out["sensor_rates"] = rates
+    if robots is not None:
+        out["robots"] = str(robots)
+    return out
+
+
 def _seed(rng: np.random.Generator) -> int:
     """A world seed: ``int(rng.integers(0, 2**63 - 1))``, bit for bit, from the raw draw as
     NumPy's Lemire method makes it (64-bit product, rejected when its low half is below
@@ -136,17 +164,22 @@ class UsarsimEnv(Realism, Replay, gym.Env):
                  period: float = 0.1, noise: float | None = None, max_steps: int | None = None,
                  server: str | None = None, render_mode: str | None = None, state_only: bool = False,
                  flat: bool = False, action_mode: str = "velocity", camera: str | None = None,
-                 camera_size=(64, 64)) -> None:
+                 camera_size=(64, 64), physics_rate: float | None = None,
+                 sensor_rates: dict | None = None, robots: str | None = None) -> None:
         self._recipe = dict(task=task, map=map, robot=robot, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, period=period,
                             noise=noise, max_steps=max_steps, server=server, render_mode=render_mode,
                             state_only=state_only, flat=flat, action_mode=action_mode, camera=camera,
-                            camera_size=camera_size)
+                            camera_size=camera_size, physics_rate=physics_rate, sensor_rates=sensor_rates,
+                            robots=robots)
         self.render_mode = _render_mode(render_mode)
         if state_only and server is not None:
             raise ValueError("state_only: only for the in-process world (the server's robot has its sensors)")
         if action_mode != "velocity" and server is not None:
             raise ValueError("action_mode: only 'velocity' for a remote server")
+        if (physics_rate is not None or sensor_rates or robots is not None) and server is not None:
+            raise ValueError("physics_rate, sensor_rates, robots: only for the in-process world (start the server "
+                             "with --physics-rate, --sensor-rate and --robots)")
         self._kinds = camera_kinds(camera)
         size = image_size(camera_size)
         if self._kinds and server is not None:
@@ -156,7 +189,8 @@ class UsarsimEnv(Realism, Replay, gym.Env):
         self._robot, self._period, self._server = _robot(robot), float(period), server
         # The in-process world (also the map geometry for a remote server running the same map).
         self._batch = _core.Batch(map, self._robot, [0], _first(map), 1, period, noise, bool(state_only),
-                                  action_mode, size if self._kinds else None)
+                                  action_mode, size if self._kinds else None,
+                                  **_rates(physics_rate, sensor_rates, robots))
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, 1, self.map, start=start, waypoints=waypoints, n_waypoints=n_waypoints,
                             waypoint_radius=waypoint_radius, max_steps=max_steps, state_only=state_only, flat=flat)
@@ -244,6 +278,14 @@ class UsarsimEnv(Realism, Replay, gym.Env):
         obs = self._obs(raw)
         return obs, float(reward[0]), bool(term[0]), bool(trunc[0]), {k: v[0] for k, v in info.items()}
 
+    def imu_readings(self) -> np.ndarray:
+        """The IMU readings of the last step (in-process world), float64 ``(k, 7)``: time (s),
+        acceleration x, y, z (m/s², body frame), body rates x, y, z (rad/s); ``k`` is the IMU's
+        rate times ``period`` (``sensor_rates``, docs/python.md#sensor-rates)."""
+        if self._server is not None:
+            raise ValueError("imu_readings: only for the in-process world")
+        return self._batch.imu_readings(0)
+
     def render(self):
         if self.render_mode != "rgb_array" or self._raw is None:
             return None
@@ -309,7 +351,9 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
                  max_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP,
                  state_only: bool = False, flat: bool = False, action_mode: str = "velocity",
-                 camera: str | None = None, camera_size=(64, 64), copy: bool = True) -> None:
+                 camera: str | None = None, camera_size=(64, 64), copy: bool = True,
+                 physics_rate: float | None = None, sensor_rates: dict | None = None,
+                 robots: str | None = None) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
         if not isinstance(copy, (bool, np.bool_)):
@@ -318,7 +362,8 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
                             waypoints=waypoints, n_waypoints=n_waypoints, waypoint_radius=waypoint_radius,
                             period=period, noise=noise, max_steps=max_steps, autoreset_mode=autoreset_mode,
                             state_only=state_only, flat=flat, action_mode=action_mode, camera=camera,
-                            camera_size=camera_size, copy=copy)
+                            camera_size=camera_size, copy=copy, physics_rate=physics_rate,
+                            sensor_rates=sensor_rates, robots=robots)
         self.metadata = {**type(self).metadata, "autoreset_mode": _autoreset_mode(autoreset_mode)}
         self.copy = bool(copy)
         # The env's own arrays: Rust writes the raw observation into `_raw` and the task its
@@ -334,7 +379,8 @@ class UsarsimVectorEnv(Realism, Replay, VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         first = _first(map)
         self._batch = _core.Batch(map, _robot(robot), [0] * self.num_envs, np.repeat(first, self.num_envs, 0),
-                                  1, period, noise, bool(state_only), action_mode, size if self._kinds else None)
+                                  1, period, noise, bool(state_only), action_mode, size if self._kinds else None,
+                                  **_rates(physics_rate, sensor_rates, robots))
         self.map = MapInfo(self._batch)
         self._tasks = Tasks(task, self.num_envs, self.map, start=start, waypoints=waypoints,
                             n_waypoints=n_waypoints, waypoint_radius=waypoint_radius, max_steps=max_steps,

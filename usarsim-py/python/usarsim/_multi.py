@@ -9,7 +9,7 @@ import numpy as np
 from . import _core
 from gymnasium.error import ClosedEnvironmentError, ResetNeeded
 
-from ._env import Replay, _actions, _first, _render_mode, _rng, _robot, _seed
+from ._env import Replay, _actions, _first, _rates, _render_mode, _rng, _robot, _seed
 from ._maps import MapInfo
 from ._render import TopView
 from ._task import (Tasks, action_space, add_extras, camera_kinds, image_size, observation_space, with_extras,
@@ -40,7 +40,8 @@ class MultiUavEnv(Replay, ParallelEnv):
                  waypoint_radius: float = 0.5, period: float = 0.1, noise: float | None = None,
                  max_steps: int | None = None, render_mode: str | None = None, state_only: bool = False,
                  flat: bool = False, action_mode: str = "velocity", camera: str | None = None,
-                 camera_size=(64, 64), radio: bool = False) -> None:
+                 camera_size=(64, 64), radio: bool = False, physics_rate: float | None = None,
+                 sensor_rates: dict | None = None, robots: str | None = None) -> None:
         if ParallelEnv is object:
             raise ImportError("usarsim.multi_uav needs pettingzoo: pip install pettingzoo")
         if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1):
@@ -48,19 +49,22 @@ class MultiUavEnv(Replay, ParallelEnv):
         self._recipe = dict(n=n, task=task, map=map, robot=robot, starts=starts, n_waypoints=n_waypoints,
                             waypoint_radius=waypoint_radius, period=period, noise=noise, max_steps=max_steps,
                             render_mode=render_mode, state_only=state_only, flat=flat, action_mode=action_mode,
-                            camera=camera, camera_size=camera_size, radio=radio)
+                            camera=camera, camera_size=camera_size, radio=radio, physics_rate=physics_rate,
+                            sensor_rates=sensor_rates, robots=robots)
         self.n = int(n)
         self.render_mode = _render_mode(render_mode)
         self.possible_agents = [f"uav_{i}" for i in range(self.n)]
         self.agents = []
         first = _first(map)
-        probe = _core.Batch(map, _robot(robot), [0], first, 1, period, noise, bool(state_only), action_mode)
+        rates = _rates(physics_rate, sensor_rates, robots)
+        probe = _core.Batch(map, _robot(robot), [0], first, 1, period, noise, bool(state_only), action_mode,
+                            **rates)
         self.map = MapInfo(probe)
         self._kinds = camera_kinds(camera)
         size = image_size(camera_size)
         self._radio = bool(radio)
         self._args = (map, _robot(robot), period, noise, bool(state_only), action_mode,
-                      size if self._kinds else None)
+                      size if self._kinds else None, rates)
         self._space = self._base_space = with_extras(observation_space(state_only, flat), self._kinds, size,
                                                      self.n if radio else 0)
         self._probe = probe  # checks configure()'s texts before the first reset
@@ -135,9 +139,9 @@ class MultiUavEnv(Replay, ParallelEnv):
         starts = self._tasks.new_starts(self._rng, range(self.n), True, options, poses=self._starts)
         seed = _seed(self._rng)
         if self._batch is None:
-            map_, robot, period, noise, state_only, action_mode, camera = self._args
+            map_, robot, period, noise, state_only, action_mode, camera, rates = self._args
             self._batch = _core.Batch(map_, robot, [seed], starts, self.n, period, noise, state_only,
-                                      action_mode, camera)
+                                      action_mode, camera, **rates)
             if not self._realism:
                 seed = None  # the new world is the reset
             else:
