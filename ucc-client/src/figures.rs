@@ -62,7 +62,7 @@ impl Figures {
             ("square", self.square, t.square),
         ]
         .into_iter()
-        .filter(|(_, v, limit)| !(v <= limit))
+        .filter(|(_, v, limit)| v.is_nan() || v > limit)
         .map(|(name, v, limit)| format!("{name} {v:.3} (target {limit})"))
         .collect()
     }

@@ -68,6 +68,7 @@ pub mod backend;
 pub mod camera;
 pub mod connection;
 pub mod error;
+pub mod estimator;
 pub mod figures;
 pub mod flight;
 pub mod geometry;
