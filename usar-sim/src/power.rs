@@ -90,23 +90,6 @@ impl BatteryConfig {
     }
 }
 
-/// Shaft power (W) of a rotor of disk area `area` (m²) giving `thrust` (N) while the air
-/// flows through it at `climb` (m/s along the thrust, + = climbing): momentum theory's
-/// `T·(v_c/2 + sqrt((v_c/2)² + v_h²))` with the hover induced velocity
-/// `v_h = sqrt(T/(2ρA))`, over the figure of merit. In hover it is `T^{3/2}/sqrt(2ρA)/FM`.
-pub(crate) fn rotor_power(
-    thrust: f64,
-    climb: f64,
-    area: f64,
-    density: f64,
-    figure_of_merit: f64,
-) -> f64 {
-    let t = thrust.max(0.0);
-    let vh2 = t / (2.0 * density * area);
-    let half = climb / 2.0;
-    t * (half + (half * half + vh2).sqrt()) / figure_of_merit
-}
-
 /// The battery's state.
 #[derive(Debug, Clone)]
 pub(crate) struct Battery {

@@ -21,7 +21,7 @@ use super::dynamics::{
     Crash, Dynamics, Flight, GRAVITY, ImuTruth, LowLevel, M3, SetPoints, cross, dot, mul_t, norm,
     sub, transpose, wrap_angle,
 };
-use super::power::{Battery, BatteryConfig, Gauge, rotor_power};
+use super::power::{Battery, BatteryConfig, Gauge};
 use super::scene::{V3, yaw_rotate};
 use super::wind::{Gusts, WindConfig};
 
@@ -119,10 +119,6 @@ pub struct QuadrotorConfig {
     pub gear_radius: f64,
     /// m, rotor (propeller) radius.
     pub rotor_radius: f64,
-    /// Figure of merit of a rotor: ideal induced power over the shaft power in hover.
-    pub figure_of_merit: f64,
-    /// kg/m³, air density.
-    pub air_density: f64,
     /// Ground effect (Cheeseman–Bennett) on.
     pub ground_effect: bool,
     /// The battery, used when the class has one (`battery = ..`).
@@ -135,12 +131,12 @@ impl Default for QuadrotorConfig {
             mass: 1.3,
             arm_length: 0.3,
             inertia: [0.0218, 0.0207, 0.0377],
-            thrust_coefficient: 6.4e-6,
-            torque_coefficient: 1.25e-7,
+            thrust_coefficient: 2.678e-5,
+            torque_coefficient: 5.197e-7,
             motor_time_constant: 0.03,
             motor_time_constant_down: 0.03,
-            rotor_speed_min: 100.0,
-            rotor_speed_max: 1000.0,
+            rotor_speed_min: 48.9,
+            rotor_speed_max: 488.9,
             drag_linear: 0.25,
             drag_quadratic: 0.05,
             configuration: Configuration::X,
@@ -153,9 +149,7 @@ impl Default for QuadrotorConfig {
             friction: 0.5,
             restitution: 0.2,
             gear_radius: 0.2,
-            rotor_radius: 0.15,
-            figure_of_merit: 0.6,
-            air_density: 1.225,
+            rotor_radius: 0.1524,
             ground_effect: true,
             battery: BatteryConfig::default(),
         }
@@ -186,8 +180,6 @@ impl QuadrotorConfig {
             ("quadrotor.max_tilt_rate", self.max_tilt_rate),
             ("quadrotor.gear_radius", self.gear_radius),
             ("quadrotor.rotor_radius", self.rotor_radius),
-            ("quadrotor.figure_of_merit", self.figure_of_merit),
-            ("quadrotor.air_density", self.air_density),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{what} must be a positive number, got {v}"));
@@ -238,8 +230,6 @@ impl QuadrotorConfig {
             ("quadrotor.restitution", self.restitution, 1.0),
             ("quadrotor.gear_radius", self.gear_radius, 100.0),
             ("quadrotor.rotor_radius", self.rotor_radius, 100.0),
-            ("quadrotor.figure_of_merit", self.figure_of_merit, 1.0),
-            ("quadrotor.air_density", self.air_density, 100.0),
         ] {
             if v > max {
                 return Err(format!(
@@ -379,8 +369,6 @@ pub(crate) struct Quadrotor {
     /// kg carried besides the body ([`Dynamics::set_payload`]); the controller does not
     /// know it (its integral takes it up), the physics does.
     payload: f64,
-    /// Rotor disk area, m².
-    disk: f64,
     /// Fraction of each rotor's thrust and torque left (motor faults): the motor turns at
     /// √health of the speed asked, so `speeds` are the rotors' true speeds.
     health: [f64; 4],
@@ -511,7 +499,6 @@ impl Quadrotor {
             battery: limits.battery.then(|| Battery::new(config.battery.clone())),
             top_speed: config.rotor_speed_max,
             payload: 0.0,
-            disk: std::f64::consts::PI * config.rotor_radius.powi(2),
             health: [1.0; 4],
             config,
             limits,
@@ -796,20 +783,17 @@ impl Quadrotor {
     /// the rotors' top speed (`rotor_speed_max` at full charge, in proportion below: a
     /// motor's no-load speed is K_v·V); at the reserve the autopilot lands, empty the
     /// motors stop.
-    fn use_energy(&mut self, climb: f64, h: f64) {
+    fn use_energy(&mut self, h: f64) {
         let Some(battery) = &mut self.battery else {
             return;
         };
         let c = &self.config;
+        // The mechanical power the motors deliver: each rotor's drag torque km·ω² (the
+        // torque that yaws the body) times its speed.
         let shaft: f64 = self
             .speeds
             .iter()
-            .map(|w| {
-                let thrust = c.thrust_coefficient * w * w;
-                // (In ground effect the same power gives more thrust: the power is that of
-                // the thrust out of it.)
-                rotor_power(thrust, climb, self.disk, c.air_density, c.figure_of_merit)
-            })
+            .map(|w| c.torque_coefficient * w * w * w)
             .sum();
         // The avionics (autopilot, radio, sensors) draw their power whatever the motors do:
         // landed, crashed or with its motors stopped, a vehicle still reports.
@@ -864,8 +848,7 @@ impl Quadrotor {
             }
             let (thrust, mut torque) = self.wrench();
             // Air through the rotors along the thrust (+ = climbing).
-            let climb = -dot([r[0][2], r[1][2], r[2][2]], sub(v, wind));
-            self.use_energy(climb, h);
+            self.use_energy(h);
             let air = sub(v, wind);
             let spin = self.speeds.iter().sum::<f64>() / (4.0 * c.hover_speed());
             let drag = c.drag_linear * spin + c.drag_quadratic * norm(air);
