@@ -6,6 +6,7 @@
 
 use ucc_client::agents;
 use ucc_client::estimator::{EstimatorConfig, FromEstimate};
+use ucc_client::figures::to_segment;
 use ucc_client::{Agent, Coordinates, Mission, UavState};
 use usar_proto::{Command, Init, ServerMessage};
 use usar_server::sim::map::Map;
@@ -33,13 +34,6 @@ struct Flown {
     worst: f64,
 }
 
-/// Distance from `p` to the segment `a`–`b`, horizontal.
-fn to_segment(p: [f64; 3], a: (f64, f64), b: (f64, f64)) -> f64 {
-    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-    let t = (((p[0] - a.0) * dx + (p[1] - a.1) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
-    (p[0] - a.0 - t * dx).hypot(p[1] - a.1 - t * dy)
-}
-
 fn fly(estimate: bool) -> Flown {
     let mut world = World::new(
         Map::default_map(),
@@ -63,10 +57,10 @@ fn fly(estimate: bool) -> Flown {
     let mut raw = agents::create("base").unwrap();
     let mut estimated =
         FromEstimate::new(agents::create("base").unwrap(), EstimatorConfig::default());
-    let corners = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)];
+    let corners =
+        [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)].map(|(x, y)| Coordinates::new(x, y, -1.0));
     for i in 1..=4 {
-        let (x, y) = corners[i % 4];
-        let goto = Mission::goto(Coordinates::new(x, y, -1.0));
+        let goto = Mission::goto(corners[i % 4]);
         estimated.add_mission(goto.clone()).unwrap();
         raw.add_mission(goto).unwrap();
     }
@@ -101,7 +95,7 @@ fn fly(estimate: bool) -> Flown {
         let truth = world.robots_truth()[0].location;
         flown.square = flown.square.max(
             (0..4)
-                .map(|i| to_segment(truth, corners[i], corners[(i + 1) % 4]))
+                .map(|i| to_segment(Coordinates::from(truth), corners[i], corners[(i + 1) % 4]))
                 .fold(f64::MAX, f64::min),
         );
         if let Some(e) = seen.filter(|_| time > 1.0) {

@@ -89,24 +89,11 @@ async fn four_waypoints_are_reached_in_order_within_tolerance() {
     server.stop().await.unwrap();
 }
 
-/// Distance from point `p` to the segment `a`–`b`, in the horizontal plane.
-fn distance_to_segment(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
-    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-    let len2 = dx * dx + dy * dy;
-    let t = if len2 == 0.0 {
-        0.0
-    } else {
-        (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / len2).clamp(0.0, 1.0)
-    };
-    let (x, y) = (a.0 + t * dx, a.1 + t * dy);
-    ((p.0 - x).powi(2) + (p.1 - y).powi(2)).sqrt()
-}
-
 #[tokio::test]
 async fn the_avoid_agent_flies_around_a_pillar_without_touching_it() {
     let server = server("arena").await;
     // The arena's pillar of radius 0.3 m at (-5, -4) stands right between start and goal.
-    let pillar = (-5.0, -4.0);
+    let pillar = Coordinates::new(-5.0, -4.0, 0.0);
     let goal = Coordinates::new(-2.0, -4.0, -1.5);
     let settings = RunSettings {
         addr: server.addr().to_string(),
@@ -117,14 +104,10 @@ async fn the_avoid_agent_flies_around_a_pillar_without_touching_it() {
         ..RunSettings::default()
     };
     let (summary, _) = fly(&settings, "avoid").await;
-    let path: Vec<(f64, f64)> = summary.iterations[0]
+    let closest = summary.iterations[0]
         .trajectory
-        .iter()
-        .map(|p| (p.position.x, p.position.y))
-        .collect();
-    let closest = path
         .windows(2)
-        .map(|s| distance_to_segment(pillar, s[0], s[1]))
+        .map(|s| ucc_client::figures::to_segment(pillar, s[0].position, s[1].position))
         .fold(f64::INFINITY, f64::min);
     // The UAV's collision radius is 0.45 m: touching means a centre within 0.75 m.
     assert!(

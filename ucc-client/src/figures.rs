@@ -163,7 +163,7 @@ pub async fn measure_local(robots: &[&str]) -> Result<Vec<Figures>, String> {
 }
 
 /// Horizontal distance from `p` to the segment `a`–`b`.
-fn to_segment(p: Coordinates, a: Coordinates, b: Coordinates) -> f64 {
+pub fn to_segment(p: Coordinates, a: Coordinates, b: Coordinates) -> f64 {
     let (ab, ap) = ((b - a).xy(), (p - a).xy());
     if ab.norm_squared() == 0.0 {
         return ap.norm();

@@ -3,6 +3,13 @@
 
 use usar_proto::Drive;
 
+/// m/s at a linear, lateral or altitude command of 100 % (the AirRobot's maximum,
+/// protocol.md §2.3).
+pub const FULL_SPEED: f64 = 2.0;
+
+/// deg/s at a yaw command of 100 % (the AirRobot's maximum).
+pub const FULL_TURN: f64 = 100.0;
+
 /// A speed command, each component a percentage of the maximum speed in -100..=100
 /// (the AirRobot's maximum is 2 m/s and 100 deg/s, protocol.md §2.3).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -516,9 +516,8 @@ impl UavState {
         if dt <= 0.0 {
             return;
         }
-        const MAX_SPEED: f64 = 2.0; // m/s, the AirRobot's linear, lateral and altitude maximum
         let c = self.command.as_ref().map(|c| c.value).unwrap_or_default();
-        let body = Coordinates::new(c.forward, c.right, -c.up) * (MAX_SPEED / 100.0);
+        let body = Coordinates::new(c.forward, c.right, -c.up) * (crate::speed::FULL_SPEED / 100.0);
         let velocity =
             crate::geometry::body_to_world_vector(&body, &Coordinates::new(0.0, 0.0, self.yaw()));
         let mut value = last.value + velocity * dt;

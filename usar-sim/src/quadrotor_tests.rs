@@ -1540,6 +1540,18 @@ fn bad_fault_lines_say_what_is_wrong() {
     );
 }
 
+/// A world over a 1 km floor with the faults of `plan`.
+fn faulty_world(plan: faults::FaultPlan) -> World {
+    World::new(
+        floor_map(1000.0),
+        RobotCatalog::embedded(),
+        SimConfig {
+            faults: plan,
+            ..SimConfig::default()
+        },
+    )
+}
+
 #[test]
 fn a_faults_file_fails_a_motor_at_its_time() {
     let plan = faults::FaultPlan::from_toml(
@@ -1547,14 +1559,7 @@ fn a_faults_file_fails_a_motor_at_its_time() {
     )
     .expect("plan");
     let run_with = |plan: faults::FaultPlan| {
-        let mut w = World::new(
-            floor_map(1000.0),
-            RobotCatalog::embedded(),
-            SimConfig {
-                faults: plan,
-                ..SimConfig::default()
-            },
-        );
+        let mut w = faulty_world(plan);
         let c = spawn(&mut w, [0.0, 0.0, -30.0], 0.0);
         let before = printed(&run(&mut w, 1.99));
         run(&mut w, 2.0);
@@ -1886,14 +1891,7 @@ fn a_fault_for_each_robot_comes_at_its_time_after_every_spawn() {
         "[[fault]]\ntime = 1.0\nrobot = \"each\"\nline = \"FAULT {Motor 1} {Thrust 0}\"\n",
     )
     .expect("plan");
-    let mut w = World::new(
-        floor_map(1000.0),
-        RobotCatalog::embedded(),
-        SimConfig {
-            faults: plan,
-            ..SimConfig::default()
-        },
-    );
+    let mut w = faulty_world(plan);
     let falls = |w: &mut World, c: ClientId| {
         run(w, 0.95);
         let hovering = state(w, c).0[2];

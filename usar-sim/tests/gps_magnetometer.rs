@@ -39,14 +39,17 @@ fn catalog() -> RobotCatalog {
     catalog
 }
 
-fn map() -> Map {
-    Map::from_toml(MAP, Path::new("geo.toml")).unwrap()
-}
-
-#[test]
-fn gps_and_magnetometer_lines_conf_and_geo() {
-    let (map, catalog) = (map(), catalog());
-    catalog.check_map(&map).unwrap();
+/// A world of `map` and `catalog` with a quadrotor spawned at Start1 and flown `ticks`
+/// ticks: the world, the quadrotor's connection, every line printed.
+fn fly(
+    map: Map,
+    catalog: RobotCatalog,
+    ticks: usize,
+) -> (
+    World,
+    usar_sim::ClientId,
+    Vec<(usar_sim::ClientId, ServerMessage)>,
+) {
     let mut world = World::new(map, catalog, SimConfig::default());
     let c = world.connect();
     world.command(
@@ -58,9 +61,21 @@ fn gps_and_magnetometer_lines_conf_and_geo() {
         }),
     );
     let mut out = Vec::new();
-    for _ in 0..200 {
+    for _ in 0..ticks {
         world.step(&mut out);
     }
+    (world, c, out)
+}
+
+fn map() -> Map {
+    Map::from_toml(MAP, Path::new("geo.toml")).unwrap()
+}
+
+#[test]
+fn gps_and_magnetometer_lines_conf_and_geo() {
+    let (map, catalog) = (map(), catalog());
+    catalog.check_map(&map).unwrap();
+    let (mut world, c, out) = fly(map, catalog, 200);
     let lines: Vec<String> = out.iter().map(|(_, m)| m.to_string()).collect();
     let gps: Vec<&String> = lines.iter().filter(|l| l.contains("{Type GPS}")).collect();
     // 10 Hz by default, timestamped (UDK's GPSSensor inherits the Sensor defaults).
@@ -127,20 +142,7 @@ fn a_gps_without_a_map_origin_names_the_robot_the_sensor_and_the_map() {
         .check_map(&Map::default_map())
         .unwrap();
     // Spawned anyway (a program that skips the check), it reports no fix.
-    let mut world = World::new(Map::default_map(), catalog(), SimConfig::default());
-    let c = world.connect();
-    world.command(
-        c,
-        Command::Init(Init {
-            class_name: QUAD.into(),
-            start: Some("Start1".into()),
-            ..Init::default()
-        }),
-    );
-    let mut out = Vec::new();
-    for _ in 0..40 {
-        world.step(&mut out);
-    }
+    let (_, _, out) = fly(Map::default_map(), catalog(), 40);
     let gps = out
         .iter()
         .map(|(_, m)| m.to_string())

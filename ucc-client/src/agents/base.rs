@@ -30,6 +30,7 @@ use super::AgentInfo;
 use crate::agent::{Agent, AgentEvent, MissionRefused, SpeedCommand, Step};
 use crate::geometry::{Coordinates, world_to_heading};
 use crate::mission::Mission;
+use crate::speed::{FULL_SPEED, FULL_TURN};
 use crate::uav::UavState;
 
 /// The registry entry.
@@ -77,12 +78,6 @@ impl Default for WaypointConfig {
         }
     }
 }
-
-/// m/s at a speed command of 100 % (the AirRobot's maximum, protocol.md §2.3).
-pub const FULL_SPEED: f64 = 2.0;
-
-/// deg/s at a yaw command of 100 % (the AirRobot's maximum).
-pub const FULL_TURN: f64 = 100.0;
 
 /// The position loop: the speed command that takes a UAV at `position` with heading `yaw`
 /// towards `target` (world frame, z down) at `gain` metres per second per metre of distance,
